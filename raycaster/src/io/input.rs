@@ -1,0 +1,365 @@
+//! Slab-wise reading of raw and `.vol` inputs with positioned reads.
+
+use std::fs::File;
+use std::os::unix::fs::FileExt;
+use std::path::{Path, PathBuf};
+
+use super::decode::{Endian, RawType, decode_into};
+use crate::job::Job;
+use crate::volume::{
+    AtPath, BlockGrid, Content, Header, Layout, MAX_AXIS, SampleType, VolumeError, VolumeErrorKind,
+    read_header,
+};
+
+/// Bytes read per positioned read when streaming.
+const CHUNK_BYTES: usize = 4 << 20;
+
+/// Which coordinate changes fastest in a raw file.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum RawOrder {
+    /// x fastest, then y, then z (C order `[z][y][x]`: most raw dumps).
+    #[default]
+    XFastest,
+    /// z fastest, then y, then x (the `.vol` linear order).
+    ZFastest,
+}
+
+/// How to read a headerless raw file.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RawSpec {
+    /// Voxel counts on x, y, z.
+    pub dims: [u32; 3],
+    /// Sample type.
+    pub sample: RawType,
+    /// Byte order of multi-byte samples.
+    pub endian: Endian,
+    /// Bytes to skip before the first sample (a foreign header).
+    pub skip: u64,
+    /// Which coordinate is fastest.
+    pub order: RawOrder,
+}
+
+/// The value type an input delivers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InputType {
+    /// Unsigned 8-bit.
+    U8,
+    /// Unsigned 16-bit.
+    U16,
+    /// Signed 16-bit.
+    I16,
+    /// 32-bit float.
+    F32,
+}
+
+impl InputType {
+    /// Whether every value of this type is stored exactly by `out`.
+    pub fn fits_in(self, out: SampleType) -> bool {
+        matches!(
+            (self, out),
+            (InputType::U8, _) | (InputType::U16, SampleType::U16)
+        )
+    }
+}
+
+#[derive(Debug)]
+enum Source {
+    Raw(RawSpec),
+    Vol(Header),
+}
+
+/// A volume being read slab by slab (runs of whole x-planes).
+#[derive(Debug)]
+pub struct Input {
+    path: PathBuf,
+    file: File,
+    source: Source,
+}
+
+impl Input {
+    /// Opens a headerless raw file described by `spec`; its size must match exactly.
+    pub fn open_raw(path: &Path, spec: RawSpec) -> Result<Input, VolumeError> {
+        let bad = |msg: String| VolumeError::new(path, VolumeErrorKind::RawSpec(msg));
+        for (axis, &d) in ['x', 'y', 'z'].iter().zip(&spec.dims) {
+            if d == 0 || d > MAX_AXIS {
+                return Err(bad(format!(
+                    "raw size on {axis} is {d}; it must be between 1 and {MAX_AXIS}"
+                )));
+            }
+        }
+        let file = File::open(path).at(path)?;
+        let len = file.metadata().at(path)?.len();
+        let needed = spec
+            .dims
+            .iter()
+            .try_fold(spec.sample.size() as u64, |a, &d| {
+                a.checked_mul(u64::from(d))
+            })
+            .and_then(|n| n.checked_add(spec.skip))
+            .ok_or_else(|| bad("raw sizes overflow 64 bits".into()))?;
+        if len != needed {
+            let [x, y, z] = spec.dims;
+            return Err(bad(format!(
+                "file has {len} bytes but {x}x{y}x{z} samples of {} bytes after a {}-byte skip need {needed}",
+                spec.sample.size(),
+                spec.skip
+            )));
+        }
+        Ok(Input {
+            path: path.to_path_buf(),
+            file,
+            source: Source::Raw(spec),
+        })
+    }
+
+    /// Opens a `.vol` file (either header format, any layout).
+    pub fn open_vol(path: &Path) -> Result<Input, VolumeError> {
+        let (header, file, _) = read_header(path)?;
+        Ok(Input {
+            path: path.to_path_buf(),
+            file,
+            source: Source::Vol(header),
+        })
+    }
+
+    /// The file being read.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Voxel counts on x, y, z.
+    pub fn dims(&self) -> [u32; 3] {
+        match &self.source {
+            Source::Raw(spec) => spec.dims,
+            Source::Vol(h) => h.dims,
+        }
+    }
+
+    /// The header of a `.vol` input.
+    pub fn header(&self) -> Option<&Header> {
+        match &self.source {
+            Source::Raw(_) => None,
+            Source::Vol(h) => Some(h),
+        }
+    }
+
+    /// Scalar values or labels (raw inputs are scalar).
+    pub fn content(&self) -> Content {
+        self.header().map_or(Content::Scalar, |h| h.content)
+    }
+
+    /// The type of the values this input delivers.
+    pub fn value_type(&self) -> InputType {
+        match &self.source {
+            Source::Raw(spec) => match spec.sample {
+                RawType::U8 => InputType::U8,
+                RawType::U16 => InputType::U16,
+                RawType::I16 => InputType::I16,
+                RawType::F32 => InputType::F32,
+            },
+            Source::Vol(h) => match h.sample_type {
+                SampleType::U8 => InputType::U8,
+                SampleType::U16 => InputType::U16,
+            },
+        }
+    }
+
+    fn raw_type(&self) -> (RawType, Endian) {
+        match &self.source {
+            Source::Raw(spec) => (spec.sample, spec.endian),
+            Source::Vol(h) => match h.sample_type {
+                SampleType::U8 => (RawType::U8, Endian::Little),
+                SampleType::U16 => (RawType::U16, Endian::Little),
+            },
+        }
+    }
+
+    fn read_at(&self, buf: &mut [u8], offset: u64) -> Result<(), VolumeError> {
+        self.file.read_exact_at(buf, offset).at(&self.path)
+    }
+
+    /// Fills `out` with `map(value)` for every voxel of planes `x0..x1`, x slowest
+    /// and z fastest (`out.len() == (x1 - x0) · dims_y · dims_z`).
+    pub fn read_slab<O: Copy>(
+        &self,
+        x0: u32,
+        x1: u32,
+        map: &impl Fn(f32) -> O,
+        out: &mut [O],
+    ) -> Result<(), VolumeError> {
+        let [dx, dy, dz] = self.dims().map(u64::from);
+        assert!(x0 < x1 && u64::from(x1) <= dx, "slab outside the volume");
+        let plane = (dy * dz) as usize;
+        assert_eq!(out.len(), (x1 - x0) as usize * plane, "slab buffer size");
+        let (ty, endian) = self.raw_type();
+        let size = ty.size();
+        match &self.source {
+            Source::Raw(RawSpec {
+                order: RawOrder::ZFastest,
+                skip,
+                ..
+            }) => {
+                self.read_contiguous(*skip + u64::from(x0) * plane as u64 * size as u64, map, out)
+            }
+            Source::Vol(h) if h.layout == Layout::Linear => {
+                let offset = h.data_offset + u64::from(x0) * plane as u64 * size as u64;
+                self.read_contiguous(offset, map, out)
+            }
+            Source::Raw(spec) => {
+                // x fastest: read whole rows in large chunks, keep x0..x1 of each.
+                let row_len = dx as usize * size;
+                let rows_per_chunk = (CHUNK_BYTES / row_len).max(1);
+                let total_rows = (dy * dz) as usize;
+                let width = (x1 - x0) as usize;
+                let mut buf = vec![0u8; rows_per_chunk * row_len];
+                let mut vals = vec![map(0.0); width];
+                let mut row = 0;
+                while row < total_rows {
+                    let n = rows_per_chunk.min(total_rows - row);
+                    let chunk = &mut buf[..n * row_len];
+                    self.read_at(chunk, spec.skip + (row * row_len) as u64)?;
+                    for (r, bytes) in chunk.chunks_exact(row_len).enumerate() {
+                        let (z, y) = ((row + r) / dy as usize, (row + r) % dy as usize);
+                        let picked = &bytes[x0 as usize * size..x1 as usize * size];
+                        decode_into(picked, ty, endian, map, &mut vals);
+                        for (i, &v) in vals.iter().enumerate() {
+                            out[i * plane + y * dz as usize + z] = v;
+                        }
+                    }
+                    row += n;
+                }
+                Ok(())
+            }
+            Source::Vol(h) => self.read_bricked_slab(h, x0, x1, map, out),
+        }
+    }
+
+    fn read_contiguous<O: Copy>(
+        &self,
+        offset: u64,
+        map: &impl Fn(f32) -> O,
+        out: &mut [O],
+    ) -> Result<(), VolumeError> {
+        let (ty, endian) = self.raw_type();
+        let per_chunk = CHUNK_BYTES / ty.size();
+        let mut buf = vec![0u8; per_chunk.min(out.len()) * ty.size()];
+        let mut pos = offset;
+        for part in out.chunks_mut(per_chunk) {
+            let bytes = &mut buf[..part.len() * ty.size()];
+            self.read_at(bytes, pos)?;
+            decode_into(bytes, ty, endian, map, part);
+            pos += bytes.len() as u64;
+        }
+        Ok(())
+    }
+
+    fn read_bricked_slab<O: Copy>(
+        &self,
+        header: &Header,
+        x0: u32,
+        x1: u32,
+        map: &impl Fn(f32) -> O,
+        out: &mut [O],
+    ) -> Result<(), VolumeError> {
+        let Layout::Bricked { side } = header.layout else {
+            unreachable!("linear handled by the caller")
+        };
+        let (ty, endian) = self.raw_type();
+        let grid = BlockGrid::new(header.dims, u32::from(side));
+        let [_, ny, nz] = grid.counts();
+        let [_, dy, dz] = header.dims.map(|d| d as usize);
+        let b = side as usize;
+        let brick_bytes = b * b * b * ty.size();
+        // Bricks of one (bx, by) are contiguous in the file: read them together.
+        let mut buf = vec![0u8; nz as usize * brick_bytes];
+        let mut vals = vec![map(0.0); nz as usize * b * b * b];
+        let bx_first = grid.brick_of_voxel([x0, 0, 0])[0];
+        let bx_last = grid.brick_of_voxel([x1 - 1, 0, 0])[0];
+        for bx in bx_first..=bx_last {
+            for by in 0..ny {
+                let first = grid.index([bx, by, 0]);
+                self.read_at(&mut buf, header.data_offset + first * brick_bytes as u64)?;
+                decode_into(&buf, ty, endian, map, &mut vals);
+                for bz in 0..nz {
+                    let brick = &vals[bz as usize * b * b * b..][..b * b * b];
+                    let o = grid.origin([bx, by, bz]);
+                    let e = grid.extent([bx, by, bz]);
+                    for lx in 0..e[0] {
+                        let x = o[0] + lx;
+                        if x < x0 || x >= x1 {
+                            continue;
+                        }
+                        for ly in 0..e[1] as usize {
+                            let src = &brick[(lx as usize * b + ly) * b..][..e[2] as usize];
+                            let row = ((x - x0) as usize * dy + o[1] as usize + ly) * dz;
+                            out[row + o[2] as usize..][..src.len()].copy_from_slice(src);
+                        }
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Smallest and largest value of the volume (NaN ignored), in one streaming pass;
+    /// `None` when every value is NaN.
+    pub fn value_range(&self, job: &Job) -> Result<Option<(f32, f32)>, VolumeError> {
+        let dims = self.dims();
+        let plane = dims[1] as usize * dims[2] as usize;
+        let mut lo_hi = (f32::INFINITY, f32::NEG_INFINITY);
+        let mut fold = |values: &[f32]| -> Result<(), VolumeError> {
+            for &v in values {
+                // NaN fails both comparisons and is skipped.
+                if v < lo_hi.0 {
+                    lo_hi.0 = v;
+                }
+                if v > lo_hi.1 {
+                    lo_hi.1 = v;
+                }
+            }
+            job.advance(values.len() as u64);
+            if job.is_cancelled() {
+                return Err(VolumeError::new(&self.path, VolumeErrorKind::Cancelled));
+            }
+            Ok(())
+        };
+        let chunk_values = CHUNK_BYTES / 4;
+        let mut buf = Vec::new();
+        if let Some(
+            h @ Header {
+                layout: Layout::Bricked { .. },
+                ..
+            },
+        ) = self.header()
+        {
+            // Bricks carry padding past the volume's edge: go through slabs.
+            let planes = (chunk_values / plane).clamp(1, h.dims[0] as usize) as u32;
+            let mut x0 = 0;
+            while x0 < dims[0] {
+                let x1 = (x0 + planes).min(dims[0]);
+                buf.resize((x1 - x0) as usize * plane, 0.0);
+                self.read_slab(x0, x1, &|v| v, &mut buf)?;
+                fold(&buf)?;
+                x0 = x1;
+            }
+        } else {
+            // Every stored sample is a voxel: stream them in file order.
+            let start = match &self.source {
+                Source::Raw(spec) => spec.skip,
+                Source::Vol(h) => h.data_offset,
+            };
+            let total = plane as u64 * u64::from(dims[0]);
+            let size = self.raw_type().0.size() as u64;
+            let mut done = 0u64;
+            while done < total {
+                let n = (total - done).min(chunk_values as u64) as usize;
+                buf.resize(n, 0.0);
+                self.read_contiguous(start + done * size, &|v| v, &mut buf)?;
+                fold(&buf)?;
+                done += n as u64;
+            }
+        }
+        let (lo, hi) = lo_hi;
+        Ok((lo <= hi).then_some((lo, hi)))
+    }
+}

@@ -1,0 +1,14 @@
+//! Streaming volume I/O in bounded memory.
+//!
+//! Everything is moved in *slabs*: runs of whole x-planes (all y and z), which is the
+//! unit both layouts can be written from. [`Input`] reads a slab from a raw file or a
+//! `.vol` file with positioned reads (never mapping or reading the whole input);
+//! [`write_volume`] asks for slabs in order and writes a `.vol` file atomically.
+
+mod decode;
+mod input;
+mod writer;
+
+pub use decode::{Endian, RawType};
+pub use input::{Input, InputType, RawOrder, RawSpec};
+pub use writer::{WriteOptions, WriteSummary, write_volume};

@@ -1,0 +1,21 @@
+//! raycaster: CPU ray casting of huge bricked, memory-mapped volumes.
+//!
+//! This crate is the library behind the `volgen` generator/converter and the
+//! renderer front ends. Modules:
+//! - [`volume`]: the `.vol` format, mapped/RAM volumes, bricks and value ranges;
+//! - [`io`]: streaming readers (raw and `.vol`) and the atomic volume writer;
+//! - [`synth`]: deterministic synthetic scenes;
+//! - [`generate`] and [`convert`]: the generation and conversion jobs;
+//! - [`job`]: progress reporting and cancellation.
+
+#[cfg(target_endian = "big")]
+compile_error!(
+    "raycaster views little-endian samples in place; big-endian hosts are not supported"
+);
+
+pub mod convert;
+pub mod generate;
+pub mod io;
+pub mod job;
+pub mod synth;
+pub mod volume;

@@ -1,0 +1,249 @@
+//! An opened `.vol` file: header, samples (mapped or in RAM) and per-brick ranges.
+
+use std::fs::File;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+use super::error::{AtPath, VolumeError, VolumeErrorKind};
+use super::header::{Content, EXTENDED_HEADER_LEN, Format, Header, Layout, SampleType};
+use super::ranges::{BrickRanges, LINEAR_RANGE_SIDE};
+use super::storage::{Access, Storage};
+use super::view::TypedVolume;
+
+/// How to open a volume.
+#[derive(Clone, Copy, Debug)]
+pub struct OpenOptions {
+    /// Map the file or read it into RAM.
+    pub access: Access,
+    /// For thesis-format files, write the computed brick ranges to a sidecar
+    /// `<file>.ranges` so the next open does not rescan (best effort).
+    pub write_ranges_sidecar: bool,
+}
+
+impl Default for OpenOptions {
+    fn default() -> Self {
+        OpenOptions {
+            access: Access::Mapped,
+            write_ranges_sidecar: true,
+        }
+    }
+}
+
+/// The samples of a volume, typed.
+#[derive(Clone, Copy, Debug)]
+pub enum VolumeData<'a> {
+    /// 8-bit samples.
+    U8(TypedVolume<'a, u8>),
+    /// 16-bit samples.
+    U16(TypedVolume<'a, u16>),
+}
+
+/// An opened volume file. Whether it is mapped or in RAM is invisible to users of
+/// [`Volume::data`].
+#[derive(Debug)]
+pub struct Volume {
+    path: PathBuf,
+    header: Header,
+    storage: Storage,
+    ranges: BrickRanges,
+}
+
+/// Reads and validates the header of the volume file `path` (without mapping it).
+pub fn read_header(path: &Path) -> Result<(Header, File, u64), VolumeError> {
+    let file = File::open(path).at(path)?;
+    let meta = file.metadata().at(path)?;
+    if meta.is_dir() {
+        return Err(VolumeError::new(
+            path,
+            std::io::Error::new(std::io::ErrorKind::IsADirectory, "is a directory"),
+        ));
+    }
+    let len = meta.len();
+    let mut head = Vec::with_capacity(EXTENDED_HEADER_LEN as usize);
+    (&file)
+        .take(EXTENDED_HEADER_LEN)
+        .read_to_end(&mut head)
+        .at(path)?;
+    let header = Header::parse(&head, len).at(path)?;
+    Ok((header, file, len))
+}
+
+/// The sidecar file that caches brick ranges of a thesis-format file.
+pub fn ranges_sidecar_path(path: &Path) -> PathBuf {
+    let mut name = path.as_os_str().to_owned();
+    name.push(".ranges");
+    PathBuf::from(name)
+}
+
+impl Volume {
+    /// Opens `path` memory-mapped, caching brick ranges as [`OpenOptions::default`].
+    pub fn open(path: impl AsRef<Path>) -> Result<Volume, VolumeError> {
+        Self::open_with(path, OpenOptions::default())
+    }
+
+    /// Opens `path` as `options` say.
+    pub fn open_with(path: impl AsRef<Path>, options: OpenOptions) -> Result<Volume, VolumeError> {
+        let path = path.as_ref();
+        let (header, file, len) = read_header(path)?;
+        let storage = Storage::open(&file, len, options.access).at(path)?;
+        let data = typed_data(&header, storage.bytes()).at(path)?;
+        let ranges = load_ranges(path, &header, &storage, data, &file, len, options)?;
+        Ok(Volume {
+            path: path.to_path_buf(),
+            header,
+            storage,
+            ranges,
+        })
+    }
+
+    /// Scans the samples for the per-brick ranges (what open does without a cache).
+    pub fn compute_ranges(&self) -> BrickRanges {
+        compute_ranges(&self.header, self.data())
+    }
+
+    /// The file this volume was opened from.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The parsed header.
+    pub fn header(&self) -> &Header {
+        &self.header
+    }
+
+    /// Voxel counts on x, y, z.
+    pub fn dims(&self) -> [u32; 3] {
+        self.header.dims
+    }
+
+    /// Voxel spacing on x, y, z.
+    pub fn spacing(&self) -> [f32; 3] {
+        self.header.spacing
+    }
+
+    /// Sample order in the file.
+    pub fn layout(&self) -> Layout {
+        self.header.layout
+    }
+
+    /// Stored sample type.
+    pub fn sample_type(&self) -> SampleType {
+        self.header.sample_type
+    }
+
+    /// Scalar values or labels.
+    pub fn content(&self) -> Content {
+        self.header.content
+    }
+
+    /// Mapped or in RAM.
+    pub fn access(&self) -> Access {
+        self.storage.access()
+    }
+
+    /// Per-brick value ranges (bricks of the file, or logical bricks of
+    /// [`LINEAR_RANGE_SIDE`] voxels for linear files).
+    pub fn ranges(&self) -> &BrickRanges {
+        &self.ranges
+    }
+
+    /// The typed samples.
+    pub fn data(&self) -> VolumeData<'_> {
+        typed_data(&self.header, self.storage.bytes()).expect("alignment checked at open")
+    }
+
+    /// The sample at voxel `v` widened to u16 (slow path, for tools and tests).
+    ///
+    /// # Panics
+    /// If `v` is outside the volume.
+    pub fn voxel(&self, v: [u32; 3]) -> u16 {
+        match self.data() {
+            VolumeData::U8(t) => u16::from(t.voxel(v)),
+            VolumeData::U16(t) => t.voxel(v),
+        }
+    }
+}
+
+/// The typed samples of a file whose bytes are `file_bytes`.
+fn typed_data<'a>(
+    header: &Header,
+    file_bytes: &'a [u8],
+) -> Result<VolumeData<'a>, VolumeErrorKind> {
+    let start = header.data_offset as usize;
+    // The header was validated against the file length when it was parsed.
+    let end = header.data_end()? as usize;
+    let bytes = &file_bytes[start..end];
+    let (dims, layout) = (header.dims, header.layout);
+    Ok(match header.sample_type {
+        SampleType::U8 => VolumeData::U8(TypedVolume::new(bytes, dims, layout)),
+        SampleType::U16 => {
+            let samples =
+                bytemuck::try_cast_slice(bytes).map_err(|_| VolumeErrorKind::Misaligned)?;
+            VolumeData::U16(TypedVolume::new(samples, dims, layout))
+        }
+    })
+}
+
+fn compute_ranges(header: &Header, data: VolumeData<'_>) -> BrickRanges {
+    let grid = header.block_grid(LINEAR_RANGE_SIDE);
+    match data {
+        VolumeData::U8(v) => BrickRanges::compute(&v, &grid),
+        VolumeData::U16(v) => BrickRanges::compute(&v, &grid),
+    }
+}
+
+/// The brick ranges of an opened file: from its embedded table, from a fresh
+/// sidecar, or computed (and then cached in a sidecar for thesis files).
+fn load_ranges(
+    path: &Path,
+    header: &Header,
+    storage: &Storage,
+    data: VolumeData<'_>,
+    file: &File,
+    len: u64,
+    options: OpenOptions,
+) -> Result<BrickRanges, VolumeError> {
+    let dims = header.dims;
+    let grid = header.block_grid(LINEAR_RANGE_SIDE);
+    if let Some(offset) = header.ranges_offset {
+        let table = &storage.bytes()[offset as usize..];
+        return BrickRanges::decode(table, dims)
+            .filter(|r| r.grid() == &grid)
+            .ok_or_else(|| VolumeError::new(path, VolumeErrorKind::CorruptRanges));
+    }
+    let sidecar = ranges_sidecar_path(path);
+    let mtime = file.metadata().and_then(|m| m.modified()).ok();
+    if let (Some(mtime), Ok(bytes)) = (mtime, std::fs::read(&sidecar))
+        && let Some(r) = BrickRanges::decode_sidecar(&bytes, dims, len, mtime)
+        && r.grid() == &grid
+    {
+        return Ok(r);
+    }
+    let ranges = compute_ranges(header, data);
+    if options.write_ranges_sidecar
+        && header.format == Format::Thesis
+        && let Some(mtime) = mtime
+    {
+        // Best effort: a read-only directory only costs a rescan next time.
+        let _ = write_file_atomically(&sidecar, &ranges.encode_sidecar(len, mtime));
+    }
+    Ok(ranges)
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same directory and a
+/// rename, so readers never see a partial file.
+pub(crate) fn write_file_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    use std::io::Write;
+    let dir = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let mut tmp = tempfile::Builder::new()
+        .prefix(".ranges.")
+        .suffix(".partial")
+        .tempfile_in(dir)?;
+    tmp.write_all(bytes)?;
+    tmp.as_file().sync_all()?;
+    tmp.persist(path).map_err(|e| e.error)?;
+    Ok(())
+}

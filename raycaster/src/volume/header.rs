@@ -1,0 +1,478 @@
+//! The `.vol` header: the thesis's 26-byte header and our versioned extension.
+//!
+//! The byte tables are in `docs/format.md`. Parsing is a pure function of the header
+//! bytes and the file length, so it can be property-tested on random bytes.
+
+use super::grid::BlockGrid;
+
+/// Length of the thesis header (format version 0).
+pub const THESIS_HEADER_LEN: u64 = 26;
+/// Length of the extended header (thesis header + extension block).
+pub const EXTENDED_HEADER_LEN: u64 = 64;
+/// Magic bytes that open the extension block at byte 26.
+pub const EXTENSION_MAGIC: [u8; 4] = *b"RCVX";
+/// The extension version this build writes and reads.
+pub const EXTENSION_VERSION: u16 = 1;
+/// The largest size accepted on any axis (2^20 voxels).
+pub const MAX_AXIS: u32 = 1 << 20;
+/// Order byte of a thesis linear file.
+const ORDER_LINEAR: u8 = 1;
+/// Order byte of a thesis bricked file.
+const ORDER_BRICKED: u8 = 2;
+/// Set in the order byte when the extension block follows the thesis header.
+const ORDER_EXTENDED_BIT: u8 = 0x80;
+
+/// How samples are ordered in the file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Layout {
+    /// One linear array, z fastest, then y, then x.
+    Linear,
+    /// Cubic bricks of `side` voxels overlapping their neighbours by one voxel.
+    Bricked {
+        /// Brick side length in voxels (2..=255).
+        side: u8,
+    },
+}
+
+/// The numeric type of one stored sample.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum SampleType {
+    /// Unsigned 8-bit samples.
+    U8,
+    /// Unsigned 16-bit little-endian samples.
+    U16,
+}
+
+impl SampleType {
+    /// Bytes per stored sample.
+    pub fn size(self) -> u64 {
+        match self {
+            SampleType::U8 => 1,
+            SampleType::U16 => 2,
+        }
+    }
+
+    /// The largest value a sample of this type holds.
+    pub fn max_value(self) -> u16 {
+        match self {
+            SampleType::U8 => u8::MAX as u16,
+            SampleType::U16 => u16::MAX,
+        }
+    }
+
+    fn code(self) -> u8 {
+        match self {
+            SampleType::U8 => 1,
+            SampleType::U16 => 2,
+        }
+    }
+}
+
+/// What the samples mean.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Content {
+    /// Scalar values (densities, intensities), interpolated when sampled.
+    Scalar,
+    /// Object ids of a segmentation; looked up nearest-neighbour, never interpolated.
+    Labels,
+}
+
+/// Which header a file carries.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Format {
+    /// The thesis's 26-byte header; u8 scalar samples only.
+    Thesis,
+    /// The 64-byte extended header (version [`EXTENSION_VERSION`]).
+    Extended,
+}
+
+/// A parsed and validated `.vol` header.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Header {
+    /// Voxel counts on x, y, z.
+    pub dims: [u32; 3],
+    /// Distance between neighbouring voxels on x, y, z (positive and finite).
+    pub spacing: [f32; 3],
+    /// Sample order.
+    pub layout: Layout,
+    /// Stored sample type.
+    pub sample_type: SampleType,
+    /// Scalar data or labels.
+    pub content: Content,
+    /// Which header the file has.
+    pub format: Format,
+    /// Byte offset of the first sample.
+    pub data_offset: u64,
+    /// Byte offset of the embedded per-brick value-range table, if the file has one.
+    pub ranges_offset: Option<u64>,
+}
+
+/// What is wrong with a header.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum HeaderError {
+    /// The file is shorter than the header it starts.
+    #[error("file is {len} bytes, shorter than the {needed}-byte header")]
+    TooShort {
+        /// The file's length.
+        len: u64,
+        /// The header length needed.
+        needed: u64,
+    },
+    /// A dimension is zero.
+    #[error("size on {axis} is 0")]
+    ZeroDimension {
+        /// Axis name.
+        axis: char,
+    },
+    /// A dimension is larger than [`MAX_AXIS`].
+    #[error("size on {axis} is {value}, more than the {MAX_AXIS} supported")]
+    AbsurdDimension {
+        /// Axis name.
+        axis: char,
+        /// The size found.
+        value: u32,
+    },
+    /// Spacing is NaN, infinite, zero or negative.
+    #[error("spacing on {axis} is {value}; it must be a positive finite number")]
+    BadSpacing {
+        /// Axis name.
+        axis: char,
+        /// The spacing found.
+        value: f32,
+    },
+    /// The order byte (24) is not one this reader knows.
+    #[error(
+        "unknown sample order byte {0:#04x} (expected 1 = linear, 2 = bricked, or 0x81/0x82 for the extended header)"
+    )]
+    UnknownOrder(u8),
+    /// The brick side (byte 25) is below 2.
+    #[error("brick side {0} is too small (bricked files need a side of at least 2)")]
+    BadBrickSide(u8),
+    /// The extension block does not start with [`EXTENSION_MAGIC`].
+    #[error("order byte says extended header but bytes 26..30 are not \"RCVX\"")]
+    BadExtensionMagic,
+    /// The extension version is newer than this reader.
+    #[error(
+        "extended header version {0} is not supported (this build reads version {EXTENSION_VERSION})"
+    )]
+    UnsupportedVersion(u16),
+    /// The sample type code is unknown.
+    #[error("unknown sample type code {0} (1 = u8, 2 = u16)")]
+    UnknownSampleType(u8),
+    /// The content code is unknown.
+    #[error("unknown content code {0} (0 = scalar, 1 = labels)")]
+    UnknownContent(u8),
+    /// The data offset is not where this version puts data.
+    #[error("data offset {0} is not valid for extended header version 1 (must be 64)")]
+    BadDataOffset(u64),
+    /// The declared data length does not match the dimensions.
+    #[error("header declares {declared} bytes of samples but the sizes need {expected}")]
+    DataLengthMismatch {
+        /// Length in the header.
+        declared: u64,
+        /// Length the dimensions and layout need.
+        expected: u64,
+    },
+    /// The sizes multiply past what 64 bits hold.
+    #[error("sizes overflow: the sample data would exceed 2^64 bytes")]
+    SizeOverflow,
+    /// The file ends before the samples do.
+    #[error("file is truncated: samples end at byte {expected} but the file has {actual} bytes")]
+    Truncated {
+        /// Where the samples end.
+        expected: u64,
+        /// The file's length.
+        actual: u64,
+    },
+    /// The range table offset points inside the samples or past the file.
+    #[error(
+        "value-range table offset {offset} is outside the file's trailing bytes ({data_end}..{file_len})"
+    )]
+    BadRangesOffset {
+        /// The offset in the header.
+        offset: u64,
+        /// Where the samples end.
+        data_end: u64,
+        /// The file's length.
+        file_len: u64,
+    },
+}
+
+const AXES: [char; 3] = ['x', 'y', 'z'];
+
+impl Header {
+    /// A header for a new file (extended format unless `format` says thesis).
+    pub fn new(
+        dims: [u32; 3],
+        spacing: [f32; 3],
+        layout: Layout,
+        sample_type: SampleType,
+        content: Content,
+        format: Format,
+    ) -> Self {
+        let data_offset = match format {
+            Format::Thesis => THESIS_HEADER_LEN,
+            Format::Extended => EXTENDED_HEADER_LEN,
+        };
+        Header {
+            dims,
+            spacing,
+            layout,
+            sample_type,
+            content,
+            format,
+            data_offset,
+            ranges_offset: None,
+        }
+    }
+
+    /// Checks the fields that do not depend on a file: sizes, spacing, brick side,
+    /// and that the thesis format is only used for u8 scalars.
+    pub fn validate(&self) -> Result<(), HeaderError> {
+        for (axis, &d) in AXES.iter().zip(&self.dims) {
+            if d == 0 {
+                return Err(HeaderError::ZeroDimension { axis: *axis });
+            }
+            if d > MAX_AXIS {
+                return Err(HeaderError::AbsurdDimension {
+                    axis: *axis,
+                    value: d,
+                });
+            }
+        }
+        for (axis, &s) in AXES.iter().zip(&self.spacing) {
+            if !(s.is_finite() && s > 0.0) {
+                return Err(HeaderError::BadSpacing {
+                    axis: *axis,
+                    value: s,
+                });
+            }
+        }
+        if let Layout::Bricked { side } = self.layout
+            && side < 2
+        {
+            return Err(HeaderError::BadBrickSide(side));
+        }
+        self.data_len().map(|_| ())
+    }
+
+    /// Number of samples stored in the file (bricked files store whole bricks,
+    /// padding included).
+    pub fn stored_samples(&self) -> Result<u64, HeaderError> {
+        match self.layout {
+            Layout::Linear => self
+                .dims
+                .iter()
+                .try_fold(1u64, |acc, &d| acc.checked_mul(u64::from(d))),
+            Layout::Bricked { side } => {
+                let grid = BlockGrid::new(self.dims, u32::from(side));
+                let per_brick = u64::from(side).pow(3);
+                grid.block_count().checked_mul(per_brick)
+            }
+        }
+        .ok_or(HeaderError::SizeOverflow)
+    }
+
+    /// Bytes of sample data in the file.
+    pub fn data_len(&self) -> Result<u64, HeaderError> {
+        self.stored_samples()?
+            .checked_mul(self.sample_type.size())
+            .ok_or(HeaderError::SizeOverflow)
+    }
+
+    /// Byte offset just past the last sample.
+    pub fn data_end(&self) -> Result<u64, HeaderError> {
+        self.data_offset
+            .checked_add(self.data_len()?)
+            .ok_or(HeaderError::SizeOverflow)
+    }
+
+    /// The grid of bricks (bricked files) or of logical bricks of side
+    /// `linear_side` (linear files).
+    pub fn block_grid(&self, linear_side: u32) -> BlockGrid {
+        match self.layout {
+            Layout::Linear => BlockGrid::new(self.dims, linear_side),
+            Layout::Bricked { side } => BlockGrid::new(self.dims, u32::from(side)),
+        }
+    }
+
+    /// Parses and validates a header from the first bytes of a file of length
+    /// `file_len`. `bytes` may be longer than the header; only the header is read.
+    pub fn parse(bytes: &[u8], file_len: u64) -> Result<Header, HeaderError> {
+        let too_short = |needed| HeaderError::TooShort {
+            len: file_len,
+            needed,
+        };
+        if bytes.len() < THESIS_HEADER_LEN as usize || file_len < THESIS_HEADER_LEN {
+            return Err(too_short(THESIS_HEADER_LEN));
+        }
+        let u32_at = |o: usize| u32::from_le_bytes(bytes[o..o + 4].try_into().unwrap());
+        let f32_at = |o: usize| f32::from_le_bytes(bytes[o..o + 4].try_into().unwrap());
+        let dims = [u32_at(0), u32_at(4), u32_at(8)];
+        let spacing = [f32_at(12), f32_at(16), f32_at(20)];
+        let order = bytes[24];
+        let side = bytes[25];
+        let layout = match order & !ORDER_EXTENDED_BIT {
+            ORDER_LINEAR => Layout::Linear,
+            ORDER_BRICKED => Layout::Bricked { side },
+            _ => return Err(HeaderError::UnknownOrder(order)),
+        };
+        let mut header = Header::new(
+            dims,
+            spacing,
+            layout,
+            SampleType::U8,
+            Content::Scalar,
+            Format::Thesis,
+        );
+        if order & ORDER_EXTENDED_BIT != 0 {
+            if bytes.len() < EXTENDED_HEADER_LEN as usize || file_len < EXTENDED_HEADER_LEN {
+                return Err(too_short(EXTENDED_HEADER_LEN));
+            }
+            if bytes[26..30] != EXTENSION_MAGIC {
+                return Err(HeaderError::BadExtensionMagic);
+            }
+            let version = u16::from_le_bytes([bytes[30], bytes[31]]);
+            if version != EXTENSION_VERSION {
+                return Err(HeaderError::UnsupportedVersion(version));
+            }
+            let u64_at = |o: usize| u64::from_le_bytes(bytes[o..o + 8].try_into().unwrap());
+            header.format = Format::Extended;
+            header.sample_type = match bytes[32] {
+                1 => SampleType::U8,
+                2 => SampleType::U16,
+                code => return Err(HeaderError::UnknownSampleType(code)),
+            };
+            header.content = match bytes[33] {
+                0 => Content::Scalar,
+                1 => Content::Labels,
+                code => return Err(HeaderError::UnknownContent(code)),
+            };
+            header.data_offset = u64_at(40);
+            if header.data_offset != EXTENDED_HEADER_LEN {
+                return Err(HeaderError::BadDataOffset(header.data_offset));
+            }
+            let declared = u64_at(48);
+            let ranges = u64_at(56);
+            header.validate()?;
+            let expected = header.data_len()?;
+            if declared != expected {
+                return Err(HeaderError::DataLengthMismatch { declared, expected });
+            }
+            header.ranges_offset = (ranges != 0).then_some(ranges);
+        } else {
+            header.validate()?;
+        }
+        let data_end = header.data_end()?;
+        if file_len < data_end {
+            return Err(HeaderError::Truncated {
+                expected: data_end,
+                actual: file_len,
+            });
+        }
+        if let Some(offset) = header.ranges_offset
+            && (offset < data_end || offset >= file_len)
+        {
+            return Err(HeaderError::BadRangesOffset {
+                offset,
+                data_end,
+                file_len,
+            });
+        }
+        Ok(header)
+    }
+
+    /// Encodes the header; the result is `data_offset` bytes long.
+    pub fn encode(&self) -> Result<Vec<u8>, HeaderError> {
+        self.validate()?;
+        let mut out = Vec::with_capacity(EXTENDED_HEADER_LEN as usize);
+        for d in self.dims {
+            out.extend_from_slice(&d.to_le_bytes());
+        }
+        for s in self.spacing {
+            out.extend_from_slice(&s.to_le_bytes());
+        }
+        let (order, side) = match self.layout {
+            Layout::Linear => (ORDER_LINEAR, 0),
+            Layout::Bricked { side } => (ORDER_BRICKED, side),
+        };
+        match self.format {
+            Format::Thesis => {
+                out.push(order);
+                out.push(side);
+            }
+            Format::Extended => {
+                out.push(order | ORDER_EXTENDED_BIT);
+                out.push(side);
+                out.extend_from_slice(&EXTENSION_MAGIC);
+                out.extend_from_slice(&EXTENSION_VERSION.to_le_bytes());
+                out.push(self.sample_type.code());
+                out.push(match self.content {
+                    Content::Scalar => 0,
+                    Content::Labels => 1,
+                });
+                out.extend_from_slice(&[0u8; 6]);
+                out.extend_from_slice(&self.data_offset.to_le_bytes());
+                out.extend_from_slice(&self.data_len()?.to_le_bytes());
+                out.extend_from_slice(&self.ranges_offset.unwrap_or(0).to_le_bytes());
+            }
+        }
+        debug_assert_eq!(out.len() as u64, self.data_offset);
+        Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample_header(format: Format, sample_type: SampleType, layout: Layout) -> Header {
+        Header::new(
+            [5, 7, 9],
+            [1.0, 0.5, 2.0],
+            layout,
+            sample_type,
+            Content::Scalar,
+            format,
+        )
+    }
+
+    #[test]
+    fn thesis_header_is_26_bytes_in_the_thesis_order() {
+        let h = sample_header(Format::Thesis, SampleType::U8, Layout::Bricked { side: 4 });
+        let bytes = h.encode().unwrap();
+        assert_eq!(bytes.len(), 26);
+        assert_eq!(&bytes[0..4], &5u32.to_le_bytes());
+        assert_eq!(&bytes[16..20], &0.5f32.to_le_bytes());
+        assert_eq!(bytes[24], 2);
+        assert_eq!(bytes[25], 4);
+    }
+
+    #[test]
+    fn extended_header_round_trips() {
+        for st in [SampleType::U8, SampleType::U16] {
+            for layout in [Layout::Linear, Layout::Bricked { side: 16 }] {
+                let mut h = sample_header(Format::Extended, st, layout);
+                h.content = Content::Labels;
+                let bytes = h.encode().unwrap();
+                assert_eq!(bytes.len(), 64);
+                let file_len = h.data_end().unwrap();
+                assert_eq!(Header::parse(&bytes, file_len).unwrap(), h);
+            }
+        }
+    }
+
+    #[test]
+    fn linear_thesis_file_ignores_nothing_and_needs_all_samples() {
+        let h = sample_header(Format::Thesis, SampleType::U8, Layout::Linear);
+        let bytes = h.encode().unwrap();
+        let err = Header::parse(&bytes, 26 + 5 * 7 * 9 - 1).unwrap_err();
+        assert_eq!(
+            err,
+            HeaderError::Truncated {
+                expected: 26 + 315,
+                actual: 26 + 314
+            }
+        );
+    }
+}

@@ -1,0 +1,31 @@
+//! Volume files and their in-memory representation.
+//!
+//! The `.vol` format (the reference thesis's 26-byte header, plus our versioned
+//! extension for u16 samples and label volumes; specified in `docs/format.md`),
+//! opened memory-mapped or into RAM behind one interface, with per-brick value ranges
+//! for empty-space skipping. Streaming readers and writers convert and generate
+//! files in bounded memory.
+
+mod error;
+mod file;
+mod grid;
+mod header;
+mod ranges;
+mod sample;
+mod storage;
+mod view;
+
+pub use error::{VolumeError, VolumeErrorKind};
+pub use file::{OpenOptions, Volume, VolumeData, ranges_sidecar_path, read_header};
+pub use grid::BlockGrid;
+pub use header::{
+    Content, EXTENDED_HEADER_LEN, EXTENSION_MAGIC, EXTENSION_VERSION, Format, Header, HeaderError,
+    Layout, MAX_AXIS, SampleType, THESIS_HEADER_LEN,
+};
+pub use ranges::{BrickRanges, LINEAR_RANGE_SIDE};
+pub use sample::Sample;
+pub use storage::Access;
+pub use view::{BrickView, TypedVolume};
+
+pub(crate) use error::AtPath;
+pub(crate) use file::write_file_atomically;

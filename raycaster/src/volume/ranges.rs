@@ -1,0 +1,221 @@
+//! Per-brick value ranges (min/max of the samples), the basis of empty-space skipping.
+//!
+//! Computed in one parallel streaming pass over the bricks and stored, so re-opening a
+//! multi-GB file does not rescan it: files with the extended header carry the table
+//! after their samples; thesis files get a sidecar `<file>.ranges` that records the
+//! length and modification time of the file it describes.
+
+use std::time::SystemTime;
+
+use rayon::prelude::*;
+
+use super::grid::BlockGrid;
+use super::sample::Sample;
+use super::view::TypedVolume;
+
+/// Side of the logical bricks whose ranges are kept for linear volumes.
+pub const LINEAR_RANGE_SIDE: u32 = 16;
+const TABLE_MAGIC: [u8; 4] = *b"RCRG";
+const SIDECAR_MAGIC: [u8; 4] = *b"RCRS";
+const SIDECAR_VERSION: u32 = 1;
+const TABLE_HEADER_LEN: usize = 4 + 4 + 12 + 8;
+const SIDECAR_HEADER_LEN: usize = 4 + 4 + 8 + 8 + 4;
+
+/// The smallest and largest sample of every brick of a grid.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BrickRanges {
+    grid: BlockGrid,
+    ranges: Vec<[u16; 2]>,
+}
+
+impl BrickRanges {
+    /// Scans every brick of `grid` in `volume` (in parallel).
+    pub fn compute<T: Sample>(volume: &TypedVolume<'_, T>, grid: &BlockGrid) -> Self {
+        let ranges = (0..grid.block_count())
+            .into_par_iter()
+            .map(|i| {
+                let (lo, hi) = volume.brick(grid, grid.coords(i)).value_range();
+                [lo.to_u16(), hi.to_u16()]
+            })
+            .collect();
+        BrickRanges {
+            grid: *grid,
+            ranges,
+        }
+    }
+
+    /// Builds from ranges already known, in file order of `grid`.
+    ///
+    /// # Panics
+    /// If the count does not match the grid.
+    pub fn from_parts(grid: BlockGrid, ranges: Vec<[u16; 2]>) -> Self {
+        assert_eq!(ranges.len() as u64, grid.block_count());
+        BrickRanges { grid, ranges }
+    }
+
+    /// The grid the ranges belong to.
+    pub fn grid(&self) -> &BlockGrid {
+        &self.grid
+    }
+
+    /// `[min, max]` of brick `b`.
+    pub fn range(&self, b: [u32; 3]) -> [u16; 2] {
+        self.ranges[self.grid.index(b) as usize]
+    }
+
+    /// All ranges in file order of the grid.
+    pub fn as_slice(&self) -> &[[u16; 2]] {
+        &self.ranges
+    }
+
+    /// Smallest and largest sample of the whole volume.
+    pub fn overall(&self) -> [u16; 2] {
+        self.ranges
+            .iter()
+            .fold([u16::MAX, 0], |[lo, hi], r| [lo.min(r[0]), hi.max(r[1])])
+    }
+
+    /// Encodes the table (the form embedded after the samples of extended files).
+    pub fn encode(&self) -> Vec<u8> {
+        let mut out = Vec::with_capacity(TABLE_HEADER_LEN + self.ranges.len() * 4);
+        out.extend_from_slice(&TABLE_MAGIC);
+        out.extend_from_slice(&self.grid.side().to_le_bytes());
+        for c in self.grid.dims() {
+            out.extend_from_slice(&c.to_le_bytes());
+        }
+        out.extend_from_slice(&(self.ranges.len() as u64).to_le_bytes());
+        for [lo, hi] in &self.ranges {
+            out.extend_from_slice(&lo.to_le_bytes());
+            out.extend_from_slice(&hi.to_le_bytes());
+        }
+        out
+    }
+
+    /// Decodes a table written by [`Self::encode`] for a volume of `dims`; `None` when
+    /// the bytes are not a consistent table for those dims.
+    pub fn decode(bytes: &[u8], dims: [u32; 3]) -> Option<Self> {
+        let head = bytes.get(..TABLE_HEADER_LEN)?;
+        if head[..4] != TABLE_MAGIC {
+            return None;
+        }
+        let u32_at = |o: usize| u32::from_le_bytes(head[o..o + 4].try_into().unwrap());
+        let side = u32_at(4);
+        if side < 2 || [u32_at(8), u32_at(12), u32_at(16)] != dims {
+            return None;
+        }
+        let count = u64::from_le_bytes(head[20..28].try_into().unwrap());
+        let grid = BlockGrid::new(dims, side);
+        if count != grid.block_count() {
+            return None;
+        }
+        let body = bytes.get(TABLE_HEADER_LEN..)?;
+        if (body.len() as u64) < count.checked_mul(4)? {
+            return None;
+        }
+        let ranges: Vec<[u16; 2]> = body
+            .chunks_exact(4)
+            .take(count as usize)
+            .map(|c| {
+                [
+                    u16::from_le_bytes([c[0], c[1]]),
+                    u16::from_le_bytes([c[2], c[3]]),
+                ]
+            })
+            .collect();
+        if ranges.iter().any(|[lo, hi]| lo > hi) {
+            return None;
+        }
+        Some(BrickRanges { grid, ranges })
+    }
+
+    /// Encodes a sidecar file for a volume file of `file_len` bytes modified at `mtime`.
+    pub fn encode_sidecar(&self, file_len: u64, mtime: SystemTime) -> Vec<u8> {
+        let (secs, nanos) = split_time(mtime);
+        let mut out = Vec::new();
+        out.extend_from_slice(&SIDECAR_MAGIC);
+        out.extend_from_slice(&SIDECAR_VERSION.to_le_bytes());
+        out.extend_from_slice(&file_len.to_le_bytes());
+        out.extend_from_slice(&secs.to_le_bytes());
+        out.extend_from_slice(&nanos.to_le_bytes());
+        out.extend(self.encode());
+        out
+    }
+
+    /// Decodes a sidecar; `None` when it is malformed or describes another version
+    /// of the file (different length or modification time).
+    pub fn decode_sidecar(
+        bytes: &[u8],
+        dims: [u32; 3],
+        file_len: u64,
+        mtime: SystemTime,
+    ) -> Option<Self> {
+        let head = bytes.get(..SIDECAR_HEADER_LEN)?;
+        let (secs, nanos) = split_time(mtime);
+        let fresh = head[..4] == SIDECAR_MAGIC
+            && head[4..8] == SIDECAR_VERSION.to_le_bytes()
+            && head[8..16] == file_len.to_le_bytes()
+            && head[16..24] == secs.to_le_bytes()
+            && head[24..28] == nanos.to_le_bytes();
+        if !fresh {
+            return None;
+        }
+        Self::decode(&bytes[SIDECAR_HEADER_LEN..], dims)
+    }
+}
+
+fn split_time(t: SystemTime) -> (i64, u32) {
+    match t.duration_since(SystemTime::UNIX_EPOCH) {
+        Ok(d) => (d.as_secs() as i64, d.subsec_nanos()),
+        Err(e) => (
+            -(e.duration().as_secs() as i64),
+            e.duration().subsec_nanos(),
+        ),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::volume::Layout;
+
+    fn ramp_volume(dims: [u32; 3]) -> Vec<u8> {
+        let n = dims.iter().product::<u32>();
+        (0..n).map(|i| (i % 251) as u8).collect()
+    }
+
+    #[test]
+    fn table_round_trips_and_rejects_other_dims() {
+        let dims = [10, 7, 5];
+        let data = ramp_volume(dims);
+        let vol = TypedVolume::new(&data, dims, Layout::Linear);
+        let r = BrickRanges::compute(&vol, &BlockGrid::new(dims, 4));
+        let bytes = r.encode();
+        assert_eq!(BrickRanges::decode(&bytes, dims), Some(r.clone()));
+        assert_eq!(BrickRanges::decode(&bytes, [10, 7, 6]), None);
+        assert_eq!(BrickRanges::decode(&bytes[..bytes.len() - 1], dims), None);
+    }
+
+    #[test]
+    fn ranges_cover_the_overlap_voxels() {
+        let dims = [9, 1, 1];
+        let mut data = vec![0u8; 9];
+        data[4] = 200; // the voxel shared by bricks 0 and 1 (side 5, step 4)
+        let vol = TypedVolume::new(&data, dims, Layout::Linear);
+        let r = BrickRanges::compute(&vol, &BlockGrid::new(dims, 5));
+        assert_eq!(r.as_slice(), &[[0, 200], [0, 200]]);
+    }
+
+    #[test]
+    fn stale_sidecar_is_rejected() {
+        let dims = [4, 4, 4];
+        let data = ramp_volume(dims);
+        let vol = TypedVolume::new(&data, dims, Layout::Linear);
+        let r = BrickRanges::compute(&vol, &BlockGrid::new(dims, 3));
+        let t = SystemTime::UNIX_EPOCH + std::time::Duration::from_secs(1000);
+        let bytes = r.encode_sidecar(90, t);
+        assert_eq!(BrickRanges::decode_sidecar(&bytes, dims, 90, t), Some(r));
+        assert_eq!(BrickRanges::decode_sidecar(&bytes, dims, 91, t), None);
+        let later = t + std::time::Duration::from_nanos(1);
+        assert_eq!(BrickRanges::decode_sidecar(&bytes, dims, 90, later), None);
+    }
+}

@@ -1,0 +1,79 @@
+//! Where a volume's bytes live: a read-only memory map or a buffer in RAM.
+//!
+//! Both hand out one `&[u8]`; nothing above this module knows which it is.
+
+use std::fs::File;
+use std::io::Read;
+
+use memmap2::Mmap;
+
+/// How to hold an opened volume.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Access {
+    /// Map the file read-only (volumes larger than RAM work).
+    #[default]
+    Mapped,
+    /// Read the whole file into memory.
+    Ram,
+}
+
+/// The bytes of a whole volume file.
+#[derive(Debug)]
+pub(crate) enum Storage {
+    /// A read-only mapping of the file.
+    Mapped(Mmap),
+    /// The file read into an 8-byte aligned buffer (so u16 samples can be viewed in place).
+    Ram { words: Vec<u64>, len: usize },
+}
+
+impl Storage {
+    /// Maps `file` or reads it whole, as `access` says.
+    pub(crate) fn open(file: &File, len: u64, access: Access) -> std::io::Result<Storage> {
+        let len = usize::try_from(len).map_err(|_| {
+            std::io::Error::new(
+                std::io::ErrorKind::OutOfMemory,
+                "file does not fit in this machine's address space",
+            )
+        })?;
+        match access {
+            Access::Mapped => {
+                // SAFETY: the map is read-only and we never hand out a mutable view.
+                // Another process truncating or rewriting the file while it is mapped
+                // would change or remove the bytes under us (SIGBUS on truncation);
+                // that is the documented contract of opening a volume mapped, the
+                // reason the design uses mmap at all (volumes larger than RAM), and
+                // no Rust invariant beyond the bytes' values depends on the content.
+                let map = unsafe { Mmap::map(file)? };
+                if map.len() < len {
+                    return Err(std::io::Error::new(
+                        std::io::ErrorKind::UnexpectedEof,
+                        "file shrank while it was being opened",
+                    ));
+                }
+                Ok(Storage::Mapped(map))
+            }
+            Access::Ram => {
+                let mut words = vec![0u64; len.div_ceil(8)];
+                let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut words);
+                (&*file).read_exact(&mut bytes[..len])?;
+                Ok(Storage::Ram { words, len })
+            }
+        }
+    }
+
+    /// All bytes of the file.
+    pub(crate) fn bytes(&self) -> &[u8] {
+        match self {
+            Storage::Mapped(map) => map,
+            Storage::Ram { words, len } => &bytemuck::cast_slice(words)[..*len],
+        }
+    }
+
+    /// Which kind of storage this is.
+    pub(crate) fn access(&self) -> Access {
+        match self {
+            Storage::Mapped(_) => Access::Mapped,
+            Storage::Ram { .. } => Access::Ram,
+        }
+    }
+}
