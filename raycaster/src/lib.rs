@@ -15,6 +15,7 @@ compile_error!(
 
 pub mod convert;
 pub mod generate;
+pub mod histogram;
 pub mod io;
 pub mod job;
 pub mod synth;

@@ -1,1 +1,58 @@
-fn main() {}
+//! volgen: generate, convert and inspect `.vol` volume files.
+//!
+//! A thin command-line shell around the `raycaster` library: every format, scene and
+//! conversion lives there.
+
+mod args;
+mod convert;
+mod generate;
+mod info;
+mod progress;
+
+use clap::{Parser, Subcommand};
+
+/// Generate, convert and inspect .vol volume files (the raycaster format).
+///
+/// Outputs are written to a temporary file beside the target and renamed when
+/// complete: a failed or interrupted run (Ctrl-C) leaves no partial file, and an
+/// existing file is only replaced with --force.
+#[derive(Parser, Debug)]
+#[command(name = "volgen", version, propagate_version = true)]
+struct Cli {
+    /// Worker threads (default: one per core).
+    #[arg(long, global = true, value_name = "N")]
+    threads: Option<usize>,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    Generate(generate::GenerateArgs),
+    Convert(convert::ConvertArgs),
+    Info(info::InfoArgs),
+}
+
+fn main() {
+    let cli = Cli::parse();
+    if let Some(n) = cli.threads {
+        if n == 0 {
+            eprintln!("error: --threads must be at least 1");
+            std::process::exit(2);
+        }
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()
+            .expect("the global pool is built once, before any parallel work");
+    }
+    progress::install_ctrl_c();
+    let result = match cli.command {
+        Command::Generate(a) => generate::run(a),
+        Command::Convert(a) => convert::run(a),
+        Command::Info(a) => info::run(a),
+    };
+    if let Err(e) = result {
+        eprintln!("error: {e:#}");
+        std::process::exit(1);
+    }
+}

@@ -69,6 +69,11 @@ pub fn write_volume<T: Sample>(
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
+    if !dir.is_dir() {
+        let msg = format!("directory {} does not exist", dir.display());
+        let e = std::io::Error::new(std::io::ErrorKind::NotFound, msg);
+        return Err(VolumeError::new(path, e));
+    }
     let name = path.file_name().unwrap_or_default().to_string_lossy();
     let tmp = tempfile::Builder::new()
         .prefix(&format!(".{name}."))

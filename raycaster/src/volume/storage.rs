@@ -3,7 +3,7 @@
 //! Both hand out one `&[u8]`; nothing above this module knows which it is.
 
 use std::fs::File;
-use std::io::Read;
+use std::os::unix::fs::FileExt;
 
 use memmap2::Mmap;
 
@@ -55,7 +55,8 @@ impl Storage {
             Access::Ram => {
                 let mut words = vec![0u64; len.div_ceil(8)];
                 let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut words);
-                (&*file).read_exact(&mut bytes[..len])?;
+                // Positioned: the header was already read through this handle.
+                file.read_exact_at(&mut bytes[..len], 0)?;
                 Ok(Storage::Ram { words, len })
             }
         }

@@ -1,0 +1,205 @@
+//! Parsers for the value syntaxes the commands share (sizes, spacing, windows).
+
+use clap::ValueEnum;
+use raycaster::io::{Endian, RawOrder, RawType};
+use raycaster::volume::{Format, MAX_AXIS, SampleType};
+
+/// `N` (a cube) or `XxYxZ`.
+pub fn parse_dims(s: &str) -> Result<[u32; 3], String> {
+    let parts: Vec<&str> = s.split(['x', 'X']).collect();
+    let nums = parts
+        .iter()
+        .map(|p| {
+            p.trim()
+                .parse::<u32>()
+                .map_err(|_| format!("`{p}` is not a whole number"))
+        })
+        .collect::<Result<Vec<u32>, String>>()?;
+    let dims = match nums[..] {
+        [n] => [n; 3],
+        [x, y, z] => [x, y, z],
+        _ => return Err("expected N or XxYxZ, e.g. 256 or 512x512x128".into()),
+    };
+    if let Some(d) = dims.iter().find(|&&d| d == 0 || d > MAX_AXIS) {
+        return Err(format!("size {d} is out of range 1..={MAX_AXIS}"));
+    }
+    Ok(dims)
+}
+
+/// `S` (the same on every axis) or `X,Y,Z`, each positive and finite.
+pub fn parse_spacing(s: &str) -> Result<[f32; 3], String> {
+    let nums = s
+        .split(',')
+        .map(|p| {
+            p.trim()
+                .parse::<f32>()
+                .map_err(|_| format!("`{p}` is not a number"))
+        })
+        .collect::<Result<Vec<f32>, String>>()?;
+    let spacing = match nums[..] {
+        [v] => [v; 3],
+        [x, y, z] => [x, y, z],
+        _ => return Err("expected S or X,Y,Z, e.g. 1 or 0.5,0.5,2".into()),
+    };
+    if let Some(v) = spacing.iter().find(|v| !(v.is_finite() && **v > 0.0)) {
+        return Err(format!("spacing {v} must be a positive finite number"));
+    }
+    Ok(spacing)
+}
+
+/// `LO:HI` with LO < HI.
+pub fn parse_window(s: &str) -> Result<(f32, f32), String> {
+    let (lo, hi) = s.split_once(':').ok_or("expected LO:HI, e.g. -1000:2000")?;
+    let num = |p: &str| {
+        p.trim()
+            .parse::<f32>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or(format!("`{p}` is not a finite number"))
+    };
+    let (lo, hi) = (num(lo)?, num(hi)?);
+    if lo >= hi {
+        return Err(format!("window low {lo} must be below high {hi}"));
+    }
+    Ok((lo, hi))
+}
+
+/// A brick side that fits the header byte and is at least 2.
+pub fn parse_brick(s: &str) -> Result<u8, String> {
+    match s.parse::<u32>() {
+        Ok(v @ 2..=255) => Ok(v as u8),
+        Ok(v) => Err(format!("brick side {v} is out of range 2..=255")),
+        Err(_) => Err(format!("`{s}` is not a whole number")),
+    }
+}
+
+/// Sample order on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum LayoutArg {
+    /// One array, z fastest (thesis order 1).
+    Linear,
+    /// Overlapping cubic bricks (thesis order 2).
+    Bricked,
+}
+
+/// Stored sample type on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum SampleArg {
+    /// 8-bit samples.
+    U8,
+    /// 16-bit samples (extended format).
+    U16,
+}
+
+impl From<SampleArg> for SampleType {
+    fn from(s: SampleArg) -> Self {
+        match s {
+            SampleArg::U8 => SampleType::U8,
+            SampleArg::U16 => SampleType::U16,
+        }
+    }
+}
+
+/// Header format on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum FormatArg {
+    /// 64-byte header with sample type, labels and the embedded brick-range table.
+    Extended,
+    /// The thesis's 26-byte header, u8 only (brick ranges go to FILE.ranges).
+    Thesis,
+}
+
+impl From<FormatArg> for Format {
+    fn from(f: FormatArg) -> Self {
+        match f {
+            FormatArg::Extended => Format::Extended,
+            FormatArg::Thesis => Format::Thesis,
+        }
+    }
+}
+
+/// Raw sample types on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum RawTypeArg {
+    /// Unsigned 8-bit.
+    U8,
+    /// Unsigned 16-bit.
+    U16,
+    /// Signed 16-bit.
+    I16,
+    /// 32-bit float.
+    F32,
+}
+
+impl From<RawTypeArg> for RawType {
+    fn from(t: RawTypeArg) -> Self {
+        match t {
+            RawTypeArg::U8 => RawType::U8,
+            RawTypeArg::U16 => RawType::U16,
+            RawTypeArg::I16 => RawType::I16,
+            RawTypeArg::F32 => RawType::F32,
+        }
+    }
+}
+
+/// Byte order on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum EndianArg {
+    /// Least significant byte first.
+    Little,
+    /// Most significant byte first.
+    Big,
+}
+
+impl From<EndianArg> for Endian {
+    fn from(e: EndianArg) -> Self {
+        match e {
+            EndianArg::Little => Endian::Little,
+            EndianArg::Big => Endian::Big,
+        }
+    }
+}
+
+/// Raw axis order on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum RawOrderArg {
+    /// x changes fastest (C order [z][y][x]; most raw dumps).
+    X,
+    /// z changes fastest (the .vol linear order).
+    Z,
+}
+
+impl From<RawOrderArg> for RawOrder {
+    fn from(o: RawOrderArg) -> Self {
+        match o {
+            RawOrderArg::X => RawOrder::XFastest,
+            RawOrderArg::Z => RawOrder::ZFastest,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dims_accept_cube_and_triple_and_reject_nonsense() {
+        assert_eq!(parse_dims("64"), Ok([64; 3]));
+        assert_eq!(parse_dims("3x4X5"), Ok([3, 4, 5]));
+        assert!(parse_dims("0").is_err());
+        assert!(parse_dims("2x2").is_err());
+        assert!(parse_dims("99999999").is_err());
+    }
+
+    #[test]
+    fn spacing_and_window_reject_bad_numbers() {
+        assert_eq!(parse_spacing("0.5,1,2"), Ok([0.5, 1.0, 2.0]));
+        assert!(parse_spacing("-1").is_err());
+        assert!(parse_spacing("nan").is_err());
+        assert_eq!(parse_window("-1000:3000"), Ok((-1000.0, 3000.0)));
+        assert!(parse_window("5:5").is_err());
+        assert_eq!(parse_brick("16"), Ok(16));
+        assert!(parse_brick("1").is_err());
+        assert!(parse_brick("256").is_err());
+    }
+}

@@ -1,0 +1,149 @@
+//! `volgen convert`: raw or `.vol` in, `.vol` of another layout / brick / type out.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::bail;
+use clap::Args;
+use raycaster::convert::{ConvertOptions, convert};
+use raycaster::io::{Input, RawSpec, WriteOptions};
+use raycaster::job::Job;
+use raycaster::volume::{Format, Layout, SampleType};
+
+use crate::args::{
+    EndianArg, FormatArg, LayoutArg, RawOrderArg, RawTypeArg, SampleArg, parse_brick, parse_dims,
+    parse_spacing, parse_window,
+};
+use crate::generate::{describe_layout, describe_size};
+use crate::progress::{CANCEL, voxel_bar};
+
+/// Convert a raw file or a .vol file into a .vol file.
+///
+/// Streams in bounded memory (slabs of whole x-planes; about 64 MiB at most plus one
+/// row of bricks), so inputs larger than RAM convert. Values are copied when the
+/// output type holds them all; otherwise (u16/i16/f32 to u8, i16/f32 to u16) they
+/// are mapped linearly from --window (default: the input's own min..max) onto the
+/// output's full range. Examples:
+///
+///   volgen convert ct.raw --raw 512x512x300 --raw-type i16 --window -1000:2000 -o ct.vol
+///
+///   volgen convert shapes.vol --layout linear -o shapes-linear.vol
+#[derive(Args, Debug)]
+pub struct ConvertArgs {
+    /// Input file: a .vol file, or a headerless raw file when --raw is given.
+    #[arg(value_name = "IN")]
+    input: PathBuf,
+    /// Output .vol file.
+    #[arg(short, long, value_name = "FILE")]
+    output: PathBuf,
+    /// Read IN as headerless raw samples of this size (N or XxYxZ).
+    #[arg(long, value_name = "N|XxYxZ", value_parser = parse_dims)]
+    raw: Option<[u32; 3]>,
+    /// Raw sample type.
+    #[arg(long, value_enum, default_value_t = RawTypeArg::U8, requires = "raw")]
+    raw_type: RawTypeArg,
+    /// Raw byte order.
+    #[arg(long, value_enum, default_value_t = EndianArg::Little, requires = "raw")]
+    endian: EndianArg,
+    /// Bytes to skip at the start of the raw file (a foreign header).
+    #[arg(long, value_name = "BYTES", default_value_t = 0, requires = "raw")]
+    skip: u64,
+    /// Which coordinate changes fastest in the raw file.
+    #[arg(long, value_enum, default_value_t = RawOrderArg::X, requires = "raw")]
+    raw_order: RawOrderArg,
+    /// Output sample order [default: the input's; bricked for raw input].
+    #[arg(long, value_enum)]
+    layout: Option<LayoutArg>,
+    /// Output brick side [default: the input's, or 16].
+    #[arg(long, value_name = "N", value_parser = parse_brick)]
+    brick: Option<u8>,
+    /// Output sample type [default: u8 for u8 input, otherwise u16].
+    #[arg(long = "type", value_enum)]
+    sample_type: Option<SampleArg>,
+    /// Input values LO..HI map onto the output's full range (clamped outside).
+    #[arg(long, value_name = "LO:HI", allow_hyphen_values = true, value_parser = parse_window)]
+    window: Option<(f32, f32)>,
+    /// Output voxel spacing: S or X,Y,Z [default: the input's, or 1].
+    #[arg(long, value_name = "S|X,Y,Z", value_parser = parse_spacing)]
+    spacing: Option<[f32; 3]>,
+    /// Output header format.
+    #[arg(long, value_enum, default_value_t = FormatArg::Extended)]
+    format: FormatArg,
+    /// Replace an existing output file.
+    #[arg(long)]
+    force: bool,
+    /// Print nothing but errors.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
+    if !a.force && a.output.exists() {
+        bail!(
+            "{}: already exists (pass --force to replace it)",
+            a.output.display()
+        );
+    }
+    let input = match a.raw {
+        Some(dims) => Input::open_raw(
+            &a.input,
+            RawSpec {
+                dims,
+                sample: a.raw_type.into(),
+                endian: a.endian.into(),
+                skip: a.skip,
+                order: a.raw_order.into(),
+            },
+        )?,
+        None => Input::open_vol(&a.input)?,
+    };
+    let input_layout = input.header().map(|h| h.layout);
+    let layout = match (a.layout, a.brick) {
+        (Some(LayoutArg::Linear), Some(_)) => bail!("--brick applies to --layout bricked only"),
+        (Some(LayoutArg::Linear), None) => Layout::Linear,
+        (Some(LayoutArg::Bricked), side) | (None, side @ Some(_)) => Layout::Bricked {
+            side: side
+                .or(match input_layout {
+                    Some(Layout::Bricked { side }) => Some(side),
+                    _ => None,
+                })
+                .unwrap_or(16),
+        },
+        (None, None) => input_layout.unwrap_or(Layout::Bricked { side: 16 }),
+    };
+    let options = ConvertOptions {
+        layout,
+        sample_type: a.sample_type.map(SampleType::from),
+        format: Format::from(a.format),
+        spacing: a.spacing,
+        window: a.window,
+    };
+    let voxels: u64 = input.dims().iter().map(|&d| u64::from(d)).product();
+    let bar = voxel_bar(voxels, "convert", a.quiet);
+    let on_progress = |n| bar.inc(n);
+    let job = Job::silent()
+        .with_progress(&on_progress)
+        .with_cancel(&CANCEL);
+    let write = WriteOptions {
+        overwrite: a.force,
+        ..WriteOptions::default()
+    };
+    let start = Instant::now();
+    let done = convert(&input, &a.output, &options, &write, &job)?;
+    bar.finish_and_clear();
+    if !a.quiet {
+        let window = match done.window {
+            Some((lo, hi)) => format!(", values {lo}..={hi} mapped to the full range"),
+            None => ", values copied".to_string(),
+        };
+        println!(
+            "wrote {}: {} {}, {} bytes in {:.2} s{window}",
+            a.output.display(),
+            describe_size(done.header.dims),
+            describe_layout(&done.header),
+            done.written.file_bytes,
+            start.elapsed().as_secs_f64(),
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,92 @@
+//! `volgen info`: what a `.vol` file holds.
+
+use std::path::PathBuf;
+
+use clap::Args;
+use raycaster::io::Input;
+use raycaster::job::Job;
+use raycaster::volume::{Format, Layout, OpenOptions, Volume};
+
+use crate::generate::{describe_layout, describe_size};
+use crate::progress::{CANCEL, voxel_bar};
+
+/// Show a .vol file's header, layout, value histogram and brick statistics.
+///
+/// The histogram needs one streaming pass over the samples (bounded memory);
+/// --no-histogram skips it for a quick look at a huge file. Example:
+///
+///   volgen info shapes.vol
+#[derive(Args, Debug)]
+pub struct InfoArgs {
+    /// The .vol file.
+    #[arg(value_name = "FILE")]
+    file: PathBuf,
+    /// Skip the value histogram (no pass over the samples).
+    #[arg(long)]
+    no_histogram: bool,
+    /// Print nothing but the report (no progress bar).
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+pub fn run(a: InfoArgs) -> anyhow::Result<()> {
+    let volume = Volume::open_with(&a.file, OpenOptions::default())?;
+    let h = volume.header();
+    let file_bytes = std::fs::metadata(&a.file)?.len();
+    let voxels: u64 = h.dims.iter().map(|&d| u64::from(d)).product();
+    println!("file        {}", a.file.display());
+    println!("size        {} ({voxels} voxels)", describe_size(h.dims));
+    println!(
+        "spacing     {} x {} x {}",
+        h.spacing[0], h.spacing[1], h.spacing[2]
+    );
+    println!("samples     {}", describe_layout(h));
+    match h.format {
+        Format::Thesis => println!("header      26 bytes (reference thesis format)"),
+        Format::Extended => println!(
+            "header      64 bytes (extension version {})",
+            raycaster::volume::EXTENSION_VERSION
+        ),
+    }
+    println!(
+        "file bytes  {file_bytes} ({} of samples, {:.3}x the voxel count)",
+        h.data_len()?,
+        h.stored_samples()? as f64 / voxels as f64
+    );
+    let ranges = volume.ranges();
+    let grid = ranges.grid();
+    let [nx, ny, nz] = grid.counts();
+    let kind = match h.layout {
+        Layout::Linear => "logical bricks for empty-space skipping",
+        Layout::Bricked { .. } => "bricks",
+    };
+    println!(
+        "bricks      {nx}x{ny}x{nz} = {} {kind} of side {}",
+        grid.block_count(),
+        grid.side()
+    );
+    let all = ranges.as_slice();
+    let [lo, hi] = ranges.overall();
+    let zero = all.iter().filter(|r| r[1] == 0).count();
+    let constant = all.iter().filter(|r| r[0] == r[1]).count();
+    let mean_width =
+        all.iter().map(|r| f64::from(r[1] - r[0])).sum::<f64>() / all.len().max(1) as f64;
+    println!("values      min {lo}, max {hi}");
+    println!(
+        "brick stats {zero} all-zero ({:.1} %), {constant} constant ({:.1} %), mean value range {mean_width:.1}",
+        100.0 * zero as f64 / all.len() as f64,
+        100.0 * constant as f64 / all.len() as f64
+    );
+    if !a.no_histogram {
+        let input = Input::open_vol(&a.file)?;
+        let bar = voxel_bar(voxels, "histogram", a.quiet);
+        let on_progress = |n| bar.inc(n);
+        let job = Job::silent()
+            .with_progress(&on_progress)
+            .with_cancel(&CANCEL);
+        let hist = raycaster::histogram::Histogram::of_input(&input, &job)?;
+        bar.finish_and_clear();
+        print!("{}", hist.summary(h.sample_type.max_value()));
+    }
+    Ok(())
+}

@@ -1,0 +1,292 @@
+//! The `volgen` binary as a user runs it: generate, info, convert, and clear errors.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn volgen(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_volgen"))
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .expect("volgen runs")
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn files_in(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+#[test]
+fn generate_info_convert_round_trip() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let o = volgen(
+        d,
+        &[
+            "generate", "--scene", "shapes", "--size", "40x30x20", "--brick", "8", "-o", "a.vol",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("wrote a.vol: 40x30x20 u8 bricked (side 8)"),
+        "{}",
+        stdout(&o)
+    );
+
+    let o = volgen(d, &["info", "a.vol"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let info = stdout(&o);
+    for needle in [
+        "40x30x20 (24000 voxels)",
+        "bricked (side 8)",
+        "bricks      6x5x3 = 90",
+        "histogram",
+        "median",
+    ] {
+        assert!(info.contains(needle), "info lacks `{needle}`:\n{info}");
+    }
+
+    let o = volgen(
+        d,
+        &[
+            "convert", "a.vol", "--layout", "linear", "--type", "u16", "-o", "b.vol",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("values copied"), "{}", stdout(&o));
+    let o = volgen(
+        d,
+        &[
+            "convert", "b.vol", "--brick", "8", "--type", "u8", "--format", "thesis", "-o", "c.vol",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    // u16 → u8 is windowed from the data's own range; shapes spans 0..=254 here so
+    // the round trip a → b → c changes values only by that linear stretch.
+    let info = stdout(&volgen(d, &["info", "c.vol", "--no-histogram"]));
+    assert!(
+        info.contains("26 bytes (reference thesis format)"),
+        "{info}"
+    );
+    assert!(info.contains("min 0, max 255"), "{info}");
+    assert_eq!(files_in(d), ["a.vol", "b.vol", "c.vol", "c.vol.ranges"]);
+}
+
+#[test]
+fn shells_writes_a_matching_label_volume() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = volgen(
+        dir.path(),
+        &[
+            "generate", "--scene", "shells", "--size", "24", "-o", "s.vol", "-q",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).is_empty(), "--quiet prints nothing");
+    assert_eq!(files_in(dir.path()), ["s.labels.vol", "s.vol"]);
+    let info = stdout(&volgen(dir.path(), &["info", "s.labels.vol"]));
+    assert!(
+        info.contains("u8 labels") && info.contains("max 4"),
+        "{info}"
+    );
+}
+
+#[test]
+fn existing_output_needs_force() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("x.vol"), b"keep me").unwrap();
+    let o = volgen(dir.path(), &["generate", "--size", "8", "-o", "x.vol"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("x.vol: already exists (pass --force"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(std::fs::read(dir.path().join("x.vol")).unwrap(), b"keep me");
+    let o = volgen(
+        dir.path(),
+        &["generate", "--size", "8", "-o", "x.vol", "--force"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(files_in(dir.path()), ["x.vol"]);
+}
+
+#[test]
+fn bad_inputs_get_clear_errors_and_leave_no_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("short.raw"), vec![0u8; 100]).unwrap();
+    std::fs::write(d.join("trunc.vol"), [1u8, 0, 0]).unwrap();
+    let cases: &[(&[&str], &str)] = &[
+        (&["info", "missing.vol"], "missing.vol: No such file"),
+        (
+            &["info", "trunc.vol"],
+            "trunc.vol: invalid header: file is 3 bytes, shorter than the 26-byte header",
+        ),
+        (
+            &["convert", "short.raw", "--raw", "5", "-o", "o.vol"],
+            "file has 100 bytes but 5x5x5 samples",
+        ),
+        (
+            &["convert", "missing.vol", "-o", "o.vol"],
+            "missing.vol: No such file",
+        ),
+        (
+            &["generate", "--size", "0", "-o", "o.vol"],
+            "size 0 is out of range",
+        ),
+        (
+            &["generate", "--brick", "1", "-o", "o.vol"],
+            "brick side 1 is out of range 2..=255",
+        ),
+        (
+            &["generate", "--spacing", "nan", "-o", "o.vol"],
+            "spacing NaN must be a positive finite number",
+        ),
+        (
+            &[
+                "generate", "--type", "u16", "--format", "thesis", "-o", "o.vol",
+            ],
+            "thesis holds u8 samples only",
+        ),
+        (
+            &["generate", "--scene", "cubes", "-o", "o.vol"],
+            "invalid value 'cubes'",
+        ),
+        (
+            &[
+                "convert",
+                "short.raw",
+                "--raw",
+                "10x10x1",
+                "--window",
+                "5:1",
+                "-o",
+                "o.vol",
+            ],
+            "window low 5 must be below high 1",
+        ),
+        (
+            &[
+                "convert",
+                "short.raw",
+                "--raw",
+                "10x10x1",
+                "--layout",
+                "linear",
+                "--brick",
+                "8",
+                "-o",
+                "o.vol",
+            ],
+            "--brick applies to --layout bricked only",
+        ),
+        (
+            &["generate", "-o", "no/such/dir/o.vol", "--size", "8"],
+            "no/such/dir/o.vol",
+        ),
+    ];
+    for (args, needle) in cases {
+        let o = volgen(d, args);
+        assert!(!o.status.success(), "{args:?} should fail");
+        assert!(
+            stderr(&o).contains(needle),
+            "{args:?}: expected `{needle}` in:\n{}",
+            stderr(&o)
+        );
+        assert!(!stderr(&o).contains("panicked"), "{args:?} panicked");
+    }
+    assert_eq!(
+        files_in(d),
+        ["short.raw", "trunc.vol"],
+        "no output left behind"
+    );
+}
+
+#[test]
+fn raw_conversion_with_window_and_skip() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // 4x2x2 i16 big-endian after a 3-byte foreign header, x fastest.
+    let mut bytes = vec![9u8, 9, 9];
+    for i in 0..16i16 {
+        bytes.extend_from_slice(&(i * 100 - 500).to_be_bytes());
+    }
+    std::fs::write(d.join("ct.raw"), bytes).unwrap();
+    let o = volgen(
+        d,
+        &[
+            "convert",
+            "ct.raw",
+            "--raw",
+            "4x2x2",
+            "--raw-type",
+            "i16",
+            "--endian",
+            "big",
+            "--skip",
+            "3",
+            "--window",
+            "-500:1000",
+            "--type",
+            "u8",
+            "--spacing",
+            "0.5,0.5,2",
+            "-o",
+            "ct.vol",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("values -500..=1000 mapped"),
+        "{}",
+        stdout(&o)
+    );
+    let info = stdout(&volgen(d, &["info", "ct.vol"]));
+    assert!(info.contains("spacing     0.5 x 0.5 x 2"), "{info}");
+    assert!(info.contains("min 0, max 255"), "{info}");
+}
+
+#[test]
+fn help_explains_every_command() {
+    let dir = tempfile::tempdir().unwrap();
+    for (cmd, needles) in [
+        (
+            "generate",
+            &[
+                "--scene", "--size", "--layout", "--brick", "--type", "--seed", "--force", "shapes",
+            ][..],
+        ),
+        (
+            "convert",
+            &[
+                "--raw",
+                "--raw-type",
+                "--endian",
+                "--skip",
+                "--window",
+                "bounded memory",
+            ][..],
+        ),
+        ("info", &["histogram", "--no-histogram"][..]),
+    ] {
+        let o = volgen(dir.path(), &[cmd, "--help"]);
+        assert!(o.status.success());
+        let help = stdout(&o);
+        for n in needles {
+            assert!(help.contains(n), "`{cmd} --help` lacks `{n}`:\n{help}");
+        }
+    }
+}
