@@ -1,7 +1,8 @@
 //! Writing a `.vol` file from slabs, atomically and in bounded memory.
 
-use std::io::{BufWriter, Seek, SeekFrom, Write};
+use std::os::unix::fs::{FileExt, PermissionsExt};
 use std::path::Path;
+use std::sync::mpsc;
 
 use rayon::prelude::*;
 
@@ -10,6 +11,9 @@ use crate::volume::{
     AtPath, BlockGrid, BrickRanges, BrickView, Format, Header, LINEAR_RANGE_SIDE, Layout, Sample,
     VolumeError, VolumeErrorKind, ranges_sidecar_path,
 };
+
+/// Bytes the writer thread writes between two flushes to disk.
+const SYNC_EVERY_BYTES: usize = 32 << 20;
 
 /// How [`write_volume`] writes.
 #[derive(Clone, Copy, Debug)]
@@ -25,7 +29,7 @@ impl Default for WriteOptions {
     fn default() -> Self {
         WriteOptions {
             overwrite: false,
-            slab_bytes: 64 << 20,
+            slab_bytes: 32 << 20,
         }
     }
 }
@@ -78,75 +82,68 @@ pub fn write_volume<T: Sample>(
     let tmp = tempfile::Builder::new()
         .prefix(&format!(".{name}."))
         .suffix(".partial")
+        // The usual mode for new files (the umask applies), not the 0600 of temp files.
+        .permissions(std::fs::Permissions::from_mode(0o666))
         .tempfile_in(dir)
         .at(path)?;
-    let mut out = BufWriter::with_capacity(8 << 20, tmp);
-    out.write_all(&head_bytes).at(path)?;
-
+    let file = tmp.as_file();
+    file.write_all_at(&head_bytes, 0).at(path)?;
     let grid = header.block_grid(LINEAR_RANGE_SIDE);
-    let [dx, dy, dz] = header.dims;
-    let plane = dy as usize * dz as usize;
-    let step = grid.step();
-    let [nx, ny, nz] = grid.counts();
-    let per_block_x = step as usize * plane * size_of::<T>();
-    let blocks_per_slab = (options.slab_bytes / per_block_x.max(1)).clamp(1, nx as usize) as u32;
-    let mut ranges = Vec::with_capacity(grid.block_count() as usize);
-    let mut slab: Vec<T> = Vec::new();
-    let mut bricks: Vec<T> = Vec::new();
-    let mut k0 = 0;
-    while k0 < nx {
-        let k1 = (k0 + blocks_per_slab).min(nx);
-        let x0 = k0 * step;
-        let x1 = (k1 * step).min(dx - 1) + 1;
-        slab.clear();
-        slab.resize((x1 - x0) as usize * plane, T::from_u16_saturating(0));
-        fill(x0, x1, &mut slab)?;
-        if job.is_cancelled() {
-            return Err(VolumeError::new(path, VolumeErrorKind::Cancelled));
-        }
-        let view = BrickView::dense(&slab, [x0, 0, 0], [x1 - x0, dy, dz]);
-        let slab_ranges: Vec<[u16; 2]> = (u64::from(k0) * u64::from(ny * nz)
-            ..u64::from(k1) * u64::from(ny * nz))
-            .into_par_iter()
-            .map(|i| {
-                let b = grid.coords(i);
-                let o = grid.origin(b);
-                let (lo, hi) = view
-                    .sub([o[0] - x0, o[1], o[2]], grid.extent(b))
-                    .value_range();
-                [lo.to_u16(), hi.to_u16()]
-            })
-            .collect();
-        ranges.extend(slab_ranges);
-        // Planes this slab adds to the file; the last plane is shared with the next slab.
-        let new_planes = if k1 == nx { x1 - x0 } else { x1 - 1 - x0 };
-        match header.layout {
-            Layout::Linear => {
-                let bytes = bytemuck::cast_slice(&slab[..new_planes as usize * plane]);
-                out.write_all(bytes).at(path)?;
-            }
-            Layout::Bricked { side } => {
-                for bx in k0..k1 {
-                    gather_bricks(&view, &grid, bx, usize::from(side), &mut bricks);
-                    out.write_all(bytemuck::cast_slice(&bricks)).at(path)?;
+
+    // Compute on this thread (and rayon) while a writer thread drains finished
+    // buffers, so generation runs at the speed of the slower of the two.
+    let (full_tx, full_rx) = mpsc::sync_channel::<(Vec<T>, usize)>(1);
+    let (empty_tx, empty_rx) = mpsc::channel::<Vec<T>>();
+    let recycle = empty_tx.clone();
+    let ranges = std::thread::scope(|scope| {
+        let writer = scope.spawn(move || -> std::io::Result<()> {
+            let mut offset = head_bytes.len() as u64;
+            let mut unsynced = 0;
+            for (buf, len) in full_rx {
+                let bytes: &[u8] = bytemuck::cast_slice(&buf[..len]);
+                file.write_all_at(bytes, offset)?;
+                offset += bytes.len() as u64;
+                unsynced += bytes.len();
+                // Flush as we go, on this thread: the disk works while the producer
+                // computes, instead of all at the final sync.
+                if unsynced >= SYNC_EVERY_BYTES {
+                    file.sync_data()?;
+                    unsynced = 0;
                 }
+                // The producer may have finished already; then the buffer is dropped.
+                let _ = empty_tx.send(buf);
             }
-        }
-        job.advance(u64::from(new_planes) * plane as u64);
-        k0 = k1;
-    }
+            Ok(())
+        });
+        let mut take_buffer = || empty_rx.try_recv().unwrap_or_default();
+        let mut send = |buf: Vec<T>, len: usize| full_tx.send((buf, len)).is_ok();
+        let produced = produce_slabs(
+            &header,
+            &grid,
+            options,
+            job,
+            path,
+            &mut fill,
+            &mut take_buffer,
+            &mut send,
+            &recycle,
+        );
+        drop(full_tx);
+        // A write error (disk full) explains a stopped producer: report it first.
+        writer
+            .join()
+            .expect("the writer thread does not panic")
+            .at(path)?;
+        produced
+    })?;
 
     let ranges = BrickRanges::from_parts(grid, ranges);
     let data_end = header.data_end().at(path)?;
     if header.format == Format::Extended {
-        out.write_all(&ranges.encode()).at(path)?;
+        file.write_all_at(&ranges.encode(), data_end).at(path)?;
         header.ranges_offset = Some(data_end);
-        out.seek(SeekFrom::Start(0)).at(path)?;
-        out.write_all(&header.encode().at(path)?).at(path)?;
+        file.write_all_at(&header.encode().at(path)?, 0).at(path)?;
     }
-    let tmp = out
-        .into_inner()
-        .map_err(|e| VolumeError::new(path, e.into_error()))?;
     tmp.as_file().sync_all().at(path)?;
     let file_bytes = tmp.as_file().metadata().at(path)?.len();
     debug_assert!(file_bytes >= data_end);
@@ -166,14 +163,95 @@ pub fn write_volume<T: Sample>(
     Ok(WriteSummary { file_bytes, ranges })
 }
 
+/// The slab loop of [`write_volume`]: fills each slab, computes its brick ranges and
+/// hands the file's bytes to `send` in order. Returns the ranges in brick order.
+#[allow(clippy::too_many_arguments)]
+fn produce_slabs<T: Sample>(
+    header: &Header,
+    grid: &BlockGrid,
+    options: &WriteOptions,
+    job: &Job,
+    path: &Path,
+    fill: &mut impl FnMut(u32, u32, &mut [T]) -> Result<(), VolumeError>,
+    take_buffer: &mut impl FnMut() -> Vec<T>,
+    send: &mut impl FnMut(Vec<T>, usize) -> bool,
+    recycle: &mpsc::Sender<Vec<T>>,
+) -> Result<Vec<[u16; 2]>, VolumeError> {
+    let [dx, dy, dz] = header.dims;
+    let plane = dy as usize * dz as usize;
+    let step = grid.step();
+    let [nx, ny, nz] = grid.counts();
+    let per_block_x = step as usize * plane * size_of::<T>();
+    let blocks_per_slab = (options.slab_bytes / per_block_x.max(1)).clamp(1, nx as usize) as u32;
+    let writer_stopped = || {
+        let e = std::io::Error::other("the writer stopped");
+        VolumeError::new(path, e)
+    };
+    let mut ranges = Vec::with_capacity(grid.block_count() as usize);
+    let mut k0 = 0;
+    while k0 < nx {
+        let k1 = (k0 + blocks_per_slab).min(nx);
+        let x0 = k0 * step;
+        let x1 = (k1 * step).min(dx - 1) + 1;
+        let mut slab = take_buffer();
+        slab.clear();
+        slab.resize((x1 - x0) as usize * plane, T::from_u16_saturating(0));
+        fill(x0, x1, &mut slab)?;
+        if job.is_cancelled() {
+            return Err(VolumeError::new(path, VolumeErrorKind::Cancelled));
+        }
+        let view = BrickView::dense(&slab, [x0, 0, 0], [x1 - x0, dy, dz]);
+        // Planes this slab adds to the file; the last plane is shared with the next slab.
+        let new_planes = if k1 == nx { x1 - x0 } else { x1 - 1 - x0 };
+        match header.layout {
+            Layout::Linear => {
+                let bricks_before = u64::from(k0) * u64::from(ny * nz);
+                let bricks_after = u64::from(k1) * u64::from(ny * nz);
+                let slab_ranges: Vec<[u16; 2]> = (bricks_before..bricks_after)
+                    .into_par_iter()
+                    .map(|i| {
+                        let b = grid.coords(i);
+                        let o = grid.origin(b);
+                        let (lo, hi) = view
+                            .sub([o[0] - x0, o[1], o[2]], grid.extent(b))
+                            .value_range();
+                        [lo.to_u16(), hi.to_u16()]
+                    })
+                    .collect();
+                ranges.extend(slab_ranges);
+                if !send(slab, new_planes as usize * plane) {
+                    return Err(writer_stopped());
+                }
+            }
+            Layout::Bricked { side } => {
+                for bx in k0..k1 {
+                    let mut bricks = take_buffer();
+                    gather_bricks(&view, grid, bx, usize::from(side), &mut bricks, &mut ranges);
+                    let len = bricks.len();
+                    if !send(bricks, len) {
+                        return Err(writer_stopped());
+                    }
+                }
+                let _ = recycle.send(slab);
+            }
+        }
+        job.advance(u64::from(new_planes) * plane as u64);
+        k0 = k1;
+    }
+    Ok(ranges)
+}
+
 /// Copies every brick with x index `bx` out of `slab` into `out`, in file order,
-/// each brick whole (`side³` samples) with edge padding repeating the last voxel.
+/// each brick whole (`side³` samples) with edge padding repeating the last voxel,
+/// and appends each brick's value range to `ranges`. Padding only repeats voxels of
+/// the volume, so the range of the whole stored brick is the range inside the volume.
 fn gather_bricks<T: Sample>(
     slab: &BrickView<'_, T>,
     grid: &BlockGrid,
     bx: u32,
     side: usize,
     out: &mut Vec<T>,
+    ranges: &mut Vec<[u16; 2]>,
 ) {
     let [_, ny, nz] = grid.counts();
     let per_brick = side * side * side;
@@ -183,9 +261,10 @@ fn gather_bricks<T: Sample>(
         T::from_u16_saturating(0),
     );
     let slab_end = [0, 1, 2].map(|a| slab.origin()[a] + slab.extent()[a] - 1);
-    out.par_chunks_mut(per_brick)
+    let brick_ranges: Vec<[u16; 2]> = out
+        .par_chunks_mut(per_brick)
         .enumerate()
-        .for_each(|(i, brick)| {
+        .map(|(i, brick)| {
             let (by, bz) = ((i / nz as usize) as u32, (i % nz as usize) as u32);
             let o = grid.origin([bx, by, bz]);
             for lx in 0..side as u32 {
@@ -201,5 +280,10 @@ fn gather_bricks<T: Sample>(
                     dst[valid..].fill(last);
                 }
             }
-        });
+            let lo = brick.iter().copied().min().expect("bricks are not empty");
+            let hi = brick.iter().copied().max().expect("bricks are not empty");
+            [lo.to_u16(), hi.to_u16()]
+        })
+        .collect();
+    ranges.extend(brick_ranges);
 }

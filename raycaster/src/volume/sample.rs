@@ -22,8 +22,11 @@ impl Sample for u8 {
     fn from_u16_saturating(v: u16) -> Self {
         v.min(u16::from(u8::MAX)) as u8
     }
+    #[inline]
+    #[allow(clippy::manual_clamp)] // max/min, not clamp: NaN must become 0, not NaN
     fn from_unit(v: f32) -> Self {
-        (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
+        // max/min instead of clamp: NaN becomes 0 and the loop vectorises.
+        (v * 255.0 + 0.5).max(0.0).min(255.0) as u8
     }
 }
 
@@ -35,8 +38,10 @@ impl Sample for u16 {
     fn from_u16_saturating(v: u16) -> Self {
         v
     }
+    #[inline]
+    #[allow(clippy::manual_clamp)] // as for u8: NaN must become 0
     fn from_unit(v: f32) -> Self {
-        (v.clamp(0.0, 1.0) * 65535.0 + 0.5) as u16
+        (v * 65535.0 + 0.5).max(0.0).min(65535.0) as u16
     }
 }
 
@@ -50,6 +55,9 @@ mod tests {
         assert_eq!(u8::from_unit(1.0), 255);
         assert_eq!(u8::from_unit(0.5), 128);
         assert_eq!(u16::from_unit(2.0), 65535);
+        assert_eq!(u8::from_unit(f32::NAN), 0);
+        assert_eq!(u8::from_unit(-3.0), 0);
+        assert_eq!(u16::from_unit(0.5), 32768);
         assert_eq!(u8::from_u16_saturating(300), 255);
     }
 }
