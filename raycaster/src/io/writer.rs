@@ -29,7 +29,7 @@ impl Default for WriteOptions {
     fn default() -> Self {
         WriteOptions {
             overwrite: false,
-            slab_bytes: 32 << 20,
+            slab_bytes: 16 << 20,
         }
     }
 }
@@ -225,11 +225,14 @@ fn produce_slabs<T: Sample>(
             }
             Layout::Bricked { side } => {
                 for bx in k0..k1 {
-                    let mut bricks = take_buffer();
-                    gather_bricks(&view, grid, bx, usize::from(side), &mut bricks, &mut ranges);
-                    let len = bricks.len();
-                    if !send(bricks, len) {
-                        return Err(writer_stopped());
+                    for by in 0..ny {
+                        let mut bricks = take_buffer();
+                        let side = usize::from(side);
+                        gather_bricks(&view, grid, [bx, by], side, &mut bricks, &mut ranges);
+                        let len = bricks.len();
+                        if !send(bricks, len) {
+                            return Err(writer_stopped());
+                        }
                     }
                 }
                 let _ = recycle.send(slab);
@@ -241,32 +244,28 @@ fn produce_slabs<T: Sample>(
     Ok(ranges)
 }
 
-/// Copies every brick with x index `bx` out of `slab` into `out`, in file order,
+/// Copies the row of bricks `(bx, by, 0..n_z)` out of `slab` into `out`, in file order,
 /// each brick whole (`side³` samples) with edge padding repeating the last voxel,
 /// and appends each brick's value range to `ranges`. Padding only repeats voxels of
 /// the volume, so the range of the whole stored brick is the range inside the volume.
 fn gather_bricks<T: Sample>(
     slab: &BrickView<'_, T>,
     grid: &BlockGrid,
-    bx: u32,
+    [bx, by]: [u32; 2],
     side: usize,
     out: &mut Vec<T>,
     ranges: &mut Vec<[u16; 2]>,
 ) {
-    let [_, ny, nz] = grid.counts();
+    let nz = grid.counts()[2];
     let per_brick = side * side * side;
     out.clear();
-    out.resize(
-        ny as usize * nz as usize * per_brick,
-        T::from_u16_saturating(0),
-    );
+    out.resize(nz as usize * per_brick, T::from_u16_saturating(0));
     let slab_end = [0, 1, 2].map(|a| slab.origin()[a] + slab.extent()[a] - 1);
     let brick_ranges: Vec<[u16; 2]> = out
         .par_chunks_mut(per_brick)
         .enumerate()
-        .map(|(i, brick)| {
-            let (by, bz) = ((i / nz as usize) as u32, (i % nz as usize) as u32);
-            let o = grid.origin([bx, by, bz]);
+        .map(|(bz, brick)| {
+            let o = grid.origin([bx, by, bz as u32]);
             for lx in 0..side as u32 {
                 let x = (o[0] + lx).min(slab_end[0]) - slab.origin()[0];
                 for ly in 0..side as u32 {
