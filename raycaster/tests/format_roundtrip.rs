@@ -18,6 +18,11 @@ fn pattern(v: [u32; 3], max: u32) -> u16 {
     ((v[0] * 7919 + v[1] * 104_729 + v[2] * 31 + 11) % (max + 1)) as u16
 }
 
+/// A scalar header with unit spacing.
+fn unit_header(dims: [u32; 3], layout: Layout, sample_type: SampleType, format: Format) -> Header {
+    Header::new(dims, [1.0; 3], layout, sample_type, Content::Scalar, format)
+}
+
 fn tmp() -> tempfile::TempDir {
     tempfile::tempdir().unwrap()
 }
@@ -175,12 +180,10 @@ fn thesis_format_is_written_bit_compatibly() {
     let dir = tmp();
     let dims = [33, 17, 20];
     let path = dir.path().join("ours.vol");
-    let header = Header::new(
+    let header = unit_header(
         dims,
-        [1.0; 3],
         Layout::Bricked { side: 16 },
         SampleType::U8,
-        Content::Scalar,
         Format::Thesis,
     );
     write_pattern(&path, &header);
@@ -220,12 +223,10 @@ fn edge_bricks_and_brick_views_address_locally() {
     let dir = tmp();
     let dims = [20, 9, 31];
     let path = dir.path().join("edge.vol");
-    let header = Header::new(
+    let header = unit_header(
         dims,
-        [1.0; 3],
         Layout::Bricked { side: 8 },
         SampleType::U16,
-        Content::Scalar,
         Format::Extended,
     );
     write_pattern(&path, &header);
@@ -259,14 +260,7 @@ fn linear_volumes_give_logical_bricks_of_any_side() {
     let dir = tmp();
     let dims = [11, 12, 13];
     let path = dir.path().join("lin.vol");
-    let header = Header::new(
-        dims,
-        [1.0; 3],
-        Layout::Linear,
-        SampleType::U8,
-        Content::Scalar,
-        Format::Extended,
-    );
+    let header = unit_header(dims, Layout::Linear, SampleType::U8, Format::Extended);
     write_pattern(&path, &header);
     let v = Volume::open(&path).unwrap();
     let VolumeData::U8(data) = v.data() else {
@@ -489,12 +483,10 @@ fn same_seed_gives_identical_files_and_another_seed_does_not() {
 fn gradient_scene_is_an_exact_ramp_and_shells_labels_match_values() {
     let dir = tmp();
     let dims = [52, 6, 40];
-    let mut header = Header::new(
+    let mut header = unit_header(
         dims,
-        [1.0; 3],
         Layout::Bricked { side: 16 },
         SampleType::U8,
-        Content::Scalar,
         Format::Extended,
     );
     let ramp = dir.path().join("ramp.vol");
@@ -561,14 +553,7 @@ fn existing_output_is_kept_without_overwrite_and_nothing_partial_is_left() {
     let dir = tmp();
     let path = dir.path().join("keep.vol");
     std::fs::write(&path, b"precious").unwrap();
-    let header = Header::new(
-        [8; 3],
-        [1.0; 3],
-        Layout::Linear,
-        SampleType::U8,
-        Content::Scalar,
-        Format::Extended,
-    );
+    let header = unit_header([8; 3], Layout::Linear, SampleType::U8, Format::Extended);
     let scene = SceneKind::Gradient.build([8; 3], 0);
     let err = generate(
         scene.as_ref(),
@@ -613,14 +598,7 @@ fn existing_output_is_kept_without_overwrite_and_nothing_partial_is_left() {
 fn converting_a_file_onto_itself_is_refused() {
     let dir = tmp();
     let path = dir.path().join("self.vol");
-    let header = Header::new(
-        [8; 3],
-        [1.0; 3],
-        Layout::Linear,
-        SampleType::U8,
-        Content::Scalar,
-        Format::Extended,
-    );
+    let header = unit_header([8; 3], Layout::Linear, SampleType::U8, Format::Extended);
     generate(
         SceneKind::Gradient.build([8; 3], 0).as_ref(),
         &header,

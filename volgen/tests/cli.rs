@@ -290,3 +290,29 @@ fn help_explains_every_command() {
         }
     }
 }
+
+#[test]
+fn outputs_get_the_usual_file_mode_not_the_temp_file_mode() {
+    use std::os::unix::fs::PermissionsExt;
+    let status = std::fs::read_to_string("/proc/self/status").unwrap();
+    let umask = status
+        .lines()
+        .find_map(|l| l.strip_prefix("Umask:"))
+        .map(|v| u32::from_str_radix(v.trim(), 8).unwrap())
+        .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let o = volgen(
+        dir.path(),
+        &[
+            "generate", "--size", "8", "--format", "thesis", "-o", "m.vol",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    for name in ["m.vol", "m.vol.ranges"] {
+        let mode = std::fs::metadata(dir.path().join(name))
+            .unwrap()
+            .permissions()
+            .mode();
+        assert_eq!(mode & 0o777, 0o666 & !umask, "{name}");
+    }
+}
