@@ -1,6 +1,6 @@
 //! Writing a `.vol` file from slabs, atomically and in bounded memory.
 
-use std::os::unix::fs::{FileExt, PermissionsExt};
+use std::os::unix::fs::FileExt;
 use std::path::Path;
 use std::sync::mpsc;
 
@@ -69,23 +69,7 @@ pub fn write_volume<T: Sample>(
     if !options.overwrite && path.exists() {
         return Err(VolumeError::new(path, VolumeErrorKind::Exists));
     }
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    if !dir.is_dir() {
-        let msg = format!("directory {} does not exist", dir.display());
-        let e = std::io::Error::new(std::io::ErrorKind::NotFound, msg);
-        return Err(VolumeError::new(path, e));
-    }
-    let name = path.file_name().unwrap_or_default().to_string_lossy();
-    let tmp = tempfile::Builder::new()
-        .prefix(&format!(".{name}."))
-        .suffix(".partial")
-        // The usual mode for new files (the umask applies), not the 0600 of temp files.
-        .permissions(std::fs::Permissions::from_mode(0o666))
-        .tempfile_in(dir)
-        .at(path)?;
+    let tmp = crate::volume::temp_file_beside(path).at(path)?;
     let file = tmp.as_file();
     file.write_all_at(&head_bytes, 0).at(path)?;
     let grid = header.block_grid(LINEAR_RANGE_SIDE);

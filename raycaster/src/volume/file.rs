@@ -230,19 +230,31 @@ fn load_ranges(
     Ok(ranges)
 }
 
-/// Writes `bytes` to `path` through a temporary file in the same directory and a
-/// rename, so readers never see a partial file.
-pub(crate) fn write_file_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    use std::io::Write;
+/// Creates the temporary file that will become `path`: hidden, beside it (so the final
+/// rename is atomic), named after it with a `.partial` suffix, and with the usual mode
+/// for new files (the umask applies) rather than the 0600 of temporary files.
+pub(crate) fn temp_file_beside(path: &Path) -> std::io::Result<tempfile::NamedTempFile> {
     let dir = path
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".ranges.")
+    if !dir.is_dir() {
+        let msg = format!("directory {} does not exist", dir.display());
+        return Err(std::io::Error::new(std::io::ErrorKind::NotFound, msg));
+    }
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    tempfile::Builder::new()
+        .prefix(&format!(".{name}."))
         .suffix(".partial")
         .permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666))
-        .tempfile_in(dir)?;
+        .tempfile_in(dir)
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same directory and a
+/// rename, so readers never see a partial file.
+pub(crate) fn write_file_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    use std::io::Write;
+    let mut tmp = temp_file_beside(path)?;
     tmp.write_all(bytes)?;
     tmp.as_file().sync_all()?;
     tmp.persist(path).map_err(|e| e.error)?;
