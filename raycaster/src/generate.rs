@@ -7,7 +7,7 @@ use rayon::prelude::*;
 use crate::io::{WriteOptions, WriteSummary, write_volume};
 use crate::job::Job;
 use crate::synth::Scene;
-use crate::volume::{Content, Header, Sample, SampleType, VolumeError};
+use crate::volume::{AtPath, Content, Header, Sample, SampleType, VolumeError};
 
 /// Samples `scene` into a file described by `header` (its sample type and content
 /// choose values or labels) and writes it atomically to `path`.
@@ -18,9 +18,10 @@ pub fn generate(
     options: &WriteOptions,
     job: &Job,
 ) -> Result<WriteSummary, VolumeError> {
+    // An invalid header (u16 labels, say) is a typed error, before any dispatch.
+    header.validate().at(path)?;
     match (header.content, header.sample_type) {
         (Content::Labels, _) => {
-            assert_eq!(header.sample_type, SampleType::U8, "label volumes are u8");
             write_rows::<u8>(header, path, options, job, |x, y, row: &mut [u8], _| {
                 scene.fill_label_row(x, y, row)
             })

@@ -173,6 +173,9 @@ pub enum HeaderError {
         /// Length the dimensions and layout need.
         expected: u64,
     },
+    /// A label volume whose samples are not u8.
+    #[error("label volumes hold u8 object ids; this one declares {0:?} samples")]
+    LabelsNotU8(SampleType),
     /// The sizes multiply past what 64 bits hold.
     #[error("sizes overflow: the sample data would exceed 2^64 bytes")]
     SizeOverflow,
@@ -252,6 +255,9 @@ impl Header {
             && side < 2
         {
             return Err(HeaderError::BadBrickSide(side));
+        }
+        if self.content == Content::Labels && self.sample_type != SampleType::U8 {
+            return Err(HeaderError::LabelsNotU8(self.sample_type));
         }
         self.data_len().map(|_| ())
     }
@@ -453,7 +459,9 @@ mod tests {
         for st in [SampleType::U8, SampleType::U16] {
             for layout in [Layout::Linear, Layout::Bricked { side: 16 }] {
                 let mut h = sample_header(Format::Extended, st, layout);
-                h.content = Content::Labels;
+                if st == SampleType::U8 {
+                    h.content = Content::Labels;
+                }
                 let bytes = h.encode().unwrap();
                 assert_eq!(bytes.len(), 64);
                 let file_len = h.data_end().unwrap();
