@@ -2,7 +2,7 @@
 
 use crate::io::Input;
 use crate::job::Job;
-use crate::volume::{VolumeError, VolumeErrorKind};
+use crate::volume::VolumeError;
 
 /// Exact counts of every sample value (one bin per value, up to 65536).
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -15,25 +15,12 @@ impl Histogram {
     /// Counts the values of a `.vol` input, slab by slab (bounded memory). Values of
     /// raw inputs of other types are saturated to u16.
     pub fn of_input(input: &Input, job: &Job) -> Result<Histogram, VolumeError> {
-        let [dx, dy, dz] = input.dims();
-        let plane = dy as usize * dz as usize;
-        let planes = ((8usize << 20) / plane).clamp(1, dx as usize) as u32;
         let mut counts = vec![0u64; 1 << 16];
-        let mut slab: Vec<u16> = Vec::new();
-        let mut x0 = 0;
-        while x0 < dx {
-            let x1 = (x0 + planes).min(dx);
-            slab.resize((x1 - x0) as usize * plane, 0);
-            input.read_slab(x0, x1, &|v| v as u16, &mut slab)?;
-            for &v in &slab {
+        input.for_each_slab(8 << 20, &|v| v as u16, job, |slab| {
+            for &v in slab {
                 counts[v as usize] += 1;
             }
-            job.advance(slab.len() as u64);
-            if job.is_cancelled() {
-                return Err(VolumeError::new(input.path(), VolumeErrorKind::Cancelled));
-            }
-            x0 = x1;
-        }
+        })?;
         let last = counts.iter().rposition(|&c| c > 0).map_or(1, |i| i + 1);
         counts.truncate(last.max(256));
         Ok(Histogram {

@@ -301,13 +301,42 @@ impl Input {
         Ok(())
     }
 
+    /// Calls `visit` with `map`ped values of consecutive slabs of whole x-planes, each
+    /// of at most `max_values` values (at least one plane), reporting progress to `job`
+    /// and stopping with [`VolumeErrorKind::Cancelled`] when it is cancelled.
+    pub fn for_each_slab<O: Copy>(
+        &self,
+        max_values: usize,
+        map: &impl Fn(f32) -> O,
+        job: &Job,
+        mut visit: impl FnMut(&[O]),
+    ) -> Result<(), VolumeError> {
+        let [dx, dy, dz] = self.dims();
+        let plane = dy as usize * dz as usize;
+        let planes = (max_values / plane).clamp(1, dx as usize) as u32;
+        let mut slab = Vec::new();
+        let mut x0 = 0;
+        while x0 < dx {
+            let x1 = (x0 + planes).min(dx);
+            slab.resize((x1 - x0) as usize * plane, map(0.0));
+            self.read_slab(x0, x1, map, &mut slab)?;
+            visit(&slab);
+            job.advance(slab.len() as u64);
+            if job.is_cancelled() {
+                return Err(VolumeError::new(&self.path, VolumeErrorKind::Cancelled));
+            }
+            x0 = x1;
+        }
+        Ok(())
+    }
+
     /// Smallest and largest value of the volume (NaN ignored), in one streaming pass;
     /// `None` when every value is NaN.
     pub fn value_range(&self, job: &Job) -> Result<Option<(f32, f32)>, VolumeError> {
         let dims = self.dims();
         let plane = dims[1] as usize * dims[2] as usize;
         let mut lo_hi = (f32::INFINITY, f32::NEG_INFINITY);
-        let mut fold = |values: &[f32]| -> Result<(), VolumeError> {
+        let mut fold = |values: &[f32]| {
             for &v in values {
                 // NaN fails both comparisons and is skipped.
                 if v < lo_hi.0 {
@@ -317,31 +346,15 @@ impl Input {
                     lo_hi.1 = v;
                 }
             }
-            job.advance(values.len() as u64);
-            if job.is_cancelled() {
-                return Err(VolumeError::new(&self.path, VolumeErrorKind::Cancelled));
-            }
-            Ok(())
         };
         let chunk_values = CHUNK_BYTES / 4;
-        let mut buf = Vec::new();
-        if let Some(
-            h @ Header {
-                layout: Layout::Bricked { .. },
-                ..
-            },
-        ) = self.header()
+        if let Some(Header {
+            layout: Layout::Bricked { .. },
+            ..
+        }) = self.header()
         {
             // Bricks carry padding past the volume's edge: go through slabs.
-            let planes = (chunk_values / plane).clamp(1, h.dims[0] as usize) as u32;
-            let mut x0 = 0;
-            while x0 < dims[0] {
-                let x1 = (x0 + planes).min(dims[0]);
-                buf.resize((x1 - x0) as usize * plane, 0.0);
-                self.read_slab(x0, x1, &|v| v, &mut buf)?;
-                fold(&buf)?;
-                x0 = x1;
-            }
+            self.for_each_slab(chunk_values, &|v| v, job, fold)?;
         } else {
             // Every stored sample is a voxel: stream them in file order.
             let start = match &self.source {
@@ -350,12 +363,17 @@ impl Input {
             };
             let total = plane as u64 * u64::from(dims[0]);
             let size = self.raw_type().0.size() as u64;
+            let mut buf = Vec::new();
             let mut done = 0u64;
             while done < total {
                 let n = (total - done).min(chunk_values as u64) as usize;
                 buf.resize(n, 0.0);
                 self.read_contiguous(start + done * size, &|v| v, &mut buf)?;
-                fold(&buf)?;
+                fold(&buf);
+                job.advance(n as u64);
+                if job.is_cancelled() {
+                    return Err(VolumeError::new(&self.path, VolumeErrorKind::Cancelled));
+                }
                 done += n as u64;
             }
         }
