@@ -6,7 +6,8 @@
 //! - [`io`]: streaming readers (raw and `.vol`) and the atomic volume writer;
 //! - [`synth`]: deterministic synthetic scenes;
 //! - [`generate`] and [`convert`]: the generation and conversion jobs;
-//! - [`job`]: progress reporting and cancellation.
+//! - [`job`]: progress reporting and cancellation;
+//! - [`render`]: cameras, transfer functions and the ray casters.
 
 #[cfg(target_endian = "big")]
 compile_error!(
@@ -18,5 +19,6 @@ pub mod generate;
 pub mod histogram;
 pub mod io;
 pub mod job;
+pub mod render;
 pub mod synth;
 pub mod volume;

@@ -9,6 +9,12 @@ mod rng;
 mod shapes;
 mod shells;
 
+use rayon::prelude::*;
+
+use crate::volume::{
+    AtPath, Content, Format, Header, Layout, Sample, SampleType, Volume, VolumeError,
+};
+
 pub use gradient::Gradient;
 pub use noise::Noise;
 pub use shapes::Shapes;
@@ -74,6 +80,48 @@ impl SceneKind {
             SceneKind::Gradient => Box::new(Gradient::new(dims)),
         }
     }
+}
+
+/// Samples `scene` into a linear volume held in RAM (no file): the built-in scene of
+/// the render command and the test volumes. Rows are sampled in parallel.
+pub fn synthesize(
+    scene: &dyn Scene,
+    name: &str,
+    dims: [u32; 3],
+    spacing: [f32; 3],
+    sample_type: SampleType,
+) -> Result<Volume, VolumeError> {
+    let header = Header::new(
+        dims,
+        spacing,
+        Layout::Linear,
+        sample_type,
+        Content::Scalar,
+        Format::Extended,
+    );
+    header.validate().at(std::path::Path::new(name))?;
+    match sample_type {
+        SampleType::U8 => Volume::from_samples(name, &header, &sample_rows::<u8>(scene, dims)),
+        SampleType::U16 => Volume::from_samples(name, &header, &sample_rows::<u16>(scene, dims)),
+    }
+}
+
+fn sample_rows<T: Sample>(scene: &dyn Scene, dims: [u32; 3]) -> Vec<T> {
+    let [dx, dy, dz] = dims.map(|d| d as usize);
+    let mut samples = vec![T::from_unit(0.0); dx * dy * dz];
+    samples
+        .par_chunks_mut(dz)
+        .enumerate()
+        .for_each_init(
+            || vec![0f32; dz],
+            |scratch, (i, row)| {
+                scene.fill_row((i / dy) as u32, (i % dy) as u32, scratch);
+                for (o, &v) in row.iter_mut().zip(scratch.iter()) {
+                    *o = T::from_unit(v);
+                }
+            },
+        );
+    samples
 }
 
 fn smoothstep(e0: f32, e1: f32, x: f32) -> f32 {

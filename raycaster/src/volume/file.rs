@@ -5,7 +5,10 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use super::error::{AtPath, VolumeError, VolumeErrorKind};
-use super::header::{Content, EXTENDED_HEADER_LEN, Format, Header, Layout, SampleType};
+use super::header::{
+    Content, EXTENDED_HEADER_LEN, Format, Header, HeaderError, Layout, SampleType, THESIS_HEADER_LEN,
+};
+use super::sample::Sample;
 use super::ranges::{BrickRanges, LINEAR_RANGE_SIDE};
 use super::storage::{Access, Storage};
 use super::view::TypedVolume;
@@ -90,6 +93,53 @@ impl Volume {
         let ranges = load_ranges(path, &header, &storage, data, &file, len, options)?;
         Ok(Volume {
             path: path.to_path_buf(),
+            header,
+            storage,
+            ranges,
+        })
+    }
+
+    /// Builds a volume in RAM from a header and its samples in file order, as if it
+    /// had been read from `name` (used for built-in scenes and tests).
+    ///
+    /// The header's sample type must be `T`'s; its range table offset is ignored (the
+    /// ranges are computed).
+    pub fn from_samples<T: Sample>(
+        name: impl Into<PathBuf>,
+        header: &Header,
+        samples: &[T],
+    ) -> Result<Volume, VolumeError> {
+        let path = name.into();
+        let mut header = header.clone();
+        header.ranges_offset = None;
+        header.data_offset = match header.format {
+            Format::Thesis => THESIS_HEADER_LEN,
+            Format::Extended => EXTENDED_HEADER_LEN,
+        };
+        if header.sample_type != T::TYPE {
+            let kind = VolumeErrorKind::Header(HeaderError::SampleTypeMismatch {
+                header: header.sample_type,
+                samples: T::TYPE,
+            });
+            return Err(VolumeError::new(&path, kind));
+        }
+        let mut image = header.encode().at(&path)?;
+        let needed = header.data_len().at(&path)?;
+        let bytes: &[u8] = bytemuck::cast_slice(samples);
+        if bytes.len() as u64 != needed {
+            let kind = VolumeErrorKind::Header(HeaderError::DataLengthMismatch {
+                declared: bytes.len() as u64,
+                expected: needed,
+            });
+            return Err(VolumeError::new(&path, kind));
+        }
+        image.extend_from_slice(bytes);
+        let storage = Storage::from_bytes(&image);
+        let header = Header::parse(&image, image.len() as u64).at(&path)?;
+        let data = typed_data(&header, storage.bytes()).at(&path)?;
+        let ranges = compute_ranges(&header, data);
+        Ok(Volume {
+            path,
             header,
             storage,
             ranges,

@@ -173,6 +173,14 @@ pub enum HeaderError {
         /// Length the dimensions and layout need.
         expected: u64,
     },
+    /// Samples handed over in memory are not of the header's type.
+    #[error("the header declares {header:?} samples but {samples:?} samples were given")]
+    SampleTypeMismatch {
+        /// The header's sample type.
+        header: SampleType,
+        /// The type of the samples given.
+        samples: SampleType,
+    },
     /// A label volume whose samples are not u8.
     #[error("label volumes hold u8 object ids; this one declares {0:?} samples")]
     LabelsNotU8(SampleType),

@@ -62,6 +62,16 @@ impl Storage {
         }
     }
 
+    /// A RAM copy of `bytes` (a whole file image built in memory).
+    pub(crate) fn from_bytes(bytes: &[u8]) -> Storage {
+        let mut words = vec![0u64; bytes.len().div_ceil(8)];
+        bytemuck::cast_slice_mut::<u64, u8>(&mut words)[..bytes.len()].copy_from_slice(bytes);
+        Storage::Ram {
+            words,
+            len: bytes.len(),
+        }
+    }
+
     /// All bytes of the file.
     pub(crate) fn bytes(&self) -> &[u8] {
         match self {

@@ -182,6 +182,13 @@ impl<'a, T: Sample> BrickView<'a, T> {
         self.samples[linear_index(self.strides, l)]
     }
 
+    /// The brick's samples from storage offset `offset` (a local index built from
+    /// [`Self::strides`]) to the end of the view: the base of a trilinear cell.
+    #[inline]
+    pub fn samples_from(&self, offset: usize) -> &'a [T] {
+        &self.samples[offset..]
+    }
+
     /// The z-run of samples at local `(x, y)`: `extent[2]` samples.
     #[inline]
     pub fn row(&self, x: u32, y: u32) -> &'a [T] {

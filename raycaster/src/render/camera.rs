@@ -1,0 +1,382 @@
+//! Cameras: the thesis's (OSPRay's) perspective camera and an orthographic one.
+//!
+//! A camera has a position P, a unit view direction D and an up vector U. With
+//! `r = D × U` and `u = r × D` (both normalised), the image plane at distance 1 has
+//! height `Sy = 2·tan(F/2)` for the vertical field of view F (perspective) or the
+//! given height (orthographic), and width `Sx = Sy·aspect`. Pixel `(x, y)` (y down)
+//! looks through `D + sx·r + sy·u` with `sx, sy` its centre on that plane.
+
+use glam::Vec3;
+
+use super::ray::Ray;
+
+/// How the camera projects.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Projection {
+    /// Rays from the camera position; vertical field of view in degrees.
+    Perspective {
+        /// Vertical field of view, degrees, in (0, 180).
+        vfov_deg: f32,
+    },
+    /// Parallel rays along the view direction; the image's height in world units.
+    Orthographic {
+        /// Height of the view in world units.
+        height: f32,
+    },
+}
+
+/// A camera for an image of `width × height` pixels.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    position: Vec3,
+    direction: Vec3,
+    right: Vec3,
+    up: Vec3,
+    projection: Projection,
+    width: u32,
+    height: u32,
+    /// Half the image plane's size: (Sx/2, Sy/2).
+    half_plane: [f32; 2],
+}
+
+/// A half-open rectangle of pixels `x0..x1 × y0..y1`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PixelRect {
+    /// First column.
+    pub x0: u32,
+    /// First row.
+    pub y0: u32,
+    /// One past the last column.
+    pub x1: u32,
+    /// One past the last row.
+    pub y1: u32,
+}
+
+impl PixelRect {
+    /// Number of pixels inside.
+    pub fn area(&self) -> u64 {
+        u64::from(self.x1 - self.x0) * u64::from(self.y1 - self.y0)
+    }
+
+    /// The overlap of two rectangles, if any.
+    pub fn intersect(&self, other: &PixelRect) -> Option<PixelRect> {
+        let r = PixelRect {
+            x0: self.x0.max(other.x0),
+            y0: self.y0.max(other.y0),
+            x1: self.x1.min(other.x1),
+            y1: self.y1.min(other.y1),
+        };
+        (r.x0 < r.x1 && r.y0 < r.y1).then_some(r)
+    }
+}
+
+/// Why a camera cannot be built.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum CameraError {
+    /// The image has no pixels.
+    #[error("image size {0}×{1} has no pixels")]
+    EmptyImage(u32, u32),
+    /// Direction or up is zero, not finite, or they are parallel.
+    #[error("view direction and up vector must be finite, non-zero and not parallel")]
+    DegenerateBasis,
+    /// The position is not finite.
+    #[error("camera position must be finite")]
+    BadPosition,
+    /// The field of view or orthographic height is out of range.
+    #[error("field of view must be in (0°, 180°) and orthographic height positive")]
+    BadProjection,
+}
+
+impl Camera {
+    /// A camera at `position` looking along `direction` with `up` roughly upward.
+    pub fn new(
+        position: Vec3,
+        direction: Vec3,
+        up: Vec3,
+        projection: Projection,
+        width: u32,
+        height: u32,
+    ) -> Result<Camera, CameraError> {
+        if width == 0 || height == 0 {
+            return Err(CameraError::EmptyImage(width, height));
+        }
+        if !position.is_finite() {
+            return Err(CameraError::BadPosition);
+        }
+        let direction = direction.try_normalize().ok_or(CameraError::DegenerateBasis)?;
+        let right = direction
+            .cross(up)
+            .try_normalize()
+            .filter(|_| up.is_finite())
+            .ok_or(CameraError::DegenerateBasis)?;
+        let up = right.cross(direction);
+        let plane_height = match projection {
+            Projection::Perspective { vfov_deg } if vfov_deg > 0.0 && vfov_deg < 180.0 => {
+                2.0 * (vfov_deg.to_radians() / 2.0).tan()
+            }
+            Projection::Orthographic { height } if height > 0.0 && height.is_finite() => height,
+            _ => return Err(CameraError::BadProjection),
+        };
+        let aspect = width as f32 / height as f32;
+        Ok(Camera {
+            position,
+            direction,
+            right,
+            up,
+            projection,
+            width,
+            height,
+            half_plane: [plane_height * aspect / 2.0, plane_height / 2.0],
+        })
+    }
+
+    /// A camera at `position` looking at `target`.
+    pub fn look_at(
+        position: Vec3,
+        target: Vec3,
+        up: Vec3,
+        projection: Projection,
+        width: u32,
+        height: u32,
+    ) -> Result<Camera, CameraError> {
+        Camera::new(position, target - position, up, projection, width, height)
+    }
+
+    /// Image width in pixels.
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+
+    /// Image height in pixels.
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+
+    /// The camera position.
+    pub fn position(&self) -> Vec3 {
+        self.position
+    }
+
+    /// The unit view direction.
+    pub fn direction(&self) -> Vec3 {
+        self.direction
+    }
+
+    /// The unit up vector of the image plane (orthogonal to the direction).
+    pub fn up(&self) -> Vec3 {
+        self.up
+    }
+
+    /// The unit right vector of the image plane.
+    pub fn right(&self) -> Vec3 {
+        self.right
+    }
+
+    /// The projection.
+    pub fn projection(&self) -> Projection {
+        self.projection
+    }
+
+    /// The same camera for another image size (aspect follows the new size).
+    pub fn with_size(&self, width: u32, height: u32) -> Result<Camera, CameraError> {
+        Camera::new(
+            self.position,
+            self.direction,
+            self.up,
+            self.projection,
+            width,
+            height,
+        )
+    }
+
+    /// The ray through the centre of pixel `(x, y)` (y counts rows from the top),
+    /// with a unit direction so that `t` measures world distance.
+    #[inline]
+    pub fn ray(&self, x: u32, y: u32) -> Ray {
+        let sx = ((x as f32 + 0.5) / self.width as f32 * 2.0 - 1.0) * self.half_plane[0];
+        let sy = (1.0 - (y as f32 + 0.5) / self.height as f32 * 2.0) * self.half_plane[1];
+        let offset = self.right * sx + self.up * sy;
+        match self.projection {
+            Projection::Perspective { .. } => Ray {
+                origin: self.position,
+                direction: (self.direction + offset).normalize(),
+            },
+            Projection::Orthographic { .. } => Ray {
+                origin: self.position + offset,
+                direction: self.direction,
+            },
+        }
+    }
+
+    /// Continuous pixel coordinates of world point `p`, or `None` when it lies on
+    /// or behind the camera plane of a perspective camera.
+    pub fn project(&self, p: Vec3) -> Option<[f32; 2]> {
+        let v = p - self.position;
+        let (sx, sy) = match self.projection {
+            Projection::Perspective { .. } => {
+                let depth = v.dot(self.direction);
+                if depth <= 1e-6 {
+                    return None;
+                }
+                (v.dot(self.right) / depth, v.dot(self.up) / depth)
+            }
+            Projection::Orthographic { .. } => (v.dot(self.right), v.dot(self.up)),
+        };
+        Some([
+            (sx / self.half_plane[0] + 1.0) / 2.0 * self.width as f32,
+            (1.0 - sy / self.half_plane[1]) / 2.0 * self.height as f32,
+        ])
+    }
+
+    /// The pixels whose centre rays can hit the box `[lo, hi]`: the bounding
+    /// rectangle of its projected corners, widened by a pixel, clipped to the image.
+    /// When a corner lies behind a perspective camera the whole image is returned.
+    /// `None` when the box projects entirely outside the image.
+    pub fn project_box(&self, lo: Vec3, hi: Vec3) -> Option<PixelRect> {
+        let image = PixelRect {
+            x0: 0,
+            y0: 0,
+            x1: self.width,
+            y1: self.height,
+        };
+        let mut min = [f32::INFINITY; 2];
+        let mut max = [f32::NEG_INFINITY; 2];
+        for corner in 0..8 {
+            let p = Vec3::new(
+                if corner & 1 == 0 { lo.x } else { hi.x },
+                if corner & 2 == 0 { lo.y } else { hi.y },
+                if corner & 4 == 0 { lo.z } else { hi.z },
+            );
+            let Some(q) = self.project(p) else {
+                return Some(image);
+            };
+            for a in 0..2 {
+                min[a] = min[a].min(q[a]);
+                max[a] = max[a].max(q[a]);
+            }
+        }
+        let to_pixel = |v: f32, limit: u32| v.clamp(0.0, limit as f32) as u32;
+        let rect = PixelRect {
+            x0: to_pixel(min[0].floor() - 1.0, self.width),
+            y0: to_pixel(min[1].floor() - 1.0, self.height),
+            x1: to_pixel(max[0].ceil() + 1.0, self.width),
+            y1: to_pixel(max[1].ceil() + 1.0, self.height),
+        };
+        rect.intersect(&image)
+    }
+
+    /// A key that orders points front to back: distance from a perspective camera,
+    /// depth along the view direction for an orthographic one.
+    pub fn depth_key(&self, p: Vec3) -> f32 {
+        match self.projection {
+            Projection::Perspective { .. } => (p - self.position).length(),
+            Projection::Orthographic { .. } => (p - self.position).dot(self.direction),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn perspective() -> Camera {
+        Camera::look_at(
+            Vec3::new(0.0, -10.0, 0.0),
+            Vec3::ZERO,
+            Vec3::Z,
+            Projection::Perspective { vfov_deg: 60.0 },
+            64,
+            48,
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn centre_ray_looks_at_the_target_and_corners_span_the_fov() {
+        let cam = Camera::look_at(
+            Vec3::new(0.0, -10.0, 0.0),
+            Vec3::ZERO,
+            Vec3::Z,
+            Projection::Perspective { vfov_deg: 90.0 },
+            2,
+            2,
+        )
+        .unwrap();
+        // Pixel centres of a 2×2 image sit at ±1/2 of the half plane (tan 45° = 1).
+        let top_left = cam.ray(0, 0).direction;
+        let expected = Vec3::new(-0.5, 1.0, 0.5).normalize();
+        assert!((top_left - expected).length() < 1e-6, "{top_left}");
+    }
+
+    #[test]
+    fn projection_inverts_the_pixel_ray() {
+        let cam = perspective();
+        for (x, y) in [(0, 0), (63, 47), (10, 30)] {
+            let ray = cam.ray(x, y);
+            let q = cam.project(ray.at(7.0)).unwrap();
+            assert!((q[0] - (x as f32 + 0.5)).abs() < 1e-3, "{q:?}");
+            assert!((q[1] - (y as f32 + 0.5)).abs() < 1e-3, "{q:?}");
+        }
+    }
+
+    #[test]
+    fn orthographic_rays_are_parallel_and_project_back() {
+        let cam = Camera::look_at(
+            Vec3::new(0.0, -10.0, 0.0),
+            Vec3::ZERO,
+            Vec3::Z,
+            Projection::Orthographic { height: 4.0 },
+            40,
+            40,
+        )
+        .unwrap();
+        let a = cam.ray(0, 0);
+        let b = cam.ray(39, 39);
+        assert_eq!(a.direction, b.direction);
+        let q = cam.project(b.at(3.0)).unwrap();
+        assert!((q[0] - 39.5).abs() < 1e-3 && (q[1] - 39.5).abs() < 1e-3);
+    }
+
+    #[test]
+    fn box_rect_contains_every_hitting_pixel() {
+        let cam = perspective();
+        let (lo, hi) = (Vec3::new(-1.0, -1.0, -0.5), Vec3::new(2.0, 1.0, 1.5));
+        let rect = cam.project_box(lo, hi).unwrap();
+        for y in 0..cam.height() {
+            for x in 0..cam.width() {
+                let hits = cam.ray(x, y).intersect_box(lo, hi).is_some();
+                let inside = x >= rect.x0 && x < rect.x1 && y >= rect.y0 && y < rect.y1;
+                assert!(!hits || inside, "pixel {x},{y} hits but lies outside {rect:?}");
+            }
+        }
+        assert!(rect.area() < 64 * 48 / 2, "rect too loose: {rect:?}");
+    }
+
+    #[test]
+    fn box_behind_the_camera_or_around_it() {
+        let cam = perspective();
+        let behind = cam.project_box(Vec3::new(-1.0, -20.0, -1.0), Vec3::new(1.0, -19.0, 1.0));
+        // A box entirely behind still gives a conservative rectangle (all of it).
+        assert!(behind.is_some());
+        let around = cam.project_box(Vec3::splat(-20.0), Vec3::splat(20.0)).unwrap();
+        assert_eq!(around.area(), 64 * 48);
+    }
+
+    #[test]
+    fn degenerate_cameras_are_errors() {
+        let p = Projection::Perspective { vfov_deg: 60.0 };
+        assert_eq!(
+            Camera::new(Vec3::ZERO, Vec3::Z, Vec3::Z, p, 4, 4),
+            Err(CameraError::DegenerateBasis)
+        );
+        assert_eq!(
+            Camera::new(Vec3::ZERO, Vec3::X, Vec3::Z, p, 0, 4),
+            Err(CameraError::EmptyImage(0, 4))
+        );
+        let wide = Projection::Perspective { vfov_deg: 180.0 };
+        assert_eq!(
+            Camera::new(Vec3::ZERO, Vec3::X, Vec3::Z, wide, 4, 4),
+            Err(CameraError::BadProjection)
+        );
+    }
+}

@@ -1,0 +1,57 @@
+//! Per-thread work counters and the statistics a frame returns.
+
+use std::time::Duration;
+
+/// Work done by one thread; summed at the end of a frame (no atomics in the loop).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Counters {
+    /// Rays that hit the volume's box.
+    pub rays: u64,
+    /// Samples reconstructed (trilinear reads).
+    pub samples: u64,
+    /// Rays stopped before their last sample (opacity threshold or first hit).
+    pub rays_terminated: u64,
+    /// Samples not taken because their brick was empty.
+    pub samples_skipped_empty: u64,
+    /// (ray, brick) visits marched.
+    pub brick_visits: u64,
+    /// (ray, brick) visits skipped as empty.
+    pub brick_visits_skipped: u64,
+}
+
+impl std::ops::AddAssign for Counters {
+    fn add_assign(&mut self, o: Counters) {
+        self.rays += o.rays;
+        self.samples += o.samples;
+        self.rays_terminated += o.rays_terminated;
+        self.samples_skipped_empty += o.samples_skipped_empty;
+        self.brick_visits += o.brick_visits;
+        self.brick_visits_skipped += o.brick_visits_skipped;
+    }
+}
+
+/// What a frame cost.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FrameStats {
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Summed work counters.
+    pub counters: Counters,
+    /// Bricks of the grid.
+    pub bricks: u64,
+    /// Bricks the transfer function makes transparent.
+    pub bricks_transparent: u64,
+    /// Render threads used.
+    pub threads: u32,
+    /// Wall time of the frame.
+    pub time: Duration,
+}
+
+impl FrameStats {
+    /// Samples per second of wall time.
+    pub fn samples_per_second(&self) -> f64 {
+        self.counters.samples as f64 / self.time.as_secs_f64().max(1e-9)
+    }
+}

@@ -1,0 +1,23 @@
+//! Errors of rendering setup (bad settings); rendering itself cannot fail.
+
+use super::camera::CameraError;
+
+/// Why a frame cannot be rendered.
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    /// The step is not a positive finite number.
+    #[error("step {0} must be a positive number of voxels")]
+    Step(f32),
+    /// The early-termination threshold is outside (0, 1].
+    #[error("early termination threshold {0} must lie in (0, 1]")]
+    ErtThreshold(f32),
+    /// The iso-value is outside [0, 1].
+    #[error("iso-value {0} must lie in [0, 1] (normalised over the transfer function's domain)")]
+    IsoValue(f32),
+    /// A logical brick side below 2.
+    #[error("brick side {0} is too small (at least 2)")]
+    BrickSide(u32),
+    /// The camera is invalid.
+    #[error(transparent)]
+    Camera(#[from] CameraError),
+}

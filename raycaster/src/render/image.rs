@@ -1,0 +1,179 @@
+//! 8-bit RGB images: PNG output and input, and comparison with a diff image.
+
+use std::fs::File;
+use std::io::{BufReader, BufWriter};
+use std::path::Path;
+
+/// An 8-bit RGB image, rows from the top.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RgbImage {
+    width: u32,
+    height: u32,
+    data: Vec<u8>,
+}
+
+/// Why an image cannot be read or written.
+#[derive(Debug, thiserror::Error)]
+pub enum ImageError {
+    /// File system error.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: std::path::PathBuf,
+        /// The error.
+        source: std::io::Error,
+    },
+    /// PNG encoding or decoding failed.
+    #[error("{path}: {message}")]
+    Png {
+        /// The file.
+        path: std::path::PathBuf,
+        /// What the PNG codec said.
+        message: String,
+    },
+}
+
+impl RgbImage {
+    /// An image from its pixels (`width·height·3` bytes).
+    ///
+    /// # Panics
+    /// If `data` has the wrong length.
+    pub fn new(width: u32, height: u32, data: Vec<u8>) -> Self {
+        assert_eq!(data.len(), width as usize * height as usize * 3, "RGB size");
+        RgbImage {
+            width,
+            height,
+            data,
+        }
+    }
+
+    /// Width in pixels.
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+
+    /// Height in pixels.
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+
+    /// The RGB bytes, rows from the top.
+    pub fn data(&self) -> &[u8] {
+        &self.data
+    }
+
+    /// The pixel at `(x, y)`.
+    pub fn pixel(&self, x: u32, y: u32) -> [u8; 3] {
+        let i = (y as usize * self.width as usize + x as usize) * 3;
+        [self.data[i], self.data[i + 1], self.data[i + 2]]
+    }
+
+    /// Writes the image as PNG to `path`, atomically (a temporary file beside it
+    /// and a rename), so a failed write never leaves a partial file.
+    pub fn save_png(&self, path: &Path) -> Result<(), ImageError> {
+        let io = |source| ImageError::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        let png_err = |e: png::EncodingError| ImageError::Png {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        };
+        let tmp = crate::volume::temp_file_beside(path).map_err(io)?;
+        {
+            let mut encoder = png::Encoder::new(BufWriter::new(tmp.as_file()), self.width, self.height);
+            encoder.set_color(png::ColorType::Rgb);
+            encoder.set_depth(png::BitDepth::Eight);
+            let mut writer = encoder.write_header().map_err(png_err)?;
+            writer.write_image_data(&self.data).map_err(png_err)?;
+            writer.finish().map_err(png_err)?;
+        }
+        tmp.persist(path).map_err(|e| io(e.error))?;
+        Ok(())
+    }
+
+    /// Reads an 8-bit RGB or RGBA PNG (alpha is dropped).
+    pub fn load_png(path: &Path) -> Result<RgbImage, ImageError> {
+        let file = File::open(path).map_err(|source| ImageError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let png_err = |message: String| ImageError::Png {
+            path: path.to_path_buf(),
+            message,
+        };
+        let decoder = png::Decoder::new(BufReader::new(file));
+        let mut reader = decoder.read_info().map_err(|e| png_err(e.to_string()))?;
+        let size = reader
+            .output_buffer_size()
+            .ok_or_else(|| png_err("image too large".into()))?;
+        let mut buf = vec![0; size];
+        let info = reader
+            .next_frame(&mut buf)
+            .map_err(|e| png_err(e.to_string()))?;
+        let channels = match (info.color_type, info.bit_depth) {
+            (png::ColorType::Rgb, png::BitDepth::Eight) => 3,
+            (png::ColorType::Rgba, png::BitDepth::Eight) => 4,
+            other => return Err(png_err(format!("unsupported PNG format {other:?}"))),
+        };
+        let data = buf[..info.buffer_size()]
+            .chunks_exact(channels)
+            .flat_map(|px| [px[0], px[1], px[2]])
+            .collect();
+        Ok(RgbImage::new(info.width, info.height, data))
+    }
+
+    /// The largest per-channel difference to `other` (`None` when sizes differ).
+    pub fn max_difference(&self, other: &RgbImage) -> Option<u8> {
+        (self.width == other.width && self.height == other.height).then(|| {
+            self.data
+                .iter()
+                .zip(&other.data)
+                .map(|(a, b)| a.abs_diff(*b))
+                .max()
+                .unwrap_or(0)
+        })
+    }
+
+    /// Number of channel values differing by more than `tolerance`.
+    pub fn count_differences(&self, other: &RgbImage, tolerance: u8) -> usize {
+        self.data
+            .iter()
+            .zip(&other.data)
+            .filter(|(a, b)| a.abs_diff(**b) > tolerance)
+            .count()
+    }
+
+    /// A diff image: per-channel absolute difference, amplified ×8 to be visible.
+    pub fn diff(&self, other: &RgbImage) -> RgbImage {
+        let data = self
+            .data
+            .iter()
+            .zip(&other.data)
+            .map(|(a, b)| a.abs_diff(*b).saturating_mul(8))
+            .collect();
+        RgbImage::new(self.width, self.height, data)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn png_round_trip_and_diff() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.png");
+        let img = RgbImage::new(3, 2, (0..18).map(|i| i * 10).collect());
+        img.save_png(&path).unwrap();
+        let back = RgbImage::load_png(&path).unwrap();
+        assert_eq!(back, img);
+        let mut other = img.clone();
+        other.data[4] += 3;
+        assert_eq!(img.max_difference(&other), Some(3));
+        assert_eq!(img.count_differences(&other, 2), 1);
+        assert_eq!(img.diff(&other).data[4], 24);
+        assert!(RgbImage::load_png(&dir.path().join("none.png")).is_err());
+        assert!(img.save_png(&dir.path().join("no/dir/a.png")).is_err());
+    }
+}

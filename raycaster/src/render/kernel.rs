@@ -1,0 +1,257 @@
+//! The marching kernel: one ray through one brick into one pixel's state.
+//!
+//! Both the sequential and the parallel renderer call [`march_brick`] (engineering
+//! guide, invariant 1); they differ only in the order they hand it bricks. A brick
+//! handles the samples whose positions it owns ([`owned_samples`]), so a ray's
+//! samples are processed exactly once, in order, however the volume is cut.
+
+use glam::Vec3;
+
+use super::counters::Counters;
+use super::geometry::VolumeGeometry;
+use super::pixel::{PixelRay, PixelState};
+use super::prepared::FramePlan;
+use super::ray::Ray;
+use super::sampler::{BrickSampler, VolumeSampler};
+use super::settings::Mode;
+use crate::volume::{BrickRanges, Sample, TypedVolume};
+
+/// Slack around a brick's box when estimating its samples: ownership, not this
+/// box, decides, so the estimate only has to be generous.
+const BOX_SLACK: f32 = 1e-3;
+
+/// A brick ready to be marched.
+#[derive(Clone, Copy, Debug)]
+pub struct BrickContext<'a, T: Sample> {
+    /// Brick coordinates in the grid.
+    pub coords: [u32; 3],
+    /// Local trilinear reads.
+    pub sampler: BrickSampler<'a, T>,
+    /// Smallest and largest voxel value in the brick.
+    pub range: [u16; 2],
+    /// The transfer function makes every value in the brick transparent.
+    pub transparent: bool,
+}
+
+impl<'a, T: Sample> BrickContext<'a, T> {
+    /// Brick `b` of `geometry`'s grid over `volume`.
+    pub fn new(
+        volume: &TypedVolume<'a, T>,
+        geometry: &VolumeGeometry,
+        ranges: &BrickRanges,
+        plan: &FramePlan,
+        b: [u32; 3],
+    ) -> Self {
+        let grid = geometry.grid();
+        BrickContext {
+            coords: b,
+            sampler: BrickSampler::new(volume.brick(grid, b)),
+            range: ranges.range(b),
+            transparent: plan.transparent[grid.index(b) as usize],
+        }
+    }
+}
+
+/// The first and last sample index of `ray` that brick `b` owns, if any.
+pub fn owned_samples(ray: &PixelRay, geometry: &VolumeGeometry, b: [u32; 3]) -> Option<(u32, u32)> {
+    let (lo, hi) = geometry.brick_voxel_box(b);
+    let slack = Vec3::splat(BOX_SLACK);
+    let voxel_ray = Ray {
+        origin: ray.origin,
+        direction: ray.direction,
+    };
+    // `intersect_box` clips t at 0; sample parameters start at t_enter ≥ 0.
+    let (t0, t1) = voxel_ray.intersect_box(lo - slack, hi + slack)?;
+    let last_index = ray.samples - 1;
+    let k_of = |t: f32| (t - ray.t_enter) / ray.dt;
+    let mut first = (k_of(t0).floor() - 1.0).max(0.0) as u32;
+    let mut last = ((k_of(t1).ceil() + 1.0).max(0.0) as u32).min(last_index);
+    let last_voxel = geometry.last_voxel();
+    let owns = |k: u32| geometry.owner(ray.position(k, last_voxel)) == b;
+    while first <= last && !owns(first) {
+        first += 1;
+    }
+    while last > first && !owns(last) {
+        last -= 1;
+    }
+    (first <= last && owns(first)).then_some((first, last))
+}
+
+/// Marches samples `first..=last` of `ray` (all owned by `brick`) into `state`.
+///
+/// Skips the brick when empty-space skipping is on and no sample in it can change
+/// the pixel (transparent under the transfer function for DVR; no value above the
+/// running maximum for MIP; none reaching the iso-value for first hit). Stops at
+/// the opacity threshold or a first hit and marks the state done.
+#[allow(clippy::too_many_arguments)]
+pub fn march_brick<T: Sample>(
+    plan: &FramePlan,
+    volume: &VolumeSampler<'_, T>,
+    brick: &BrickContext<'_, T>,
+    ray: &PixelRay,
+    first: u32,
+    last: u32,
+    state: &mut PixelState,
+    counters: &mut Counters,
+) {
+    if state.done || first > last {
+        return;
+    }
+    let count = u64::from(last - first + 1);
+    let brick_max = f32::from(brick.range[1]);
+    let skip = plan.empty_space_skipping
+        && match plan.mode {
+            Mode::Dvr => brick.transparent,
+            Mode::Mip => brick_max <= state.value,
+            Mode::FirstHit => brick_max < plan.iso_raw,
+            Mode::Average => false,
+        };
+    if skip {
+        counters.samples_skipped_empty += count;
+        counters.brick_visits_skipped += 1;
+    } else {
+        counters.brick_visits += 1;
+        let taken = match plan.mode {
+            Mode::Dvr => march_dvr(plan, volume, brick, ray, first, last, state),
+            Mode::Mip => march_values(brick, ray, volume.last(), first, last, state, f32::max),
+            Mode::Average => {
+                state.count += last - first + 1;
+                march_values(brick, ray, volume.last(), first, last, state, |a, b| a + b)
+            }
+            Mode::FirstHit => march_first_hit(plan, volume, brick, ray, first, last, state),
+        };
+        counters.samples += taken;
+        if state.done {
+            counters.rays_terminated += 1;
+            return;
+        }
+    }
+    state.next_sample = last + 1;
+    if state.next_sample >= ray.samples {
+        state.done = true;
+    }
+}
+
+/// Front-to-back emission–absorption; returns the samples taken.
+fn march_dvr<T: Sample>(
+    plan: &FramePlan,
+    volume: &VolumeSampler<'_, T>,
+    brick: &BrickContext<'_, T>,
+    ray: &PixelRay,
+    first: u32,
+    last: u32,
+    state: &mut PixelState,
+) -> u64 {
+    let table = &plan.table;
+    let needs_gradient = plan.shading.is_some() || table.is_2d();
+    let last_voxel = volume.last();
+    let [mut r, mut g, mut b] = state.color;
+    let mut alpha = state.alpha;
+    let mut taken = 0;
+    for k in first..=last {
+        let p = ray.position(k, last_voxel);
+        let v = brick.sampler.value(p);
+        taken += 1;
+        let [cr, cg, cb, a] = table.lookup(v);
+        if a <= 0.0 {
+            continue;
+        }
+        let (color, a) = if needs_gradient {
+            let gradient = volume.gradient(&brick.sampler, p) * plan.gradient_scale;
+            let a = if table.is_2d() {
+                table.lookup_2d(v, gradient.length(), plan.step_ratio)[3]
+            } else {
+                a
+            };
+            let color = match &plan.shading {
+                Some(s) => s.shade([cr, cg, cb], gradient, ray.view_dir),
+                None => [cr, cg, cb],
+            };
+            (color, a)
+        } else {
+            ([cr, cg, cb], a)
+        };
+        // c += (1 − α)·αs·cs;  α += (1 − α)·αs
+        let w = (1.0 - alpha) * a;
+        r += w * color[0];
+        g += w * color[1];
+        b += w * color[2];
+        alpha += w;
+        if alpha >= plan.ert_threshold {
+            state.done = true;
+            state.next_sample = k + 1;
+            break;
+        }
+    }
+    state.color = [r, g, b];
+    state.alpha = alpha;
+    taken
+}
+
+/// MIP or average: folds every sample's raw value into `state.value`.
+fn march_values<T: Sample>(
+    brick: &BrickContext<'_, T>,
+    ray: &PixelRay,
+    last_voxel: Vec3,
+    first: u32,
+    last: u32,
+    state: &mut PixelState,
+    fold: impl Fn(f32, f32) -> f32,
+) -> u64 {
+    let mut value = state.value;
+    for k in first..=last {
+        value = fold(value, brick.sampler.value(ray.position(k, last_voxel)));
+    }
+    state.value = value;
+    u64::from(last - first + 1)
+}
+
+/// First sample at or above the iso-value; the hit is refined linearly between it
+/// and the sample before, then shaded.
+fn march_first_hit<T: Sample>(
+    plan: &FramePlan,
+    volume: &VolumeSampler<'_, T>,
+    brick: &BrickContext<'_, T>,
+    ray: &PixelRay,
+    first: u32,
+    last: u32,
+    state: &mut PixelState,
+) -> u64 {
+    let last_voxel = volume.last();
+    let iso = plan.iso_raw;
+    for k in first..=last {
+        let p = ray.position(k, last_voxel);
+        let v = brick.sampler.value(p);
+        if v < iso {
+            continue;
+        }
+        let mut t_hit = ray.t(k);
+        if k > 0 {
+            let before = ray.position(k - 1, last_voxel);
+            let v_before = if brick.sampler.contains(before) {
+                brick.sampler.value(before)
+            } else {
+                volume.value(before)
+            };
+            if v_before < iso && v > v_before {
+                t_hit = ray.t(k - 1) + (iso - v_before) / (v - v_before) * ray.dt;
+            }
+        }
+        let hit = (ray.origin + ray.direction * t_hit).clamp(Vec3::ZERO, last_voxel);
+        let [cr, cg, cb, _] = plan.table.lookup(iso);
+        let color = match &plan.shading {
+            Some(s) => {
+                let gradient = volume.gradient(&brick.sampler, hit) * plan.gradient_scale;
+                s.shade([cr, cg, cb], gradient, ray.view_dir)
+            }
+            None => [cr, cg, cb],
+        };
+        state.color = color;
+        state.alpha = 1.0;
+        state.depth = t_hit;
+        state.done = true;
+        state.next_sample = k + 1;
+        return u64::from(k - first + 1);
+    }
+    u64::from(last - first + 1)
+}

@@ -1,0 +1,43 @@
+//! Ray casting: cameras, transfer functions, shading, the marching kernel and the
+//! sequential reference renderer.
+//!
+//! The renderer sees volumes only through [`RenderVolume`] (brick grid + value
+//! ranges) and the sampler, never whether they are mapped or in RAM. Every renderer
+//! marches rays through bricks with one kernel ([`kernel::march_brick`]); samples
+//! are placed globally along each ray so that the way the volume is cut cannot
+//! change the image.
+
+mod camera;
+mod counters;
+mod error;
+mod frame;
+mod geometry;
+mod image;
+pub mod kernel;
+mod orbit;
+mod pixel;
+mod prepared;
+mod ray;
+mod sampler;
+mod sequential;
+mod settings;
+mod shading;
+mod transfer;
+
+pub use camera::{Camera, CameraError, PixelRect, Projection};
+pub use counters::{Counters, FrameStats};
+pub use error::RenderError;
+pub use frame::Frame;
+pub use geometry::VolumeGeometry;
+pub use image::{ImageError, RgbImage};
+pub use orbit::Orbit;
+pub use pixel::{PixelRay, PixelState, over_background};
+pub use prepared::{FramePlan, RenderVolume};
+pub use ray::Ray;
+pub use sampler::{BrickSampler, VolumeSampler};
+pub use sequential::render_sequential;
+pub use settings::{DEFAULT_ERT_THRESHOLD, Mode, RenderSettings};
+pub use shading::{Light, Shading};
+pub use transfer::{
+    ControlPoint, PRESETS, TransferError, TransferFunction, TransferTable, corrected_alpha,
+};

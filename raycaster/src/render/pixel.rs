@@ -1,0 +1,137 @@
+//! One pixel's ray and its compositing state.
+//!
+//! Sample `k` of a ray sits at `t = t_enter + k·dt`, where `t_enter` is where the ray
+//! enters the *whole* volume's box (engineering guide, invariant 2). Bricks only
+//! choose which `k` they handle, so splitting the volume never moves, drops or
+//! doubles a sample.
+
+use glam::Vec3;
+
+use super::geometry::VolumeGeometry;
+use super::ray::Ray;
+use super::settings::Mode;
+use super::transfer::TransferTable;
+
+/// A pixel's ray through the volume, in voxel coordinates.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PixelRay {
+    /// Ray origin in voxel coordinates.
+    pub origin: Vec3,
+    /// Voxel-coordinate change per unit of `t` (world distance).
+    pub direction: Vec3,
+    /// The world-space unit direction (for shading).
+    pub view_dir: Vec3,
+    /// Where the ray enters the volume's box (world distance).
+    pub t_enter: f32,
+    /// World distance between samples.
+    pub dt: f32,
+    /// Number of samples inside the box.
+    pub samples: u32,
+}
+
+impl PixelRay {
+    /// The volume part of world ray `ray` (unit direction), sampled every `dt`;
+    /// `None` when the ray misses the volume's box.
+    pub fn new(ray: &Ray, geometry: &VolumeGeometry, dt: f32) -> Option<PixelRay> {
+        let (lo, hi) = geometry.world_bounds();
+        let (t_enter, t_exit) = ray.intersect_box(lo, hi)?;
+        let span = ((t_exit - t_enter) / dt).floor();
+        // A huge span can only come from a degenerate ray; cap it rather than wrap.
+        let samples = (span.min(u32::MAX as f32 - 1.0) as u32) + 1;
+        let inv_spacing = geometry.spacing().recip();
+        Some(PixelRay {
+            origin: ray.origin * inv_spacing,
+            direction: ray.direction * inv_spacing,
+            view_dir: ray.direction,
+            t_enter,
+            dt,
+            samples,
+        })
+    }
+
+    /// The parameter of sample `k`.
+    #[inline]
+    pub fn t(&self, k: u32) -> f32 {
+        self.t_enter + k as f32 * self.dt
+    }
+
+    /// The voxel position of sample `k`, clamped into the box `[0, last]` (rounding
+    /// can put the first and last samples a hair outside).
+    #[inline]
+    pub fn position(&self, k: u32, last: Vec3) -> Vec3 {
+        (self.origin + self.direction * self.t(k)).clamp(Vec3::ZERO, last)
+    }
+}
+
+/// What a pixel has accumulated so far; travels with its tile between bricks.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PixelState {
+    /// Accumulated colour, premultiplied by opacity (DVR, first hit).
+    pub color: [f32; 3],
+    /// Accumulated opacity.
+    pub alpha: f32,
+    /// Mode value: the maximum (MIP) or the sum (average) of raw values.
+    pub value: f32,
+    /// Samples summed (average).
+    pub count: u32,
+    /// First-hit depth (world distance from the ray origin), `∞` without a hit.
+    pub depth: f32,
+    /// The next sample index this pixel expects.
+    pub next_sample: u32,
+    /// The ray is finished: terminated early, hit, or past its last sample.
+    pub done: bool,
+}
+
+impl Default for PixelState {
+    fn default() -> Self {
+        PixelState {
+            color: [0.0; 3],
+            alpha: 0.0,
+            value: f32::NEG_INFINITY,
+            count: 0,
+            depth: f32::INFINITY,
+            next_sample: 0,
+            done: false,
+        }
+    }
+}
+
+impl PixelState {
+    /// The state of a pixel whose ray has not started.
+    pub fn new(mode: Mode) -> Self {
+        let mut s = PixelState::default();
+        if mode == Mode::Average {
+            s.value = 0.0;
+        }
+        s
+    }
+
+    /// The pixel's premultiplied RGBA (before the background) under `mode`.
+    pub fn resolve(&self, mode: Mode, table: &TransferTable) -> [f32; 4] {
+        let classify = |v: f32| {
+            let [r, g, b, _] = table.lookup(v);
+            let a = table.alpha0(v);
+            [r * a, g * a, b * a, a]
+        };
+        match mode {
+            Mode::Dvr | Mode::FirstHit => {
+                let [r, g, b] = self.color;
+                [r, g, b, self.alpha]
+            }
+            Mode::Mip if self.value.is_finite() => classify(self.value),
+            Mode::Average if self.count > 0 => classify(self.value / self.count as f32),
+            Mode::Mip | Mode::Average => [0.0; 4],
+        }
+    }
+}
+
+/// Composites premultiplied `rgba` over `background` and quantises to 8 bits.
+#[inline]
+pub fn over_background(rgba: [f32; 4], background: [f32; 3]) -> [u8; 3] {
+    let rest = 1.0 - rgba[3];
+    [0, 1, 2].map(|c| {
+        let v = rgba[c] + rest * background[c];
+        // max/min, not clamp: NaN becomes 0.
+        (v * 255.0 + 0.5).max(0.0).min(255.0) as u8
+    })
+}

@@ -1,0 +1,145 @@
+//! A volume prepared for rendering (its brick grid and value ranges) and the
+//! per-frame plan (sampled transfer function, empty bricks, kernel parameters).
+
+use std::borrow::Cow;
+
+use glam::Vec3;
+
+use super::error::RenderError;
+use super::geometry::VolumeGeometry;
+use super::settings::{Mode, RenderSettings};
+use super::shading::Shading;
+use super::transfer::TransferTable;
+use crate::volume::{BlockGrid, BrickRanges, LINEAR_RANGE_SIDE, Layout, Volume};
+
+/// A volume with the brick grid the renderer walks and each brick's value range.
+#[derive(Debug)]
+pub struct RenderVolume<'a> {
+    volume: &'a Volume,
+    geometry: VolumeGeometry,
+    ranges: Cow<'a, BrickRanges>,
+}
+
+impl<'a> RenderVolume<'a> {
+    /// Prepares `volume`. Bricked files are rendered by their stored bricks; linear
+    /// files by logical bricks of `linear_brick_side` voxels (default
+    /// [`LINEAR_RANGE_SIDE`], whose ranges the file already has; other sides are
+    /// scanned once here).
+    pub fn new(volume: &'a Volume, linear_brick_side: Option<u32>) -> Result<Self, RenderError> {
+        let grid = match volume.layout() {
+            Layout::Bricked { side } => BlockGrid::new(volume.dims(), u32::from(side)),
+            Layout::Linear => {
+                let side = linear_brick_side.unwrap_or(LINEAR_RANGE_SIDE);
+                if side < 2 {
+                    return Err(RenderError::BrickSide(side));
+                }
+                BlockGrid::new(volume.dims(), side)
+            }
+        };
+        let ranges = if volume.ranges().grid() == &grid {
+            Cow::Borrowed(volume.ranges())
+        } else {
+            Cow::Owned(match volume.data() {
+                crate::volume::VolumeData::U8(v) => BrickRanges::compute(&v, &grid),
+                crate::volume::VolumeData::U16(v) => BrickRanges::compute(&v, &grid),
+            })
+        };
+        Ok(RenderVolume {
+            volume,
+            geometry: VolumeGeometry::new(grid, volume.spacing()),
+            ranges,
+        })
+    }
+
+    /// The volume.
+    pub fn volume(&self) -> &'a Volume {
+        self.volume
+    }
+
+    /// Placement and brick grid.
+    pub fn geometry(&self) -> &VolumeGeometry {
+        &self.geometry
+    }
+
+    /// Value range of each brick of the grid.
+    pub fn ranges(&self) -> &BrickRanges {
+        &self.ranges
+    }
+}
+
+/// Everything the marching kernel needs for one frame, besides the bricks.
+#[derive(Clone, Debug)]
+pub struct FramePlan {
+    /// The transfer function sampled and corrected for the step.
+    pub table: TransferTable,
+    /// Compositing mode.
+    pub mode: Mode,
+    /// Opacity at which a ray stops (above 1 when early termination is off).
+    pub ert_threshold: f32,
+    /// Skip empty bricks.
+    pub empty_space_skipping: bool,
+    /// Shading, if any.
+    pub shading: Option<Shading>,
+    /// First-hit iso-value in raw sample units.
+    pub iso_raw: f32,
+    /// Step in reference steps (opacity correction exponent).
+    pub step_ratio: f32,
+    /// World distance between samples.
+    pub dt: f32,
+    /// Per axis: raw value per voxel → value normalised over the transfer
+    /// function's domain per world unit of the smallest spacing.
+    pub gradient_scale: Vec3,
+    /// Per brick (file order): transparent under this transfer function.
+    pub transparent: Vec<bool>,
+    /// The background colour.
+    pub background: [f32; 3],
+}
+
+impl FramePlan {
+    /// The plan for rendering `volume` with `settings`.
+    pub fn new(volume: &RenderVolume<'_>, settings: &RenderSettings) -> Result<Self, RenderError> {
+        if !(settings.step.is_finite() && settings.step > 0.0) {
+            return Err(RenderError::Step(settings.step));
+        }
+        if let Some(t) = settings.early_termination
+            && !(t > 0.0 && t <= 1.0)
+        {
+            return Err(RenderError::ErtThreshold(t));
+        }
+        if !(0.0..=1.0).contains(&settings.iso_value) {
+            return Err(RenderError::IsoValue(settings.iso_value));
+        }
+        let type_max = volume.volume().sample_type().max_value();
+        let table = TransferTable::new(&settings.transfer, type_max, settings.step);
+        let [d0, d1] = settings
+            .transfer
+            .domain
+            .unwrap_or([0.0, f32::from(type_max)]);
+        let geometry = volume.geometry();
+        let transparent = volume
+            .ranges()
+            .as_slice()
+            .iter()
+            .map(|&[lo, hi]| table.is_transparent(lo, hi))
+            .collect();
+        let min_spacing = geometry.min_spacing();
+        Ok(FramePlan {
+            table,
+            mode: settings.mode,
+            ert_threshold: settings.early_termination.unwrap_or(f32::INFINITY),
+            empty_space_skipping: settings.empty_space_skipping,
+            shading: settings.shading,
+            iso_raw: d0 + settings.iso_value * (d1 - d0),
+            step_ratio: settings.step,
+            dt: settings.step * min_spacing,
+            gradient_scale: Vec3::splat(min_spacing / (d1 - d0)) / geometry.spacing(),
+            transparent,
+            background: settings.background,
+        })
+    }
+
+    /// Bricks the transfer function makes fully transparent.
+    pub fn transparent_bricks(&self) -> u64 {
+        self.transparent.iter().filter(|&&t| t).count() as u64
+    }
+}

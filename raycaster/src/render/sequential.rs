@@ -1,0 +1,83 @@
+//! The sequential reference renderer: image order, one pixel at a time, each ray
+//! walked brick by brick through the shared marching kernel.
+//!
+//! It is deliberately simple and is the oracle every faster renderer is compared
+//! with: for each pixel inside the volume's projected rectangle, find the brick
+//! owning the ray's next sample, let the kernel march the samples that brick owns,
+//! and repeat until the ray leaves the volume, terminates early or hits.
+
+use std::time::Instant;
+
+use super::camera::Camera;
+use super::counters::Counters;
+use super::error::RenderError;
+use super::frame::Frame;
+use super::kernel::{BrickContext, march_brick, owned_samples};
+use super::pixel::{PixelRay, PixelState};
+use super::prepared::{FramePlan, RenderVolume};
+use super::sampler::VolumeSampler;
+use super::settings::RenderSettings;
+use crate::volume::{Sample, TypedVolume, VolumeData};
+
+/// Renders one frame of `volume` seen by `camera`, on the calling thread.
+pub fn render_sequential(
+    volume: &RenderVolume<'_>,
+    camera: &Camera,
+    settings: &RenderSettings,
+) -> Result<Frame, RenderError> {
+    let start = Instant::now();
+    let plan = FramePlan::new(volume, settings)?;
+    let mut frame = Frame::empty(camera.width(), camera.height(), settings.background);
+    let counters = match volume.volume().data() {
+        VolumeData::U8(v) => render_pixels(volume, &v, camera, &plan, &mut frame),
+        VolumeData::U16(v) => render_pixels(volume, &v, camera, &plan, &mut frame),
+    };
+    frame.stats.counters = counters;
+    frame.stats.bricks = volume.geometry().grid().block_count();
+    frame.stats.bricks_transparent = plan.transparent_bricks();
+    frame.stats.threads = 1;
+    frame.stats.time = start.elapsed();
+    Ok(frame)
+}
+
+fn render_pixels<T: Sample>(
+    volume: &RenderVolume<'_>,
+    data: &TypedVolume<'_, T>,
+    camera: &Camera,
+    plan: &FramePlan,
+    frame: &mut Frame,
+) -> Counters {
+    let geometry = volume.geometry();
+    let sampler = VolumeSampler::new(*data);
+    let mut counters = Counters::default();
+    let (lo, hi) = geometry.world_bounds();
+    let Some(rect) = camera.project_box(lo, hi) else {
+        return counters;
+    };
+    let last_voxel = geometry.last_voxel();
+    for y in rect.y0..rect.y1 {
+        for x in rect.x0..rect.x1 {
+            let Some(ray) = PixelRay::new(&camera.ray(x, y), geometry, plan.dt) else {
+                continue;
+            };
+            counters.rays += 1;
+            let mut state = PixelState::new(plan.mode);
+            while !state.done {
+                let k = state.next_sample;
+                let b = geometry.owner(ray.position(k, last_voxel));
+                let brick = BrickContext::new(data, geometry, volume.ranges(), plan, b);
+                // Ownership is contiguous along a ray, so the owned run starts at k;
+                // a run that does not (rounding at a brick corner) is cut to k alone.
+                let last = match owned_samples(&ray, geometry, b) {
+                    Some((first, last)) if first <= k && k <= last => last,
+                    _ => k,
+                };
+                march_brick(plan, &sampler, &brick, &ray, k, last, &mut state, &mut counters);
+            }
+            let i = frame.index(x, y);
+            frame.rgba[i] = state.resolve(plan.mode, &plan.table);
+            frame.depth[i] = state.depth;
+        }
+    }
+    counters
+}

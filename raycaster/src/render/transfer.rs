@@ -1,0 +1,558 @@
+//! Transfer functions: control points → RGBA lookup tables, 2D (value × gradient
+//! magnitude) tables, opacity correction and O(1) transparency queries.
+//!
+//! A [`TransferFunction`] is what a user edits: control points over the normalised
+//! value range `[0, 1]` of a domain of raw sample values, optionally with a
+//! gradient-magnitude opacity ramp that makes it two-dimensional. A
+//! [`TransferTable`] is what the renderer uses for one frame: the function sampled
+//! into a table, with opacities corrected for the frame's step (thesis:
+//! `α = 1 − (1 − α0)^(s/s0)`) and a prefix sum over "opacity > 0" that answers
+//! "is every value in `[lo, hi]` transparent?" with two reads.
+
+use std::path::Path;
+
+/// Entries in a frame's 1D table.
+pub const TABLE_SIZE: usize = 1024;
+/// Gradient-magnitude bins of a 2D table.
+pub const GRADIENT_BINS: usize = 64;
+/// Gradient magnitude (normalised value per voxel) mapped to the last bin.
+pub const GRADIENT_RANGE: f32 = 0.5;
+
+/// One control point: at normalised value `value`, colour `color` and opacity
+/// `alpha` per reference step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ControlPoint {
+    /// Position in the domain, 0 = its low end, 1 = its high end.
+    pub value: f32,
+    /// Linear RGB in `[0, 1]`.
+    pub color: [f32; 3],
+    /// Opacity per reference step, `[0, 1]`.
+    pub alpha: f32,
+}
+
+/// A transfer function: piecewise-linear colour and opacity over a value domain.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TransferFunction {
+    points: Vec<ControlPoint>,
+    /// Raw sample values mapped to normalised 0 and 1; `None` = the sample type's
+    /// whole range (0..255 or 0..65535).
+    pub domain: Option<[f32; 2]>,
+    /// Two-dimensional variant: opacity is multiplied by
+    /// `smoothstep(g0, g1, |∇f|)`, with `|∇f|` in normalised value per voxel.
+    pub gradient_ramp: Option<[f32; 2]>,
+}
+
+/// What is wrong with a transfer function (or its file).
+#[derive(Debug, thiserror::Error)]
+pub enum TransferError {
+    /// Fewer than one control point.
+    #[error("a transfer function needs at least one control point")]
+    NoPoints,
+    /// A number is out of range or not finite.
+    #[error("line {line}: {what}")]
+    Invalid {
+        /// 1-based line number (0 for points given in code).
+        line: usize,
+        /// What is wrong.
+        what: String,
+    },
+    /// No preset has this name.
+    #[error("unknown transfer function preset {0:?} (known: {known})", known = preset_names())]
+    UnknownPreset(String),
+    /// The file cannot be read.
+    #[error("cannot read transfer function file {path}: {source}")]
+    Io {
+        /// The file.
+        path: std::path::PathBuf,
+        /// The error.
+        source: std::io::Error,
+    },
+}
+
+/// The named presets: (name, what it suits).
+pub const PRESETS: [(&str, &str); 8] = [
+    ("shapes", "the synthetic `shapes` scene: faint blue glass, opaque orange solids"),
+    ("ct-bone", "CT-like data: bone only, ivory and opaque"),
+    ("ct-skin", "CT-like data: translucent skin over opaque bone"),
+    ("shells", "the synthetic `shells` scene: one colour per shell"),
+    ("cloud", "the synthetic `noise` scene: a soft bluish cloud"),
+    ("opaque", "every non-background value fully opaque (sample-count experiments)"),
+    ("grayscale", "a linear grey ramp with a linear opacity ramp"),
+    ("rainbow", "hue over the value range with rising opacity"),
+];
+
+fn preset_names() -> String {
+    PRESETS.map(|(n, _)| n).join(", ")
+}
+
+fn p(value: f32, color: [f32; 3], alpha: f32) -> ControlPoint {
+    ControlPoint {
+        value,
+        color,
+        alpha,
+    }
+}
+
+impl TransferFunction {
+    /// A function from control points (sorted here by value).
+    pub fn new(mut points: Vec<ControlPoint>) -> Result<TransferFunction, TransferError> {
+        if points.is_empty() {
+            return Err(TransferError::NoPoints);
+        }
+        for q in &points {
+            check_point(q, 0)?;
+        }
+        points.sort_by(|a, b| a.value.total_cmp(&b.value));
+        Ok(TransferFunction {
+            points,
+            domain: None,
+            gradient_ramp: None,
+        })
+    }
+
+    /// The preset called `name` (see [`PRESETS`]).
+    pub fn preset(name: &str) -> Result<TransferFunction, TransferError> {
+        const BLUE: [f32; 3] = [0.35, 0.55, 1.0];
+        const ORANGE: [f32; 3] = [1.0, 0.55, 0.2];
+        const IVORY: [f32; 3] = [1.0, 0.95, 0.85];
+        const SKIN: [f32; 3] = [0.95, 0.65, 0.5];
+        let points = match name {
+            "shapes" => vec![
+                p(0.0, BLUE, 0.0),
+                p(0.08, BLUE, 0.0),
+                p(0.12, BLUE, 0.06),
+                p(0.31, BLUE, 0.06),
+                p(0.36, ORANGE, 0.0),
+                p(0.40, ORANGE, 0.0),
+                p(0.55, [1.0, 0.6, 0.25], 0.7),
+                p(0.8, [1.0, 0.8, 0.45], 0.95),
+                p(1.0, [1.0, 1.0, 0.9], 1.0),
+            ],
+            "ct-bone" => vec![
+                p(0.0, IVORY, 0.0),
+                p(0.38, IVORY, 0.0),
+                p(0.5, [0.9, 0.8, 0.7], 0.4),
+                p(0.65, IVORY, 0.95),
+                p(1.0, [1.0, 1.0, 1.0], 1.0),
+            ],
+            "ct-skin" => vec![
+                p(0.0, SKIN, 0.0),
+                p(0.15, SKIN, 0.0),
+                p(0.22, SKIN, 0.04),
+                p(0.32, SKIN, 0.04),
+                p(0.38, IVORY, 0.0),
+                p(0.5, [0.9, 0.8, 0.7], 0.4),
+                p(0.7, IVORY, 1.0),
+                p(1.0, [1.0, 1.0, 1.0], 1.0),
+            ],
+            "shells" => vec![
+                p(0.0, [0.9, 0.2, 0.2], 0.0),
+                p(0.08, [0.9, 0.2, 0.2], 0.0),
+                p(0.1, [0.9, 0.2, 0.2], 0.6),
+                p(0.2, [0.9, 0.3, 0.2], 0.6),
+                p(0.25, [0.2, 0.8, 0.3], 0.0),
+                p(0.33, [0.2, 0.8, 0.3], 0.0),
+                p(0.35, [0.2, 0.8, 0.3], 0.3),
+                p(0.45, [0.3, 0.9, 0.4], 0.3),
+                p(0.5, [0.2, 0.4, 0.9], 0.0),
+                p(0.58, [0.2, 0.4, 0.9], 0.0),
+                p(0.6, [0.2, 0.4, 0.9], 0.15),
+                p(0.7, [0.3, 0.5, 1.0], 0.15),
+                p(0.75, [0.9, 0.9, 0.9], 0.0),
+                p(0.83, [0.9, 0.9, 0.9], 0.0),
+                p(0.85, [0.9, 0.9, 0.9], 0.05),
+                p(1.0, [1.0, 1.0, 1.0], 0.05),
+            ],
+            "cloud" => vec![
+                p(0.0, [0.6, 0.7, 1.0], 0.0),
+                p(0.25, [0.6, 0.7, 1.0], 0.0),
+                p(0.5, [0.8, 0.85, 1.0], 0.04),
+                p(1.0, [1.0, 1.0, 1.0], 0.4),
+            ],
+            "opaque" => vec![
+                p(0.0, [1.0; 3], 0.0),
+                p(0.04, [1.0; 3], 0.0),
+                p(0.05, [0.9, 0.9, 0.9], 1.0),
+                p(1.0, [1.0; 3], 1.0),
+            ],
+            "grayscale" => vec![p(0.0, [0.0; 3], 0.0), p(1.0, [1.0; 3], 0.5)],
+            "rainbow" => vec![
+                p(0.0, [0.2, 0.0, 1.0], 0.0),
+                p(0.1, [0.2, 0.0, 1.0], 0.0),
+                p(0.3, [0.0, 0.6, 1.0], 0.05),
+                p(0.5, [0.0, 1.0, 0.3], 0.15),
+                p(0.7, [1.0, 0.9, 0.0], 0.4),
+                p(1.0, [1.0, 0.1, 0.0], 0.9),
+            ],
+            other => return Err(TransferError::UnknownPreset(other.to_string())),
+        };
+        TransferFunction::new(points)
+    }
+
+    /// Parses the text format (one item per line, `#` starts a comment):
+    ///
+    /// ```text
+    /// domain 0 4095            # optional: raw values mapped to 0 and 1
+    /// gradient 0.02 0.1        # optional: 2D, opacity × smoothstep(0.02, 0.1, |∇f|)
+    /// point 0.0  0 0 0  0      # value  r g b  alpha   (all in [0, 1])
+    /// point 1.0  1 1 1  0.8
+    /// ```
+    pub fn parse(text: &str) -> Result<TransferFunction, TransferError> {
+        let mut points = Vec::new();
+        let mut domain = None;
+        let mut gradient_ramp = None;
+        for (i, raw_line) in text.lines().enumerate() {
+            let line = i + 1;
+            let content = raw_line.split('#').next().unwrap_or("").trim();
+            if content.is_empty() {
+                continue;
+            }
+            let mut words = content.split_whitespace();
+            let keyword = words.next().unwrap_or("");
+            let numbers = words
+                .map(|w| {
+                    w.parse::<f32>()
+                        .ok()
+                        .filter(|v| v.is_finite())
+                        .ok_or_else(|| invalid(line, format!("{w:?} is not a finite number")))
+                })
+                .collect::<Result<Vec<f32>, _>>()?;
+            let expect = |n: usize| {
+                if numbers.len() == n {
+                    Ok(())
+                } else {
+                    Err(invalid(
+                        line,
+                        format!("{keyword} takes {n} numbers, found {}", numbers.len()),
+                    ))
+                }
+            };
+            match keyword {
+                "point" => {
+                    expect(5)?;
+                    let q = p(numbers[0], [numbers[1], numbers[2], numbers[3]], numbers[4]);
+                    check_point(&q, line)?;
+                    points.push(q);
+                }
+                "domain" => {
+                    expect(2)?;
+                    if numbers[1] <= numbers[0] {
+                        return Err(invalid(line, "domain must be increasing".into()));
+                    }
+                    domain = Some([numbers[0], numbers[1]]);
+                }
+                "gradient" => {
+                    expect(2)?;
+                    if numbers[0] < 0.0 || numbers[1] <= numbers[0] {
+                        return Err(invalid(line, "gradient ramp needs 0 ≤ g0 < g1".into()));
+                    }
+                    gradient_ramp = Some([numbers[0], numbers[1]]);
+                }
+                other => {
+                    return Err(invalid(
+                        line,
+                        format!("unknown keyword {other:?} (expected point, domain or gradient)"),
+                    ));
+                }
+            }
+        }
+        let mut tf = TransferFunction::new(points)?;
+        tf.domain = domain;
+        tf.gradient_ramp = gradient_ramp;
+        Ok(tf)
+    }
+
+    /// Reads and parses a transfer-function file (format of [`Self::parse`]).
+    pub fn load(path: &Path) -> Result<TransferFunction, TransferError> {
+        let text = std::fs::read_to_string(path).map_err(|source| TransferError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        TransferFunction::parse(&text)
+    }
+
+    /// The text form that [`Self::parse`] reads back.
+    pub fn to_text(&self) -> String {
+        let mut out = String::from("# raycaster transfer function\n");
+        if let Some([a, b]) = self.domain {
+            out += &format!("domain {a} {b}\n");
+        }
+        if let Some([a, b]) = self.gradient_ramp {
+            out += &format!("gradient {a} {b}\n");
+        }
+        for q in &self.points {
+            let [r, g, b] = q.color;
+            out += &format!("point {} {r} {g} {b} {}\n", q.value, q.alpha);
+        }
+        out
+    }
+
+    /// The control points, sorted by value.
+    pub fn points(&self) -> &[ControlPoint] {
+        &self.points
+    }
+
+    /// Colour and opacity (per reference step) at normalised value `x`, linearly
+    /// interpolated between control points and constant beyond the end points.
+    pub fn evaluate(&self, x: f32) -> [f32; 4] {
+        let pts = &self.points;
+        let rgba = |q: &ControlPoint| [q.color[0], q.color[1], q.color[2], q.alpha];
+        let first = &pts[0];
+        if x <= first.value {
+            return rgba(first);
+        }
+        for w in pts.windows(2) {
+            let (a, b) = (&w[0], &w[1]);
+            if x <= b.value {
+                let f = if b.value > a.value {
+                    (x - a.value) / (b.value - a.value)
+                } else {
+                    1.0
+                };
+                let (ca, cb) = (rgba(a), rgba(b));
+                return [0, 1, 2, 3].map(|i| ca[i] + (cb[i] - ca[i]) * f);
+            }
+        }
+        rgba(pts.last().expect("at least one point"))
+    }
+}
+
+fn invalid(line: usize, what: String) -> TransferError {
+    TransferError::Invalid { line, what }
+}
+
+fn check_point(q: &ControlPoint, line: usize) -> Result<(), TransferError> {
+    let in_unit = |v: f32| (0.0..=1.0).contains(&v);
+    if !in_unit(q.value) || !q.color.iter().all(|&c| in_unit(c)) || !in_unit(q.alpha) {
+        return Err(invalid(
+            line,
+            format!("control point {q:?}: value, colour and alpha must lie in [0, 1]"),
+        ));
+    }
+    Ok(())
+}
+
+/// Opacity corrected for a step of `ratio` reference steps:
+/// `α = 1 − (1 − α0)^ratio`.
+#[inline]
+pub fn corrected_alpha(alpha0: f32, ratio: f32) -> f32 {
+    if alpha0 >= 1.0 {
+        1.0
+    } else {
+        1.0 - (1.0 - alpha0).powf(ratio)
+    }
+}
+
+/// A transfer function sampled for one frame.
+#[derive(Clone, Debug)]
+pub struct TransferTable {
+    /// RGB and step-corrected opacity per entry.
+    entries: Vec<[f32; 4]>,
+    /// Uncorrected opacity per entry (one-sample modes: MIP, average).
+    alpha0: Vec<f32>,
+    /// `opaque_prefix[i]` = entries below `i` with opacity > 0.
+    opaque_prefix: Vec<u32>,
+    /// Raw value of entry 0 and entries per raw unit.
+    offset: f32,
+    scale: f32,
+    /// Corrected opacity factor per gradient bin (2D tables).
+    gradient: Option<GradientRamp>,
+}
+
+#[derive(Clone, Debug)]
+struct GradientRamp {
+    /// `smoothstep(g0, g1, g)` per bin.
+    factor: Vec<f32>,
+    /// Bins per unit of gradient magnitude.
+    scale: f32,
+}
+
+impl TransferTable {
+    /// Samples `tf` for samples whose full range is `0..=type_max`, with opacities
+    /// corrected for a step of `step_ratio` reference steps.
+    pub fn new(tf: &TransferFunction, type_max: u16, step_ratio: f32) -> TransferTable {
+        let [d0, d1] = tf.domain.unwrap_or([0.0, f32::from(type_max)]);
+        let n = TABLE_SIZE;
+        let mut entries = Vec::with_capacity(n);
+        let mut alpha0 = Vec::with_capacity(n);
+        for i in 0..n {
+            let [r, g, b, a] = tf.evaluate(i as f32 / (n - 1) as f32);
+            entries.push([r, g, b, corrected_alpha(a, step_ratio)]);
+            alpha0.push(a);
+        }
+        let mut opaque_prefix = Vec::with_capacity(n + 1);
+        let mut count = 0u32;
+        opaque_prefix.push(0);
+        for &a in &alpha0 {
+            count += u32::from(a > 0.0);
+            opaque_prefix.push(count);
+        }
+        let gradient = tf.gradient_ramp.map(|[g0, g1]| GradientRamp {
+            factor: (0..GRADIENT_BINS)
+                .map(|i| smoothstep(g0, g1, i as f32 / (GRADIENT_BINS - 1) as f32 * GRADIENT_RANGE))
+                .collect(),
+            scale: (GRADIENT_BINS - 1) as f32 / GRADIENT_RANGE,
+        });
+        TransferTable {
+            entries,
+            alpha0,
+            opaque_prefix,
+            offset: d0,
+            scale: (n - 1) as f32 / (d1 - d0),
+            gradient,
+        }
+    }
+
+    /// The table entry that raw value `v` reads (nearest entry; monotone in `v`).
+    #[inline]
+    pub fn index(&self, v: f32) -> usize {
+        // max/min rather than clamp: NaN maps to entry 0.
+        let i = ((v - self.offset) * self.scale + 0.5)
+            .max(0.0)
+            .min((TABLE_SIZE - 1) as f32);
+        i as usize
+    }
+
+    /// RGB and step-corrected opacity for raw value `v` (1D part only).
+    #[inline]
+    pub fn lookup(&self, v: f32) -> [f32; 4] {
+        self.entries[self.index(v)]
+    }
+
+    /// The uncorrected opacity (per reference step) for raw value `v`.
+    #[inline]
+    pub fn alpha0(&self, v: f32) -> f32 {
+        self.alpha0[self.index(v)]
+    }
+
+    /// Whether opacity depends on the gradient magnitude too.
+    #[inline]
+    pub fn is_2d(&self) -> bool {
+        self.gradient.is_some()
+    }
+
+    /// Opacity factor of the 2D ramp for gradient magnitude `g` (1 for 1D tables).
+    /// The step correction is applied to the product in [`Self::lookup_2d`].
+    #[inline]
+    fn gradient_factor(&self, g: f32) -> f32 {
+        match &self.gradient {
+            Some(ramp) => {
+                let i = (g * ramp.scale + 0.5).max(0.0).min((GRADIENT_BINS - 1) as f32);
+                ramp.factor[i as usize]
+            }
+            None => 1.0,
+        }
+    }
+
+    /// RGB and step-corrected opacity for raw value `v` and gradient magnitude `g`.
+    #[inline]
+    pub fn lookup_2d(&self, v: f32, g: f32, step_ratio: f32) -> [f32; 4] {
+        let i = self.index(v);
+        let [r, gr, b, _] = self.entries[i];
+        let a0 = self.alpha0[i] * self.gradient_factor(g);
+        [r, gr, b, corrected_alpha(a0, step_ratio)]
+    }
+
+    /// Whether every raw value in `[lo, hi]` maps to opacity 0 (whatever the
+    /// gradient): two reads of the prefix sum.
+    #[inline]
+    pub fn is_transparent(&self, lo: u16, hi: u16) -> bool {
+        let (a, b) = (self.index(f32::from(lo)), self.index(f32::from(hi)));
+        self.opaque_prefix[b + 1] == self.opaque_prefix[a]
+    }
+}
+
+fn smoothstep(e0: f32, e1: f32, x: f32) -> f32 {
+    let t = ((x - e0) / (e1 - e0)).clamp(0.0, 1.0);
+    t * t * (3.0 - 2.0 * t)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_preset_builds_and_parses_back() {
+        for (name, _) in PRESETS {
+            let tf = TransferFunction::preset(name).unwrap();
+            assert_eq!(TransferFunction::parse(&tf.to_text()).unwrap(), tf, "{name}");
+        }
+        assert!(matches!(
+            TransferFunction::preset("nope"),
+            Err(TransferError::UnknownPreset(_))
+        ));
+    }
+
+    #[test]
+    fn evaluation_interpolates_between_points() {
+        let tf = TransferFunction::new(vec![
+            p(0.2, [0.0; 3], 0.0),
+            p(0.6, [1.0, 0.5, 0.0], 0.8),
+        ])
+        .unwrap();
+        assert_eq!(tf.evaluate(0.0), [0.0; 4]);
+        let mid = tf.evaluate(0.4);
+        assert!((mid[0] - 0.5).abs() < 1e-6 && (mid[3] - 0.4).abs() < 1e-6);
+        assert_eq!(tf.evaluate(1.0), [1.0, 0.5, 0.0, 0.8]);
+    }
+
+    #[test]
+    fn opacity_correction_matches_the_formula() {
+        assert!((corrected_alpha(0.5, 2.0) - 0.75).abs() < 1e-6);
+        assert!((corrected_alpha(0.5, 0.5) - (1.0 - 0.5f32.sqrt())).abs() < 1e-6);
+        assert_eq!(corrected_alpha(1.0, 0.1), 1.0);
+        assert_eq!(corrected_alpha(0.0, 3.0), 0.0);
+    }
+
+    #[test]
+    fn transparency_queries_agree_with_a_scan() {
+        let tf = TransferFunction::preset("shapes").unwrap();
+        let table = TransferTable::new(&tf, 255, 0.5);
+        for lo in (0u16..=255).step_by(5) {
+            for hi in (lo..=255).step_by(7) {
+                let scan = (lo..=hi).all(|v| table.lookup(f32::from(v))[3] == 0.0)
+                    && (0..20).all(|k| {
+                        let v = f32::from(lo) + (f32::from(hi - lo)) * k as f32 / 19.0;
+                        table.lookup(v)[3] == 0.0
+                    });
+                assert_eq!(table.is_transparent(lo, hi), scan, "[{lo}, {hi}]");
+            }
+        }
+    }
+
+    #[test]
+    fn domain_maps_raw_values() {
+        let mut tf = TransferFunction::preset("grayscale").unwrap();
+        tf.domain = Some([1000.0, 2000.0]);
+        let table = TransferTable::new(&tf, u16::MAX, 1.0);
+        assert_eq!(table.lookup(500.0), [0.0; 4]);
+        assert_eq!(table.lookup(3000.0)[0], 1.0);
+        assert!((table.lookup(1500.0)[0] - 0.5).abs() < 1e-3);
+    }
+
+    #[test]
+    fn bad_files_name_the_line() {
+        let cases = [
+            ("point 0 0 0 0", "takes 5 numbers"),
+            ("point 0 0 0 0 2", "must lie in [0, 1]"),
+            ("point 0 0 0 0 nan", "not a finite number"),
+            ("domain 5 1\npoint 0 0 0 0 0", "increasing"),
+            ("colour 1", "unknown keyword"),
+            ("# nothing", "at least one control point"),
+        ];
+        for (text, needle) in cases {
+            let e = TransferFunction::parse(text).unwrap_err().to_string();
+            assert!(e.contains(needle), "{text:?} gave {e}");
+        }
+    }
+
+    #[test]
+    fn gradient_ramp_scales_opacity() {
+        let mut tf = TransferFunction::preset("opaque").unwrap();
+        tf.gradient_ramp = Some([0.1, 0.2]);
+        let table = TransferTable::new(&tf, 255, 1.0);
+        assert!(table.is_2d());
+        assert_eq!(table.lookup_2d(200.0, 0.0, 1.0)[3], 0.0);
+        assert_eq!(table.lookup_2d(200.0, 0.3, 1.0)[3], 1.0);
+    }
+}
