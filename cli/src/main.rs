@@ -1,1 +1,34 @@
-fn main() {}
+//! raycaster: render volume files headlessly.
+//!
+//! A thin command-line shell around the `raycaster` library; every camera,
+//! transfer function and renderer lives there.
+
+mod args;
+mod render;
+mod stats;
+
+use clap::{Parser, Subcommand};
+
+/// CPU ray casting of huge bricked, memory-mapped volumes.
+#[derive(Parser, Debug)]
+#[command(name = "raycaster", version, propagate_version = true)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    Render(Box<render::RenderArgs>),
+}
+
+fn main() {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Render(a) => render::run(*a),
+    };
+    if let Err(e) = result {
+        eprintln!("error: {e:#}");
+        std::process::exit(1);
+    }
+}

@@ -148,6 +148,7 @@ fn march_dvr<T: Sample>(
     let [mut r, mut g, mut b] = state.color;
     let mut alpha = state.alpha;
     let mut taken = 0;
+    let last_sample = ray.samples - 1;
     for k in first..=last {
         let p = ray.position(k, last_voxel);
         let v = brick.sampler.value(p);
@@ -170,6 +171,13 @@ fn march_dvr<T: Sample>(
             (color, a)
         } else {
             ([cr, cg, cb], a)
+        };
+        // The last sample stands for a shorter segment: (1 − a)^f is the
+        // transparency of the fraction f of a step.
+        let a = if k == last_sample {
+            1.0 - (1.0 - a).powf(ray.last_fraction)
+        } else {
+            a
         };
         // c += (1 − α)·αs·cs;  α += (1 − α)·αs
         let w = (1.0 - alpha) * a;

@@ -38,6 +38,7 @@ pub use sampler::{BrickSampler, VolumeSampler};
 pub use sequential::render_sequential;
 pub use settings::{DEFAULT_ERT_THRESHOLD, Mode, RenderSettings};
 pub use shading::{Light, Shading};
+pub use glam::Vec3;
 pub use transfer::{
     ControlPoint, PRESETS, TransferError, TransferFunction, TransferTable, corrected_alpha,
 };

@@ -25,8 +25,12 @@ pub struct PixelRay {
     pub t_enter: f32,
     /// World distance between samples.
     pub dt: f32,
-    /// Number of samples inside the box.
+    /// Number of samples inside the box: sample `k` stands for the segment
+    /// `[t_k, t_k + dt)`, clipped at the exit.
     pub samples: u32,
+    /// The last sample's segment length as a fraction of `dt`, in `(0, 1]`
+    /// (0 only for a ray that merely touches the box).
+    pub last_fraction: f32,
 }
 
 impl PixelRay {
@@ -35,9 +39,12 @@ impl PixelRay {
     pub fn new(ray: &Ray, geometry: &VolumeGeometry, dt: f32) -> Option<PixelRay> {
         let (lo, hi) = geometry.world_bounds();
         let (t_enter, t_exit) = ray.intersect_box(lo, hi)?;
-        let span = ((t_exit - t_enter) / dt).floor();
-        // A huge span can only come from a degenerate ray; cap it rather than wrap.
-        let samples = (span.min(u32::MAX as f32 - 1.0) as u32) + 1;
+        let length = t_exit - t_enter;
+        // Samples cover [t_enter, t_exit): ceil(L/dt) of them, at least one; the
+        // last stands for the remaining length only. A huge count can only come
+        // from a degenerate ray: cap it rather than wrap.
+        let samples = ((length / dt).ceil().min(u32::MAX as f32 - 1.0) as u32).max(1);
+        let last_fraction = ((length - (samples - 1) as f32 * dt) / dt).clamp(0.0, 1.0);
         let inv_spacing = geometry.spacing().recip();
         Some(PixelRay {
             origin: ray.origin * inv_spacing,
@@ -46,6 +53,7 @@ impl PixelRay {
             t_enter,
             dt,
             samples,
+            last_fraction,
         })
     }
 
@@ -127,11 +135,11 @@ impl PixelState {
 
 /// Composites premultiplied `rgba` over `background` and quantises to 8 bits.
 #[inline]
+#[allow(clippy::manual_clamp)] // max/min, not clamp: NaN must become 0
 pub fn over_background(rgba: [f32; 4], background: [f32; 3]) -> [u8; 3] {
     let rest = 1.0 - rgba[3];
     [0, 1, 2].map(|c| {
         let v = rgba[c] + rest * background[c];
-        // max/min, not clamp: NaN becomes 0.
         (v * 255.0 + 0.5).max(0.0).min(255.0) as u8
     })
 }

@@ -1,0 +1,102 @@
+//! Parsers for command-line values: image sizes, vectors, colours.
+
+/// `WxH` (or a single `N` for a square), each between 1 and 16384.
+pub fn parse_size(s: &str) -> Result<[u32; 2], String> {
+    let parts: Vec<&str> = s.split(['x', 'X', '×']).collect();
+    let nums = parts
+        .iter()
+        .map(|p| p.trim().parse::<u32>().ok().filter(|&v| (1..=16384).contains(&v)))
+        .collect::<Option<Vec<u32>>>()
+        .ok_or_else(|| format!("{s:?} is not an image size; expected WxH with 1..16384 pixels each"))?;
+    match nums[..] {
+        [n] => Ok([n, n]),
+        [w, h] => Ok([w, h]),
+        _ => Err(format!("{s:?} is not an image size; expected WxH, e.g. 800x600")),
+    }
+}
+
+/// `x,y,z` of finite numbers.
+pub fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
+    let nums = s
+        .split(',')
+        .map(|p| p.trim().parse::<f32>().ok().filter(|v| v.is_finite()))
+        .collect::<Option<Vec<f32>>>()
+        .ok_or_else(|| format!("{s:?} is not a vector; expected x,y,z"))?;
+    <[f32; 3]>::try_from(nums).map_err(|_| format!("{s:?} is not a vector; expected x,y,z"))
+}
+
+/// `lo,hi` with lo < hi.
+pub fn parse_domain(s: &str) -> Result<[f32; 2], String> {
+    let nums = s
+        .split(',')
+        .map(|p| p.trim().parse::<f32>().ok().filter(|v| v.is_finite()))
+        .collect::<Option<Vec<f32>>>();
+    match nums.as_deref() {
+        Some(&[lo, hi]) if lo < hi => Ok([lo, hi]),
+        _ => Err(format!("{s:?} is not a value domain; expected lo,hi with lo < hi")),
+    }
+}
+
+/// A colour: `#rrggbb`, `r,g,b` in 0..255, or black/white/grey.
+pub fn parse_color(s: &str) -> Result<[f32; 3], String> {
+    let bad = || format!("{s:?} is not a colour; expected #rrggbb, r,g,b (0-255), black, white or grey");
+    let bytes: [u8; 3] = match s.trim() {
+        "black" => [0; 3],
+        "white" => [255; 3],
+        "grey" | "gray" => [128; 3],
+        hex if hex.starts_with('#') && hex.len() == 7 => {
+            let channel = |i: usize| u8::from_str_radix(&hex[i..i + 2], 16).map_err(|_| bad());
+            [channel(1)?, channel(3)?, channel(5)?]
+        }
+        triple => {
+            let v = triple
+                .split(',')
+                .map(|p| p.trim().parse::<u8>().ok())
+                .collect::<Option<Vec<u8>>>()
+                .ok_or_else(bad)?;
+            <[u8; 3]>::try_from(v).map_err(|_| bad())?
+        }
+    };
+    Ok(bytes.map(|b| f32::from(b) / 255.0))
+}
+
+/// A probability-like number in (0, 1].
+pub fn parse_threshold(s: &str) -> Result<f32, String> {
+    s.parse::<f32>()
+        .ok()
+        .filter(|&v| v > 0.0 && v <= 1.0)
+        .ok_or_else(|| format!("{s:?} must be a number in (0, 1]"))
+}
+
+/// A positive finite number.
+pub fn parse_positive(s: &str) -> Result<f32, String> {
+    s.parse::<f32>()
+        .ok()
+        .filter(|&v| v > 0.0 && v.is_finite())
+        .ok_or_else(|| format!("{s:?} must be a positive number"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sizes_vectors_and_colours() {
+        assert_eq!(parse_size("800x600"), Ok([800, 600]));
+        assert_eq!(parse_size("64"), Ok([64, 64]));
+        assert!(parse_size("0x5").is_err());
+        assert!(parse_size("1x2x3").is_err());
+        assert!(parse_size("99999x2").is_err());
+        assert_eq!(parse_vec3("1, 2,3"), Ok([1.0, 2.0, 3.0]));
+        assert!(parse_vec3("1,2").is_err());
+        assert!(parse_vec3("1,nan,2").is_err());
+        assert_eq!(parse_color("#ff0080"), Ok([1.0, 0.0, 128.0 / 255.0]));
+        assert_eq!(parse_color("255,255,255"), Ok([1.0; 3]));
+        assert!(parse_color("#12345").is_err());
+        assert!(parse_color("300,0,0").is_err());
+        assert_eq!(parse_domain("0,4095"), Ok([0.0, 4095.0]));
+        assert!(parse_domain("5,5").is_err());
+        assert!(parse_threshold("0").is_err());
+        assert!(parse_positive("-1").is_err());
+    }
+}

@@ -1,0 +1,362 @@
+//! `raycaster render`: a volume file (or a built-in scene) to a PNG.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, ValueEnum};
+use raycaster::render::{
+    Camera, Light, Mode, Orbit, Projection, RenderSettings, RenderVolume, Shading,
+    TransferFunction, render_sequential,
+};
+use raycaster::synth::{SceneKind, synthesize};
+use raycaster::volume::{Access, OpenOptions, SampleType, Volume};
+
+use crate::args::{
+    parse_color, parse_domain, parse_positive, parse_size, parse_threshold, parse_vec3,
+};
+use crate::stats;
+
+/// Render a volume to a PNG image, without a window.
+///
+/// With no FILE, renders a built-in generated scene (`--scene`), so one command
+/// shows a picture. The camera frames the whole volume from `--azimuth` and
+/// `--elevation` unless `--position` is given. The output file is replaced if it
+/// exists (written to a temporary file and renamed, never left half-written).
+#[derive(Args, Debug)]
+#[command(after_help = AFTER_HELP)]
+pub struct RenderArgs {
+    /// The .vol file to render (default: a built-in generated scene).
+    file: Option<PathBuf>,
+
+    /// Output PNG.
+    #[arg(short, long, default_value = "render.png", value_name = "PNG")]
+    output: PathBuf,
+
+    /// Image size, WxH (or N for a square).
+    #[arg(long, default_value = "512x512", value_parser = parse_size, value_name = "WxH")]
+    size: [u32; 2],
+
+    /// Built-in scene rendered when no FILE is given.
+    #[arg(long, value_enum, default_value_t = SceneArg::Shapes)]
+    scene: SceneArg,
+
+    /// Size of the built-in scene in voxels per axis.
+    #[arg(long, default_value_t = 128, value_parser = clap::value_parser!(u32).range(2..=1024), value_name = "N")]
+    scene_size: u32,
+
+    /// Seed of the built-in scene.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+
+    /// Transfer function: a preset name or a transfer-function file
+    /// (default: the preset that suits the built-in scene, `shapes` for files).
+    #[arg(long, value_name = "PRESET|FILE")]
+    tf: Option<String>,
+
+    /// Raw sample values the transfer function spans, lo,hi (default: the whole
+    /// u8 range; the data's range for u16 volumes).
+    #[arg(long, value_parser = parse_domain, value_name = "LO,HI")]
+    domain: Option<[f32; 2]>,
+
+    /// Compositing mode.
+    #[arg(long, value_enum, default_value_t = ModeArg::Dvr)]
+    mode: ModeArg,
+
+    /// Iso-value for first-hit mode, 0..1 over the transfer function's domain.
+    #[arg(long, default_value_t = 0.5, value_name = "V")]
+    iso: f32,
+
+    /// Sample distance along rays, in voxels.
+    #[arg(long, default_value_t = 0.5, value_parser = parse_positive, value_name = "VOXELS")]
+    step: f32,
+
+    /// Disable early ray termination.
+    #[arg(long)]
+    no_ert: bool,
+
+    /// Opacity at which early ray termination stops a ray.
+    #[arg(long, default_value_t = 0.99, value_parser = parse_threshold, value_name = "ALPHA")]
+    ert_threshold: f32,
+
+    /// Disable empty-space skipping.
+    #[arg(long)]
+    no_ess: bool,
+
+    /// Disable Blinn-Phong shading.
+    #[arg(long)]
+    no_shading: bool,
+
+    /// Light direction x,y,z (world; the light shines along it). Default: a headlight.
+    #[arg(long, value_parser = parse_vec3, value_name = "X,Y,Z")]
+    light: Option<[f32; 3]>,
+
+    /// Background colour: #rrggbb, r,g,b, black, white or grey.
+    #[arg(long, default_value = "black", value_parser = parse_color, value_name = "COLOUR")]
+    background: [f32; 3],
+
+    /// Camera azimuth about the volume's vertical (z) axis, degrees.
+    #[arg(long, default_value_t = -60.0, allow_negative_numbers = true, value_name = "DEG")]
+    azimuth: f32,
+
+    /// Camera elevation above the volume's middle, degrees.
+    #[arg(long, default_value_t = 25.0, allow_negative_numbers = true, value_name = "DEG")]
+    elevation: f32,
+
+    /// Distance from the target in world units (default: frame the whole volume).
+    #[arg(long, value_parser = parse_positive, value_name = "D")]
+    distance: Option<f32>,
+
+    /// Zoom factor on the framed view (2 = twice as close).
+    #[arg(long, default_value_t = 1.0, value_parser = parse_positive)]
+    zoom: f32,
+
+    /// Vertical field of view, degrees.
+    #[arg(long, default_value_t = 40.0, value_name = "DEG")]
+    fov: f32,
+
+    /// Orthographic instead of perspective projection.
+    #[arg(long)]
+    orthographic: bool,
+
+    /// Camera position x,y,z in world units (overrides azimuth/elevation/distance).
+    #[arg(long, value_parser = parse_vec3, allow_negative_numbers = true, value_name = "X,Y,Z")]
+    position: Option<[f32; 3]>,
+
+    /// Point the camera looks at (default: the volume's centre).
+    #[arg(long, value_parser = parse_vec3, allow_negative_numbers = true, value_name = "X,Y,Z")]
+    target: Option<[f32; 3]>,
+
+    /// Camera up vector.
+    #[arg(long, default_value = "0,0,1", value_parser = parse_vec3, allow_negative_numbers = true, value_name = "X,Y,Z")]
+    up: [f32; 3],
+
+    /// Render threads (1 = the sequential reference renderer).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1024), value_name = "N")]
+    threads: u32,
+
+    /// Logical brick side for linear volumes (bricked files use their bricks).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(2..=1024), value_name = "N")]
+    brick: Option<u32>,
+
+    /// Read the file into RAM instead of mapping it.
+    #[arg(long)]
+    ram: bool,
+
+    /// Print the frame's counters.
+    #[arg(long)]
+    stats: bool,
+
+    /// Print the frame's counters as one JSON object on stdout.
+    #[arg(long)]
+    stats_json: bool,
+
+    /// No message on success.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+const AFTER_HELP: &str = "Transfer-function presets: shapes, ct-bone, ct-skin, shells, cloud, opaque, grayscale, rainbow.
+A transfer-function file holds lines `point VALUE R G B ALPHA` (all 0..1), optional
+`domain LO HI` (raw values) and `gradient G0 G1` (2D: opacity × smoothstep of |∇f|).
+
+Examples:
+  raycaster render -o shapes.png
+  raycaster render head.vol --tf ct-bone --size 800x800 --stats
+  raycaster render head.vol --mode mip --azimuth 0 --elevation 0 -o mip.png";
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum SceneArg {
+    Shapes,
+    Shells,
+    Noise,
+    Gradient,
+}
+
+impl SceneArg {
+    fn kind(self) -> SceneKind {
+        match self {
+            SceneArg::Shapes => SceneKind::Shapes,
+            SceneArg::Shells => SceneKind::Shells,
+            SceneArg::Noise => SceneKind::Noise,
+            SceneArg::Gradient => SceneKind::Gradient,
+        }
+    }
+
+    fn preset(self) -> &'static str {
+        match self {
+            SceneArg::Shapes => "shapes",
+            SceneArg::Shells => "shells",
+            SceneArg::Noise => "cloud",
+            SceneArg::Gradient => "rainbow",
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum ModeArg {
+    /// Direct volume rendering (emission-absorption, front to back).
+    Dvr,
+    /// Maximum intensity projection.
+    Mip,
+    /// Average intensity projection.
+    Average,
+    /// First hit of the iso-value, shaded.
+    FirstHit,
+}
+
+impl From<ModeArg> for Mode {
+    fn from(m: ModeArg) -> Mode {
+        match m {
+            ModeArg::Dvr => Mode::Dvr,
+            ModeArg::Mip => Mode::Mip,
+            ModeArg::Average => Mode::Average,
+            ModeArg::FirstHit => Mode::FirstHit,
+        }
+    }
+}
+
+/// Runs the render command.
+pub fn run(args: RenderArgs) -> Result<()> {
+    if !(args.fov > 0.0 && args.fov < 180.0) {
+        bail!("--fov {} must lie strictly between 0 and 180 degrees", args.fov);
+    }
+    if !(0.0..=1.0).contains(&args.iso) {
+        bail!("--iso {} must lie in [0, 1]", args.iso);
+    }
+    let volume = open_volume(&args)?;
+    let settings = settings(&args, &volume)?;
+    let prepared = RenderVolume::new(&volume, args.brick)?;
+    let camera = camera(&args, &prepared)?;
+    if args.threads > 1 && !args.quiet {
+        eprintln!(
+            "note: the parallel renderer is not available yet; rendering on 1 thread"
+        );
+    }
+    let frame = render_sequential(&prepared, &camera, &settings)?;
+    frame
+        .to_image()
+        .save_png(&args.output)
+        .context("cannot write the image")?;
+    if args.stats {
+        eprint!("{}", stats::table(&frame.stats));
+    }
+    if args.stats_json {
+        println!("{}", stats::json(&frame.stats, &volume, &settings));
+    }
+    if !args.quiet {
+        eprintln!(
+            "wrote {} ({}×{}, {:.3} s, {:.1} M samples)",
+            args.output.display(),
+            frame.width,
+            frame.height,
+            frame.stats.time.as_secs_f64(),
+            frame.stats.counters.samples as f64 / 1e6
+        );
+    }
+    Ok(())
+}
+
+fn open_volume(args: &RenderArgs) -> Result<Volume> {
+    match &args.file {
+        Some(path) => {
+            let access = if args.ram { Access::Ram } else { Access::Mapped };
+            let options = OpenOptions {
+                access,
+                ..OpenOptions::default()
+            };
+            Ok(Volume::open_with(path, options)?)
+        }
+        None => {
+            let kind = args.scene.kind();
+            let n = args.scene_size;
+            let scene = kind.build([n; 3], args.seed);
+            let name = format!("built-in {} scene {n}³", kind.name());
+            Ok(synthesize(scene.as_ref(), &name, [n; 3], [1.0; 3], SampleType::U8)?)
+        }
+    }
+}
+
+fn settings(args: &RenderArgs, volume: &Volume) -> Result<RenderSettings> {
+    let tf_name = match (&args.tf, &args.file) {
+        (Some(tf), _) => tf.clone(),
+        (None, None) => args.scene.preset().to_string(),
+        (None, Some(_)) => "shapes".to_string(),
+    };
+    let mut transfer = if std::path::Path::new(&tf_name).is_file() {
+        TransferFunction::load(std::path::Path::new(&tf_name))?
+    } else {
+        TransferFunction::preset(&tf_name)
+            .with_context(|| format!("--tf {tf_name:?} is neither a preset nor a file"))?
+    };
+    if let Some(domain) = args.domain {
+        transfer.domain = Some(domain);
+    } else if transfer.domain.is_none() && volume.sample_type() == SampleType::U16 {
+        let [lo, hi] = volume.ranges().overall();
+        if hi > lo {
+            transfer.domain = Some([f32::from(lo), f32::from(hi)]);
+        }
+    }
+    let shading = (!args.no_shading).then(|| Shading {
+        light: match args.light {
+            Some(d) => Light::Fixed(glam_vec(d)),
+            None => Light::Headlight,
+        },
+        ..Shading::default()
+    });
+    Ok(RenderSettings {
+        mode: args.mode.into(),
+        step: args.step,
+        early_termination: (!args.no_ert).then_some(args.ert_threshold),
+        empty_space_skipping: !args.no_ess,
+        shading,
+        iso_value: args.iso,
+        background: args.background,
+        transfer,
+    })
+}
+
+fn glam_vec(v: [f32; 3]) -> raycaster::render::Vec3 {
+    raycaster::render::Vec3::from(v)
+}
+
+fn camera(args: &RenderArgs, volume: &RenderVolume<'_>) -> Result<Camera> {
+    let [w, h] = args.size;
+    let (lo, hi) = volume.geometry().world_bounds();
+    let target = args.target.map(glam_vec).unwrap_or((lo + hi) / 2.0);
+    let up = glam_vec(args.up);
+    if let Some(position) = args.position {
+        let projection = if args.orthographic {
+            Projection::Orthographic {
+                height: (hi - lo).length() * 1.08 / args.zoom,
+            }
+        } else {
+            Projection::Perspective { vfov_deg: args.fov }
+        };
+        return Camera::look_at(glam_vec(position), target, up, projection, w, h)
+            .context("invalid camera");
+    }
+    let vfov = (!args.orthographic).then_some(args.fov);
+    let mut orbit = Orbit::framing(
+        lo,
+        hi,
+        args.azimuth.to_radians(),
+        args.elevation.to_radians(),
+        vfov,
+    );
+    orbit.target = target;
+    if let Some(d) = args.distance {
+        orbit.distance = d;
+    }
+    orbit.zoom(1.0 / args.zoom);
+    if up != raycaster::render::Vec3::Z {
+        let position = orbit.position();
+        let projection = match vfov {
+            Some(vfov_deg) => Projection::Perspective { vfov_deg },
+            None => Projection::Orthographic {
+                height: orbit.ortho_height,
+            },
+        };
+        return Camera::look_at(position, target, up, projection, w, h).context("invalid camera");
+    }
+    orbit.camera(w, h).context("invalid camera")
+}

@@ -1,0 +1,66 @@
+//! Printing a frame's statistics: a table for people, JSON for scripts.
+
+use raycaster::render::{FrameStats, RenderSettings};
+use raycaster::volume::Volume;
+
+/// The counters as an aligned table.
+pub fn table(s: &FrameStats) -> String {
+    let c = &s.counters;
+    let secs = s.time.as_secs_f64();
+    let pct = |part: u64, whole: u64| 100.0 * part as f64 / whole.max(1) as f64;
+    let considered = c.samples + c.samples_skipped_empty;
+    format!(
+        "image            {}×{} ({} pixels)\n\
+         rays cast        {}\n\
+         samples taken    {} ({:.1} per ray)\n\
+         skipped (empty)  {} samples ({:.1} %), {} brick visits\n\
+         terminated early {} rays ({:.1} %)\n\
+         bricks           {} ({} transparent under the transfer function)\n\
+         threads          {}\n\
+         time             {:.3} s ({:.1} M samples/s, {:.1} M samples/s/thread)\n",
+        s.width,
+        s.height,
+        u64::from(s.width) * u64::from(s.height),
+        c.rays,
+        c.samples,
+        c.samples as f64 / c.rays.max(1) as f64,
+        c.samples_skipped_empty,
+        pct(c.samples_skipped_empty, considered),
+        c.brick_visits_skipped,
+        c.rays_terminated,
+        pct(c.rays_terminated, c.rays),
+        s.bricks,
+        s.bricks_transparent,
+        s.threads,
+        secs,
+        s.samples_per_second() / 1e6,
+        s.samples_per_second() / 1e6 / f64::from(s.threads.max(1)),
+    )
+}
+
+/// The counters and the main settings as one JSON object.
+pub fn json(s: &FrameStats, volume: &Volume, settings: &RenderSettings) -> String {
+    let c = &s.counters;
+    serde_json::json!({
+        "volume": volume.path().display().to_string(),
+        "dims": volume.dims(),
+        "width": s.width,
+        "height": s.height,
+        "mode": settings.mode.name(),
+        "step": settings.step,
+        "ert": settings.early_termination,
+        "ess": settings.empty_space_skipping,
+        "threads": s.threads,
+        "rays": c.rays,
+        "samples": c.samples,
+        "samples_skipped_empty": c.samples_skipped_empty,
+        "rays_terminated": c.rays_terminated,
+        "brick_visits": c.brick_visits,
+        "brick_visits_skipped": c.brick_visits_skipped,
+        "bricks": s.bricks,
+        "bricks_transparent": s.bricks_transparent,
+        "seconds": s.time.as_secs_f64(),
+        "samples_per_second": s.samples_per_second(),
+    })
+    .to_string()
+}
