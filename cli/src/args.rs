@@ -5,13 +5,22 @@ pub fn parse_size(s: &str) -> Result<[u32; 2], String> {
     let parts: Vec<&str> = s.split(['x', 'X', '×']).collect();
     let nums = parts
         .iter()
-        .map(|p| p.trim().parse::<u32>().ok().filter(|&v| (1..=16384).contains(&v)))
+        .map(|p| {
+            p.trim()
+                .parse::<u32>()
+                .ok()
+                .filter(|&v| (1..=16384).contains(&v))
+        })
         .collect::<Option<Vec<u32>>>()
-        .ok_or_else(|| format!("{s:?} is not an image size; expected WxH with 1..16384 pixels each"))?;
+        .ok_or_else(|| {
+            format!("{s:?} is not an image size; expected WxH with 1..16384 pixels each")
+        })?;
     match nums[..] {
         [n] => Ok([n, n]),
         [w, h] => Ok([w, h]),
-        _ => Err(format!("{s:?} is not an image size; expected WxH, e.g. 800x600")),
+        _ => Err(format!(
+            "{s:?} is not an image size; expected WxH, e.g. 800x600"
+        )),
     }
 }
 
@@ -33,13 +42,16 @@ pub fn parse_domain(s: &str) -> Result<[f32; 2], String> {
         .collect::<Option<Vec<f32>>>();
     match nums.as_deref() {
         Some(&[lo, hi]) if lo < hi => Ok([lo, hi]),
-        _ => Err(format!("{s:?} is not a value domain; expected lo,hi with lo < hi")),
+        _ => Err(format!(
+            "{s:?} is not a value domain; expected lo,hi with lo < hi"
+        )),
     }
 }
 
 /// A colour: `#rrggbb`, `r,g,b` in 0..255, or black/white/grey.
 pub fn parse_color(s: &str) -> Result<[f32; 3], String> {
-    let bad = || format!("{s:?} is not a colour; expected #rrggbb, r,g,b (0-255), black, white or grey");
+    let bad =
+        || format!("{s:?} is not a colour; expected #rrggbb, r,g,b (0-255), black, white or grey");
     let bytes: [u8; 3] = match s.trim() {
         "black" => [0; 3],
         "white" => [255; 3],

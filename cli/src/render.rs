@@ -99,7 +99,12 @@ pub struct RenderArgs {
     azimuth: f32,
 
     /// Camera elevation above the volume's middle, degrees.
-    #[arg(long, default_value_t = 25.0, allow_negative_numbers = true, value_name = "DEG")]
+    #[arg(
+        long,
+        default_value_t = 25.0,
+        allow_negative_numbers = true,
+        value_name = "DEG"
+    )]
     elevation: f32,
 
     /// Distance from the target in world units (default: frame the whole volume).
@@ -218,7 +223,10 @@ impl From<ModeArg> for Mode {
 /// Runs the render command.
 pub fn run(args: RenderArgs) -> Result<()> {
     if !(args.fov > 0.0 && args.fov < 180.0) {
-        bail!("--fov {} must lie strictly between 0 and 180 degrees", args.fov);
+        bail!(
+            "--fov {} must lie strictly between 0 and 180 degrees",
+            args.fov
+        );
     }
     if !(0.0..=1.0).contains(&args.iso) {
         bail!("--iso {} must lie in [0, 1]", args.iso);
@@ -228,9 +236,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let prepared = RenderVolume::new(&volume, args.brick)?;
     let camera = camera(&args, &prepared)?;
     if args.threads > 1 && !args.quiet {
-        eprintln!(
-            "note: the parallel renderer is not available yet; rendering on 1 thread"
-        );
+        eprintln!("note: the parallel renderer is not available yet; rendering on 1 thread");
     }
     let frame = render_sequential(&prepared, &camera, &settings)?;
     frame
@@ -259,7 +265,11 @@ pub fn run(args: RenderArgs) -> Result<()> {
 fn open_volume(args: &RenderArgs) -> Result<Volume> {
     match &args.file {
         Some(path) => {
-            let access = if args.ram { Access::Ram } else { Access::Mapped };
+            let access = if args.ram {
+                Access::Ram
+            } else {
+                Access::Mapped
+            };
             let options = OpenOptions {
                 access,
                 ..OpenOptions::default()
@@ -271,7 +281,13 @@ fn open_volume(args: &RenderArgs) -> Result<Volume> {
             let n = args.scene_size;
             let scene = kind.build([n; 3], args.seed);
             let name = format!("built-in {} scene {n}³", kind.name());
-            Ok(synthesize(scene.as_ref(), &name, [n; 3], [1.0; 3], SampleType::U8)?)
+            Ok(synthesize(
+                scene.as_ref(),
+                &name,
+                [n; 3],
+                [1.0; 3],
+                SampleType::U8,
+            )?)
         }
     }
 }

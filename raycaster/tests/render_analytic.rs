@@ -74,7 +74,10 @@ fn slab_opacity_follows_each_perspective_rays_length() {
             hits += usize::from(expected > 0.0);
             assert!((coarse.rgba[i][3] - expected).abs() < 1e-3, "pixel {x},{y}");
             // Halving the step (0.5 → 0.25) leaves the opacity where it was.
-            assert!((fine.rgba[i][3] - coarse.rgba[i][3]).abs() < 1e-2, "pixel {x},{y}");
+            assert!(
+                (fine.rgba[i][3] - coarse.rgba[i][3]).abs() < 1e-2,
+                "pixel {x},{y}"
+            );
         }
     }
     assert!(hits > 100, "the camera must see the volume ({hits} hits)");
@@ -83,7 +86,9 @@ fn slab_opacity_follows_each_perspective_rays_length() {
 #[test]
 fn opacity_correction_keeps_a_textured_volume_stable_across_steps() {
     // Not homogeneous: the alpha varies along the ray, still nearly step-independent.
-    let volume = volume_u8([24, 24, 24], [1.0; 3], |x, y, z| ((x * 7 + y * 3 + z * 5) % 256) as u8);
+    let volume = volume_u8([24, 24, 24], [1.0; 3], |x, y, z| {
+        ((x * 7 + y * 3 + z * 5) % 256) as u8
+    });
     let tf = white_tf(&[(0.0, 0.0), (1.0, 0.08)]);
     let camera = along_x(&volume, 16);
     let half = render(&volume, &camera, &plain_settings(tf.clone()));
@@ -101,7 +106,11 @@ fn opacity_correction_keeps_a_textured_volume_stable_across_steps() {
 fn mip_finds_the_known_maximum() {
     // Background 50, a 5³ plateau of 240 in the middle.
     let volume = volume_u8([21, 21, 21], [1.0; 3], |x, y, z| {
-        if [x, y, z].iter().all(|&c| (8..=12).contains(&c)) { 240 } else { 50 }
+        if [x, y, z].iter().all(|&c| (8..=12).contains(&c)) {
+            240
+        } else {
+            50
+        }
     });
     // Grey = value, fully opaque: the pixel shows the maximum.
     let mut tf = white_tf(&[(0.0, 1.0), (1.0, 1.0)]);
@@ -131,9 +140,15 @@ fn mip_finds_the_known_maximum() {
     let frame = render(&volume, &camera, &settings);
     let resolution = 1.0 / 1023.0;
     let centre_px = frame.rgba[frame.index(10, 10)];
-    assert!((centre_px[0] - 240.0 / 255.0).abs() <= resolution, "{centre_px:?}");
+    assert!(
+        (centre_px[0] - 240.0 / 255.0).abs() <= resolution,
+        "{centre_px:?}"
+    );
     let corner_px = frame.rgba[frame.index(1, 1)];
-    assert!((corner_px[0] - 50.0 / 255.0).abs() <= resolution, "{corner_px:?}");
+    assert!(
+        (corner_px[0] - 50.0 / 255.0).abs() <= resolution,
+        "{corner_px:?}"
+    );
     // Average mode: a ray missing the plateau averages exactly the background.
     let avg = raycaster::render::RenderSettings {
         mode: Mode::Average,
@@ -141,7 +156,10 @@ fn mip_finds_the_known_maximum() {
     };
     let frame = render(&volume, &camera, &avg);
     let corner_px = frame.rgba[frame.index(1, 1)];
-    assert!((corner_px[0] - 50.0 / 255.0).abs() <= resolution, "{corner_px:?}");
+    assert!(
+        (corner_px[0] - 50.0 / 255.0).abs() <= resolution,
+        "{corner_px:?}"
+    );
     let centre_px = frame.rgba[frame.index(10, 10)];
     assert!(centre_px[0] > 60.0 / 255.0 && centre_px[0] < 240.0 / 255.0);
 }
@@ -183,7 +201,10 @@ fn first_hit_finds_the_known_surface_depth() {
             let d = frame.depth[frame.index(x, y)];
             if inside && p.y > 0.5 && p.y < 10.5 && p.z > 0.5 && p.z < 10.5 {
                 hits += 1;
-                assert!((d - t).abs() < 1e-2, "pixel {x},{y}: depth {d}, expected {t}");
+                assert!(
+                    (d - t).abs() < 1e-2,
+                    "pixel {x},{y}: depth {d}, expected {t}"
+                );
             } else if !inside {
                 assert!(d.is_infinite(), "pixel {x},{y} should miss the surface");
             }
@@ -218,7 +239,11 @@ fn a_missing_ray_leaves_the_background_exactly() {
         let image = frame.to_image();
         assert_eq!(image.pixel(0, 0), [12, 200, 77], "{mode:?}");
         assert_eq!(image.pixel(31, 31), [12, 200, 77], "{mode:?}");
-        assert_ne!(image.pixel(16, 16), [12, 200, 77], "{mode:?}: the volume is in view");
+        assert_ne!(
+            image.pixel(16, 16),
+            [12, 200, 77],
+            "{mode:?}: the volume is in view"
+        );
     }
     // Looking away from the volume: nothing is cast, the whole image is background.
     let away = Camera::new(
@@ -232,7 +257,13 @@ fn a_missing_ray_leaves_the_background_exactly() {
     .unwrap();
     let frame = render(&volume, &away, &settings);
     assert_eq!(frame.stats.counters.rays, 0);
-    assert!(frame.to_image().data().chunks(3).all(|p| p == [12, 200, 77]));
+    assert!(
+        frame
+            .to_image()
+            .data()
+            .chunks(3)
+            .all(|p| p == [12, 200, 77])
+    );
 }
 
 #[test]

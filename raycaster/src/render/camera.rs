@@ -103,7 +103,9 @@ impl Camera {
         if !position.is_finite() {
             return Err(CameraError::BadPosition);
         }
-        let direction = direction.try_normalize().ok_or(CameraError::DegenerateBasis)?;
+        let direction = direction
+            .try_normalize()
+            .ok_or(CameraError::DegenerateBasis)?;
         let right = direction
             .cross(up)
             .try_normalize()
@@ -346,7 +348,10 @@ mod tests {
             for x in 0..cam.width() {
                 let hits = cam.ray(x, y).intersect_box(lo, hi).is_some();
                 let inside = x >= rect.x0 && x < rect.x1 && y >= rect.y0 && y < rect.y1;
-                assert!(!hits || inside, "pixel {x},{y} hits but lies outside {rect:?}");
+                assert!(
+                    !hits || inside,
+                    "pixel {x},{y} hits but lies outside {rect:?}"
+                );
             }
         }
         assert!(rect.area() < 64 * 48 / 2, "rect too loose: {rect:?}");
@@ -358,7 +363,9 @@ mod tests {
         let behind = cam.project_box(Vec3::new(-1.0, -20.0, -1.0), Vec3::new(1.0, -19.0, 1.0));
         // A box entirely behind still gives a conservative rectangle (all of it).
         assert!(behind.is_some());
-        let around = cam.project_box(Vec3::splat(-20.0), Vec3::splat(20.0)).unwrap();
+        let around = cam
+            .project_box(Vec3::splat(-20.0), Vec3::splat(20.0))
+            .unwrap();
         assert_eq!(around.area(), 64 * 48);
     }
 

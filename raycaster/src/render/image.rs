@@ -81,7 +81,8 @@ impl RgbImage {
         };
         let tmp = crate::volume::temp_file_beside(path).map_err(io)?;
         {
-            let mut encoder = png::Encoder::new(BufWriter::new(tmp.as_file()), self.width, self.height);
+            let mut encoder =
+                png::Encoder::new(BufWriter::new(tmp.as_file()), self.width, self.height);
             encoder.set_color(png::ColorType::Rgb);
             encoder.set_depth(png::BitDepth::Eight);
             let mut writer = encoder.write_header().map_err(png_err)?;

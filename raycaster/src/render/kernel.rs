@@ -10,11 +10,11 @@ use glam::Vec3;
 use super::counters::Counters;
 use super::geometry::VolumeGeometry;
 use super::pixel::{PixelRay, PixelState};
-use super::prepared::FramePlan;
+use super::prepared::{FramePlan, RenderVolume};
 use super::ray::Ray;
 use super::sampler::{BrickSampler, VolumeSampler};
 use super::settings::Mode;
-use crate::volume::{BrickRanges, Sample, TypedVolume};
+use crate::volume::{Sample, TypedVolume};
 
 /// Slack around a brick's box when estimating its samples: ownership, not this
 /// box, decides, so the estimate only has to be generous.
@@ -31,24 +31,49 @@ pub struct BrickContext<'a, T: Sample> {
     pub range: [u16; 2],
     /// The transfer function makes every value in the brick transparent.
     pub transparent: bool,
+    /// Value ranges of the brick's small cells.
+    cells: &'a [[u16; 2]],
+    /// Per small cell: transparent under the transfer function.
+    cell_transparent: &'a [bool],
+    /// Cells per axis.
+    cells_per_axis: u32,
+    /// 1 / cell step.
+    inv_cell_step: f32,
 }
 
 impl<'a, T: Sample> BrickContext<'a, T> {
-    /// Brick `b` of `geometry`'s grid over `volume`.
+    /// Brick `b` of `volume`'s grid; `data` is the volume's typed samples.
     pub fn new(
-        volume: &TypedVolume<'a, T>,
-        geometry: &VolumeGeometry,
-        ranges: &BrickRanges,
-        plan: &FramePlan,
+        data: &TypedVolume<'a, T>,
+        volume: &'a RenderVolume<'_>,
+        plan: &'a FramePlan,
         b: [u32; 3],
     ) -> Self {
-        let grid = geometry.grid();
+        let grid = volume.geometry().grid();
+        let index = grid.index(b);
+        let cells = volume.cells();
+        let n = cells.per_brick();
+        let first_cell = index as usize * n;
         BrickContext {
             coords: b,
-            sampler: BrickSampler::new(volume.brick(grid, b)),
-            range: ranges.range(b),
-            transparent: plan.transparent[grid.index(b) as usize],
+            sampler: BrickSampler::new(data.brick(grid, b)),
+            range: volume.ranges().range(b),
+            transparent: plan.transparent[index as usize],
+            cells: cells.of_brick(index),
+            cell_transparent: &plan.cell_transparent[first_cell..first_cell + n],
+            cells_per_axis: cells.per_axis(),
+            inv_cell_step: 1.0 / cells.cell_step() as f32,
         }
+    }
+
+    /// The small cell of this brick owning volume position `p`.
+    #[inline]
+    fn cell_of(&self, p: Vec3) -> usize {
+        let m = self.cells_per_axis;
+        let c = ((p - self.sampler.origin()) * self.inv_cell_step)
+            .to_array()
+            .map(|v| (v as u32).min(m - 1));
+        ((c[0] * m + c[1]) * m + c[2]) as usize
     }
 }
 
@@ -111,16 +136,41 @@ pub fn march_brick<T: Sample>(
         counters.brick_visits_skipped += 1;
     } else {
         counters.brick_visits += 1;
-        let taken = match plan.mode {
-            Mode::Dvr => march_dvr(plan, volume, brick, ray, first, last, state),
-            Mode::Mip => march_values(brick, ray, volume.last(), first, last, state, f32::max),
+        let ess = plan.empty_space_skipping;
+        match plan.mode {
+            Mode::Dvr => march_dvr(plan, volume, brick, ray, first, last, state, counters),
+            Mode::Mip => {
+                let skip =
+                    |c: usize, s: &PixelState| ess && f32::from(brick.cells[c][1]) <= s.value;
+                march_values(
+                    brick,
+                    ray,
+                    volume.last(),
+                    (first, last),
+                    state,
+                    counters,
+                    skip,
+                    f32::max,
+                )
+            }
             Mode::Average => {
                 state.count += last - first + 1;
-                march_values(brick, ray, volume.last(), first, last, state, |a, b| a + b)
+                let never = |_: usize, _: &PixelState| false;
+                march_values(
+                    brick,
+                    ray,
+                    volume.last(),
+                    (first, last),
+                    state,
+                    counters,
+                    never,
+                    |a, b| a + b,
+                )
             }
-            Mode::FirstHit => march_first_hit(plan, volume, brick, ray, first, last, state),
-        };
-        counters.samples += taken;
+            Mode::FirstHit => {
+                march_first_hit(plan, volume, brick, ray, first, last, state, counters)
+            }
+        }
         if state.done {
             counters.rays_terminated += 1;
             return;
@@ -132,7 +182,8 @@ pub fn march_brick<T: Sample>(
     }
 }
 
-/// Front-to-back emission–absorption; returns the samples taken.
+/// Front-to-back emission–absorption.
+#[allow(clippy::too_many_arguments)]
 fn march_dvr<T: Sample>(
     plan: &FramePlan,
     volume: &VolumeSampler<'_, T>,
@@ -141,16 +192,23 @@ fn march_dvr<T: Sample>(
     first: u32,
     last: u32,
     state: &mut PixelState,
-) -> u64 {
+    counters: &mut Counters,
+) {
     let table = &plan.table;
     let needs_gradient = plan.shading.is_some() || table.is_2d();
     let last_voxel = volume.last();
     let [mut r, mut g, mut b] = state.color;
     let mut alpha = state.alpha;
     let mut taken = 0;
+    let mut skipped = 0;
     let last_sample = ray.samples - 1;
+    let ess = plan.empty_space_skipping;
     for k in first..=last {
         let p = ray.position(k, last_voxel);
+        if ess && brick.cell_transparent[brick.cell_of(p)] {
+            skipped += 1;
+            continue;
+        }
         let v = brick.sampler.value(p);
         taken += 1;
         let [cr, cg, cb, a] = table.lookup(v);
@@ -193,29 +251,39 @@ fn march_dvr<T: Sample>(
     }
     state.color = [r, g, b];
     state.alpha = alpha;
-    taken
+    counters.samples += taken;
+    counters.samples_skipped_empty += skipped;
 }
 
-/// MIP or average: folds every sample's raw value into `state.value`.
+/// MIP or average: folds every sample's raw value into `state.value`, skipping
+/// the samples of cells for which `skip(cell, state)` holds.
+#[allow(clippy::too_many_arguments)]
 fn march_values<T: Sample>(
     brick: &BrickContext<'_, T>,
     ray: &PixelRay,
     last_voxel: Vec3,
-    first: u32,
-    last: u32,
+    (first, last): (u32, u32),
     state: &mut PixelState,
+    counters: &mut Counters,
+    skip: impl Fn(usize, &PixelState) -> bool,
     fold: impl Fn(f32, f32) -> f32,
-) -> u64 {
-    let mut value = state.value;
+) {
+    let mut skipped = 0;
     for k in first..=last {
-        value = fold(value, brick.sampler.value(ray.position(k, last_voxel)));
+        let p = ray.position(k, last_voxel);
+        if skip(brick.cell_of(p), state) {
+            skipped += 1;
+            continue;
+        }
+        state.value = fold(state.value, brick.sampler.value(p));
     }
-    state.value = value;
-    u64::from(last - first + 1)
+    counters.samples += u64::from(last - first + 1) - skipped;
+    counters.samples_skipped_empty += skipped;
 }
 
 /// First sample at or above the iso-value; the hit is refined linearly between it
 /// and the sample before, then shaded.
+#[allow(clippy::too_many_arguments)]
 fn march_first_hit<T: Sample>(
     plan: &FramePlan,
     volume: &VolumeSampler<'_, T>,
@@ -224,11 +292,18 @@ fn march_first_hit<T: Sample>(
     first: u32,
     last: u32,
     state: &mut PixelState,
-) -> u64 {
+    counters: &mut Counters,
+) {
     let last_voxel = volume.last();
     let iso = plan.iso_raw;
+    let ess = plan.empty_space_skipping;
+    let mut skipped = 0;
     for k in first..=last {
         let p = ray.position(k, last_voxel);
+        if ess && f32::from(brick.cells[brick.cell_of(p)][1]) < iso {
+            skipped += 1;
+            continue;
+        }
         let v = brick.sampler.value(p);
         if v < iso {
             continue;
@@ -259,7 +334,10 @@ fn march_first_hit<T: Sample>(
         state.depth = t_hit;
         state.done = true;
         state.next_sample = k + 1;
-        return u64::from(k - first + 1);
+        counters.samples += u64::from(k - first + 1) - skipped;
+        counters.samples_skipped_empty += skipped;
+        return;
     }
-    u64::from(last - first + 1)
+    counters.samples += u64::from(last - first + 1) - skipped;
+    counters.samples_skipped_empty += skipped;
 }

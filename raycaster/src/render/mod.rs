@@ -8,6 +8,7 @@
 //! change the image.
 
 mod camera;
+mod cells;
 mod counters;
 mod error;
 mod frame;
@@ -25,10 +26,12 @@ mod shading;
 mod transfer;
 
 pub use camera::{Camera, CameraError, PixelRect, Projection};
+pub use cells::{CellRanges, MAX_CELLS, TARGET_CELL_STEP, target_cell_step};
 pub use counters::{Counters, FrameStats};
 pub use error::RenderError;
 pub use frame::Frame;
 pub use geometry::VolumeGeometry;
+pub use glam::Vec3;
 pub use image::{ImageError, RgbImage};
 pub use orbit::Orbit;
 pub use pixel::{PixelRay, PixelState, over_background};
@@ -38,7 +41,6 @@ pub use sampler::{BrickSampler, VolumeSampler};
 pub use sequential::render_sequential;
 pub use settings::{DEFAULT_ERT_THRESHOLD, Mode, RenderSettings};
 pub use shading::{Light, Shading};
-pub use glam::Vec3;
 pub use transfer::{
     ControlPoint, PRESETS, TransferError, TransferFunction, TransferTable, corrected_alpha,
 };

@@ -34,7 +34,13 @@ pub struct Orbit {
 impl Orbit {
     /// An orbit that frames the box `[lo, hi]` from the given angles (radians): the
     /// box's bounding sphere fills the view with a small margin.
-    pub fn framing(lo: Vec3, hi: Vec3, azimuth: f32, elevation: f32, vfov_deg: Option<f32>) -> Orbit {
+    pub fn framing(
+        lo: Vec3,
+        hi: Vec3,
+        azimuth: f32,
+        elevation: f32,
+        vfov_deg: Option<f32>,
+    ) -> Orbit {
         let target = (lo + hi) / 2.0;
         let radius = ((hi - lo).length() / 2.0).max(1e-3);
         let margin = 1.08;
@@ -54,7 +60,13 @@ impl Orbit {
 
     /// The default view of a box: from the front-right, a little above.
     pub fn default_view(lo: Vec3, hi: Vec3) -> Orbit {
-        Orbit::framing(lo, hi, (-60f32).to_radians(), 25f32.to_radians(), Some(40.0))
+        Orbit::framing(
+            lo,
+            hi,
+            (-60f32).to_radians(),
+            25f32.to_radians(),
+            Some(40.0),
+        )
     }
 
     /// The camera position.
@@ -72,7 +84,14 @@ impl Orbit {
                 height: self.ortho_height,
             },
         };
-        Camera::look_at(self.position(), self.target, Vec3::Z, projection, width, height)
+        Camera::look_at(
+            self.position(),
+            self.target,
+            Vec3::Z,
+            projection,
+            width,
+            height,
+        )
     }
 
     /// Rotates by `d_azimuth` and `d_elevation` radians (elevation stops short of
@@ -120,7 +139,10 @@ mod tests {
                     if c & 4 == 0 { lo.z } else { hi.z },
                 );
                 let q = cam.project(p).unwrap();
-                assert!(q[0] >= 0.0 && q[0] <= 100.0 && q[1] >= 0.0 && q[1] <= 80.0, "{q:?}");
+                assert!(
+                    q[0] >= 0.0 && q[0] <= 100.0 && q[1] >= 0.0 && q[1] <= 80.0,
+                    "{q:?}"
+                );
             }
         }
     }

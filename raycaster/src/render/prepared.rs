@@ -4,13 +4,15 @@
 use std::borrow::Cow;
 
 use glam::Vec3;
+use rayon::prelude::*;
 
+use super::cells::CellRanges;
 use super::error::RenderError;
 use super::geometry::VolumeGeometry;
 use super::settings::{Mode, RenderSettings};
 use super::shading::Shading;
 use super::transfer::TransferTable;
-use crate::volume::{BlockGrid, BrickRanges, LINEAR_RANGE_SIDE, Layout, Volume};
+use crate::volume::{BlockGrid, BrickRanges, LINEAR_RANGE_SIDE, Layout, Volume, VolumeData};
 
 /// A volume with the brick grid the renderer walks and each brick's value range.
 #[derive(Debug)]
@@ -18,13 +20,15 @@ pub struct RenderVolume<'a> {
     volume: &'a Volume,
     geometry: VolumeGeometry,
     ranges: Cow<'a, BrickRanges>,
+    cells: CellRanges,
 }
 
 impl<'a> RenderVolume<'a> {
     /// Prepares `volume`. Bricked files are rendered by their stored bricks; linear
     /// files by logical bricks of `linear_brick_side` voxels (default
     /// [`LINEAR_RANGE_SIDE`], whose ranges the file already has; other sides are
-    /// scanned once here).
+    /// scanned here). The small cells' ranges are scanned here (in parallel), once
+    /// per prepared volume; transfer-function changes never rescan.
     pub fn new(volume: &'a Volume, linear_brick_side: Option<u32>) -> Result<Self, RenderError> {
         let grid = match volume.layout() {
             Layout::Bricked { side } => BlockGrid::new(volume.dims(), u32::from(side)),
@@ -40,14 +44,19 @@ impl<'a> RenderVolume<'a> {
             Cow::Borrowed(volume.ranges())
         } else {
             Cow::Owned(match volume.data() {
-                crate::volume::VolumeData::U8(v) => BrickRanges::compute(&v, &grid),
-                crate::volume::VolumeData::U16(v) => BrickRanges::compute(&v, &grid),
+                VolumeData::U8(v) => BrickRanges::compute(&v, &grid),
+                VolumeData::U16(v) => BrickRanges::compute(&v, &grid),
             })
+        };
+        let cells = match volume.data() {
+            VolumeData::U8(v) => CellRanges::compute(&v, &grid),
+            VolumeData::U16(v) => CellRanges::compute(&v, &grid),
         };
         Ok(RenderVolume {
             volume,
             geometry: VolumeGeometry::new(grid, volume.spacing()),
             ranges,
+            cells,
         })
     }
 
@@ -64,6 +73,11 @@ impl<'a> RenderVolume<'a> {
     /// Value range of each brick of the grid.
     pub fn ranges(&self) -> &BrickRanges {
         &self.ranges
+    }
+
+    /// Value ranges of the small cells inside each brick.
+    pub fn cells(&self) -> &CellRanges {
+        &self.cells
     }
 }
 
@@ -91,6 +105,8 @@ pub struct FramePlan {
     pub gradient_scale: Vec3,
     /// Per brick (file order): transparent under this transfer function.
     pub transparent: Vec<bool>,
+    /// Per small cell (brick by brick, as [`CellRanges`]): transparent.
+    pub cell_transparent: Vec<bool>,
     /// The background colour.
     pub background: [f32; 3],
 }
@@ -122,6 +138,12 @@ impl FramePlan {
             .iter()
             .map(|&[lo, hi]| table.is_transparent(lo, hi))
             .collect();
+        let cell_transparent = volume
+            .cells()
+            .as_slice()
+            .par_iter()
+            .map(|&[lo, hi]| lo > hi || table.is_transparent(lo, hi))
+            .collect();
         let min_spacing = geometry.min_spacing();
         Ok(FramePlan {
             table,
@@ -134,6 +156,7 @@ impl FramePlan {
             dt: settings.step * min_spacing,
             gradient_scale: Vec3::splat(min_spacing / (d1 - d0)) / geometry.spacing(),
             transparent,
+            cell_transparent,
             background: settings.background,
         })
     }

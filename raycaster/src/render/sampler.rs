@@ -75,11 +75,7 @@ impl<'a, T: Sample> BrickSampler<'a, T> {
         let c01 = lerp(v(oy), v(oy + oz), frac[2]);
         let c10 = lerp(v(ox), v(ox + oz), frac[2]);
         let c11 = lerp(v(ox + oy), v(ox + oy + oz), frac[2]);
-        lerp(
-            lerp(c00, c01, frac[1]),
-            lerp(c10, c11, frac[1]),
-            frac[0],
-        )
+        lerp(lerp(c00, c01, frac[1]), lerp(c10, c11, frac[1]), frac[0])
     }
 }
 
@@ -109,7 +105,10 @@ impl<'a, T: Sample> VolumeSampler<'a, T> {
             Layout::Linear => {
                 let side = dims.iter().copied().max().unwrap_or(2).max(2);
                 let grid = BlockGrid::new(dims, side);
-                (grid, Some(BrickSampler::new(volume.brick(&grid, [0, 0, 0]))))
+                (
+                    grid,
+                    Some(BrickSampler::new(volume.brick(&grid, [0, 0, 0]))),
+                )
             }
             Layout::Bricked { .. } => (volume.natural_grid(2), None),
         };

@@ -65,14 +65,23 @@ fn render_pixels<T: Sample>(
             while !state.done {
                 let k = state.next_sample;
                 let b = geometry.owner(ray.position(k, last_voxel));
-                let brick = BrickContext::new(data, geometry, volume.ranges(), plan, b);
+                let brick = BrickContext::new(data, volume, plan, b);
                 // Ownership is contiguous along a ray, so the owned run starts at k;
                 // a run that does not (rounding at a brick corner) is cut to k alone.
                 let last = match owned_samples(&ray, geometry, b) {
                     Some((first, last)) if first <= k && k <= last => last,
                     _ => k,
                 };
-                march_brick(plan, &sampler, &brick, &ray, k, last, &mut state, &mut counters);
+                march_brick(
+                    plan,
+                    &sampler,
+                    &brick,
+                    &ray,
+                    k,
+                    last,
+                    &mut state,
+                    &mut counters,
+                );
             }
             let i = frame.index(x, y);
             frame.rgba[i] = state.resolve(plan.mode, &plan.table);

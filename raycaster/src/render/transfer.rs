@@ -71,12 +71,21 @@ pub enum TransferError {
 
 /// The named presets: (name, what it suits).
 pub const PRESETS: [(&str, &str); 8] = [
-    ("shapes", "the synthetic `shapes` scene: faint blue glass, opaque orange solids"),
+    (
+        "shapes",
+        "the synthetic `shapes` scene: faint blue glass, opaque orange solids",
+    ),
     ("ct-bone", "CT-like data: bone only, ivory and opaque"),
     ("ct-skin", "CT-like data: translucent skin over opaque bone"),
-    ("shells", "the synthetic `shells` scene: one colour per shell"),
+    (
+        "shells",
+        "the synthetic `shells` scene: one colour per shell",
+    ),
     ("cloud", "the synthetic `noise` scene: a soft bluish cloud"),
-    ("opaque", "every non-background value fully opaque (sample-count experiments)"),
+    (
+        "opaque",
+        "every non-background value fully opaque (sample-count experiments)",
+    ),
     ("grayscale", "a linear grey ramp with a linear opacity ramp"),
     ("rainbow", "hue over the value range with rising opacity"),
 ];
@@ -389,7 +398,13 @@ impl TransferTable {
         }
         let gradient = tf.gradient_ramp.map(|[g0, g1]| GradientRamp {
             factor: (0..GRADIENT_BINS)
-                .map(|i| smoothstep(g0, g1, i as f32 / (GRADIENT_BINS - 1) as f32 * GRADIENT_RANGE))
+                .map(|i| {
+                    smoothstep(
+                        g0,
+                        g1,
+                        i as f32 / (GRADIENT_BINS - 1) as f32 * GRADIENT_RANGE,
+                    )
+                })
                 .collect(),
             scale: (GRADIENT_BINS - 1) as f32 / GRADIENT_RANGE,
         });
@@ -437,7 +452,9 @@ impl TransferTable {
     fn gradient_factor(&self, g: f32) -> f32 {
         match &self.gradient {
             Some(ramp) => {
-                let i = (g * ramp.scale + 0.5).max(0.0).min((GRADIENT_BINS - 1) as f32);
+                let i = (g * ramp.scale + 0.5)
+                    .max(0.0)
+                    .min((GRADIENT_BINS - 1) as f32);
                 ramp.factor[i as usize]
             }
             None => 1.0,
@@ -475,7 +492,11 @@ mod tests {
     fn every_preset_builds_and_parses_back() {
         for (name, _) in PRESETS {
             let tf = TransferFunction::preset(name).unwrap();
-            assert_eq!(TransferFunction::parse(&tf.to_text()).unwrap(), tf, "{name}");
+            assert_eq!(
+                TransferFunction::parse(&tf.to_text()).unwrap(),
+                tf,
+                "{name}"
+            );
         }
         assert!(matches!(
             TransferFunction::preset("nope"),
@@ -485,11 +506,8 @@ mod tests {
 
     #[test]
     fn evaluation_interpolates_between_points() {
-        let tf = TransferFunction::new(vec![
-            p(0.2, [0.0; 3], 0.0),
-            p(0.6, [1.0, 0.5, 0.0], 0.8),
-        ])
-        .unwrap();
+        let tf = TransferFunction::new(vec![p(0.2, [0.0; 3], 0.0), p(0.6, [1.0, 0.5, 0.0], 0.8)])
+            .unwrap();
         assert_eq!(tf.evaluate(0.0), [0.0; 4]);
         let mid = tf.evaluate(0.4);
         assert!((mid[0] - 0.5).abs() < 1e-6 && (mid[3] - 0.4).abs() < 1e-6);

@@ -109,18 +109,15 @@ pub fn synthesize(
 fn sample_rows<T: Sample>(scene: &dyn Scene, dims: [u32; 3]) -> Vec<T> {
     let [dx, dy, dz] = dims.map(|d| d as usize);
     let mut samples = vec![T::from_unit(0.0); dx * dy * dz];
-    samples
-        .par_chunks_mut(dz)
-        .enumerate()
-        .for_each_init(
-            || vec![0f32; dz],
-            |scratch, (i, row)| {
-                scene.fill_row((i / dy) as u32, (i % dy) as u32, scratch);
-                for (o, &v) in row.iter_mut().zip(scratch.iter()) {
-                    *o = T::from_unit(v);
-                }
-            },
-        );
+    samples.par_chunks_mut(dz).enumerate().for_each_init(
+        || vec![0f32; dz],
+        |scratch, (i, row)| {
+            scene.fill_row((i / dy) as u32, (i % dy) as u32, scratch);
+            for (o, &v) in row.iter_mut().zip(scratch.iter()) {
+                *o = T::from_unit(v);
+            }
+        },
+    );
     samples
 }
 

@@ -6,10 +6,11 @@ use std::path::{Path, PathBuf};
 
 use super::error::{AtPath, VolumeError, VolumeErrorKind};
 use super::header::{
-    Content, EXTENDED_HEADER_LEN, Format, Header, HeaderError, Layout, SampleType, THESIS_HEADER_LEN,
+    Content, EXTENDED_HEADER_LEN, Format, Header, HeaderError, Layout, SampleType,
+    THESIS_HEADER_LEN,
 };
-use super::sample::Sample;
 use super::ranges::{BrickRanges, LINEAR_RANGE_SIDE};
+use super::sample::Sample;
 use super::storage::{Access, Storage};
 use super::view::TypedVolume;
 

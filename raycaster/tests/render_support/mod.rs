@@ -81,8 +81,12 @@ pub fn assert_images_match(name: &str, actual: &RgbImage, expected: &RgbImage, t
         return;
     }
     let dir = artifact_dir();
-    actual.save_png(&dir.join(format!("{name}.actual.png"))).unwrap();
-    expected.save_png(&dir.join(format!("{name}.expected.png"))).unwrap();
+    actual
+        .save_png(&dir.join(format!("{name}.actual.png")))
+        .unwrap();
+    expected
+        .save_png(&dir.join(format!("{name}.expected.png")))
+        .unwrap();
     if diff.is_some() {
         actual
             .diff(expected)
@@ -99,4 +103,87 @@ pub fn assert_images_match(name: &str, actual: &RgbImage, expected: &RgbImage, t
 pub fn centre(volume: &Volume) -> Vec3 {
     let d = Vec3::from(volume.dims().map(|d| (d - 1) as f32));
     d * Vec3::from(volume.spacing()) / 2.0
+}
+
+/// A built-in scene of `n³` voxels, linear, in RAM.
+pub fn scene_volume(kind: raycaster::synth::SceneKind, n: u32) -> Volume {
+    let scene = kind.build([n; 3], 7);
+    raycaster::synth::synthesize(
+        scene.as_ref(),
+        kind.name(),
+        [n; 3],
+        [1.0; 3],
+        SampleType::U8,
+    )
+    .unwrap()
+}
+
+/// The same scene written as a file with `layout` and opened with `access`.
+pub fn scene_file(
+    dir: &Path,
+    kind: raycaster::synth::SceneKind,
+    n: u32,
+    layout: Layout,
+    sample_type: SampleType,
+    access: raycaster::volume::Access,
+) -> Volume {
+    let scene = kind.build([n; 3], 7);
+    let header = Header::new(
+        [n; 3],
+        [1.0; 3],
+        layout,
+        sample_type,
+        Content::Scalar,
+        Format::Extended,
+    );
+    let path = dir.join(format!(
+        "{}-{n}-{layout:?}-{sample_type:?}.vol",
+        kind.name()
+    ));
+    if !path.exists() {
+        raycaster::generate::generate(
+            scene.as_ref(),
+            &header,
+            &path,
+            &raycaster::io::WriteOptions::default(),
+            &raycaster::job::Job::silent(),
+        )
+        .unwrap();
+    }
+    let options = raycaster::volume::OpenOptions {
+        access,
+        write_ranges_sidecar: false,
+    };
+    Volume::open_with(&path, options).unwrap()
+}
+
+/// The preset that suits a built-in scene.
+pub fn scene_preset(kind: raycaster::synth::SceneKind) -> TransferFunction {
+    use raycaster::synth::SceneKind;
+    let name = match kind {
+        SceneKind::Shapes => "shapes",
+        SceneKind::Shells => "shells",
+        SceneKind::Noise => "cloud",
+        SceneKind::Gradient => "rainbow",
+    };
+    TransferFunction::preset(name).unwrap()
+}
+
+/// The default orbit view of a volume.
+pub fn default_camera(volume: &Volume, size: u32) -> raycaster::render::Camera {
+    let (lo, hi) = (Vec3::ZERO, centre(volume) * 2.0);
+    raycaster::render::Orbit::default_view(lo, hi)
+        .camera(size, size)
+        .unwrap()
+}
+
+/// Renders with an explicit logical brick side for linear volumes.
+pub fn render_bricked(
+    volume: &Volume,
+    brick: Option<u32>,
+    camera: &raycaster::render::Camera,
+    settings: &RenderSettings,
+) -> Frame {
+    let prepared = RenderVolume::new(volume, brick).unwrap();
+    render_sequential(&prepared, camera, settings).unwrap()
 }

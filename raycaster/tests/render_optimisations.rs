@@ -1,0 +1,157 @@
+//! Early ray termination and empty-space skipping: what they change in the image
+//! (ERT a little, ESS nothing) and how many samples they save.
+
+mod render_support;
+
+use raycaster::render::{Mode, RenderSettings, TransferFunction};
+use raycaster::synth::SceneKind;
+use raycaster::volume::{Access, Layout, SampleType};
+use render_support::*;
+
+const SCENES: [SceneKind; 3] = [SceneKind::Shapes, SceneKind::Shells, SceneKind::Noise];
+
+fn settings(kind: SceneKind, ert: Option<f32>, ess: bool) -> RenderSettings {
+    RenderSettings {
+        early_termination: ert,
+        empty_space_skipping: ess,
+        transfer: scene_preset(kind),
+        ..RenderSettings::default()
+    }
+}
+
+#[test]
+fn early_termination_changes_pixels_by_at_most_its_residual() {
+    for kind in SCENES {
+        let volume = scene_volume(kind, 48);
+        let camera = default_camera(&volume, 64);
+        let exact = render(&volume, &camera, &settings(kind, None, true)).to_image();
+        for (threshold, tolerance) in [(0.99, 3), (0.999, 1)] {
+            let frame = render(&volume, &camera, &settings(kind, Some(threshold), true));
+            let name = format!("ert-{}-{threshold}", kind.name());
+            assert_images_match(&name, &frame.to_image(), &exact, tolerance);
+        }
+    }
+}
+
+#[test]
+fn empty_space_skipping_leaves_every_mode_identical() {
+    for kind in SCENES {
+        let volume = scene_volume(kind, 40);
+        let camera = default_camera(&volume, 48);
+        for mode in Mode::ALL {
+            for brick in [Some(5), None] {
+                let with = RenderSettings {
+                    mode,
+                    ..settings(kind, Some(0.99), true)
+                };
+                let without = RenderSettings {
+                    empty_space_skipping: false,
+                    ..with.clone()
+                };
+                let a = render_bricked(&volume, brick, &camera, &with);
+                let b = render_bricked(&volume, brick, &camera, &without);
+                let name = format!("ess-{}-{}-{brick:?}", kind.name(), mode.name());
+                assert_images_match(&name, &a.to_image(), &b.to_image(), 0);
+                assert_eq!(a.depth, b.depth, "{name}");
+                assert!(
+                    a.stats.counters.samples <= b.stats.counters.samples,
+                    "{name}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn sample_counts_follow_the_thesis_pattern_on_an_opaque_scene() {
+    // The thesis's 68×256×256 opaque volume, here the shapes scene with every
+    // object opaque: none / ERT / ESS / both.
+    let volume = scene_volume(SceneKind::Shapes, 128);
+    let camera = default_camera(&volume, 96);
+    let count = |ert: Option<f32>, ess: bool| {
+        let s = RenderSettings {
+            transfer: TransferFunction::preset("opaque").unwrap(),
+            ..settings(SceneKind::Shapes, ert, ess)
+        };
+        render(&volume, &camera, &s).stats.counters.samples
+    };
+    let none = count(None, false);
+    let ert = count(Some(0.99), false);
+    let ess = count(None, true);
+    let both = count(Some(0.99), true);
+    eprintln!("samples: none {none}, ERT {ert}, ESS {ess}, both {both}");
+    assert!(
+        ert < none && ess < none,
+        "each optimisation must save samples"
+    );
+    assert!(both < ert && both < ess, "together they must save more");
+    assert!(
+        (both as f64) < 0.1 * none as f64,
+        "both together must save well over 90 % ({both} of {none})"
+    );
+}
+
+#[test]
+fn the_image_does_not_depend_on_how_the_volume_is_cut_or_stored() {
+    // Samples are placed globally and owned by exactly one brick: any brick size,
+    // linear or bricked storage, mapped or in RAM, u8 — the same pixels.
+    let dir = tempfile::tempdir().unwrap();
+    let kind = SceneKind::Shapes;
+    let reference_volume = scene_volume(kind, 40);
+    let camera = default_camera(&reference_volume, 48);
+    for mode in [Mode::Dvr, Mode::FirstHit] {
+        let s = RenderSettings {
+            mode,
+            ..settings(kind, Some(0.99), true)
+        };
+        let reference = render_bricked(&reference_volume, Some(16), &camera, &s);
+        for brick in [Some(2), Some(4), Some(8), Some(33), Some(64)] {
+            let frame = render_bricked(&reference_volume, brick, &camera, &s);
+            let name = format!("cut-{}-{brick:?}", mode.name());
+            assert_images_match(&name, &frame.to_image(), &reference.to_image(), 0);
+            // The same samples are considered (taken or skipped as empty).
+            let considered = |f: &raycaster::render::Frame| {
+                f.stats.counters.samples + f.stats.counters.samples_skipped_empty
+            };
+            assert_eq!(considered(&frame), considered(&reference), "{name}");
+        }
+        for layout in [
+            Layout::Bricked { side: 8 },
+            Layout::Bricked { side: 32 },
+            Layout::Linear,
+        ] {
+            for access in [Access::Mapped, Access::Ram] {
+                let file = scene_file(dir.path(), kind, 40, layout, SampleType::U8, access);
+                let frame = render(&file, &camera, &s);
+                let name = format!("stored-{}-{layout:?}-{access:?}", mode.name());
+                assert_images_match(&name, &frame.to_image(), &reference.to_image(), 0);
+            }
+        }
+    }
+}
+
+#[test]
+fn u16_volumes_render_like_u8_ones() {
+    // The same scene quantised to 16 bits, with the transfer function over the
+    // same normalised range, differs only by quantisation.
+    let dir = tempfile::tempdir().unwrap();
+    let kind = SceneKind::Shapes;
+    let u8_volume = scene_volume(kind, 32);
+    let u16_volume = scene_file(
+        dir.path(),
+        kind,
+        32,
+        Layout::Bricked { side: 16 },
+        SampleType::U16,
+        Access::Mapped,
+    );
+    let camera = default_camera(&u8_volume, 48);
+    let s = settings(kind, Some(0.99), true);
+    let a = render(&u8_volume, &camera, &s).to_image();
+    let b = render(&u16_volume, &camera, &s).to_image();
+    let differing = a.count_differences(&b, 24);
+    assert!(
+        differing < a.data().len() / 100,
+        "{differing} channels differ by more than 24"
+    );
+}
