@@ -299,7 +299,8 @@ fn settings(args: &RenderArgs, volume: &Volume) -> Result<RenderSettings> {
         (None, Some(_)) => "shapes".to_string(),
     };
     let mut transfer = if std::path::Path::new(&tf_name).is_file() {
-        TransferFunction::load(std::path::Path::new(&tf_name))?
+        TransferFunction::load(std::path::Path::new(&tf_name))
+            .with_context(|| format!("transfer function file {tf_name}"))?
     } else {
         TransferFunction::preset(&tf_name)
             .with_context(|| format!("--tf {tf_name:?} is neither a preset nor a file"))?

@@ -69,8 +69,12 @@ impl VolumeGeometry {
     /// The brick owning voxel position `p` (clamped into the volume first).
     #[inline]
     pub fn owner(&self, p: Vec3) -> [u32; 3] {
-        let counts = self.grid.counts();
+        let [nx, ny, nz] = self.grid.counts();
         let q = p.clamp(Vec3::ZERO, self.last) / self.step;
-        [0, 1, 2].map(|a| (q[a] as u32).min(counts[a] - 1))
+        [
+            (q.x as u32).min(nx - 1),
+            (q.y as u32).min(ny - 1),
+            (q.z as u32).min(nz - 1),
+        ]
     }
 }

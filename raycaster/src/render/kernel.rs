@@ -70,10 +70,39 @@ impl<'a, T: Sample> BrickContext<'a, T> {
     #[inline]
     fn cell_of(&self, p: Vec3) -> usize {
         let m = self.cells_per_axis;
-        let c = ((p - self.sampler.origin()) * self.inv_cell_step)
-            .to_array()
-            .map(|v| (v as u32).min(m - 1));
-        ((c[0] * m + c[1]) * m + c[2]) as usize
+        let c = (p - self.sampler.origin()) * self.inv_cell_step;
+        let (cx, cy, cz) = (
+            (c.x as u32).min(m - 1),
+            (c.y as u32).min(m - 1),
+            (c.z as u32).min(m - 1),
+        );
+        ((cx * m + cy) * m + cz) as usize
+    }
+
+    /// The first sample after `k` that may lie outside the cell holding sample `k`
+    /// (at position `p`): every sample from `k` up to the returned index lies in that
+    /// cell. Conservative by a sample, so rounding at the cell's faces never skips
+    /// a sample of the next cell; always greater than `k`.
+    #[inline]
+    fn cell_exit(&self, ray: &PixelRay, p: Vec3, k: u32) -> u32 {
+        let step = 1.0 / self.inv_cell_step;
+        let m = (self.cells_per_axis - 1) as f32;
+        let local = (p - self.sampler.origin()) * self.inv_cell_step;
+        let lo = self.sampler.origin() + local.floor().min(Vec3::splat(m)) * step;
+        let mut t_exit = f32::INFINITY;
+        for a in 0..3 {
+            let d = ray.direction[a];
+            if d != 0.0 {
+                let face = if d > 0.0 { lo[a] + step } else { lo[a] };
+                t_exit = t_exit.min((face - ray.origin[a]) / d);
+            }
+        }
+        let k_exit = ((t_exit - ray.t_enter) / ray.dt).floor() - 1.0;
+        if k_exit > k as f32 + 1.0 {
+            k_exit.min(u32::MAX as f32) as u32
+        } else {
+            k + 1
+        }
     }
 }
 
@@ -203,14 +232,18 @@ fn march_dvr<T: Sample>(
     let mut skipped = 0;
     let last_sample = ray.samples - 1;
     let ess = plan.empty_space_skipping;
-    for k in first..=last {
+    let mut k = first;
+    while k <= last {
         let p = ray.position(k, last_voxel);
         if ess && brick.cell_transparent[brick.cell_of(p)] {
-            skipped += 1;
+            let next = brick.cell_exit(ray, p, k).min(last + 1);
+            skipped += u64::from(next - k);
+            k = next;
             continue;
         }
         let v = brick.sampler.value(p);
         taken += 1;
+        k += 1;
         let [cr, cg, cb, a] = table.lookup(v);
         if a <= 0.0 {
             continue;
@@ -232,7 +265,7 @@ fn march_dvr<T: Sample>(
         };
         // The last sample stands for a shorter segment: (1 − a)^f is the
         // transparency of the fraction f of a step.
-        let a = if k == last_sample {
+        let a = if k - 1 == last_sample {
             1.0 - (1.0 - a).powf(ray.last_fraction)
         } else {
             a
@@ -245,7 +278,7 @@ fn march_dvr<T: Sample>(
         alpha += w;
         if alpha >= plan.ert_threshold {
             state.done = true;
-            state.next_sample = k + 1;
+            state.next_sample = k;
             break;
         }
     }
@@ -269,13 +302,17 @@ fn march_values<T: Sample>(
     fold: impl Fn(f32, f32) -> f32,
 ) {
     let mut skipped = 0;
-    for k in first..=last {
+    let mut k = first;
+    while k <= last {
         let p = ray.position(k, last_voxel);
         if skip(brick.cell_of(p), state) {
-            skipped += 1;
+            let next = brick.cell_exit(ray, p, k).min(last + 1);
+            skipped += u64::from(next - k);
+            k = next;
             continue;
         }
         state.value = fold(state.value, brick.sampler.value(p));
+        k += 1;
     }
     counters.samples += u64::from(last - first + 1) - skipped;
     counters.samples_skipped_empty += skipped;
@@ -298,14 +335,18 @@ fn march_first_hit<T: Sample>(
     let iso = plan.iso_raw;
     let ess = plan.empty_space_skipping;
     let mut skipped = 0;
-    for k in first..=last {
+    let mut k = first;
+    while k <= last {
         let p = ray.position(k, last_voxel);
         if ess && f32::from(brick.cells[brick.cell_of(p)][1]) < iso {
-            skipped += 1;
+            let next = brick.cell_exit(ray, p, k).min(last + 1);
+            skipped += u64::from(next - k);
+            k = next;
             continue;
         }
         let v = brick.sampler.value(p);
         if v < iso {
+            k += 1;
             continue;
         }
         let mut t_hit = ray.t(k);

@@ -59,23 +59,22 @@ impl<'a, T: Sample> BrickSampler<'a, T> {
     /// The trilinearly interpolated value at local position `l` (inside the brick).
     #[inline]
     pub fn value_local(&self, l: Vec3) -> f32 {
-        let cell = [l.x, l.y, l.z];
-        let mut base = 0usize;
-        let mut frac = [0f32; 3];
-        let strides = self.view.strides();
-        for a in 0..3 {
-            let i = (cell[a] as u32).min(self.max_cell[a]);
-            frac[a] = cell[a] - i as f32;
-            base += i as usize * strides[a];
-        }
-        let s = self.view.samples_from(base);
+        let [sx, sy, _] = self.view.strides();
+        // Float → int casts saturate, so a hair below 0 becomes cell 0.
+        let ix = (l.x as u32).min(self.max_cell[0]);
+        let iy = (l.y as u32).min(self.max_cell[1]);
+        let iz = (l.z as u32).min(self.max_cell[2]);
+        let (fx, fy, fz) = (l.x - ix as f32, l.y - iy as f32, l.z - iz as f32);
+        let base = ix as usize * sx + iy as usize * sy + iz as usize;
         let [ox, oy, oz] = self.corner_stride;
+        // One bounds check for the whole cell: every corner lies in this slice.
+        let s = &self.view.samples_from(base)[..=ox + oy + oz];
         let v = |o: usize| f32::from(s[o].to_u16());
-        let c00 = lerp(v(0), v(oz), frac[2]);
-        let c01 = lerp(v(oy), v(oy + oz), frac[2]);
-        let c10 = lerp(v(ox), v(ox + oz), frac[2]);
-        let c11 = lerp(v(ox + oy), v(ox + oy + oz), frac[2]);
-        lerp(lerp(c00, c01, frac[1]), lerp(c10, c11, frac[1]), frac[0])
+        let c00 = lerp(v(0), v(oz), fz);
+        let c01 = lerp(v(oy), v(oy + oz), fz);
+        let c10 = lerp(v(ox), v(ox + oz), fz);
+        let c11 = lerp(v(ox + oy), v(ox + oy + oz), fz);
+        lerp(lerp(c00, c01, fy), lerp(c10, c11, fy), fx)
     }
 }
 

@@ -335,7 +335,10 @@ fn check_point(q: &ControlPoint, line: usize) -> Result<(), TransferError> {
     if !in_unit(q.value) || !q.color.iter().all(|&c| in_unit(c)) || !in_unit(q.alpha) {
         return Err(invalid(
             line,
-            format!("control point {q:?}: value, colour and alpha must lie in [0, 1]"),
+            format!(
+                "control point at {} (colour {:?}, alpha {}): value, colour and alpha must lie in [0, 1]",
+                q.value, q.color, q.alpha
+            ),
         ));
     }
     Ok(())

@@ -1,0 +1,184 @@
+//! The `raycaster render` command driven as a user would: real binary, real files.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use raycaster::render::RgbImage;
+
+fn raycaster(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_raycaster"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("the binary runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn renders_the_built_in_scene_without_arguments_but_the_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = raycaster(
+        &["render", "--size", "64x48", "--scene-size", "48"],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let image = RgbImage::load_png(&dir.path().join("render.png")).unwrap();
+    assert_eq!((image.width(), image.height()), (64, 48));
+    let lit = image.data().chunks(3).filter(|p| p != &[0, 0, 0]).count();
+    assert!(lit > 200, "the scene must be visible ({lit} lit pixels)");
+    assert!(stderr(&out).contains("wrote render.png"));
+}
+
+#[test]
+fn renders_a_file_and_reports_stats_as_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let vol = dir.path().join("shells.vol");
+    let scene = raycaster::synth::SceneKind::Shells.build([40; 3], 1);
+    let header = raycaster::volume::Header::new(
+        [40; 3],
+        [1.0; 3],
+        raycaster::volume::Layout::Bricked { side: 16 },
+        raycaster::volume::SampleType::U8,
+        raycaster::volume::Content::Scalar,
+        raycaster::volume::Format::Thesis,
+    );
+    raycaster::generate::generate(
+        scene.as_ref(),
+        &header,
+        &vol,
+        &Default::default(),
+        &raycaster::job::Job::silent(),
+    )
+    .unwrap();
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "render",
+            "shells.vol",
+            "-o",
+            "s.png",
+            "--size",
+            "48",
+            "--tf",
+            "shells",
+            "--stats-json",
+            "-q",
+        ];
+        args.extend_from_slice(extra);
+        let out = raycaster(&args, dir.path());
+        assert!(out.status.success(), "{}", stderr(&out));
+        serde_json::from_slice::<serde_json::Value>(&out.stdout).expect("one JSON object")
+    };
+    let both = run(&[]);
+    let none = run(&["--no-ert", "--no-ess"]);
+    assert_eq!(both["rays"], none["rays"]);
+    let samples = |v: &serde_json::Value| v["samples"].as_u64().unwrap();
+    assert!(samples(&both) < samples(&none), "{both} vs {none}");
+    assert!(none["samples_skipped_empty"].as_u64() == Some(0));
+    assert_eq!(both["ert"], serde_json::json!(0.99f32));
+    // Human-readable counters on stderr.
+    let out = raycaster(
+        &[
+            "render",
+            "shells.vol",
+            "-o",
+            "t.png",
+            "--size",
+            "32",
+            "--stats",
+            "--mode",
+            "mip",
+            "--orthographic",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    for needle in [
+        "rays cast",
+        "samples taken",
+        "terminated early",
+        "skipped (empty)",
+    ] {
+        assert!(
+            stderr(&out).contains(needle),
+            "{needle} missing in {}",
+            stderr(&out)
+        );
+    }
+}
+
+#[test]
+fn a_transfer_function_file_is_read() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("red.tf"),
+        "# everything above 0.1 red and opaque\npoint 0 1 0 0 0\npoint 0.1 1 0 0 1\npoint 1 1 0 0 1\n",
+    )
+    .unwrap();
+    let out = raycaster(
+        &[
+            "render",
+            "--tf",
+            "red.tf",
+            "--size",
+            "32",
+            "--scene-size",
+            "32",
+            "--no-shading",
+            "-o",
+            "red.png",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let image = RgbImage::load_png(&dir.path().join("red.png")).unwrap();
+    let red = image
+        .data()
+        .chunks(3)
+        .filter(|p| p[0] > 200 && p[1] == 0 && p[2] == 0)
+        .count();
+    assert!(red > 50, "{red} red pixels");
+}
+
+#[test]
+fn bad_inputs_fail_with_a_clear_message_and_no_output() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("bad.tf"),
+        "point 0 0 0 0 0\npoint 2 1 1 1 1\n",
+    )
+    .unwrap();
+    std::fs::write(dir.path().join("short.vol"), [1u8, 2, 3]).unwrap();
+    let cases: [(&[&str], &str); 9] = [
+        (&["render", "missing.vol"], "missing.vol"),
+        (&["render", "short.vol"], "short.vol"),
+        (&["render", "--size", "0x10"], "image size"),
+        (&["render", "--tf", "nope"], "neither a preset nor a file"),
+        (&["render", "--tf", "bad.tf"], "line 2"),
+        (&["render", "--step", "0"], "positive"),
+        (&["render", "--ert-threshold", "1.5"], "(0, 1]"),
+        (&["render", "--iso", "2"], "--iso"),
+        (&["render", "--fov", "190"], "--fov"),
+    ];
+    for (args, needle) in cases {
+        let out = raycaster(args, dir.path());
+        assert!(!out.status.success(), "{args:?} must fail");
+        assert!(
+            stderr(&out).contains(needle),
+            "{args:?}: {needle:?} not in {}",
+            stderr(&out)
+        );
+        assert!(
+            !dir.path().join("render.png").exists(),
+            "{args:?} left an image"
+        );
+    }
+    let out = raycaster(
+        &["render", "--size", "8", "-o", "no/such/dir/x.png"],
+        dir.path(),
+    );
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("no/such/dir"), "{}", stderr(&out));
+}
