@@ -7,7 +7,7 @@
 
 use rayon::prelude::*;
 
-use crate::volume::{BlockGrid, BrickView, Sample, TypedVolume};
+use crate::volume::{BlockGrid, BrickView, Sample};
 
 /// Smallest cell size aimed at, in voxel steps per axis.
 pub const TARGET_CELL_STEP: u32 = 4;
@@ -36,8 +36,20 @@ pub struct CellRanges {
 }
 
 impl CellRanges {
-    /// Scans every brick of `grid` over `volume` (in parallel over bricks).
-    pub fn compute<T: Sample>(volume: &TypedVolume<'_, T>, grid: &BlockGrid) -> Self {
+    /// No cells (a placeholder before a scan).
+    pub fn empty() -> Self {
+        CellRanges {
+            per_axis: 1,
+            cell_step: 1,
+            ranges: Vec::new(),
+        }
+    }
+
+    /// Scans every brick of `grid`, whose views `brick` gives (in parallel).
+    pub fn compute<'a, T: Sample>(
+        grid: &BlockGrid,
+        brick: impl Fn([u32; 3]) -> BrickView<'a, T> + Sync,
+    ) -> Self {
         let per_axis = grid.step().div_ceil(target_cell_step(grid.dims())).max(1);
         let cell_step = grid.step().div_ceil(per_axis);
         let cells = (per_axis * per_axis * per_axis) as usize;
@@ -46,7 +58,7 @@ impl CellRanges {
             .par_chunks_mut(cells)
             .enumerate()
             .for_each(|(i, out)| {
-                let view = volume.brick(grid, grid.coords(i as u64));
+                let view = brick(grid.coords(i as u64));
                 brick_cells(&view, per_axis, cell_step, out);
             });
         CellRanges {
@@ -118,7 +130,7 @@ fn brick_cells<T: Sample>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::volume::Layout;
+    use crate::volume::{Layout, TypedVolume};
 
     #[test]
     fn huge_volumes_get_larger_cells() {
@@ -134,7 +146,7 @@ mod tests {
         let samples: Vec<u8> = (0..20 * 17 * 9).map(|i| (i * 37 % 251) as u8).collect();
         let vol = TypedVolume::new(&samples, dims, Layout::Linear);
         let grid = BlockGrid::new(dims, 16);
-        let cells = CellRanges::compute(&vol, &grid);
+        let cells = CellRanges::compute(&grid, |b| vol.brick(&grid, b));
         assert_eq!((cells.per_axis(), cells.cell_step()), (4, 4));
         for b in grid.iter() {
             let ranges = cells.of_brick(grid.index(b));

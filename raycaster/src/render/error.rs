@@ -17,6 +17,16 @@ pub enum RenderError {
     /// A logical brick side below 2.
     #[error("brick side {0} is too small (at least 2)")]
     BrickSide(u32),
+    /// A logical brick that does not tile the file's bricks.
+    #[error(
+        "brick side {side} does not divide the file's bricks of side {file_side} (the sub-brick step side−1 must divide {file_side}−1)"
+    )]
+    SubBrick {
+        /// The side asked for.
+        side: u32,
+        /// The file's brick side.
+        file_side: u32,
+    },
     /// The camera is invalid.
     #[error(transparent)]
     Camera(#[from] CameraError),

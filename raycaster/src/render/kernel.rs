@@ -56,7 +56,7 @@ impl<'a, T: Sample> BrickContext<'a, T> {
         let first_cell = index as usize * n;
         BrickContext {
             coords: b,
-            sampler: BrickSampler::new(data.brick(grid, b)),
+            sampler: BrickSampler::new(volume.brick_view(data, b)),
             range: volume.ranges().range(b),
             transparent: plan.transparent[index as usize],
             cells: cells.of_brick(index),

@@ -12,7 +12,10 @@ use super::geometry::VolumeGeometry;
 use super::settings::{Mode, RenderSettings};
 use super::shading::Shading;
 use super::transfer::TransferTable;
-use crate::volume::{BlockGrid, BrickRanges, LINEAR_RANGE_SIDE, Layout, Volume, VolumeData};
+use crate::volume::{
+    BlockGrid, BrickRanges, BrickView, LINEAR_RANGE_SIDE, Layout, Sample, TypedVolume, Volume,
+    VolumeData,
+};
 
 /// A volume with the brick grid the renderer walks and each brick's value range.
 #[derive(Debug)]
@@ -24,40 +27,79 @@ pub struct RenderVolume<'a> {
 }
 
 impl<'a> RenderVolume<'a> {
-    /// Prepares `volume`. Bricked files are rendered by their stored bricks; linear
-    /// files by logical bricks of `linear_brick_side` voxels (default
-    /// [`LINEAR_RANGE_SIDE`], whose ranges the file already has; other sides are
-    /// scanned here). The small cells' ranges are scanned here (in parallel), once
+    /// Prepares `volume` for rendering by bricks of `brick_side` voxels. Linear files
+    /// are cut into logical bricks of any side (default [`LINEAR_RANGE_SIDE`], whose
+    /// ranges the file already has); bricked files use their stored bricks (default)
+    /// or logical sub-bricks whose step divides the stored one (side 16 → 4, 6, 16;
+    /// side 32 → 2, 32). Ranges of other grids are scanned here. The small cells' ranges are scanned here (in parallel), once
     /// per prepared volume; transfer-function changes never rescan.
-    pub fn new(volume: &'a Volume, linear_brick_side: Option<u32>) -> Result<Self, RenderError> {
+    pub fn new(volume: &'a Volume, brick_side: Option<u32>) -> Result<Self, RenderError> {
+        if let Some(side) = brick_side
+            && side < 2
+        {
+            return Err(RenderError::BrickSide(side));
+        }
         let grid = match volume.layout() {
-            Layout::Bricked { side } => BlockGrid::new(volume.dims(), u32::from(side)),
-            Layout::Linear => {
-                let side = linear_brick_side.unwrap_or(LINEAR_RANGE_SIDE);
-                if side < 2 {
-                    return Err(RenderError::BrickSide(side));
+            Layout::Bricked { side: file_side } => {
+                let file_side = u32::from(file_side);
+                let side = brick_side.unwrap_or(file_side);
+                if side > file_side || (file_side - 1) % (side - 1) != 0 {
+                    return Err(RenderError::SubBrick { side, file_side });
                 }
                 BlockGrid::new(volume.dims(), side)
             }
+            Layout::Linear => {
+                BlockGrid::new(volume.dims(), brick_side.unwrap_or(LINEAR_RANGE_SIDE))
+            }
         };
-        let ranges = if volume.ranges().grid() == &grid {
-            Cow::Borrowed(volume.ranges())
-        } else {
-            Cow::Owned(match volume.data() {
-                VolumeData::U8(v) => BrickRanges::compute(&v, &grid),
-                VolumeData::U16(v) => BrickRanges::compute(&v, &grid),
-            })
-        };
-        let cells = match volume.data() {
-            VolumeData::U8(v) => CellRanges::compute(&v, &grid),
-            VolumeData::U16(v) => CellRanges::compute(&v, &grid),
-        };
-        Ok(RenderVolume {
+        let mut prepared = RenderVolume {
             volume,
             geometry: VolumeGeometry::new(grid, volume.spacing()),
-            ranges,
-            cells,
-        })
+            ranges: Cow::Borrowed(volume.ranges()),
+            cells: CellRanges::empty(),
+        };
+        let (ranges, cells) = match volume.data() {
+            VolumeData::U8(v) => prepared.scan(&v),
+            VolumeData::U16(v) => prepared.scan(&v),
+        };
+        if let Some(ranges) = ranges {
+            prepared.ranges = Cow::Owned(ranges);
+        }
+        prepared.cells = cells;
+        Ok(prepared)
+    }
+
+    /// Brick ranges (when the file's do not fit the grid) and cell ranges.
+    fn scan<T: Sample>(&self, data: &TypedVolume<'_, T>) -> (Option<BrickRanges>, CellRanges) {
+        let grid = *self.geometry.grid();
+        let view = |b: [u32; 3]| self.brick_view(data, b);
+        let ranges = (self.volume.ranges().grid() != &grid).then(|| {
+            let ranges = (0..grid.block_count())
+                .into_par_iter()
+                .map(|i| {
+                    let (lo, hi) = view(grid.coords(i)).value_range();
+                    [lo.to_u16(), hi.to_u16()]
+                })
+                .collect();
+            BrickRanges::from_parts(grid, ranges)
+        });
+        (ranges, CellRanges::compute(&grid, view))
+    }
+
+    /// Brick `b` of the rendering grid over `data` (this volume's samples).
+    pub fn brick_view<'d, T: Sample>(&self, data: &TypedVolume<'d, T>, b: [u32; 3]) -> BrickView<'d, T> {
+        let grid = self.geometry.grid();
+        match data.layout() {
+            Layout::Bricked { side } if u32::from(side) != grid.side() => {
+                let file_grid = data.natural_grid(u32::from(side));
+                let origin = grid.origin(b);
+                let fb = file_grid.brick_of_voxel(origin);
+                let file_origin = file_grid.origin(fb);
+                let offset = [0, 1, 2].map(|a| origin[a] - file_origin[a]);
+                data.brick(&file_grid, fb).sub(offset, grid.extent(b))
+            }
+            _ => data.brick(grid, b),
+        }
     }
 
     /// The volume.
