@@ -5,8 +5,8 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use raycaster::render::{
-    Camera, Light, Mode, Orbit, Projection, RenderSettings, RenderVolume, Shading,
-    TransferFunction, render_sequential,
+    Camera, Light, Mode, Orbit, ParallelOptions, Projection, RenderSettings, RenderVolume, Shading,
+    TransferFunction, render_parallel, render_sequential,
 };
 use raycaster::synth::{SceneKind, synthesize};
 use raycaster::volume::{Access, OpenOptions, SampleType, Volume};
@@ -135,11 +135,25 @@ pub struct RenderArgs {
     #[arg(long, default_value = "0,0,1", value_parser = parse_vec3, allow_negative_numbers = true, value_name = "X,Y,Z")]
     up: [f32; 3],
 
-    /// Render threads (1 = the sequential reference renderer).
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1024), value_name = "N")]
-    threads: u32,
+    /// Render threads of the object-parallel renderer (default: one per core);
+    /// `--sequential` uses the single-threaded reference renderer instead.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024), value_name = "N")]
+    threads: Option<u32>,
 
-    /// Logical brick side for linear volumes (bricked files use their bricks).
+    /// Compositing threads of the parallel renderer.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=64), value_name = "N")]
+    compositors: u32,
+
+    /// Tile side of the parallel renderer, pixels.
+    #[arg(long, default_value_t = raycaster::render::DEFAULT_TILE_SIZE, value_parser = clap::value_parser!(u32).range(1..=4096), value_name = "PX")]
+    tile: u32,
+
+    /// Render with the sequential reference renderer (one thread, image order).
+    #[arg(long, conflicts_with_all = ["threads", "compositors", "tile"])]
+    sequential: bool,
+
+    /// Brick side: logical bricks of linear volumes (default 16), or sub-bricks of
+    /// a bricked file whose step divides the file's (default: the file's bricks).
     #[arg(long, value_parser = clap::value_parser!(u32).range(2..=1024), value_name = "N")]
     brick: Option<u32>,
 
@@ -235,10 +249,19 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let settings = settings(&args, &volume)?;
     let prepared = RenderVolume::new(&volume, args.brick)?;
     let camera = camera(&args, &prepared)?;
-    if args.threads > 1 && !args.quiet {
-        eprintln!("note: the parallel renderer is not available yet; rendering on 1 thread");
-    }
-    let frame = render_sequential(&prepared, &camera, &settings)?;
+    let frame = if args.sequential {
+        render_sequential(&prepared, &camera, &settings)?
+    } else {
+        let mut options = ParallelOptions {
+            compositing_threads: args.compositors as usize,
+            tile_size: args.tile,
+            ..ParallelOptions::default()
+        };
+        if let Some(n) = args.threads {
+            options.render_threads = n as usize;
+        }
+        render_parallel(&prepared, &camera, &settings, &options)?
+    };
     frame
         .to_image()
         .save_png(&args.output)

@@ -15,6 +15,7 @@ pub fn table(s: &FrameStats) -> String {
          samples taken    {} ({:.1} per ray)\n\
          skipped (empty)  {} samples ({:.1} %), {} brick visits\n\
          terminated early {} rays ({:.1} %)\n\
+         tasks            {} (tile × brick), {} skipped as occluded\n\
          bricks           {} ({} transparent under the transfer function)\n\
          threads          {}\n\
          time             {:.3} s ({:.1} M samples/s, {:.1} M samples/s/thread)\n",
@@ -29,6 +30,8 @@ pub fn table(s: &FrameStats) -> String {
         c.brick_visits_skipped,
         c.rays_terminated,
         pct(c.rays_terminated, c.rays),
+        c.tasks,
+        c.tasks_skipped_occluded,
         s.bricks,
         s.bricks_transparent,
         s.threads,
@@ -57,6 +60,8 @@ pub fn json(s: &FrameStats, volume: &Volume, settings: &RenderSettings) -> Strin
         "rays_terminated": c.rays_terminated,
         "brick_visits": c.brick_visits,
         "brick_visits_skipped": c.brick_visits_skipped,
+        "tasks": c.tasks,
+        "tasks_skipped_occluded": c.tasks_skipped_occluded,
         "bricks": s.bricks,
         "bricks_transparent": s.bricks_transparent,
         "seconds": s.time.as_secs_f64(),

@@ -17,6 +17,11 @@ pub struct Counters {
     pub brick_visits: u64,
     /// (ray, brick) visits skipped as empty.
     pub brick_visits_skipped: u64,
+    /// (tile, brick) tasks not sent because every pixel the brick covers in the
+    /// tile had terminated (global early ray termination; parallel renderer).
+    pub tasks_skipped_occluded: u64,
+    /// (tile, brick) tasks rendered (parallel renderer).
+    pub tasks: u64,
 }
 
 impl std::ops::AddAssign for Counters {
@@ -27,6 +32,8 @@ impl std::ops::AddAssign for Counters {
         self.samples_skipped_empty += o.samples_skipped_empty;
         self.brick_visits += o.brick_visits;
         self.brick_visits_skipped += o.brick_visits_skipped;
+        self.tasks_skipped_occluded += o.tasks_skipped_occluded;
+        self.tasks += o.tasks;
     }
 }
 

@@ -16,13 +16,16 @@ mod geometry;
 mod image;
 pub mod kernel;
 mod orbit;
+mod parallel;
 mod pixel;
 mod prepared;
 mod ray;
 mod sampler;
+mod schedule;
 mod sequential;
 mod settings;
 mod shading;
+mod tile;
 mod transfer;
 
 pub use camera::{Camera, CameraError, PixelRect, Projection};
@@ -34,13 +37,18 @@ pub use geometry::VolumeGeometry;
 pub use glam::Vec3;
 pub use image::{ImageError, RgbImage};
 pub use orbit::Orbit;
+pub use parallel::{
+    DEFAULT_TILE_SIZE, ParallelOptions, TileSink, render_parallel, render_parallel_into,
+};
 pub use pixel::{PixelRay, PixelState, over_background};
 pub use prepared::{FramePlan, RenderVolume};
 pub use ray::Ray;
 pub use sampler::{BrickSampler, VolumeSampler};
+pub use schedule::{FrameSchedule, ScheduledBrick, TileQueue};
 pub use sequential::render_sequential;
 pub use settings::{DEFAULT_ERT_THRESHOLD, Mode, RenderSettings};
 pub use shading::{Light, Shading};
+pub use tile::Tile;
 pub use transfer::{
     ControlPoint, PRESETS, TransferError, TransferFunction, TransferTable, corrected_alpha,
 };

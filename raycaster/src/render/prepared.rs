@@ -87,7 +87,11 @@ impl<'a> RenderVolume<'a> {
     }
 
     /// Brick `b` of the rendering grid over `data` (this volume's samples).
-    pub fn brick_view<'d, T: Sample>(&self, data: &TypedVolume<'d, T>, b: [u32; 3]) -> BrickView<'d, T> {
+    pub fn brick_view<'d, T: Sample>(
+        &self,
+        data: &TypedVolume<'d, T>,
+        b: [u32; 3],
+    ) -> BrickView<'d, T> {
         let grid = self.geometry.grid();
         match data.layout() {
             Layout::Bricked { side } if u32::from(side) != grid.side() => {

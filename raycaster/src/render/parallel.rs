@@ -1,0 +1,320 @@
+//! The object-parallel brick renderer with compositing threads (the thesis's
+//! design, after Matsui et al. 2004 and Hsu 1993).
+//!
+//! Per frame, a [`FrameSchedule`] orders the non-empty bricks front to back and
+//! queues them per tile. Compositing threads own the tiles: each seeds one task per
+//! tile, receives finished tiles, and sends the tile's next brick — or, when its
+//! queue is empty, resolves the tile into the frame (frames fill in progressively).
+//! A brick whose covered pixels in a tile have all terminated is never sent
+//! (global early ray termination). Render threads take (tile, brick) tasks from a
+//! shared channel and march the tile's rays through that brick with the same
+//! kernel as the sequential renderer. Tiles move by value through the channels; at
+//! most one task per tile is in flight, so each tile sees its bricks in order.
+
+use std::num::NonZeroUsize;
+use std::time::Instant;
+
+use crossbeam_channel::{Receiver, Sender};
+use parking_lot::Mutex;
+
+use super::camera::{Camera, PixelRect};
+use super::counters::{Counters, FrameStats};
+use super::error::RenderError;
+use super::frame::Frame;
+use super::kernel::{BrickContext, march_brick, owned_samples};
+use super::prepared::{FramePlan, RenderVolume};
+use super::sampler::VolumeSampler;
+use super::schedule::FrameSchedule;
+use super::settings::RenderSettings;
+use super::tile::Tile;
+use crate::volume::{Sample, TypedVolume, VolumeData};
+
+/// Thread and tile parameters of the parallel renderer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ParallelOptions {
+    /// Threads that march rays.
+    pub render_threads: usize,
+    /// Threads that own tiles and hand out their bricks.
+    pub compositing_threads: usize,
+    /// Tile side in pixels.
+    pub tile_size: u32,
+}
+
+/// The default tile side (pixels).
+pub const DEFAULT_TILE_SIZE: u32 = 16;
+
+impl Default for ParallelOptions {
+    /// One render thread per core (the compositing thread mostly waits) and one
+    /// compositing thread; tiles of [`DEFAULT_TILE_SIZE`].
+    fn default() -> Self {
+        let cores = std::thread::available_parallelism().map_or(1, NonZeroUsize::get);
+        ParallelOptions {
+            render_threads: cores,
+            compositing_threads: 1,
+            tile_size: DEFAULT_TILE_SIZE,
+        }
+    }
+}
+
+/// Receives tiles as they finish.
+pub trait TileSink: Sync {
+    /// Tile `rect` is final: premultiplied RGBA and first-hit depth per pixel, row
+    /// by row.
+    fn tile_finished(&self, rect: PixelRect, rgba: &[[f32; 4]], depth: &[f32]);
+}
+
+/// Renders one frame with the object-parallel renderer into a [`Frame`].
+pub fn render_parallel(
+    volume: &RenderVolume<'_>,
+    camera: &Camera,
+    settings: &RenderSettings,
+    options: &ParallelOptions,
+) -> Result<Frame, RenderError> {
+    let frame = Mutex::new(Frame::empty(
+        camera.width(),
+        camera.height(),
+        settings.background,
+    ));
+    let stats = render_parallel_into(volume, camera, settings, options, &frame, &|| false)?
+        .expect("a frame that cannot be cancelled completes");
+    let mut frame = frame.into_inner();
+    frame.stats = stats;
+    Ok(frame)
+}
+
+impl TileSink for Mutex<Frame> {
+    fn tile_finished(&self, rect: PixelRect, rgba: &[[f32; 4]], depth: &[f32]) {
+        let mut frame = self.lock();
+        let w = (rect.x1 - rect.x0) as usize;
+        for (row, y) in (rect.y0..rect.y1).enumerate() {
+            let start = frame.index(rect.x0, y);
+            frame.rgba[start..start + w].copy_from_slice(&rgba[row * w..(row + 1) * w]);
+            frame.depth[start..start + w].copy_from_slice(&depth[row * w..(row + 1) * w]);
+        }
+    }
+}
+
+/// Renders one frame, handing finished tiles to `sink` as they complete.
+/// `cancelled` is polled by the compositing threads; when it returns true no new
+/// task is sent, the frame stops early and `Ok(None)` is returned.
+pub fn render_parallel_into(
+    volume: &RenderVolume<'_>,
+    camera: &Camera,
+    settings: &RenderSettings,
+    options: &ParallelOptions,
+    sink: &dyn TileSink,
+    cancelled: &(dyn Fn() -> bool + Sync),
+) -> Result<Option<FrameStats>, RenderError> {
+    let start = Instant::now();
+    let plan = FramePlan::new(volume, settings)?;
+    let schedule = FrameSchedule::new(volume, &plan, camera, options.tile_size);
+    let frame = FrameJob {
+        volume,
+        camera,
+        plan: &plan,
+        schedule: &schedule,
+        sink,
+        cancelled,
+    };
+    let counters = match volume.volume().data() {
+        VolumeData::U8(data) => frame.run(&data, options),
+        VolumeData::U16(data) => frame.run(&data, options),
+    };
+    Ok(counters.map(|counters| FrameStats {
+        width: camera.width(),
+        height: camera.height(),
+        counters,
+        bricks: volume.geometry().grid().block_count(),
+        bricks_transparent: plan.transparent_bricks(),
+        threads: options.render_threads as u32,
+        time: start.elapsed(),
+    }))
+}
+
+/// A (tile, brick) task: the tile travels with it.
+struct Task {
+    tile: Tile,
+    brick: u32,
+}
+
+/// Everything one frame's threads share (read only).
+struct FrameJob<'f> {
+    volume: &'f RenderVolume<'f>,
+    camera: &'f Camera,
+    plan: &'f FramePlan,
+    schedule: &'f FrameSchedule,
+    sink: &'f dyn TileSink,
+    cancelled: &'f (dyn Fn() -> bool + Sync),
+}
+
+impl FrameJob<'_> {
+    /// Runs the frame's threads; the summed counters, or `None` if cancelled.
+    fn run<T: Sample>(
+        &self,
+        data: &TypedVolume<'_, T>,
+        options: &ParallelOptions,
+    ) -> Option<Counters> {
+        let compositors = options.compositing_threads.max(1);
+        let (task_tx, task_rx) = crossbeam_channel::unbounded::<Task>();
+        let (result_txs, result_rxs): (Vec<Sender<Tile>>, Vec<Receiver<Tile>>) = (0..compositors)
+            .map(|_| crossbeam_channel::unbounded())
+            .unzip();
+        std::thread::scope(|scope| {
+            for _ in 0..options.render_threads.max(1) {
+                let task_rx = task_rx.clone();
+                let result_txs = result_txs.clone();
+                scope.spawn(move || self.render_tasks(data, &task_rx, &result_txs));
+            }
+            drop(result_txs);
+            let handles: Vec<_> = result_rxs
+                .into_iter()
+                .enumerate()
+                .map(|(k, results)| {
+                    let task_tx = task_tx.clone();
+                    scope.spawn(move || {
+                        self.composite(k as u32, compositors as u32, &task_tx, &results)
+                    })
+                })
+                .collect();
+            drop(task_tx);
+            let mut total = Some(Counters::default());
+            for h in handles {
+                match (h.join().expect("compositing thread"), total.as_mut()) {
+                    (Some(c), Some(t)) => *t += c,
+                    _ => total = None,
+                }
+            }
+            total
+        })
+    }
+
+    /// A render thread: march each task's tile through its brick, send it back.
+    fn render_tasks<T: Sample>(
+        &self,
+        data: &TypedVolume<'_, T>,
+        tasks: &Receiver<Task>,
+        results: &[Sender<Tile>],
+    ) {
+        let geometry = self.volume.geometry();
+        let sampler = VolumeSampler::new(*data);
+        let volume_rect = self.schedule.volume_rect.unwrap_or(PixelRect {
+            x0: 0,
+            y0: 0,
+            x1: 0,
+            y1: 0,
+        });
+        for Task { mut tile, brick } in tasks.iter() {
+            if !(self.cancelled)() {
+                tile.prepare_rays(self.camera, geometry, self.plan.dt, &volume_rect);
+                let scheduled = self.schedule.bricks[brick as usize];
+                let context = BrickContext::new(data, self.volume, self.plan, scheduled.coords);
+                let mut counters = tile.counters;
+                counters.tasks += 1;
+                if let Some(r) = tile.rect.intersect(&scheduled.rect) {
+                    for y in r.y0..r.y1 {
+                        for x in r.x0..r.x1 {
+                            let i = tile.local(x, y);
+                            let (Some(ray), state) = (&tile.rays[i], &mut tile.states[i]) else {
+                                continue;
+                            };
+                            if state.done {
+                                continue;
+                            }
+                            if let Some((first, last)) =
+                                owned_samples(ray, geometry, scheduled.coords)
+                            {
+                                let first = first.max(state.next_sample);
+                                march_brick(
+                                    self.plan,
+                                    &sampler,
+                                    &context,
+                                    ray,
+                                    first,
+                                    last,
+                                    state,
+                                    &mut counters,
+                                );
+                            }
+                        }
+                    }
+                }
+                tile.counters = counters;
+            }
+            // The compositor may have stopped listening (cancelled): nothing to do.
+            let _ = results[tile.compositor as usize].send(tile);
+        }
+    }
+
+    /// A compositing thread: owns tiles `k, k + n, k + 2n, …`; returns their summed
+    /// counters, or `None` if the frame was cancelled.
+    fn composite(
+        &self,
+        k: u32,
+        n: u32,
+        tasks: &Sender<Task>,
+        results: &Receiver<Tile>,
+    ) -> Option<Counters> {
+        let mut counters = Counters::default();
+        let mut in_flight = 0usize;
+        for (index, queue) in self
+            .schedule
+            .tiles
+            .iter()
+            .enumerate()
+            .skip(k as usize)
+            .step_by(n as usize)
+        {
+            let tile = Tile::new(index as u32, k, queue.rect, self.plan.mode);
+            if let Some(task) = self.next_task(tile, &mut counters) {
+                in_flight += 1;
+                tasks
+                    .send(task)
+                    .expect("render threads outlive the compositors");
+            }
+        }
+        let mut cancelled = false;
+        while in_flight > 0 {
+            let mut tile = results.recv().expect("render threads return every tile");
+            in_flight -= 1;
+            cancelled = cancelled || (self.cancelled)();
+            if cancelled {
+                continue;
+            }
+            tile.next += 1;
+            if let Some(task) = self.next_task(tile, &mut counters) {
+                in_flight += 1;
+                tasks
+                    .send(task)
+                    .expect("render threads outlive the compositors");
+            }
+        }
+        (!cancelled).then_some(counters)
+    }
+
+    /// The tile's next task, skipping bricks whose covered pixels have all
+    /// terminated; or `None` after resolving a finished tile into the sink.
+    fn next_task(&self, mut tile: Tile, counters: &mut Counters) -> Option<Task> {
+        let queue = &self.schedule.tiles[tile.index as usize].bricks;
+        while let Some(&brick) = queue.get(tile.next) {
+            if !tile.finished_within(&self.schedule.bricks[brick as usize].rect) {
+                return Some(Task { tile, brick });
+            }
+            tile.counters.tasks_skipped_occluded += 1;
+            tile.next += 1;
+        }
+        self.finish(&tile);
+        *counters += tile.counters;
+        None
+    }
+
+    /// Resolves a finished tile's pixels and hands them to the sink.
+    fn finish(&self, tile: &Tile) {
+        let rgba: Vec<[f32; 4]> = tile
+            .states
+            .iter()
+            .map(|s| s.resolve(self.plan.mode, &self.plan.table))
+            .collect();
+        let depth: Vec<f32> = tile.states.iter().map(|s| s.depth).collect();
+        self.sink.tile_finished(tile.rect, &rgba, &depth);
+    }
+}

@@ -1,0 +1,117 @@
+//! The per-frame schedule of the object-parallel renderer: which bricks to render,
+//! in which order, into which tiles.
+//!
+//! Bricks the transfer function makes empty are dropped; the rest are sorted front
+//! to back by the distance of their (uncut) box centre from the eye (depth along
+//! the view for orthographic cameras) and appended to the queue of every tile
+//! their projected rectangle touches. For a grid of equal boxes this order is a
+//! visibility order along every ray: a ray leaving a brick through a face enters
+//! the neighbour whose centre is farther from the eye, so each ray meets its bricks
+//! in queue order and its samples are composited in sequence.
+
+use glam::Vec3;
+
+use super::camera::{Camera, PixelRect};
+use super::prepared::{FramePlan, RenderVolume};
+use super::settings::Mode;
+
+/// A brick in the frame's order with its screen rectangle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ScheduledBrick {
+    /// Grid coordinates.
+    pub coords: [u32; 3],
+    /// Pixels whose rays may meet it.
+    pub rect: PixelRect,
+}
+
+/// One tile: its pixels and its bricks, front to back.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TileQueue {
+    /// The tile's pixels.
+    pub rect: PixelRect,
+    /// Indices into [`FrameSchedule::bricks`], front to back.
+    pub bricks: Vec<u32>,
+}
+
+/// Bricks in visibility order and the tiles' queues.
+#[derive(Clone, Debug)]
+pub struct FrameSchedule {
+    /// Visible, non-empty bricks, front to back.
+    pub bricks: Vec<ScheduledBrick>,
+    /// Every tile of the image, row by row.
+    pub tiles: Vec<TileQueue>,
+    /// Pixels whose rays may hit the volume at all.
+    pub volume_rect: Option<PixelRect>,
+    /// Bricks dropped before rendering as empty.
+    pub bricks_dropped_empty: u64,
+}
+
+impl FrameSchedule {
+    /// The schedule of `volume` seen by `camera`, with square tiles of `tile_size`.
+    pub fn new(
+        volume: &RenderVolume<'_>,
+        plan: &FramePlan,
+        camera: &Camera,
+        tile_size: u32,
+    ) -> Self {
+        let tile_size = tile_size.max(1);
+        let geometry = volume.geometry();
+        let grid = geometry.grid();
+        let (lo, hi) = geometry.world_bounds();
+        let volume_rect = camera.project_box(lo, hi);
+        let spacing = geometry.spacing();
+        let step = grid.step() as f32;
+        let mut dropped = 0;
+        let mut keyed: Vec<(f32, ScheduledBrick)> = Vec::new();
+        if volume_rect.is_some() {
+            for (i, b) in grid.iter().enumerate() {
+                let empty = plan.empty_space_skipping
+                    && match plan.mode {
+                        Mode::Dvr => plan.transparent[i],
+                        Mode::FirstHit => f32::from(volume.ranges().range(b)[1]) < plan.iso_raw,
+                        Mode::Mip | Mode::Average => false,
+                    };
+                if empty {
+                    dropped += 1;
+                    continue;
+                }
+                let (blo, bhi) = geometry.brick_world_box(b);
+                let Some(rect) = camera.project_box(blo, bhi) else {
+                    continue;
+                };
+                let centre = (Vec3::from(b.map(|c| c as f32)) + 0.5) * step * spacing;
+                keyed.push((camera.depth_key(centre), ScheduledBrick { coords: b, rect }));
+            }
+        }
+        keyed.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let bricks: Vec<ScheduledBrick> = keyed.into_iter().map(|(_, b)| b).collect();
+        let (w, h) = (camera.width(), camera.height());
+        let (nx, ny) = (w.div_ceil(tile_size), h.div_ceil(tile_size));
+        let mut tiles: Vec<TileQueue> = (0..ny)
+            .flat_map(|ty| (0..nx).map(move |tx| (tx, ty)))
+            .map(|(tx, ty)| TileQueue {
+                rect: PixelRect {
+                    x0: tx * tile_size,
+                    y0: ty * tile_size,
+                    x1: ((tx + 1) * tile_size).min(w),
+                    y1: ((ty + 1) * tile_size).min(h),
+                },
+                bricks: Vec::new(),
+            })
+            .collect();
+        for (i, brick) in bricks.iter().enumerate() {
+            let r = brick.rect;
+            for ty in r.y0 / tile_size..r.y1.div_ceil(tile_size) {
+                for tx in r.x0 / tile_size..r.x1.div_ceil(tile_size) {
+                    tiles[(ty * nx + tx) as usize].bricks.push(i as u32);
+                }
+            }
+        }
+        FrameSchedule {
+            bricks,
+            tiles,
+            volume_rect,
+            bricks_dropped_empty: dropped,
+        }
+    }
+}

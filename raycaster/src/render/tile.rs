@@ -1,0 +1,91 @@
+//! A tile: a rectangle of pixels with their rays and compositing state. Tiles move
+//! by value between the compositing and render threads (never shared).
+
+use super::camera::{Camera, PixelRect};
+use super::counters::Counters;
+use super::geometry::VolumeGeometry;
+use super::pixel::{PixelRay, PixelState};
+use super::settings::Mode;
+
+/// A tile and everything its pixels have accumulated.
+#[derive(Clone, Debug)]
+pub struct Tile {
+    /// Index in the frame's tile list.
+    pub index: u32,
+    /// The compositing thread that owns it.
+    pub compositor: u32,
+    /// Its pixels.
+    pub rect: PixelRect,
+    /// Position of the next brick in the tile's queue.
+    pub next: usize,
+    /// Per pixel, row by row: the ray (`None` when it misses the volume), filled
+    /// on the tile's first task.
+    pub rays: Vec<Option<PixelRay>>,
+    /// Per pixel: the compositing state.
+    pub states: Vec<PixelState>,
+    /// Work done on this tile.
+    pub counters: Counters,
+}
+
+impl Tile {
+    /// A fresh tile with no rays yet.
+    pub fn new(index: u32, compositor: u32, rect: PixelRect, mode: Mode) -> Tile {
+        Tile {
+            index,
+            compositor,
+            rect,
+            next: 0,
+            rays: Vec::new(),
+            states: vec![PixelState::new(mode); rect.area() as usize],
+            counters: Counters::default(),
+        }
+    }
+
+    /// Index of pixel `(x, y)` (image coordinates) in this tile.
+    #[inline]
+    pub fn local(&self, x: u32, y: u32) -> usize {
+        ((y - self.rect.y0) * (self.rect.x1 - self.rect.x0) + (x - self.rect.x0)) as usize
+    }
+
+    /// Computes the pixels' rays (once); pixels outside `volume_rect` get none.
+    pub fn prepare_rays(
+        &mut self,
+        camera: &Camera,
+        geometry: &VolumeGeometry,
+        dt: f32,
+        volume_rect: &PixelRect,
+    ) {
+        if !self.rays.is_empty() {
+            return;
+        }
+        let r = self.rect;
+        self.rays.reserve(r.area() as usize);
+        for y in r.y0..r.y1 {
+            for x in r.x0..r.x1 {
+                let inside = x >= volume_rect.x0
+                    && x < volume_rect.x1
+                    && y >= volume_rect.y0
+                    && y < volume_rect.y1;
+                let ray = inside
+                    .then(|| PixelRay::new(&camera.ray(x, y), geometry, dt))
+                    .flatten();
+                self.counters.rays += u64::from(ray.is_some());
+                self.rays.push(ray);
+            }
+        }
+        for (state, ray) in self.states.iter_mut().zip(&self.rays) {
+            state.done |= ray.is_none();
+        }
+    }
+
+    /// Whether every pixel of `rect ∩ tile` is finished (needs rays prepared).
+    pub fn finished_within(&self, rect: &PixelRect) -> bool {
+        if self.rays.is_empty() {
+            return false;
+        }
+        let Some(r) = self.rect.intersect(rect) else {
+            return true;
+        };
+        (r.y0..r.y1).all(|y| (r.x0..r.x1).all(|x| self.states[self.local(x, y)].done))
+    }
+}
