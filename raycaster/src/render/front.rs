@@ -1,0 +1,308 @@
+//! The asynchronous front end: a renderer thread that owns a prepared volume and
+//! renders frames on request, superseding unfinished ones.
+//!
+//! [`RenderFront::request`] returns at once with the frame's id. A newer request
+//! cancels the frame in progress (the compositing threads stop handing out work)
+//! and queued requests that were never started are dropped: stale frames are never
+//! rendered. Finished tiles land in the shared [`FrameBuffer`] as they complete, so
+//! a viewer can show a frame while it fills in. Every request ends with exactly one
+//! [`FrameEvent`]: done (with its statistics), superseded, or failed. Dropping the
+//! front (or [`RenderFront::shutdown`]) cancels the frame in progress and joins
+//! every thread.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::thread::JoinHandle;
+
+use crossbeam_channel::{Receiver, Sender};
+use parking_lot::Mutex;
+
+use super::camera::{Camera, PixelRect};
+use super::counters::FrameStats;
+use super::error::RenderError;
+use super::parallel::{ParallelOptions, TileSink, render_parallel_into};
+use super::pixel::over_background;
+use super::prepared::RenderVolume;
+use super::settings::RenderSettings;
+use crate::volume::Volume;
+
+/// What to render: a copy of the camera and settings (never shared).
+#[derive(Clone, Debug)]
+pub struct FrameRequest {
+    /// The camera (its size is the frame's size).
+    pub camera: Camera,
+    /// Render settings.
+    pub settings: RenderSettings,
+    /// Threads and tiles.
+    pub options: ParallelOptions,
+}
+
+/// How a requested frame ended.
+#[derive(Clone, Debug)]
+pub enum FrameEvent {
+    /// The frame is complete in the frame buffer.
+    Done {
+        /// The request's id.
+        id: u64,
+        /// Its statistics.
+        stats: FrameStats,
+    },
+    /// A newer request or shutdown replaced it (it may be partly drawn).
+    Superseded {
+        /// The request's id.
+        id: u64,
+    },
+    /// The settings were invalid.
+    Failed {
+        /// The request's id.
+        id: u64,
+        /// What was wrong.
+        error: String,
+    },
+}
+
+impl FrameEvent {
+    /// The id of the request this event ends.
+    pub fn id(&self) -> u64 {
+        match self {
+            FrameEvent::Done { id, .. }
+            | FrameEvent::Superseded { id }
+            | FrameEvent::Failed { id, .. } => *id,
+        }
+    }
+}
+
+/// The image being shown: 8-bit RGBA, rows from the top.
+#[derive(Clone, Debug, Default)]
+pub struct FrameBuffer {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// RGBA8 pixels (alpha 255).
+    pub pixels: Vec<[u8; 4]>,
+    /// The request whose tiles were written last.
+    pub frame_id: u64,
+    /// Tiles of that request written so far.
+    pub tiles_written: u64,
+}
+
+/// Called (from renderer threads) after a tile lands or a frame ends, e.g. to wake
+/// a UI event loop.
+pub type Notify = Arc<dyn Fn() + Send + Sync>;
+
+enum Command {
+    Render { id: u64, request: Box<FrameRequest> },
+    Shutdown,
+}
+
+/// A renderer thread with its volume, driven by requests.
+pub struct RenderFront {
+    commands: Sender<Command>,
+    latest: Arc<AtomicU64>,
+    events: Receiver<FrameEvent>,
+    framebuffer: Arc<Mutex<FrameBuffer>>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl RenderFront {
+    /// Starts the renderer thread for `volume`, prepared with bricks of
+    /// `brick_side` (see [`RenderVolume::new`]); waits until it is prepared.
+    pub fn new(
+        volume: Arc<Volume>,
+        brick_side: Option<u32>,
+        notify: Option<Notify>,
+    ) -> Result<Self, RenderError> {
+        let (command_tx, command_rx) = crossbeam_channel::unbounded();
+        let (event_tx, event_rx) = crossbeam_channel::unbounded();
+        let (ready_tx, ready_rx) = crossbeam_channel::bounded(1);
+        let latest = Arc::new(AtomicU64::new(0));
+        let framebuffer = Arc::new(Mutex::new(FrameBuffer::default()));
+        let worker = Worker {
+            latest: latest.clone(),
+            events: event_tx,
+            framebuffer: framebuffer.clone(),
+            notify,
+        };
+        let thread = std::thread::Builder::new()
+            .name("renderer".into())
+            .spawn(move || match RenderVolume::new(&volume, brick_side) {
+                Ok(prepared) => {
+                    let _ = ready_tx.send(Ok(()));
+                    worker.serve(&prepared, &command_rx);
+                }
+                Err(e) => {
+                    let _ = ready_tx.send(Err(e));
+                }
+            })
+            .expect("spawning the renderer thread");
+        match ready_rx.recv() {
+            Ok(Ok(())) => Ok(RenderFront {
+                commands: command_tx,
+                latest,
+                events: event_rx,
+                framebuffer,
+                thread: Some(thread),
+            }),
+            Ok(Err(e)) => {
+                let _ = thread.join();
+                Err(e)
+            }
+            Err(_) => panic!("the renderer thread died while preparing the volume"),
+        }
+    }
+
+    /// Requests a frame; returns its id at once. Any frame in progress is cancelled.
+    pub fn request(&self, request: FrameRequest) -> u64 {
+        let id = self.latest.fetch_add(1, Ordering::SeqCst) + 1;
+        self.commands
+            .send(Command::Render {
+                id,
+                request: Box::new(request),
+            })
+            .expect("the renderer thread runs until shutdown");
+        id
+    }
+
+    /// How requests ended, in order.
+    pub fn events(&self) -> &Receiver<FrameEvent> {
+        &self.events
+    }
+
+    /// The image being rendered or last rendered.
+    pub fn framebuffer(&self) -> &Arc<Mutex<FrameBuffer>> {
+        &self.framebuffer
+    }
+
+    /// Cancels the frame in progress and joins the renderer (and its threads).
+    pub fn shutdown(mut self) {
+        self.stop();
+    }
+
+    fn stop(&mut self) {
+        if let Some(thread) = self.thread.take() {
+            // A fresh id that no request has: the frame in progress is superseded.
+            self.latest.fetch_add(1, Ordering::SeqCst);
+            let _ = self.commands.send(Command::Shutdown);
+            thread.join().expect("the renderer thread does not panic");
+        }
+    }
+}
+
+impl Drop for RenderFront {
+    fn drop(&mut self) {
+        self.stop();
+    }
+}
+
+/// The renderer thread's side.
+struct Worker {
+    latest: Arc<AtomicU64>,
+    events: Sender<FrameEvent>,
+    framebuffer: Arc<Mutex<FrameBuffer>>,
+    notify: Option<Notify>,
+}
+
+impl Worker {
+    fn emit(&self, event: FrameEvent) {
+        // The front may be gone already (dropped during shutdown): nobody listens.
+        let _ = self.events.send(event);
+        if let Some(n) = &self.notify {
+            n();
+        }
+    }
+
+    fn serve(&self, volume: &RenderVolume<'_>, commands: &Receiver<Command>) {
+        while let Ok(mut command) = commands.recv() {
+            // Only the newest command counts; older renders are superseded unstarted.
+            while let Ok(newer) = commands.try_recv() {
+                if let Command::Render { id, .. } = command {
+                    self.emit(FrameEvent::Superseded { id });
+                }
+                command = newer;
+            }
+            let (id, request) = match command {
+                Command::Shutdown => return,
+                Command::Render { id, request } => (id, request),
+            };
+            if self.latest.load(Ordering::SeqCst) != id {
+                self.emit(FrameEvent::Superseded { id });
+                continue;
+            }
+            let event = self.render(volume, id, &request);
+            self.emit(event);
+        }
+    }
+
+    fn render(&self, volume: &RenderVolume<'_>, id: u64, request: &FrameRequest) -> FrameEvent {
+        let (w, h) = (request.camera.width(), request.camera.height());
+        {
+            let mut fb = self.framebuffer.lock();
+            if (fb.width, fb.height) != (w, h) {
+                *fb = FrameBuffer {
+                    width: w,
+                    height: h,
+                    pixels: vec![[0, 0, 0, 255]; w as usize * h as usize],
+                    ..FrameBuffer::default()
+                };
+            }
+            fb.frame_id = id;
+            fb.tiles_written = 0;
+        }
+        let sink = FrameBufferSink {
+            worker: self,
+            id,
+            background: request.settings.background,
+        };
+        let cancelled = || self.latest.load(Ordering::Relaxed) != id;
+        match render_parallel_into(
+            volume,
+            &request.camera,
+            &request.settings,
+            &request.options,
+            &sink,
+            &cancelled,
+        ) {
+            Ok(Some(stats)) => FrameEvent::Done { id, stats },
+            Ok(None) => FrameEvent::Superseded { id },
+            Err(e) => FrameEvent::Failed {
+                id,
+                error: e.to_string(),
+            },
+        }
+    }
+}
+
+/// Writes finished tiles into the shared frame buffer.
+struct FrameBufferSink<'w> {
+    worker: &'w Worker,
+    id: u64,
+    background: [f32; 3],
+}
+
+impl TileSink for FrameBufferSink<'_> {
+    fn tile_finished(&self, rect: PixelRect, rgba: &[[f32; 4]], _depth: &[f32]) {
+        {
+            let mut fb = self.worker.framebuffer.lock();
+            if fb.frame_id != self.id {
+                return;
+            }
+            let w = (rect.x1 - rect.x0) as usize;
+            let width = fb.width as usize;
+            for (row, y) in (rect.y0..rect.y1).enumerate() {
+                let start = y as usize * width + rect.x0 as usize;
+                for (dst, src) in fb.pixels[start..start + w]
+                    .iter_mut()
+                    .zip(&rgba[row * w..(row + 1) * w])
+                {
+                    let [r, g, b] = over_background(*src, self.background);
+                    *dst = [r, g, b, 255];
+                }
+            }
+            fb.tiles_written += 1;
+        }
+        if let Some(n) = &self.worker.notify {
+            n();
+        }
+    }
+}

@@ -1,0 +1,241 @@
+//! The asynchronous front end: frames complete into the shared buffer, newer
+//! requests supersede older ones, shutdown joins, and storms of random requests
+//! neither deadlock nor lose a frame's ending.
+
+mod render_support;
+
+use std::collections::HashMap;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Duration;
+
+use raycaster::render::{
+    FrameEvent, FrameRequest, Mode, ParallelOptions, RenderFront, RenderSettings, RenderVolume,
+    render_parallel,
+};
+use raycaster::synth::SceneKind;
+use render_support::*;
+
+/// Runs `f` on a thread and fails the test if it takes longer than `limit`.
+fn with_timeout(limit: Duration, f: impl FnOnce() + Send + 'static) {
+    let (tx, rx) = std::sync::mpsc::channel();
+    let handle = std::thread::spawn(move || {
+        f();
+        let _ = tx.send(());
+    });
+    match rx.recv_timeout(limit) {
+        Ok(()) => handle.join().unwrap(),
+        Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => {
+            // The closure panicked: surface its message.
+            handle.join().unwrap();
+        }
+        Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
+            panic!("deadlock: no progress within {limit:?}")
+        }
+    }
+}
+
+fn settings() -> RenderSettings {
+    RenderSettings {
+        transfer: scene_preset(SceneKind::Shapes),
+        ..RenderSettings::default()
+    }
+}
+
+#[test]
+fn a_frame_completes_into_the_buffer_as_the_parallel_renderer_draws_it() {
+    let volume = Arc::new(scene_volume(SceneKind::Shapes, 32));
+    let notices = Arc::new(AtomicU64::new(0));
+    let counter = notices.clone();
+    let front = RenderFront::new(
+        volume.clone(),
+        None,
+        Some(Arc::new(move || {
+            counter.fetch_add(1, Ordering::Relaxed);
+        })),
+    )
+    .unwrap();
+    let camera = default_camera(&volume, 48);
+    let options = ParallelOptions {
+        render_threads: 2,
+        compositing_threads: 1,
+        tile_size: 8,
+    };
+    let id = front.request(FrameRequest {
+        camera,
+        settings: settings(),
+        options,
+    });
+    let event = front
+        .events()
+        .recv_timeout(Duration::from_secs(30))
+        .unwrap();
+    let FrameEvent::Done { id: done, stats } = event else {
+        panic!("expected a finished frame, got {event:?}");
+    };
+    assert_eq!(done, id);
+    assert!(stats.counters.samples > 0);
+    let prepared = RenderVolume::new(&volume, None).unwrap();
+    let expected = render_parallel(&prepared, &camera, &settings(), &options)
+        .unwrap()
+        .to_image();
+    let fb = front.framebuffer().lock().clone();
+    assert_eq!((fb.width, fb.height, fb.frame_id), (48, 48, id));
+    assert_eq!(fb.tiles_written, 36, "6×6 tiles of 8 pixels");
+    let rgb: Vec<u8> = fb.pixels.iter().flat_map(|p| [p[0], p[1], p[2]]).collect();
+    assert_eq!(rgb, expected.data());
+    // One notice per tile plus one for the frame's end.
+    assert_eq!(notices.load(Ordering::Relaxed), 37);
+    front.shutdown();
+}
+
+#[test]
+fn a_newer_request_supersedes_the_one_in_progress() {
+    with_timeout(Duration::from_secs(60), || {
+        let volume = Arc::new(scene_volume(SceneKind::Noise, 96));
+        let front = RenderFront::new(volume.clone(), None, None).unwrap();
+        let slow = FrameRequest {
+            camera: default_camera(&volume, 256),
+            settings: RenderSettings {
+                step: 0.05,
+                early_termination: None,
+                empty_space_skipping: false,
+                transfer: scene_preset(SceneKind::Noise),
+                ..RenderSettings::default()
+            },
+            options: ParallelOptions {
+                render_threads: 1,
+                compositing_threads: 1,
+                tile_size: 16,
+            },
+        };
+        let first = front.request(slow.clone());
+        std::thread::sleep(Duration::from_millis(20));
+        let quick = FrameRequest {
+            camera: default_camera(&volume, 16),
+            ..slow
+        };
+        let second = front.request(quick);
+        let a = front.events().recv().unwrap();
+        let b = front.events().recv().unwrap();
+        assert!(
+            matches!(a, FrameEvent::Superseded { id } if id == first),
+            "{a:?}"
+        );
+        assert!(
+            matches!(b, FrameEvent::Done { id, .. } if id == second),
+            "{b:?}"
+        );
+        front.shutdown();
+    });
+}
+
+#[test]
+fn invalid_settings_fail_the_frame_not_the_front() {
+    let volume = Arc::new(scene_volume(SceneKind::Shapes, 16));
+    let front = RenderFront::new(volume.clone(), None, None).unwrap();
+    let bad = FrameRequest {
+        camera: default_camera(&volume, 8),
+        settings: RenderSettings {
+            step: -1.0,
+            ..settings()
+        },
+        options: ParallelOptions::default(),
+    };
+    let id = front.request(bad.clone());
+    let event = front.events().recv().unwrap();
+    assert!(
+        matches!(event, FrameEvent::Failed { id: i, .. } if i == id),
+        "{event:?}"
+    );
+    let good = FrameRequest {
+        settings: settings(),
+        ..bad
+    };
+    let id = front.request(good);
+    assert!(matches!(front.events().recv().unwrap(), FrameEvent::Done { id: i, .. } if i == id));
+    assert!(
+        RenderFront::new(volume, Some(1), None).is_err(),
+        "brick side 1 is refused"
+    );
+}
+
+#[test]
+fn request_storms_end_every_frame_exactly_once_and_shut_down() {
+    with_timeout(Duration::from_secs(240), || {
+        let volume = Arc::new(scene_volume(SceneKind::Shapes, 24));
+        let mut rng = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move |n: u64| {
+            rng ^= rng << 13;
+            rng ^= rng >> 7;
+            rng ^= rng << 17;
+            rng % n
+        };
+        let mut requests = 0;
+        let mut done = 0;
+        for cycle in 0..400 {
+            let front = RenderFront::new(volume.clone(), Some(4 + next(12) as u32), None).unwrap();
+            let mut ids = Vec::new();
+            for _ in 0..(1 + next(60)) {
+                let size = 4 + next(40) as u32;
+                let settings = RenderSettings {
+                    mode: Mode::ALL[next(4) as usize],
+                    step: 0.3 + next(10) as f32 * 0.1,
+                    early_termination: (next(2) == 0).then_some(0.99),
+                    empty_space_skipping: next(2) == 0,
+                    ..settings()
+                };
+                let options = ParallelOptions {
+                    render_threads: 1 + next(4) as usize,
+                    compositing_threads: 1 + next(2) as usize,
+                    tile_size: 1 + next(20) as u32,
+                };
+                ids.push(front.request(FrameRequest {
+                    camera: default_camera(&volume, size),
+                    settings,
+                    options,
+                }));
+                if next(4) == 0 {
+                    std::thread::sleep(Duration::from_micros(next(2000)));
+                }
+            }
+            requests += ids.len();
+            // Half the cycles wait for the last frame, half shut down at once.
+            let wait_for_last = cycle % 2 == 0;
+            let mut endings: HashMap<u64, FrameEvent> = HashMap::new();
+            if wait_for_last {
+                let last = *ids.last().unwrap();
+                while !endings.contains_key(&last) {
+                    let e = front.events().recv().unwrap();
+                    assert!(endings.insert(e.id(), e).is_none(), "a frame ended twice");
+                }
+                assert!(
+                    matches!(endings[&last], FrameEvent::Done { .. }),
+                    "the last request completes"
+                );
+            }
+            let events = front.events().clone();
+            front.shutdown();
+            for e in events.try_iter() {
+                assert!(endings.insert(e.id(), e).is_none(), "a frame ended twice");
+            }
+            assert_eq!(
+                endings.len(),
+                ids.len(),
+                "cycle {cycle}: every request ends exactly once"
+            );
+            for id in &ids {
+                assert!(
+                    endings.contains_key(id),
+                    "cycle {cycle}: request {id} never ended"
+                );
+            }
+            done += endings
+                .values()
+                .filter(|e| matches!(e, FrameEvent::Done { .. }))
+                .count();
+        }
+        assert!(requests > 10_000, "{requests} requests");
+        assert!(done >= 200, "{done} frames completed");
+    });
+}
