@@ -4,6 +4,8 @@
 //! transfer function and renderer lives there.
 
 mod args;
+mod bench;
+mod plot;
 mod render;
 mod stats;
 
@@ -20,12 +22,14 @@ struct Cli {
 #[derive(Subcommand, Debug)]
 enum Command {
     Render(Box<render::RenderArgs>),
+    Bench(Box<bench::BenchArgs>),
 }
 
 fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(a) => render::run(*a),
+        Command::Bench(a) => bench::run(*a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

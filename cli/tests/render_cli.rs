@@ -182,3 +182,55 @@ fn bad_inputs_fail_with_a_clear_message_and_no_output() {
     assert!(!out.status.success());
     assert!(stderr(&out).contains("no/such/dir"), "{}", stderr(&out));
 }
+
+#[test]
+fn bench_quick_writes_a_table_csv_and_plot() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = raycaster(
+        &[
+            "bench",
+            "--quick",
+            "--volume-size",
+            "32",
+            "--threads",
+            "1,2",
+            "--tiles",
+            "8",
+            "--bricks",
+            "8,16",
+            "--optimisations",
+            "none,both",
+            "--sequential",
+            "--cache-dir",
+            "vols",
+            "--csv",
+            "b.csv",
+            "--plot",
+            "b.svg",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let csv = std::fs::read_to_string(dir.path().join("b.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().collect();
+    assert!(rows[0].starts_with("renderer,threads,tile,brick"));
+    // 2 bricks × 2 optimisation sets × (1 sequential + 2 thread counts × 1 tile).
+    assert_eq!(rows.len(), 1 + 2 * 2 * 3, "{csv}");
+    // The same configuration takes the same samples whatever the threads.
+    let samples = |r: &str| r.split(',').nth(6).unwrap().parse::<u64>().unwrap();
+    assert_eq!(samples(rows[1]), samples(rows[2]));
+    assert_eq!(samples(rows[2]), samples(rows[3]));
+    assert!(
+        std::fs::read_to_string(dir.path().join("b.svg"))
+            .unwrap()
+            .contains("<svg")
+    );
+    assert!(
+        dir.path().join("vols/shapes-32-linear.vol").exists(),
+        "the volume is cached"
+    );
+    assert!(stderr(&out).contains("speedup 2 threads over 1"));
+    let bad = raycaster(&["bench", "--quick", "--optimisations", "fast"], dir.path());
+    assert!(!bad.status.success());
+    assert!(stderr(&bad).contains("unknown optimisation set"));
+}
