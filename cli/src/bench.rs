@@ -1,7 +1,6 @@
 //! `raycaster bench`: frame time and samples/s/core over a grid of render threads ×
 //! tile size × brick size (× optimisations), as a table, CSV and an SVG plot.
 
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -120,6 +119,20 @@ pub struct Record {
 }
 
 impl Record {
+    /// The record's fields as text, in CSV column order.
+    fn fields(&self) -> [String; 8] {
+        [
+            self.renderer.to_string(),
+            self.threads.to_string(),
+            self.tile.to_string(),
+            self.brick.to_string(),
+            self.optimisations.clone(),
+            format!("{:.3}", self.frame.as_secs_f64() * 1e3),
+            self.samples.to_string(),
+            format!("{:.0}", self.samples_per_second_per_core()),
+        ]
+    }
+
     /// Samples per second per render thread.
     pub fn samples_per_second_per_core(&self) -> f64 {
         self.samples as f64 / self.frame.as_secs_f64().max(1e-9) / self.threads as f64
@@ -177,10 +190,7 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
         args.frames
     );
     let mut records = Vec::new();
-    println!(
-        "{:<10} {:>7} {:>5} {:>5} {:>5} {:>10} {:>12} {:>14}",
-        "renderer", "threads", "tile", "brick", "opt", "frame ms", "samples", "M samples/s/core"
-    );
+    println!("{}", table_row(&HEADER.map(String::from)));
     for &brick in &args.bricks {
         let prepared = RenderVolume::new(&volume, Some(brick))
             .with_context(|| format!("brick side {brick}"))?;
@@ -211,17 +221,7 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
                         frame: best,
                         samples,
                     };
-                    println!(
-                        "{:<10} {:>7} {:>5} {:>5} {:>5} {:>10.2} {:>12} {:>14.2}",
-                        r.renderer,
-                        r.threads,
-                        r.tile,
-                        r.brick,
-                        r.optimisations,
-                        r.frame.as_secs_f64() * 1e3,
-                        r.samples,
-                        r.samples_per_second_per_core() / 1e6
-                    );
+                    println!("{}", table_row(&r.fields()));
                     records.push(r);
                     Ok(())
                 };
@@ -340,23 +340,41 @@ fn summarise(records: &[Record]) {
     }
 }
 
+/// Column names (CSV header and table heading).
+const HEADER: [&str; 8] = [
+    "renderer",
+    "threads",
+    "tile",
+    "brick",
+    "optimisations",
+    "frame_ms",
+    "samples",
+    "samples_per_s_per_core",
+];
+
+/// One aligned table row.
+fn table_row(fields: &[String; 8]) -> String {
+    let widths = [10, 7, 5, 5, 13, 10, 12, 22];
+    fields
+        .iter()
+        .zip(widths)
+        .enumerate()
+        .map(|(i, (f, w))| {
+            if i == 0 {
+                format!("{f:<w$}")
+            } else {
+                format!("{f:>w$}")
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
 fn csv_text(records: &[Record]) -> String {
-    let mut out = String::from(
-        "renderer,threads,tile,brick,optimisations,frame_ms,samples,samples_per_s_per_core\n",
-    );
+    let mut out = HEADER.join(",") + "\n";
     for r in records {
-        let _ = writeln!(
-            out,
-            "{},{},{},{},{},{:.3},{},{:.0}",
-            r.renderer,
-            r.threads,
-            r.tile,
-            r.brick,
-            r.optimisations,
-            r.frame.as_secs_f64() * 1e3,
-            r.samples,
-            r.samples_per_second_per_core()
-        );
+        out += &r.fields().join(",");
+        out.push('\n');
     }
     out
 }

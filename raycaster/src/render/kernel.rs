@@ -165,40 +165,25 @@ pub fn march_brick<T: Sample>(
         counters.brick_visits_skipped += 1;
     } else {
         counters.brick_visits += 1;
+        let walk = Walk {
+            plan,
+            volume,
+            brick,
+            ray,
+            first,
+            last,
+        };
         let ess = plan.empty_space_skipping;
         match plan.mode {
-            Mode::Dvr => march_dvr(plan, volume, brick, ray, first, last, state, counters),
-            Mode::Mip => {
-                let skip =
-                    |c: usize, s: &PixelState| ess && f32::from(brick.cells[c][1]) <= s.value;
-                march_values(
-                    brick,
-                    ray,
-                    volume.last(),
-                    (first, last),
-                    state,
-                    counters,
-                    skip,
-                    f32::max,
-                )
-            }
+            Mode::Dvr => walk.dvr(state, counters),
+            Mode::Mip => walk.values(state, counters, f32::max, |c, s| {
+                ess && f32::from(brick.cells[c][1]) <= s.value
+            }),
             Mode::Average => {
                 state.count += last - first + 1;
-                let never = |_: usize, _: &PixelState| false;
-                march_values(
-                    brick,
-                    ray,
-                    volume.last(),
-                    (first, last),
-                    state,
-                    counters,
-                    never,
-                    |a, b| a + b,
-                )
+                walk.values(state, counters, |a, b| a + b, |_, _| false)
             }
-            Mode::FirstHit => {
-                march_first_hit(plan, volume, brick, ray, first, last, state, counters)
-            }
+            Mode::FirstHit => walk.first_hit(state, counters),
         }
         if state.done {
             counters.rays_terminated += 1;
@@ -211,174 +196,187 @@ pub fn march_brick<T: Sample>(
     }
 }
 
-/// Front-to-back emission–absorption.
-#[allow(clippy::too_many_arguments)]
-fn march_dvr<T: Sample>(
-    plan: &FramePlan,
-    volume: &VolumeSampler<'_, T>,
-    brick: &BrickContext<'_, T>,
-    ray: &PixelRay,
+/// One ray's samples `first..=last` in one brick, with what marching them needs.
+struct Walk<'w, 'v, T: Sample> {
+    plan: &'w FramePlan,
+    volume: &'w VolumeSampler<'v, T>,
+    brick: &'w BrickContext<'v, T>,
+    ray: &'w PixelRay,
     first: u32,
     last: u32,
-    state: &mut PixelState,
-    counters: &mut Counters,
-) {
-    let table = &plan.table;
-    let needs_gradient = plan.shading.is_some() || table.is_2d();
-    let last_voxel = volume.last();
-    let [mut r, mut g, mut b] = state.color;
-    let mut alpha = state.alpha;
-    let mut taken = 0;
-    let mut skipped = 0;
-    let last_sample = ray.samples - 1;
-    let ess = plan.empty_space_skipping;
-    let mut k = first;
-    while k <= last {
-        let p = ray.position(k, last_voxel);
-        if ess && brick.cell_transparent[brick.cell_of(p)] {
-            let next = brick.cell_exit(ray, p, k).min(last + 1);
-            skipped += u64::from(next - k);
-            k = next;
-            continue;
-        }
-        let v = brick.sampler.value(p);
-        taken += 1;
-        k += 1;
-        let [cr, cg, cb, a] = table.lookup(v);
-        if a <= 0.0 {
-            continue;
-        }
-        let (color, a) = if needs_gradient {
-            let gradient = volume.gradient(&brick.sampler, p) * plan.gradient_scale;
-            let a = if table.is_2d() {
-                table.lookup_2d(v, gradient.length(), plan.step_ratio)[3]
+}
+
+impl<T: Sample> Walk<'_, '_, T> {
+    /// Front-to-back emission–absorption.
+    fn dvr(&self, state: &mut PixelState, counters: &mut Counters) {
+        let Walk {
+            plan,
+            volume,
+            brick,
+            ray,
+            first,
+            last,
+        } = *self;
+        let table = &plan.table;
+        let needs_gradient = plan.shading.is_some() || table.is_2d();
+        let last_voxel = volume.last();
+        let [mut r, mut g, mut b] = state.color;
+        let mut alpha = state.alpha;
+        let mut taken = 0;
+        let mut skipped = 0;
+        let last_sample = ray.samples - 1;
+        let ess = plan.empty_space_skipping;
+        let mut k = first;
+        while k <= last {
+            let p = ray.position(k, last_voxel);
+            if ess && brick.cell_transparent[brick.cell_of(p)] {
+                let next = brick.cell_exit(ray, p, k).min(last + 1);
+                skipped += u64::from(next - k);
+                k = next;
+                continue;
+            }
+            let v = brick.sampler.value(p);
+            taken += 1;
+            k += 1;
+            let [cr, cg, cb, a] = table.lookup(v);
+            if a <= 0.0 {
+                continue;
+            }
+            let (color, a) = if needs_gradient {
+                let gradient = volume.gradient(&brick.sampler, p) * plan.gradient_scale;
+                let a = if table.is_2d() {
+                    table.lookup_2d(v, gradient.length(), plan.step_ratio)[3]
+                } else {
+                    a
+                };
+                let color = match &plan.shading {
+                    Some(s) => s.shade([cr, cg, cb], gradient, ray.view_dir),
+                    None => [cr, cg, cb],
+                };
+                (color, a)
+            } else {
+                ([cr, cg, cb], a)
+            };
+            // The last sample stands for a shorter segment: (1 − a)^f is the
+            // transparency of the fraction f of a step.
+            let a = if k - 1 == last_sample {
+                1.0 - (1.0 - a).powf(ray.last_fraction)
             } else {
                 a
             };
+            // c += (1 − α)·αs·cs;  α += (1 − α)·αs
+            let w = (1.0 - alpha) * a;
+            r += w * color[0];
+            g += w * color[1];
+            b += w * color[2];
+            alpha += w;
+            if alpha >= plan.ert_threshold {
+                state.done = true;
+                state.next_sample = k;
+                break;
+            }
+        }
+        state.color = [r, g, b];
+        state.alpha = alpha;
+        counters.samples += taken;
+        counters.samples_skipped_empty += skipped;
+    }
+
+    /// MIP or average: folds every sample's raw value into `state.value`, skipping
+    /// the samples of cells for which `skip(cell, state)` holds.
+    fn values(
+        &self,
+        state: &mut PixelState,
+        counters: &mut Counters,
+        fold: impl Fn(f32, f32) -> f32,
+        skip: impl Fn(usize, &PixelState) -> bool,
+    ) {
+        let Walk {
+            volume,
+            brick,
+            ray,
+            first,
+            last,
+            ..
+        } = *self;
+        let last_voxel = volume.last();
+        let mut skipped = 0;
+        let mut k = first;
+        while k <= last {
+            let p = ray.position(k, last_voxel);
+            if skip(brick.cell_of(p), state) {
+                let next = brick.cell_exit(ray, p, k).min(last + 1);
+                skipped += u64::from(next - k);
+                k = next;
+                continue;
+            }
+            state.value = fold(state.value, brick.sampler.value(p));
+            k += 1;
+        }
+        counters.samples += u64::from(last - first + 1) - skipped;
+        counters.samples_skipped_empty += skipped;
+    }
+
+    /// First sample at or above the iso-value; the hit is refined linearly between it
+    /// and the sample before, then shaded.
+    fn first_hit(&self, state: &mut PixelState, counters: &mut Counters) {
+        let Walk {
+            plan,
+            volume,
+            brick,
+            ray,
+            first,
+            last,
+        } = *self;
+        let last_voxel = volume.last();
+        let iso = plan.iso_raw;
+        let ess = plan.empty_space_skipping;
+        let mut skipped = 0;
+        let mut k = first;
+        while k <= last {
+            let p = ray.position(k, last_voxel);
+            if ess && f32::from(brick.cells[brick.cell_of(p)][1]) < iso {
+                let next = brick.cell_exit(ray, p, k).min(last + 1);
+                skipped += u64::from(next - k);
+                k = next;
+                continue;
+            }
+            let v = brick.sampler.value(p);
+            if v < iso {
+                k += 1;
+                continue;
+            }
+            let mut t_hit = ray.t(k);
+            if k > 0 {
+                let before = ray.position(k - 1, last_voxel);
+                let v_before = if brick.sampler.contains(before) {
+                    brick.sampler.value(before)
+                } else {
+                    volume.value(before)
+                };
+                if v_before < iso && v > v_before {
+                    t_hit = ray.t(k - 1) + (iso - v_before) / (v - v_before) * ray.dt;
+                }
+            }
+            let hit = (ray.origin + ray.direction * t_hit).clamp(Vec3::ZERO, last_voxel);
+            let [cr, cg, cb, _] = plan.table.lookup(iso);
             let color = match &plan.shading {
-                Some(s) => s.shade([cr, cg, cb], gradient, ray.view_dir),
+                Some(s) => {
+                    let gradient = volume.gradient(&brick.sampler, hit) * plan.gradient_scale;
+                    s.shade([cr, cg, cb], gradient, ray.view_dir)
+                }
                 None => [cr, cg, cb],
             };
-            (color, a)
-        } else {
-            ([cr, cg, cb], a)
-        };
-        // The last sample stands for a shorter segment: (1 − a)^f is the
-        // transparency of the fraction f of a step.
-        let a = if k - 1 == last_sample {
-            1.0 - (1.0 - a).powf(ray.last_fraction)
-        } else {
-            a
-        };
-        // c += (1 − α)·αs·cs;  α += (1 − α)·αs
-        let w = (1.0 - alpha) * a;
-        r += w * color[0];
-        g += w * color[1];
-        b += w * color[2];
-        alpha += w;
-        if alpha >= plan.ert_threshold {
+            state.color = color;
+            state.alpha = 1.0;
+            state.depth = t_hit;
             state.done = true;
-            state.next_sample = k;
-            break;
+            state.next_sample = k + 1;
+            counters.samples += u64::from(k - first + 1) - skipped;
+            counters.samples_skipped_empty += skipped;
+            return;
         }
-    }
-    state.color = [r, g, b];
-    state.alpha = alpha;
-    counters.samples += taken;
-    counters.samples_skipped_empty += skipped;
-}
-
-/// MIP or average: folds every sample's raw value into `state.value`, skipping
-/// the samples of cells for which `skip(cell, state)` holds.
-#[allow(clippy::too_many_arguments)]
-fn march_values<T: Sample>(
-    brick: &BrickContext<'_, T>,
-    ray: &PixelRay,
-    last_voxel: Vec3,
-    (first, last): (u32, u32),
-    state: &mut PixelState,
-    counters: &mut Counters,
-    skip: impl Fn(usize, &PixelState) -> bool,
-    fold: impl Fn(f32, f32) -> f32,
-) {
-    let mut skipped = 0;
-    let mut k = first;
-    while k <= last {
-        let p = ray.position(k, last_voxel);
-        if skip(brick.cell_of(p), state) {
-            let next = brick.cell_exit(ray, p, k).min(last + 1);
-            skipped += u64::from(next - k);
-            k = next;
-            continue;
-        }
-        state.value = fold(state.value, brick.sampler.value(p));
-        k += 1;
-    }
-    counters.samples += u64::from(last - first + 1) - skipped;
-    counters.samples_skipped_empty += skipped;
-}
-
-/// First sample at or above the iso-value; the hit is refined linearly between it
-/// and the sample before, then shaded.
-#[allow(clippy::too_many_arguments)]
-fn march_first_hit<T: Sample>(
-    plan: &FramePlan,
-    volume: &VolumeSampler<'_, T>,
-    brick: &BrickContext<'_, T>,
-    ray: &PixelRay,
-    first: u32,
-    last: u32,
-    state: &mut PixelState,
-    counters: &mut Counters,
-) {
-    let last_voxel = volume.last();
-    let iso = plan.iso_raw;
-    let ess = plan.empty_space_skipping;
-    let mut skipped = 0;
-    let mut k = first;
-    while k <= last {
-        let p = ray.position(k, last_voxel);
-        if ess && f32::from(brick.cells[brick.cell_of(p)][1]) < iso {
-            let next = brick.cell_exit(ray, p, k).min(last + 1);
-            skipped += u64::from(next - k);
-            k = next;
-            continue;
-        }
-        let v = brick.sampler.value(p);
-        if v < iso {
-            k += 1;
-            continue;
-        }
-        let mut t_hit = ray.t(k);
-        if k > 0 {
-            let before = ray.position(k - 1, last_voxel);
-            let v_before = if brick.sampler.contains(before) {
-                brick.sampler.value(before)
-            } else {
-                volume.value(before)
-            };
-            if v_before < iso && v > v_before {
-                t_hit = ray.t(k - 1) + (iso - v_before) / (v - v_before) * ray.dt;
-            }
-        }
-        let hit = (ray.origin + ray.direction * t_hit).clamp(Vec3::ZERO, last_voxel);
-        let [cr, cg, cb, _] = plan.table.lookup(iso);
-        let color = match &plan.shading {
-            Some(s) => {
-                let gradient = volume.gradient(&brick.sampler, hit) * plan.gradient_scale;
-                s.shade([cr, cg, cb], gradient, ray.view_dir)
-            }
-            None => [cr, cg, cb],
-        };
-        state.color = color;
-        state.alpha = 1.0;
-        state.depth = t_hit;
-        state.done = true;
-        state.next_sample = k + 1;
-        counters.samples += u64::from(k - first + 1) - skipped;
+        counters.samples += u64::from(last - first + 1) - skipped;
         counters.samples_skipped_empty += skipped;
-        return;
     }
-    counters.samples += u64::from(last - first + 1) - skipped;
-    counters.samples_skipped_empty += skipped;
 }
