@@ -5,8 +5,8 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use raycaster::render::{
-    Camera, Light, Mode, Orbit, ParallelOptions, Projection, RenderSettings, RenderVolume, Shading,
-    TransferFunction, render_parallel, render_sequential,
+    Camera, Light, Membership, Mode, Orbit, ParallelOptions, Projection, RenderSettings,
+    RenderVolume, SegmentScene, Shading, TransferFunction, render_parallel, render_sequential,
 };
 use raycaster::synth::{SceneKind, synthesize};
 use raycaster::volume::{Access, OpenOptions, SampleType, Volume};
@@ -161,6 +161,16 @@ pub struct RenderArgs {
     #[arg(long)]
     ram: bool,
 
+    /// Two-level rendering of a segmented volume: a scene description (TOML) of
+    /// value layers or a label volume, with each object's transfer function and
+    /// local mode (see volumes/scenes/).
+    #[arg(long, value_name = "SCENE.toml")]
+    segments: Option<PathBuf>,
+
+    /// Label volume for a label scene (overrides the scene's `labels`).
+    #[arg(long, value_name = "FILE", requires = "segments")]
+    labels: Option<PathBuf>,
+
     /// Print the frame's counters.
     #[arg(long)]
     stats: bool,
@@ -247,7 +257,18 @@ pub fn run(args: RenderArgs) -> Result<()> {
     }
     let volume = open_volume(&args)?;
     let settings = settings(&args, &volume)?;
-    let prepared = RenderVolume::new(&volume, args.brick)?;
+    let label_volume = match (&settings.segments, &args.labels) {
+        (Some(_), Some(path)) => Some(Volume::open(path)?),
+        (Some(scene), None) => match &scene.membership {
+            Membership::Labels(path) => Some(Volume::open(path)?),
+            Membership::Layers(_) => None,
+        },
+        (None, _) => None,
+    };
+    let mut prepared = RenderVolume::new(&volume, args.brick)?;
+    if let Some(labels) = &label_volume {
+        prepared = prepared.with_labels(labels)?;
+    }
     let camera = camera(&args, &prepared)?;
     let frame = if args.sequential {
         render_sequential(&prepared, &camera, &settings)?
@@ -352,6 +373,10 @@ fn settings(args: &RenderArgs, volume: &Volume) -> Result<RenderSettings> {
         iso_value: args.iso,
         background: args.background,
         transfer,
+        segments: match &args.segments {
+            Some(path) => Some(SegmentScene::load(path)?),
+            None => None,
+        },
     })
 }
 

@@ -27,6 +27,9 @@ pub enum RenderError {
         /// The file's brick side.
         file_side: u32,
     },
+    /// A label scene without a label volume, or a label volume that does not fit.
+    #[error("labels: {0}")]
+    Labels(String),
     /// The camera is invalid.
     #[error(transparent)]
     Camera(#[from] CameraError),

@@ -14,7 +14,8 @@ use super::prepared::{FramePlan, RenderVolume};
 use super::ray::Ray;
 use super::sampler::{BrickSampler, VolumeSampler};
 use super::settings::Mode;
-use crate::volume::{Sample, TypedVolume};
+use super::two_level::{SampleContext, SegmentPlan, close_segment};
+use crate::volume::{BrickView, Sample, TypedVolume, VolumeData};
 
 /// Slack around a brick's box when estimating its samples: ownership, not this
 /// box, decides, so the estimate only has to be generous.
@@ -39,6 +40,8 @@ pub struct BrickContext<'a, T: Sample> {
     cells_per_axis: u32,
     /// 1 / cell step.
     inv_cell_step: f32,
+    /// The brick of the label volume (two-level scenes with labels).
+    labels: Option<BrickView<'a, u8>>,
 }
 
 impl<'a, T: Sample> BrickContext<'a, T> {
@@ -63,7 +66,25 @@ impl<'a, T: Sample> BrickContext<'a, T> {
             cell_transparent: &plan.cell_transparent[first_cell..first_cell + n],
             cells_per_axis: cells.per_axis(),
             inv_cell_step: 1.0 / cells.cell_step() as f32,
+            labels: volume.labels().map(|l| match l.data() {
+                VolumeData::U8(ids) => volume.brick_view(&ids, b),
+                VolumeData::U16(_) => unreachable!("label volumes are u8 (checked when attached)"),
+            }),
         }
+    }
+
+    /// The label of the voxel nearest to volume position `p` (inside the brick).
+    #[inline]
+    fn label_at(&self, p: Vec3) -> u16 {
+        let Some(view) = &self.labels else { return 0 };
+        let e = view.extent();
+        let l = (p - self.sampler.origin() + 0.5).max(Vec3::ZERO);
+        let local = [
+            (l.x as u32).min(e[0] - 1),
+            (l.y as u32).min(e[1] - 1),
+            (l.z as u32).min(e[2] - 1),
+        ];
+        u16::from(view.get(local))
     }
 
     /// The small cell of this brick owning volume position `p`.
@@ -154,11 +175,12 @@ pub fn march_brick<T: Sample>(
     let count = u64::from(last - first + 1);
     let brick_max = f32::from(brick.range[1]);
     let skip = plan.empty_space_skipping
-        && match plan.mode {
-            Mode::Dvr => brick.transparent,
-            Mode::Mip => brick_max <= state.value,
-            Mode::FirstHit => brick_max < plan.iso_raw,
-            Mode::Average => false,
+        && match (plan.mode, &plan.segments) {
+            (_, Some(seg)) => seg.all_dvr && brick.transparent,
+            (Mode::Dvr, None) => brick.transparent,
+            (Mode::Mip, None) => brick_max <= state.value,
+            (Mode::FirstHit, None) => brick_max < plan.iso_raw,
+            (Mode::Average, None) => false,
         };
     if skip {
         counters.samples_skipped_empty += count;
@@ -175,6 +197,9 @@ pub fn march_brick<T: Sample>(
         };
         let ess = plan.empty_space_skipping;
         match plan.mode {
+            _ if plan.segments.is_some() => {
+                walk.two_level(state, counters, plan.segments.as_ref().expect("checked"))
+            }
             Mode::Dvr => walk.dvr(state, counters),
             Mode::Mip => walk.values(state, counters, f32::max, |c, s| {
                 ess && f32::from(brick.cells[c][1]) <= s.value
@@ -193,6 +218,15 @@ pub fn march_brick<T: Sample>(
     state.next_sample = last + 1;
     if state.next_sample >= ray.samples {
         state.done = true;
+        if let Some(seg) = &plan.segments {
+            let PixelState {
+                segment,
+                color,
+                alpha,
+                ..
+            } = state;
+            close_segment(seg, segment, color, alpha, plan.step_ratio);
+        }
     }
 }
 
@@ -314,6 +348,107 @@ impl<T: Sample> Walk<'_, '_, T> {
             k += 1;
         }
         counters.samples += u64::from(last - first + 1) - skipped;
+        counters.samples_skipped_empty += skipped;
+    }
+
+    /// Two-level compositing: samples are folded into the open segment of their
+    /// object; a change of object closes the segment (composited globally).
+    fn two_level(&self, state: &mut PixelState, counters: &mut Counters, seg: &SegmentPlan) {
+        let Walk {
+            plan,
+            volume,
+            brick,
+            ray,
+            first,
+            last,
+        } = *self;
+        let last_voxel = volume.last();
+        let ess = plan.empty_space_skipping && seg.all_dvr;
+        let shading = plan.shading.as_ref();
+        // Normalise eye distance by where the ray leaves the volume.
+        let exit = ray.t(ray.samples).max(1e-6);
+        let mut taken = 0;
+        let mut skipped = 0;
+        // The open segment in a local (no aliasing with `state`): written back below.
+        let mut segment = state.segment;
+        let mut color = state.color;
+        let mut alpha = state.alpha;
+        let mut k = first;
+        while k <= last {
+            let p = ray.position(k, last_voxel);
+            if ess && brick.cell_transparent[brick.cell_of(p)] {
+                // Transparent for every object: nothing to add, the segment goes on.
+                let next = brick.cell_exit(ray, p, k).min(last + 1);
+                skipped += u64::from(next - k);
+                k = next;
+                continue;
+            }
+            let v = brick.sampler.value(p);
+            taken += 1;
+            let id = if seg.uses_labels() {
+                brick.label_at(p)
+            } else {
+                seg.layer_of(v, segment.object)
+            };
+            if id != segment.object {
+                close_segment(seg, &mut segment, &mut color, &mut alpha, plan.step_ratio);
+                segment.object = id;
+                if alpha >= plan.ert_threshold {
+                    state.done = true;
+                    state.next_sample = k;
+                    break;
+                }
+            }
+            if let Some(object) = seg.object(id) {
+                let fraction = if k + 1 == ray.samples {
+                    ray.last_fraction
+                } else {
+                    1.0
+                };
+                let gradient = || volume.gradient(&brick.sampler, p) * plan.gradient_scale;
+                let fast = object.sample_dvr_1d(&mut segment, v, fraction, |c| match shading {
+                    Some(s) => s.shade(c, gradient(), ray.view_dir),
+                    None => c,
+                });
+                if fast == Some(false) {
+                    // Transparent: nothing changed, no opacity test needed.
+                    k += 1;
+                    continue;
+                }
+                if fast.is_none() && !object.ignores(v) {
+                    let sample = SampleContext {
+                        value: v,
+                        gradient: if object.needs_gradient(shading.is_some()) {
+                            gradient()
+                        } else {
+                            Vec3::ZERO
+                        },
+                        view_dir: ray.view_dir,
+                        depth: (ray.t(k) / exit).min(1.0),
+                        step_ratio: plan.step_ratio,
+                        fraction,
+                    };
+                    let had_hit = segment.hit;
+                    object.sample(&mut segment, &sample, shading);
+                    if segment.hit && !had_hit && state.depth.is_infinite() {
+                        state.depth = ray.t(k);
+                    }
+                }
+                // Emission–absorption segments: the open segment counts toward the
+                // opacity that stops the ray.
+                if seg.all_dvr && alpha + (1.0 - alpha) * segment.alpha >= plan.ert_threshold {
+                    close_segment(seg, &mut segment, &mut color, &mut alpha, plan.step_ratio);
+                    state.done = true;
+                    state.next_sample = k + 1;
+                    break;
+                }
+            }
+            k += 1;
+        }
+        state.segment = segment;
+        state.color = color;
+        state.alpha = alpha;
+        counters.samples += taken;
         counters.samples_skipped_empty += skipped;
     }
 

@@ -23,11 +23,13 @@ mod prepared;
 mod ray;
 mod sampler;
 mod schedule;
+mod segments;
 mod sequential;
 mod settings;
 mod shading;
 mod tile;
 mod transfer;
+mod two_level;
 
 pub use camera::{Camera, CameraError, PixelRect, Projection};
 pub use cells::{CellRanges, MAX_CELLS, TARGET_CELL_STEP, target_cell_step};
@@ -47,6 +49,9 @@ pub use prepared::{FramePlan, RenderVolume};
 pub use ray::Ray;
 pub use sampler::{BrickSampler, VolumeSampler};
 pub use schedule::{FrameSchedule, ScheduledBrick, TileQueue};
+pub use segments::{
+    GlobalMode, ImportanceSource, LocalMode, Membership, ObjectStyle, SceneError, SegmentScene,
+};
 pub use sequential::render_sequential;
 pub use settings::{DEFAULT_ERT_THRESHOLD, Mode, RenderSettings};
 pub use shading::{Light, Shading};
@@ -54,3 +59,4 @@ pub use tile::Tile;
 pub use transfer::{
     ControlPoint, PRESETS, TransferError, TransferFunction, TransferTable, corrected_alpha,
 };
+pub use two_level::{NO_OBJECT, SegmentState, importance_composite};

@@ -11,6 +11,7 @@ use super::geometry::VolumeGeometry;
 use super::ray::Ray;
 use super::settings::Mode;
 use super::transfer::TransferTable;
+use super::two_level::SegmentState;
 
 /// A pixel's ray through the volume, in voxel coordinates.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -88,6 +89,8 @@ pub struct PixelState {
     pub next_sample: u32,
     /// The ray is finished: terminated early, hit, or past its last sample.
     pub done: bool,
+    /// The open segment of two-level compositing.
+    pub segment: SegmentState,
 }
 
 impl Default for PixelState {
@@ -100,6 +103,7 @@ impl Default for PixelState {
             depth: f32::INFINITY,
             next_sample: 0,
             done: false,
+            segment: SegmentState::default(),
         }
     }
 }

@@ -9,9 +9,11 @@ use rayon::prelude::*;
 use super::cells::CellRanges;
 use super::error::RenderError;
 use super::geometry::VolumeGeometry;
+use super::segments::Membership;
 use super::settings::{Mode, RenderSettings};
 use super::shading::Shading;
 use super::transfer::TransferTable;
+use super::two_level::SegmentPlan;
 use crate::volume::{
     BlockGrid, BrickRanges, BrickView, LINEAR_RANGE_SIDE, Layout, Sample, TypedVolume, Volume,
     VolumeData,
@@ -24,6 +26,7 @@ pub struct RenderVolume<'a> {
     geometry: VolumeGeometry,
     ranges: Cow<'a, BrickRanges>,
     cells: CellRanges,
+    labels: Option<&'a Volume>,
 }
 
 impl<'a> RenderVolume<'a> {
@@ -57,6 +60,7 @@ impl<'a> RenderVolume<'a> {
             geometry: VolumeGeometry::new(grid, volume.spacing()),
             ranges: Cow::Borrowed(volume.ranges()),
             cells: CellRanges::empty(),
+            labels: None,
         };
         let (ranges, cells) = match volume.data() {
             VolumeData::U8(v) => prepared.scan(&v),
@@ -104,6 +108,42 @@ impl<'a> RenderVolume<'a> {
             }
             _ => data.brick(grid, b),
         }
+    }
+
+    /// Attaches a label volume (u8 object ids, same dimensions) for two-level
+    /// rendering; its layout must fit the rendering grid like the data's.
+    pub fn with_labels(mut self, labels: &'a Volume) -> Result<Self, RenderError> {
+        let bad = |why: String| {
+            Err(RenderError::Labels(format!(
+                "{}: {why}",
+                labels.path().display()
+            )))
+        };
+        if labels.dims() != self.volume.dims() {
+            return bad(format!(
+                "dimensions {:?} differ from the data's {:?}",
+                labels.dims(),
+                self.volume.dims()
+            ));
+        }
+        let VolumeData::U8(_) = labels.data() else {
+            return bad("label volumes hold u8 ids".into());
+        };
+        if let Layout::Bricked { side } = labels.layout() {
+            let (file_side, side) = (u32::from(side), self.geometry.grid().side());
+            if side > file_side || (file_side - 1) % (side - 1) != 0 {
+                return bad(format!(
+                    "its bricks of side {file_side} do not fit the rendering bricks of side {side}"
+                ));
+            }
+        }
+        self.labels = Some(labels);
+        Ok(self)
+    }
+
+    /// The attached label volume, if any.
+    pub fn labels(&self) -> Option<&'a Volume> {
+        self.labels
     }
 
     /// The volume.
@@ -155,6 +195,8 @@ pub struct FramePlan {
     pub cell_transparent: Vec<bool>,
     /// The background colour.
     pub background: [f32; 3],
+    /// Two-level compositing, when the settings have segments.
+    pub segments: Option<SegmentPlan>,
 }
 
 impl FramePlan {
@@ -178,22 +220,44 @@ impl FramePlan {
             .domain
             .unwrap_or([0.0, f32::from(type_max)]);
         let geometry = volume.geometry();
+        let segments = match &settings.segments {
+            Some(scene) => {
+                if matches!(scene.membership, Membership::Labels(_)) && volume.labels().is_none() {
+                    return Err(RenderError::Labels(
+                        "the scene takes objects from a label volume but none is attached".into(),
+                    ));
+                }
+                Some(SegmentPlan::new(scene, type_max, [d0, d1], settings.step))
+            }
+            None => None,
+        };
+        // Empty under this frame's classification: the transfer function, or every
+        // visible object's for two-level scenes whose objects all composite by
+        // emission–absorption (others see every sample).
+        let is_empty = |lo: u16, hi: u16| match &segments {
+            None => table.is_transparent(lo, hi),
+            Some(seg) => seg.all_dvr && seg.is_transparent(lo, hi),
+        };
         let transparent = volume
             .ranges()
             .as_slice()
             .iter()
-            .map(|&[lo, hi]| table.is_transparent(lo, hi))
+            .map(|&[lo, hi]| is_empty(lo, hi))
             .collect();
         let cell_transparent = volume
             .cells()
             .as_slice()
             .par_iter()
-            .map(|&[lo, hi]| lo > hi || table.is_transparent(lo, hi))
+            .map(|&[lo, hi]| lo > hi || is_empty(lo, hi))
             .collect();
         let min_spacing = geometry.min_spacing();
         Ok(FramePlan {
             table,
-            mode: settings.mode,
+            mode: if segments.is_some() {
+                Mode::Dvr
+            } else {
+                settings.mode
+            },
             ert_threshold: settings.early_termination.unwrap_or(f32::INFINITY),
             empty_space_skipping: settings.empty_space_skipping,
             shading: settings.shading,
@@ -204,7 +268,20 @@ impl FramePlan {
             transparent,
             cell_transparent,
             background: settings.background,
+            segments,
         })
+    }
+
+    /// Whether brick number `index` (with value range `range`) can be left out of
+    /// the frame: nothing in it can change a pixel, whatever came before.
+    pub fn brick_droppable(&self, index: usize, range: [u16; 2]) -> bool {
+        self.empty_space_skipping
+            && match (self.mode, &self.segments) {
+                (_, Some(seg)) => seg.all_dvr && self.transparent[index],
+                (Mode::Dvr, None) => self.transparent[index],
+                (Mode::FirstHit, None) => f32::from(range[1]) < self.iso_raw,
+                (Mode::Mip | Mode::Average, None) => false,
+            }
     }
 
     /// Bricks the transfer function makes fully transparent.

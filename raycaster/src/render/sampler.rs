@@ -139,25 +139,28 @@ impl<'a, T: Sample> VolumeSampler<'a, T> {
     /// The gradient at `p` by central differences over one voxel,
     /// `(f(p + e) − f(p − e)) / 2` per axis, in raw value per voxel; one-sided at
     /// the volume's faces. Reads come from `local` when it covers them.
+    #[inline]
     pub fn gradient(&self, local: &BrickSampler<'a, T>, p: Vec3) -> Vec3 {
-        let read = |q: Vec3| {
-            let q = q.clamp(Vec3::ZERO, self.last);
-            if local.contains(q) {
-                local.value(q)
-            } else {
-                self.value(q)
-            }
-        };
         let mut g = [0f32; 3];
         for (a, e) in [Vec3::X, Vec3::Y, Vec3::Z].into_iter().enumerate() {
             let hi = (p + e).min(self.last);
             let lo = (p - e).max(Vec3::ZERO);
             let h = hi[a] - lo[a];
             if h > 0.0 {
-                g[a] = (read(hi) - read(lo)) / h;
+                g[a] = (self.read_near(local, hi) - self.read_near(local, lo)) / h;
             }
         }
         Vec3::from(g)
+    }
+
+    /// The value at `q` (inside the volume), from `local` when it covers `q`.
+    #[inline]
+    fn read_near(&self, local: &BrickSampler<'a, T>, q: Vec3) -> f32 {
+        if local.contains(q) {
+            local.value(q)
+        } else {
+            self.value(q)
+        }
     }
 }
 

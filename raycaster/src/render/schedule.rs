@@ -13,7 +13,6 @@ use glam::Vec3;
 
 use super::camera::{Camera, PixelRect};
 use super::prepared::{FramePlan, RenderVolume};
-use super::settings::Mode;
 
 /// A brick in the frame's order with its screen rectangle.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -65,12 +64,7 @@ impl FrameSchedule {
         let mut keyed: Vec<(f32, ScheduledBrick)> = Vec::new();
         if volume_rect.is_some() {
             for (i, b) in grid.iter().enumerate() {
-                let empty = plan.empty_space_skipping
-                    && match plan.mode {
-                        Mode::Dvr => plan.transparent[i],
-                        Mode::FirstHit => f32::from(volume.ranges().range(b)[1]) < plan.iso_raw,
-                        Mode::Mip | Mode::Average => false,
-                    };
+                let empty = plan.brick_droppable(i, volume.ranges().range(b));
                 if empty {
                     dropped += 1;
                     continue;

@@ -1,5 +1,6 @@
 //! What a frame is rendered with, besides the camera.
 
+use super::segments::SegmentScene;
 use super::shading::Shading;
 use super::transfer::TransferFunction;
 
@@ -49,8 +50,11 @@ pub struct RenderSettings {
     pub iso_value: f32,
     /// Colour behind the volume (linear RGB in `[0, 1]`).
     pub background: [f32; 3],
-    /// The transfer function.
+    /// The transfer function (and, with segments, the data domain for layers).
     pub transfer: TransferFunction,
+    /// Two-level compositing of a segmented volume: when set, each object's own
+    /// transfer function and local mode replace `mode` and `transfer`'s colours.
+    pub segments: Option<SegmentScene>,
 }
 
 /// The default early-ray-termination threshold.
@@ -67,6 +71,7 @@ impl Default for RenderSettings {
             iso_value: 0.5,
             background: [0.0; 3],
             transfer: TransferFunction::preset("shapes").expect("built-in preset"),
+            segments: None,
         }
     }
 }

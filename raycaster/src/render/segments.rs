@@ -1,0 +1,403 @@
+//! Segmented volumes for two-level rendering (Hauser et al. 2001): which object
+//! each sample belongs to, and how each object is rendered.
+//!
+//! Objects come from a label volume (u8 ids, nearest-neighbour lookup, never
+//! interpolated across ids) or from value layers (intervals of the normalised
+//! value; layer `i` is object `i + 1`). Each object has its own transfer function
+//! and local compositing mode; segment results are composited globally. Scenes are
+//! read from a small TOML description ([`SegmentScene::parse`]).
+
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+use super::transfer::{TransferError, TransferFunction};
+
+/// How the samples of one segment are combined.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LocalMode {
+    /// Emission–absorption, shaded.
+    Dvr,
+    /// Maximum value of the segment, classified by the transfer function.
+    Mip,
+    /// Mean value of the segment, classified.
+    Average,
+    /// Sum of normalised values × step: opacity `1 − exp(−gain·Σ)`.
+    XRay {
+        /// Scale of the sum.
+        gain: f32,
+    },
+    /// First sample at or above the iso-value (normalised), shaded, opaque.
+    FirstHit {
+        /// Iso-value over the object's transfer-function domain.
+        iso: f32,
+    },
+    /// Importance-aware compositing (de Moura Pinto & Freitas).
+    Importance {
+        /// Where a sample's importance comes from.
+        source: ImportanceSource,
+    },
+    /// Context-preserving rendering (Bruckner et al.).
+    ContextPreserving {
+        /// κt: depth of the virtual clip.
+        kt: f32,
+        /// κs: sharpness of the transition.
+        ks: f32,
+    },
+    /// Non-photorealistic: tone shading and silhouette darkening.
+    Silhouette,
+}
+
+impl LocalMode {
+    /// Whether transparent samples contribute nothing (so empty space can be
+    /// skipped without changing the segment's result).
+    pub fn is_emission_absorption(self) -> bool {
+        matches!(self, LocalMode::Dvr)
+    }
+}
+
+/// Importance of a sample for importance-aware compositing.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ImportanceSource {
+    /// A constant per object.
+    Constant(f32),
+    /// The normalised value, times a weight.
+    Intensity(f32),
+    /// The gradient magnitude, times a weight.
+    Gradient(f32),
+    /// `|g|^p1 · smoothstep(p2, p3, 1 − |V·N|)`.
+    Silhouette([f32; 3]),
+    /// `3 − (N·H)^p1 − (N·L)^p2 − (1 − |g|)^p3`.
+    Lighting([f32; 3]),
+}
+
+/// How segment results are combined along a ray.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GlobalMode {
+    /// Front-to-back emission–absorption of the segments.
+    Dvr,
+    /// The most opaque segment.
+    Mip,
+}
+
+/// Where object ids come from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Membership {
+    /// A label volume (`.vol` with u8 labels, same dimensions as the data).
+    Labels(PathBuf),
+    /// Intervals `[lo, hi)` of the value normalised over the data's domain; the
+    /// last interval includes its upper end.
+    Layers(Vec<[f32; 2]>),
+}
+
+/// One object's appearance.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ObjectStyle {
+    /// Name for people.
+    pub name: String,
+    /// Object id (label value; layer index + 1).
+    pub id: u8,
+    /// Hidden objects are clipped away.
+    pub visible: bool,
+    /// Transfer function (1D, or 2D with a gradient ramp).
+    pub transfer: TransferFunction,
+    /// Local compositing.
+    pub mode: LocalMode,
+}
+
+/// A segmented scene: membership, objects, global compositing.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SegmentScene {
+    /// Where object ids come from.
+    pub membership: Membership,
+    /// The objects; ids without a style are transparent.
+    pub objects: Vec<ObjectStyle>,
+    /// Global compositing.
+    pub global: GlobalMode,
+}
+
+/// What is wrong with a scene description.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    /// The file cannot be read.
+    #[error("cannot read scene {path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The error.
+        source: std::io::Error,
+    },
+    /// TOML syntax or an unknown/mistyped field.
+    #[error("scene description: {0}")]
+    Syntax(String),
+    /// A value out of range or inconsistent.
+    #[error("scene description: {0}")]
+    Invalid(String),
+    /// An object's transfer function.
+    #[error("scene description, object {object:?}: {source}")]
+    Transfer {
+        /// The object's name.
+        object: String,
+        /// The error.
+        source: TransferError,
+    },
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneFile {
+    #[serde(default)]
+    global: Option<String>,
+    #[serde(default)]
+    labels: Option<PathBuf>,
+    #[serde(default)]
+    layers: Option<Vec<[f32; 2]>>,
+    #[serde(default, rename = "object")]
+    objects: Vec<ObjectFile>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ObjectFile {
+    name: Option<String>,
+    id: Option<u8>,
+    #[serde(default = "yes")]
+    visible: bool,
+    tf: Option<String>,
+    #[serde(default = "dvr")]
+    mode: String,
+    iso: Option<f32>,
+    gain: Option<f32>,
+    kt: Option<f32>,
+    ks: Option<f32>,
+    importance: Option<String>,
+    weight: Option<f32>,
+    p: Option<[f32; 3]>,
+}
+
+fn yes() -> bool {
+    true
+}
+
+fn dvr() -> String {
+    "dvr".into()
+}
+
+impl SegmentScene {
+    /// Reads a scene file; relative paths (labels, transfer-function files) are
+    /// relative to the file's directory.
+    pub fn load(path: &Path) -> Result<SegmentScene, SceneError> {
+        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        SegmentScene::parse(&text, path.parent().unwrap_or(Path::new(".")))
+    }
+
+    /// Parses a scene description:
+    ///
+    /// ```toml
+    /// global = "dvr"                        # or "mip"
+    /// layers = [[0.05, 0.35], [0.35, 1.0]]  # or: labels = "scene.labels.vol"
+    ///
+    /// [[object]]
+    /// name = "glass"                        # object 1 (layer 0, or label 1)
+    /// tf = "shapes"                         # preset or transfer-function file
+    /// mode = "importance"                   # dvr mip average xray first-hit
+    /// importance = "silhouette"             # importance context silhouette
+    /// ```
+    pub fn parse(text: &str, base: &Path) -> Result<SegmentScene, SceneError> {
+        let file: SceneFile =
+            toml::from_str(text).map_err(|e| SceneError::Syntax(e.to_string()))?;
+        let membership = match (file.labels, file.layers) {
+            (Some(labels), None) => Membership::Labels(base.join(labels)),
+            (None, Some(layers)) => {
+                for (i, [lo, hi]) in layers.iter().enumerate() {
+                    if !(0.0..=1.0).contains(lo) || !(0.0..=1.0).contains(hi) || lo >= hi {
+                        return Err(SceneError::Invalid(format!(
+                            "layer {i} [{lo}, {hi}] must be an increasing interval inside [0, 1]"
+                        )));
+                    }
+                }
+                if layers.len() > 255 {
+                    return Err(SceneError::Invalid("at most 255 layers".into()));
+                }
+                Membership::Layers(layers)
+            }
+            _ => {
+                return Err(SceneError::Invalid(
+                    "give either `labels = \"FILE\"` or `layers = [[lo, hi], ...]`".into(),
+                ));
+            }
+        };
+        let global = match file.global.as_deref().unwrap_or("dvr") {
+            "dvr" => GlobalMode::Dvr,
+            "mip" => GlobalMode::Mip,
+            other => {
+                return Err(SceneError::Invalid(format!(
+                    "unknown global mode {other:?} (dvr, mip)"
+                )));
+            }
+        };
+        let mut objects = Vec::new();
+        for (i, o) in file.objects.into_iter().enumerate() {
+            let id = o.id.unwrap_or((i + 1) as u8);
+            let name = o.name.clone().unwrap_or_else(|| format!("object {id}"));
+            let transfer = match o.tf.as_deref().unwrap_or("shapes") {
+                tf if base.join(tf).is_file() => TransferFunction::load(&base.join(tf)),
+                tf => TransferFunction::preset(tf),
+            }
+            .map_err(|source| SceneError::Transfer {
+                object: name.clone(),
+                source,
+            })?;
+            let mode =
+                local_mode(&o).map_err(|e| SceneError::Invalid(format!("object {name:?}: {e}")))?;
+            if objects.iter().any(|s: &ObjectStyle| s.id == id) {
+                return Err(SceneError::Invalid(format!(
+                    "object id {id} is defined twice"
+                )));
+            }
+            objects.push(ObjectStyle {
+                name,
+                id,
+                visible: o.visible,
+                transfer,
+                mode,
+            });
+        }
+        Ok(SegmentScene {
+            membership,
+            objects,
+            global,
+        })
+    }
+
+    /// The style of object `id`, if any.
+    pub fn object(&self, id: u8) -> Option<&ObjectStyle> {
+        self.objects.iter().find(|o| o.id == id)
+    }
+}
+
+fn local_mode(o: &ObjectFile) -> Result<LocalMode, String> {
+    let unit = |name: &str, v: Option<f32>, default: f32| {
+        let v = v.unwrap_or(default);
+        if v.is_finite() && v >= 0.0 {
+            Ok(v)
+        } else {
+            Err(format!("{name} = {v} must be a non-negative number"))
+        }
+    };
+    Ok(match o.mode.as_str() {
+        "dvr" => LocalMode::Dvr,
+        "mip" => LocalMode::Mip,
+        "average" => LocalMode::Average,
+        "xray" => LocalMode::XRay {
+            gain: unit("gain", o.gain, 1.0)?,
+        },
+        "first-hit" => {
+            let iso = unit("iso", o.iso, 0.5)?;
+            if iso > 1.0 {
+                return Err(format!("iso = {iso} must lie in [0, 1]"));
+            }
+            LocalMode::FirstHit { iso }
+        }
+        "context" => LocalMode::ContextPreserving {
+            kt: unit("kt", o.kt, 1.5)?,
+            ks: unit("ks", o.ks, 0.4)?,
+        },
+        "silhouette" => LocalMode::Silhouette,
+        "importance" => {
+            let w = unit("weight", o.weight, 1.0)?;
+            let p = o.p.unwrap_or([1.0, 0.3, 0.9]);
+            let source = match o.importance.as_deref().unwrap_or("constant") {
+                "constant" => ImportanceSource::Constant(w),
+                "intensity" => ImportanceSource::Intensity(w),
+                "gradient" => ImportanceSource::Gradient(w),
+                "silhouette" => ImportanceSource::Silhouette(p),
+                "lighting" => ImportanceSource::Lighting(p),
+                other => {
+                    return Err(format!(
+                        "unknown importance {other:?} (constant, intensity, gradient, silhouette, lighting)"
+                    ));
+                }
+            };
+            LocalMode::Importance { source }
+        }
+        other => {
+            return Err(format!(
+                "unknown mode {other:?} (dvr, mip, average, xray, first-hit, importance, context, silhouette)"
+            ));
+        }
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_scene_parses_with_defaults_and_paths_relative_to_it() {
+        let text = r#"
+            global = "mip"
+            layers = [[0.0, 0.4], [0.4, 1.0]]
+            [[object]]
+            name = "soft"
+            tf = "cloud"
+            mode = "context"
+            kt = 2.0
+            [[object]]
+            mode = "importance"
+            importance = "silhouette"
+            visible = false
+        "#;
+        let s = SegmentScene::parse(text, Path::new("/data")).unwrap();
+        assert_eq!(s.global, GlobalMode::Mip);
+        assert_eq!(
+            s.membership,
+            Membership::Layers(vec![[0.0, 0.4], [0.4, 1.0]])
+        );
+        assert_eq!(
+            s.objects[0].mode,
+            LocalMode::ContextPreserving { kt: 2.0, ks: 0.4 }
+        );
+        assert_eq!(s.objects[1].id, 2);
+        assert!(!s.objects[1].visible);
+        let labels = SegmentScene::parse("labels = \"l.vol\"", Path::new("/data")).unwrap();
+        assert_eq!(
+            labels.membership,
+            Membership::Labels(PathBuf::from("/data/l.vol"))
+        );
+    }
+
+    #[test]
+    fn mistakes_are_named() {
+        let cases = [
+            ("layers = [[0.5, 0.2]]", "increasing"),
+            ("", "either"),
+            ("layers = [[0, 1]]\ncolour = 1", "unknown field"),
+            (
+                "layers = [[0, 1]]\n[[object]]\nmode = \"fancy\"",
+                "unknown mode",
+            ),
+            (
+                "layers = [[0, 1]]\n[[object]]\ntf = \"nope\"",
+                "unknown transfer function preset",
+            ),
+            (
+                "layers = [[0, 1]]\n[[object]]\nid = 1\n[[object]]\nid = 1",
+                "twice",
+            ),
+            (
+                "layers = [[0, 1]]\n[[object]]\nmode = \"first-hit\"\niso = 3",
+                "iso",
+            ),
+        ];
+        for (text, needle) in cases {
+            let e = SegmentScene::parse(text, Path::new("."))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(needle), "{text:?}: {e}");
+        }
+    }
+}

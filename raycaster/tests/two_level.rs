@@ -1,0 +1,386 @@
+//! Two-level compositing of segmented volumes: reductions to plain rendering,
+//! analytic local modes, and parallel == sequential with segments crossing bricks.
+
+mod render_support;
+
+use std::path::Path;
+
+use raycaster::render::{
+    Camera, GlobalMode, ImportanceSource, LocalMode, Membership, Mode, ObjectStyle,
+    ParallelOptions, Projection, RenderSettings, RenderVolume, SegmentScene, TransferFunction,
+    Vec3, render_parallel, render_sequential,
+};
+use raycaster::synth::SceneKind;
+use raycaster::volume::{Access, Content, Format, Header, Layout, SampleType, Volume};
+use render_support::*;
+
+fn layers_scene(
+    layers: Vec<[f32; 2]>,
+    style: impl Fn(usize) -> (TransferFunction, LocalMode),
+) -> SegmentScene {
+    let objects = (0..layers.len())
+        .map(|i| {
+            let (transfer, mode) = style(i);
+            ObjectStyle {
+                name: format!("layer {i}"),
+                id: (i + 1) as u8,
+                visible: true,
+                transfer,
+                mode,
+            }
+        })
+        .collect();
+    SegmentScene {
+        membership: Membership::Layers(layers),
+        objects,
+        global: GlobalMode::Dvr,
+    }
+}
+
+fn with_segments(base: &RenderSettings, scene: SegmentScene) -> RenderSettings {
+    RenderSettings {
+        segments: Some(scene),
+        ..base.clone()
+    }
+}
+
+#[test]
+fn all_objects_in_dvr_with_one_transfer_function_is_plain_dvr() {
+    let volume = scene_volume(SceneKind::Shapes, 48);
+    let camera = default_camera(&volume, 64);
+    let tf = scene_preset(SceneKind::Shapes);
+    for (ert, ess) in [(None, false), (Some(0.99), true)] {
+        let plain = RenderSettings {
+            early_termination: ert,
+            empty_space_skipping: ess,
+            transfer: tf.clone(),
+            ..RenderSettings::default()
+        };
+        let layers = vec![[0.0, 0.2], [0.2, 0.5], [0.5, 0.8], [0.8, 1.0]];
+        let two = with_segments(
+            &plain,
+            layers_scene(layers, |_| (tf.clone(), LocalMode::Dvr)),
+        );
+        let a = render(&volume, &camera, &plain);
+        let b = render(&volume, &camera, &two);
+        assert_images_match(
+            &format!("two-level-dvr-{ess}"),
+            &b.to_image(),
+            &a.to_image(),
+            1,
+        );
+    }
+}
+
+#[test]
+fn one_layer_in_a_local_mode_equals_the_plain_mode() {
+    let volume = scene_volume(SceneKind::Shells, 40);
+    let camera = default_camera(&volume, 48);
+    let tf = scene_preset(SceneKind::Shells);
+    let plain = RenderSettings {
+        shading: None,
+        early_termination: None,
+        transfer: tf.clone(),
+        ..RenderSettings::default()
+    };
+    let cases = [
+        (Mode::Mip, LocalMode::Mip),
+        (Mode::Average, LocalMode::Average),
+        (Mode::FirstHit, LocalMode::FirstHit { iso: 0.5 }),
+    ];
+    for (mode, local) in cases {
+        let plain = RenderSettings {
+            mode,
+            ..plain.clone()
+        };
+        let two = with_segments(
+            &plain,
+            layers_scene(vec![[0.0, 1.0]], |_| (tf.clone(), local)),
+        );
+        let a = render(&volume, &camera, &plain);
+        let b = render(&volume, &camera, &two);
+        assert_images_match(
+            &format!("two-level-{}", mode.name()),
+            &b.to_image(),
+            &a.to_image(),
+            1,
+        );
+        if mode == Mode::FirstHit {
+            // The local hit is the first sample at or above the iso-value: at most
+            // one step behind the refined plain hit.
+            let dt = plain.step;
+            for (da, db) in a.depth.iter().zip(&b.depth) {
+                assert_eq!(da.is_finite(), db.is_finite());
+                if da.is_finite() {
+                    assert!(db >= da && db - da <= dt + 1e-4, "{da} vs {db}");
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn context_preserving_with_zero_kt_is_dvr() {
+    let volume = scene_volume(SceneKind::Shapes, 40);
+    let camera = default_camera(&volume, 48);
+    let tf = scene_preset(SceneKind::Shapes);
+    // Without early termination: DVR segments may stop inside a segment, others
+    // only between segments.
+    let base = RenderSettings {
+        transfer: tf.clone(),
+        early_termination: None,
+        ..RenderSettings::default()
+    };
+    let dvr = with_segments(
+        &base,
+        layers_scene(vec![[0.0, 1.0]], |_| (tf.clone(), LocalMode::Dvr)),
+    );
+    let cpr = with_segments(
+        &base,
+        layers_scene(vec![[0.0, 1.0]], |_| {
+            (
+                tf.clone(),
+                LocalMode::ContextPreserving { kt: 0.0, ks: 0.5 },
+            )
+        }),
+    );
+    let a = render(&volume, &camera, &dvr);
+    let b = render(&volume, &camera, &cpr);
+    assert_images_match("cpr-kt0", &b.to_image(), &a.to_image(), 0);
+    // And κt > 0 does change it (the mode is not a no-op).
+    let cpr2 = with_segments(
+        &base,
+        layers_scene(vec![[0.0, 1.0]], |_| {
+            (
+                tf.clone(),
+                LocalMode::ContextPreserving { kt: 3.0, ks: 0.5 },
+            )
+        }),
+    );
+    let c = render(&volume, &camera, &cpr2);
+    assert!(c.to_image().max_difference(&a.to_image()).unwrap() > 10);
+}
+
+#[test]
+fn xray_of_a_homogeneous_slab_sums_the_value_along_the_ray() {
+    // 17 voxels along x at spacing 1: L = 16 world units = 32 samples of 0.5.
+    let volume = volume_u8([17, 9, 9], [1.0; 3], |_, _, _| 200);
+    let c = centre(&volume);
+    let camera = Camera::new(
+        Vec3::new(-10.0, c.y, c.z),
+        Vec3::X,
+        Vec3::Z,
+        Projection::Orthographic { height: 4.0 },
+        6,
+        6,
+    )
+    .unwrap();
+    let tf = white_tf(&[(0.0, 1.0), (1.0, 1.0)]);
+    let gain = 0.05;
+    let settings = with_segments(
+        &plain_settings(tf.clone()),
+        layers_scene(vec![[0.0, 1.0]], |_| (tf.clone(), LocalMode::XRay { gain })),
+    );
+    let frame = render(&volume, &camera, &settings);
+    let expected = 1.0 - (-gain * (200.0f32 / 255.0) * 16.0).exp();
+    for px in &frame.rgba {
+        assert!((px[3] - expected).abs() < 1e-4, "{} vs {expected}", px[3]);
+    }
+}
+
+#[test]
+fn hidden_objects_are_clipped_and_global_mip_picks_the_densest_segment() {
+    let volume = scene_volume(SceneKind::Shells, 40);
+    let camera = default_camera(&volume, 48);
+    let tf = scene_preset(SceneKind::Shells);
+    let base = RenderSettings {
+        transfer: tf.clone(),
+        ..RenderSettings::default()
+    };
+    let mut scene = layers_scene(vec![[0.0, 0.3], [0.3, 1.0]], |_| {
+        (tf.clone(), LocalMode::Dvr)
+    });
+    let all = render(&volume, &camera, &with_segments(&base, scene.clone()));
+    scene.objects[1].visible = false;
+    let inner_only = render(&volume, &camera, &with_segments(&base, scene.clone()));
+    scene.objects[0].visible = false;
+    let none = render(&volume, &camera, &with_segments(&base, scene.clone()));
+    assert!(
+        none.rgba.iter().all(|p| p[3] == 0.0),
+        "everything hidden: nothing drawn"
+    );
+    let coverage = |f: &raycaster::render::Frame| f.rgba.iter().filter(|p| p[3] > 0.01).count();
+    assert!(coverage(&inner_only) < coverage(&all));
+    scene.objects[0].visible = true;
+    scene.objects[1].visible = true;
+    scene.global = GlobalMode::Mip;
+    let mip = render(&volume, &camera, &with_segments(&base, scene));
+    for (m, a) in mip.rgba.iter().zip(&all.rgba) {
+        assert!(
+            m[3] <= a[3] + 1e-5,
+            "one segment is never more opaque than all of them"
+        );
+    }
+}
+
+fn labelled_shells(dir: &Path, layout: Layout) -> (Volume, Volume) {
+    let n = 40;
+    let scene = SceneKind::Shells.build([n; 3], 1);
+    let mut paths = Vec::new();
+    for content in [Content::Scalar, Content::Labels] {
+        let header = Header::new(
+            [n; 3],
+            [1.0; 3],
+            layout,
+            SampleType::U8,
+            content,
+            Format::Extended,
+        );
+        let path = dir.join(format!("shells-{content:?}-{layout:?}.vol"));
+        raycaster::generate::generate(
+            scene.as_ref(),
+            &header,
+            &path,
+            &Default::default(),
+            &raycaster::job::Job::silent(),
+        )
+        .unwrap();
+        paths.push(path);
+    }
+    let open = |p: &Path| {
+        Volume::open_with(
+            p,
+            raycaster::volume::OpenOptions {
+                access: Access::Mapped,
+                write_ranges_sidecar: false,
+            },
+        )
+        .unwrap()
+    };
+    (open(&paths[0]), open(&paths[1]))
+}
+
+fn mixed_label_scene() -> SegmentScene {
+    let tf = scene_preset(SceneKind::Shells);
+    let style = |id: u8, mode| ObjectStyle {
+        name: format!("shell {id}"),
+        id,
+        visible: true,
+        transfer: tf.clone(),
+        mode,
+    };
+    SegmentScene {
+        membership: Membership::Labels("labels.vol".into()),
+        objects: vec![
+            style(1, LocalMode::FirstHit { iso: 0.1 }),
+            style(2, LocalMode::Mip),
+            style(
+                3,
+                LocalMode::Importance {
+                    source: ImportanceSource::Silhouette([1.0, 0.3, 0.9]),
+                },
+            ),
+            style(4, LocalMode::ContextPreserving { kt: 1.5, ks: 0.4 }),
+        ],
+        global: GlobalMode::Dvr,
+    }
+}
+
+#[test]
+fn label_scenes_render_the_same_in_parallel_across_bricks_tiles_and_threads() {
+    let dir = tempfile::tempdir().unwrap();
+    for layout in [Layout::Linear, Layout::Bricked { side: 16 }] {
+        let (data, labels) = labelled_shells(dir.path(), layout);
+        let camera = default_camera(&data, 40);
+        let settings = RenderSettings {
+            segments: Some(mixed_label_scene()),
+            transfer: scene_preset(SceneKind::Shells),
+            ..RenderSettings::default()
+        };
+        let bricks: &[Option<u32>] = match layout {
+            Layout::Linear => &[Some(5), Some(8), Some(16), Some(33)],
+            Layout::Bricked { .. } => &[None, Some(4), Some(6)],
+        };
+        for (i, &brick) in bricks.iter().enumerate() {
+            let prepared = RenderVolume::new(&data, brick)
+                .unwrap()
+                .with_labels(&labels)
+                .unwrap();
+            let reference = render_sequential(&prepared, &camera, &settings).unwrap();
+            assert!(
+                reference.rgba.iter().filter(|p| p[3] > 0.05).count() > 100,
+                "the scene must be visible"
+            );
+            for (tile, threads) in [(1, 3), (7, 2), (16, 1), (10, 8)] {
+                let options = ParallelOptions {
+                    render_threads: threads,
+                    compositing_threads: 1 + i % 2,
+                    tile_size: tile,
+                };
+                let frame = render_parallel(&prepared, &camera, &settings, &options).unwrap();
+                let name = format!("two-level-par-{layout:?}-{brick:?}-t{tile}-r{threads}");
+                assert_images_match(&name, &frame.to_image(), &reference.to_image(), 1);
+                assert_eq!(
+                    frame.stats.counters.samples, reference.stats.counters.samples,
+                    "{name}"
+                );
+            }
+        }
+        // Segments do not depend on the cut either.
+        let a = render_sequential(
+            &RenderVolume::new(&data, Some(4))
+                .ok()
+                .or(RenderVolume::new(&data, None).ok())
+                .unwrap()
+                .with_labels(&labels)
+                .unwrap(),
+            &camera,
+            &settings,
+        )
+        .unwrap();
+        let b = render_sequential(
+            &RenderVolume::new(&data, None)
+                .unwrap()
+                .with_labels(&labels)
+                .unwrap(),
+            &camera,
+            &settings,
+        )
+        .unwrap();
+        assert_images_match(
+            &format!("two-level-cut-{layout:?}"),
+            &a.to_image(),
+            &b.to_image(),
+            1,
+        );
+    }
+}
+
+#[test]
+fn a_label_scene_without_labels_or_with_wrong_labels_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let (data, labels) = labelled_shells(dir.path(), Layout::Linear);
+    let camera = default_camera(&data, 16);
+    let settings = RenderSettings {
+        segments: Some(mixed_label_scene()),
+        ..RenderSettings::default()
+    };
+    let plain = RenderVolume::new(&data, None).unwrap();
+    let e = render_sequential(&plain, &camera, &settings)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("label"), "{e}");
+    let other = scene_volume(SceneKind::Shapes, 20);
+    let e = RenderVolume::new(&data, None)
+        .unwrap()
+        .with_labels(&other)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("dimensions"), "{e}");
+    assert!(
+        RenderVolume::new(&data, None)
+            .unwrap()
+            .with_labels(&labels)
+            .is_ok()
+    );
+}
