@@ -8,7 +8,7 @@ use raycaster::render::{
     Camera, Light, Membership, Mode, Orbit, ParallelOptions, Projection, RenderSettings,
     RenderVolume, SegmentScene, Shading, TransferFunction, render_parallel, render_sequential,
 };
-use raycaster::synth::{SceneKind, synthesize};
+use raycaster::synth::{SceneKind, synthesize, synthesize_labels};
 use raycaster::volume::{Access, OpenOptions, SampleType, Volume};
 
 use crate::args::{
@@ -260,6 +260,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let label_volume = match (&settings.segments, &args.labels) {
         (Some(_), Some(path)) => Some(Volume::open(path)?),
         (Some(scene), None) => match &scene.membership {
+            // A built-in scene brings its own segmentation, when it has one.
+            Membership::Labels(_) if args.file.is_none() => Some(built_in_labels(&args)?),
             Membership::Labels(path) => Some(Volume::open(path)?),
             Membership::Layers(_) => None,
         },
@@ -334,6 +336,20 @@ fn open_volume(args: &RenderArgs) -> Result<Volume> {
             )?)
         }
     }
+}
+
+/// The label volume of the built-in scene, for label scenes rendered without a file.
+fn built_in_labels(args: &RenderArgs) -> Result<Volume> {
+    let kind = args.scene.kind();
+    let n = args.scene_size;
+    let scene = kind.build([n; 3], args.seed);
+    let name = format!("built-in {} labels {n}³", kind.name());
+    synthesize_labels(scene.as_ref(), &name, [n; 3], [1.0; 3])?.with_context(|| {
+        format!(
+            "the built-in `{}` scene has no label volume; give --labels FILE or a layer scene",
+            kind.name()
+        )
+    })
 }
 
 fn settings(args: &RenderArgs, volume: &Volume) -> Result<RenderSettings> {

@@ -234,3 +234,99 @@ fn bench_quick_writes_a_table_csv_and_plot() {
     assert!(!bad.status.success());
     assert!(stderr(&bad).contains("unknown optimisation set"));
 }
+
+/// Every ready-made scene in `volumes/scenes/` renders on the built-in volume its
+/// name starts with, and shows something other than that volume's plain image.
+#[test]
+fn every_ready_made_segment_scene_renders_on_its_built_in_volume() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../volumes/scenes");
+    let mut rendered = 0;
+    for entry in std::fs::read_dir(&scenes).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_none_or(|e| e != "toml") {
+            continue;
+        }
+        let stem = path.file_stem().unwrap().to_string_lossy().into_owned();
+        let volume = stem.split('-').next().unwrap().to_owned();
+        let common = ["--scene", &volume, "--scene-size", "40", "--size", "40"];
+        let plain = raycaster(
+            &[&["render", "-o", "plain.png", "-q"][..], &common].concat(),
+            dir.path(),
+        );
+        assert!(plain.status.success(), "{}", stderr(&plain));
+        let out = raycaster(
+            &[
+                &["render", "-o", "two.png", "-q", "--segments"][..],
+                &[path.to_str().unwrap()],
+                &common,
+            ]
+            .concat(),
+            dir.path(),
+        );
+        assert!(out.status.success(), "{stem}: {}", stderr(&out));
+        let two = RgbImage::load_png(&dir.path().join("two.png")).unwrap();
+        let lit = two.data().chunks(3).filter(|p| p != &[0, 0, 0]).count();
+        assert!(lit > 50, "{stem}: only {lit} lit pixels");
+        if stem != "shapes-layers10" {
+            let plain = RgbImage::load_png(&dir.path().join("plain.png")).unwrap();
+            assert_ne!(plain.data(), two.data(), "{stem} looks like plain DVR");
+        }
+        rendered += 1;
+    }
+    assert!(rendered >= 12, "only {rendered} scenes found");
+}
+
+#[test]
+fn bad_segment_scenes_fail_with_a_clear_message_and_no_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, text: &str| std::fs::write(dir.path().join(name), text).unwrap();
+    write(
+        "typo.toml",
+        "layers = [[0.0, 1.0]]\n[[object]]\nmdoe = \"mip\"\n",
+    );
+    write(
+        "mode.toml",
+        "layers = [[0.0, 1.0]]\n[[object]]\nmode = \"glow\"\n",
+    );
+    write("both.toml", "layers = [[0.0, 1.0]]\nlabels = \"x.vol\"\n");
+    write(
+        "labels.toml",
+        "labels = \"missing.labels.vol\"\n[[object]]\n",
+    );
+    let cases: [(&[&str], &str); 6] = [
+        (&["--segments", "typo.toml"], "mdoe"),
+        (&["--segments", "mode.toml"], "glow"),
+        (&["--segments", "both.toml"], "either"),
+        (&["--segments", "nowhere.toml"], "nowhere.toml"),
+        (
+            &["--segments", "labels.toml", "--scene", "noise"],
+            "no label volume",
+        ),
+        (&["--labels", "x.vol"], "--segments"),
+    ];
+    for (extra, needle) in cases {
+        let args = [
+            &[
+                "render",
+                "-o",
+                "out.png",
+                "--scene-size",
+                "32",
+                "--size",
+                "32",
+            ][..],
+            extra,
+        ]
+        .concat();
+        let out = raycaster(&args, dir.path());
+        assert!(!out.status.success(), "{extra:?} must fail");
+        let err = stderr(&out);
+        assert!(err.contains(needle), "{extra:?}: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+        assert!(
+            !dir.path().join("out.png").exists(),
+            "{extra:?} left an image"
+        );
+    }
+}

@@ -204,8 +204,13 @@ impl SegmentScene {
     /// name = "glass"                        # object 1 (layer 0, or label 1)
     /// tf = "shapes"                         # preset or transfer-function file
     /// mode = "importance"                   # dvr mip average xray first-hit
-    /// importance = "silhouette"             # importance context silhouette
+    ///                                       # importance context silhouette
+    /// importance = "silhouette"             # constant intensity gradient
+    ///                                       # silhouette lighting
+    /// p = [1.0, 0.2, 0.8]                   # parameters: iso gain kt ks weight p
     /// ```
+    ///
+    /// The whole format is described in `docs/segments.md`.
     pub fn parse(text: &str, base: &Path) -> Result<SegmentScene, SceneError> {
         let file: SceneFile =
             toml::from_str(text).map_err(|e| SceneError::Syntax(e.to_string()))?;

@@ -70,6 +70,9 @@ pub struct ObjectPlan {
 pub struct SegmentPlan {
     /// Visible objects by id.
     objects: Vec<Option<ObjectPlan>>,
+    /// The distinct transfer tables of the visible objects (emptiness tests ask
+    /// each table once, however many objects share it).
+    tables: Vec<Arc<TransferTable>>,
     /// Value layers in raw units (layer i = object i + 1), or `None` for labels.
     layers: Option<Vec<[f32; 2]>>,
     /// No two layers overlap (the usual case): a value in the current layer needs
@@ -140,6 +143,7 @@ impl SegmentPlan {
         });
         SegmentPlan {
             objects,
+            tables: tables.into_iter().map(|(_, t)| t).collect(),
             layers,
             disjoint,
             global: scene.global,
@@ -188,10 +192,7 @@ impl SegmentPlan {
 
     /// Whether every visible object is transparent over raw values `[lo, hi]`.
     pub fn is_transparent(&self, lo: u16, hi: u16) -> bool {
-        self.objects
-            .iter()
-            .flatten()
-            .all(|o| o.table.is_transparent(lo, hi))
+        self.tables.iter().all(|t| t.is_transparent(lo, hi))
     }
 }
 

@@ -106,6 +106,35 @@ pub fn synthesize(
     }
 }
 
+/// Builds the label volume of `scene` (u8 object ids, linear, in RAM), or `None`
+/// when the scene has no segmentation.
+pub fn synthesize_labels(
+    scene: &dyn Scene,
+    name: &str,
+    dims: [u32; 3],
+    spacing: [f32; 3],
+) -> Result<Option<Volume>, VolumeError> {
+    if !scene.has_labels() {
+        return Ok(None);
+    }
+    let header = Header::new(
+        dims,
+        spacing,
+        Layout::Linear,
+        SampleType::U8,
+        Content::Labels,
+        Format::Extended,
+    );
+    header.validate().at(std::path::Path::new(name))?;
+    let [dx, dy, dz] = dims.map(|d| d as usize);
+    let mut labels = vec![0u8; dx * dy * dz];
+    labels
+        .par_chunks_mut(dz)
+        .enumerate()
+        .for_each(|(i, row)| scene.fill_label_row((i / dy) as u32, (i % dy) as u32, row));
+    Volume::from_samples(name, &header, &labels).map(Some)
+}
+
 fn sample_rows<T: Sample>(scene: &dyn Scene, dims: [u32; 3]) -> Vec<T> {
     let [dx, dy, dz] = dims.map(|d| d as usize);
     let mut samples = vec![T::from_unit(0.0); dx * dy * dz];
