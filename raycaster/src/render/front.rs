@@ -113,6 +113,17 @@ impl RenderFront {
         brick_side: Option<u32>,
         notify: Option<Notify>,
     ) -> Result<Self, RenderError> {
+        RenderFront::with_labels(volume, None, brick_side, notify)
+    }
+
+    /// Like [`RenderFront::new`], with a label volume attached for two-level scenes
+    /// whose objects come from labels (see [`RenderVolume::with_labels`]).
+    pub fn with_labels(
+        volume: Arc<Volume>,
+        labels: Option<Arc<Volume>>,
+        brick_side: Option<u32>,
+        notify: Option<Notify>,
+    ) -> Result<Self, RenderError> {
         let (command_tx, command_rx) = crossbeam_channel::unbounded();
         let (event_tx, event_rx) = crossbeam_channel::unbounded();
         let (ready_tx, ready_rx) = crossbeam_channel::bounded(1);
@@ -126,13 +137,21 @@ impl RenderFront {
         };
         let thread = std::thread::Builder::new()
             .name("renderer".into())
-            .spawn(move || match RenderVolume::new(&volume, brick_side) {
-                Ok(prepared) => {
-                    let _ = ready_tx.send(Ok(()));
-                    worker.serve(&prepared, &command_rx);
-                }
-                Err(e) => {
-                    let _ = ready_tx.send(Err(e));
+            .spawn(move || {
+                let prepared = RenderVolume::new(&volume, brick_side).and_then(|prepared| {
+                    match labels.as_deref() {
+                        Some(labels) => prepared.with_labels(labels),
+                        None => Ok(prepared),
+                    }
+                });
+                match prepared {
+                    Ok(prepared) => {
+                        let _ = ready_tx.send(Ok(()));
+                        worker.serve(&prepared, &command_rx);
+                    }
+                    Err(e) => {
+                        let _ = ready_tx.send(Err(e));
+                    }
                 }
             })
             .expect("spawning the renderer thread");

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 
-use super::transfer::{TransferError, TransferFunction};
+use super::transfer::{ControlPoint, TransferError, TransferFunction};
 
 /// How the samples of one segment are combined.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -49,6 +49,20 @@ pub enum LocalMode {
 }
 
 impl LocalMode {
+    /// The mode's name in scene descriptions.
+    pub fn name(self) -> &'static str {
+        match self {
+            LocalMode::Dvr => "dvr",
+            LocalMode::Mip => "mip",
+            LocalMode::Average => "average",
+            LocalMode::XRay { .. } => "xray",
+            LocalMode::FirstHit { .. } => "first-hit",
+            LocalMode::Importance { .. } => "importance",
+            LocalMode::ContextPreserving { .. } => "context",
+            LocalMode::Silhouette => "silhouette",
+        }
+    }
+
     /// Whether transparent samples contribute nothing (so empty space can be
     /// skipped without changing the segment's result).
     pub fn is_emission_absorption(self) -> bool {
@@ -163,7 +177,7 @@ struct ObjectFile {
     id: Option<u8>,
     #[serde(default = "yes")]
     visible: bool,
-    tf: Option<String>,
+    tf: Option<TransferSpec>,
     #[serde(default = "dvr")]
     mode: String,
     iso: Option<f32>,
@@ -173,6 +187,41 @@ struct ObjectFile {
     importance: Option<String>,
     weight: Option<f32>,
     p: Option<[f32; 3]>,
+}
+
+/// An object's transfer function: a preset name or file, or written inline.
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum TransferSpec {
+    Named(String),
+    Inline(InlineTransfer),
+}
+
+/// `tf = { points = [[value, r, g, b, alpha], ...], domain = [lo, hi], gradient = [g0, g1] }`
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct InlineTransfer {
+    points: Vec<[f32; 5]>,
+    domain: Option<[f32; 2]>,
+    gradient: Option<[f32; 2]>,
+}
+
+impl InlineTransfer {
+    fn build(&self) -> Result<TransferFunction, TransferError> {
+        let mut tf = TransferFunction::new(
+            self.points
+                .iter()
+                .map(|&[value, r, g, b, alpha]| ControlPoint {
+                    value,
+                    color: [r, g, b],
+                    alpha,
+                })
+                .collect(),
+        )?;
+        tf.domain = self.domain;
+        tf.gradient_ramp = self.gradient;
+        Ok(tf)
+    }
 }
 
 fn yes() -> bool {
@@ -248,9 +297,13 @@ impl SegmentScene {
         for (i, o) in file.objects.into_iter().enumerate() {
             let id = o.id.unwrap_or((i + 1) as u8);
             let name = o.name.clone().unwrap_or_else(|| format!("object {id}"));
-            let transfer = match o.tf.as_deref().unwrap_or("shapes") {
-                tf if base.join(tf).is_file() => TransferFunction::load(&base.join(tf)),
-                tf => TransferFunction::preset(tf),
+            let transfer = match &o.tf {
+                Some(TransferSpec::Inline(inline)) => inline.build(),
+                Some(TransferSpec::Named(tf)) if base.join(tf).is_file() => {
+                    TransferFunction::load(&base.join(tf))
+                }
+                Some(TransferSpec::Named(tf)) => TransferFunction::preset(tf),
+                None => TransferFunction::preset("shapes"),
             }
             .map_err(|source| SceneError::Transfer {
                 object: name.clone(),
@@ -276,6 +329,82 @@ impl SegmentScene {
             objects,
             global,
         })
+    }
+
+    /// The scene as a description [`SegmentScene::parse`] reads back to an equal
+    /// scene: transfer functions are written inline, a label path as given.
+    pub fn to_toml(&self) -> String {
+        use std::fmt::Write;
+        let quote = |s: &str| toml::Value::String(s.to_owned()).to_string();
+        let pair = |[a, b]: [f32; 2]| format!("[{a:?}, {b:?}]");
+        let mut out = String::from("# raycaster two-level scene (docs/segments.md)\n");
+        let global = match self.global {
+            GlobalMode::Dvr => "dvr",
+            GlobalMode::Mip => "mip",
+        };
+        let _ = writeln!(out, "global = {}", quote(global));
+        match &self.membership {
+            Membership::Labels(path) => {
+                let _ = writeln!(out, "labels = {}", quote(&path.to_string_lossy()));
+            }
+            Membership::Layers(layers) => {
+                let list: Vec<String> = layers.iter().map(|&l| pair(l)).collect();
+                let _ = writeln!(out, "layers = [{}]", list.join(", "));
+            }
+        }
+        for o in &self.objects {
+            let _ = writeln!(out, "\n[[object]]");
+            let _ = writeln!(out, "name = {}", quote(&o.name));
+            let _ = writeln!(out, "id = {}", o.id);
+            let _ = writeln!(out, "visible = {}", o.visible);
+            let points: Vec<String> = o
+                .transfer
+                .points()
+                .iter()
+                .map(|p| {
+                    let [r, g, b] = p.color;
+                    format!("[{:?}, {r:?}, {g:?}, {b:?}, {:?}]", p.value, p.alpha)
+                })
+                .collect();
+            let mut tf = format!("tf = {{ points = [{}]", points.join(", "));
+            if let Some(d) = o.transfer.domain {
+                let _ = write!(tf, ", domain = {}", pair(d));
+            }
+            if let Some(g) = o.transfer.gradient_ramp {
+                let _ = write!(tf, ", gradient = {}", pair(g));
+            }
+            let _ = writeln!(out, "{tf} }}");
+            let _ = writeln!(out, "mode = {}", quote(o.mode.name()));
+            match o.mode {
+                LocalMode::XRay { gain } => {
+                    let _ = writeln!(out, "gain = {gain:?}");
+                }
+                LocalMode::FirstHit { iso } => {
+                    let _ = writeln!(out, "iso = {iso:?}");
+                }
+                LocalMode::ContextPreserving { kt, ks } => {
+                    let _ = writeln!(out, "kt = {kt:?}\nks = {ks:?}");
+                }
+                LocalMode::Importance { source } => {
+                    let (name, weight, p) = match source {
+                        ImportanceSource::Constant(w) => ("constant", Some(w), None),
+                        ImportanceSource::Intensity(w) => ("intensity", Some(w), None),
+                        ImportanceSource::Gradient(w) => ("gradient", Some(w), None),
+                        ImportanceSource::Silhouette(p) => ("silhouette", None, Some(p)),
+                        ImportanceSource::Lighting(p) => ("lighting", None, Some(p)),
+                    };
+                    let _ = writeln!(out, "importance = {}", quote(name));
+                    if let Some(w) = weight {
+                        let _ = writeln!(out, "weight = {w:?}");
+                    }
+                    if let Some([a, b, c]) = p {
+                        let _ = writeln!(out, "p = [{a:?}, {b:?}, {c:?}]");
+                    }
+                }
+                LocalMode::Dvr | LocalMode::Mip | LocalMode::Average | LocalMode::Silhouette => {}
+            }
+        }
+        out
     }
 
     /// The style of object `id`, if any.
@@ -373,6 +502,30 @@ mod tests {
             labels.membership,
             Membership::Labels(PathBuf::from("/data/l.vol"))
         );
+    }
+
+    #[test]
+    fn a_written_scene_reads_back_equal() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../volumes/scenes");
+        let mut checked = 0;
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_none_or(|e| e != "toml") {
+                continue;
+            }
+            let mut scene = SegmentScene::load(&path).unwrap();
+            if let Some(o) = scene.objects.first_mut() {
+                o.transfer.domain = Some([3.0, 250.0]);
+                o.transfer.gradient_ramp = Some([0.01, 0.2]);
+                o.name = "with \"quotes\"".into();
+            }
+            let text = scene.to_toml();
+            let back = SegmentScene::parse(&text, Path::new("/elsewhere"))
+                .unwrap_or_else(|e| panic!("{}: {e}\n{text}", path.display()));
+            assert_eq!(back, scene, "{}", path.display());
+            checked += 1;
+        }
+        assert!(checked >= 12);
     }
 
     #[test]

@@ -303,7 +303,7 @@ pub(crate) fn temp_file_beside(path: &Path) -> std::io::Result<tempfile::NamedTe
 
 /// Writes `bytes` to `path` through a temporary file in the same directory and a
 /// rename, so readers never see a partial file.
-pub(crate) fn write_file_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+pub fn write_file_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     use std::io::Write;
     let mut tmp = temp_file_beside(path)?;
     tmp.write_all(bytes)?;

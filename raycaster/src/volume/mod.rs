@@ -28,4 +28,5 @@ pub use storage::Access;
 pub use view::{BrickView, TypedVolume};
 
 pub(crate) use error::AtPath;
-pub(crate) use file::{temp_file_beside, write_file_atomically};
+pub(crate) use file::temp_file_beside;
+pub use file::write_file_atomically;

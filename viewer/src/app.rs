@@ -1,0 +1,836 @@
+//! The viewer's controller: owns the render front and the view state, turns UI
+//! callbacks into frame requests and shows frames as they fill in.
+//!
+//! The UI thread never renders and never waits for a frame: requests go to the
+//! library's [`RenderFront`] (a newer request supersedes the frame in progress),
+//! and the front wakes the UI thread (coalesced) whenever tiles land. Volumes
+//! are opened on a background thread; a failure leaves the current volume.
+
+use std::cell::RefCell;
+use std::path::{Path, PathBuf};
+use std::rc::{Rc, Weak};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+use anyhow::{Context, Result};
+use crossbeam_channel::{Receiver, Sender};
+use raycaster::render::{
+    DEFAULT_ERT_THRESHOLD, FrameEvent, FrameRequest, FrameStats, GlobalMode, LocalMode, Membership,
+    Mode, Notify, ObjectStyle, PRESETS, ParallelOptions, RenderFront, RenderSettings, RgbImage,
+    SegmentScene, Shading, TransferFunction,
+};
+use raycaster::synth::SceneKind;
+use raycaster::volume::{Volume, write_file_atomically};
+use slint::{
+    ComponentHandle, Image, ModelRc, Rgba8Pixel, SharedPixelBuffer, SharedString, VecModel,
+};
+
+use crate::loader::{self, LoadedVolume};
+use crate::navigation::{AxisView, DragKind, Navigator};
+use crate::quality::{QualityPolicy, StepPreset};
+use crate::segments_panel::{self, LOCAL_MODES, ObjectRowData};
+use crate::ui::{App, ObjectRow};
+
+/// Quiet time after the last camera change before the full-quality frame.
+const SETTLE: Duration = Duration::from_millis(200);
+/// Canvas size assumed before the window is laid out.
+const FALLBACK_CANVAS: (u32, u32) = (640, 480);
+/// Tile sizes of the settings panel.
+const TILE_SIZES: [u32; 4] = [8, 16, 32, 64];
+
+/// What to open.
+#[derive(Clone, Debug)]
+pub enum Source {
+    /// A generated scene.
+    BuiltIn(SceneKind, u32),
+    /// A volume file.
+    File(PathBuf),
+}
+
+/// A volume with its renderer.
+struct Loaded {
+    volume: LoadedVolume,
+    front: RenderFront,
+}
+
+/// The outcome of background work that replaces the renderer.
+struct Install {
+    loaded: Loaded,
+    /// A new volume (reset view, transfer function) or the same one with labels.
+    new_volume: bool,
+    /// A scene to switch to.
+    scene: Option<SegmentScene>,
+    message: String,
+}
+
+/// The running viewer: its window and controller.
+pub struct Viewer {
+    ui: App,
+    controller: Rc<Controller>,
+}
+
+/// What a background open sends back: a volume to install or an error message.
+type InstallResult = Result<Install, String>;
+type InstallSender = Sender<InstallResult>;
+
+struct Controller {
+    ui: slint::Weak<App>,
+    state: RefCell<State>,
+    /// Set while a pump is posted to the event loop (wake-ups coalesce).
+    scheduled: Arc<AtomicBool>,
+    wake: Notify,
+    installs: (InstallSender, Receiver<InstallResult>),
+    settle: slint::Timer,
+}
+
+struct State {
+    current: Option<Loaded>,
+    nav: Navigator,
+    quality: QualityPolicy,
+    editor: crate::tf_editor::TfEditor,
+    scene: Option<SegmentScene>,
+    /// The newest request: id and whether it was an interactive (coarse) frame.
+    latest: Option<(u64, bool)>,
+    /// Frame id and tiles of the image on screen.
+    shown: (u64, u64),
+    last_stats: Option<(FrameStats, bool)>,
+    /// The id of the newest request that ended (done or failed).
+    ended: Option<u64>,
+    busy: bool,
+}
+
+thread_local! {
+    /// The controller the event-loop wake-ups pump (one viewer per UI thread).
+    static ACTIVE: RefCell<Weak<Controller>> = const { RefCell::new(Weak::new()) };
+}
+
+impl Viewer {
+    /// Builds the window and opens `source` (a bad file shows its error over the
+    /// built-in scene); `scene` is a two-level scene description to load.
+    pub fn new(source: Source, scene: Option<PathBuf>) -> Result<Viewer> {
+        let ui = App::new().context("cannot create the viewer window")?;
+        init_models(&ui);
+        let scheduled = Arc::new(AtomicBool::new(false));
+        let wake = wake_up(scheduled.clone());
+        let installs = crossbeam_channel::unbounded();
+        let (first, error) = match &source {
+            Source::BuiltIn(kind, size) => (loader::built_in(*kind, *size)?, None),
+            Source::File(path) => match loader::open_file(path) {
+                Ok(v) => (v, None),
+                Err(e) => (
+                    loader::built_in(SceneKind::Shapes, loader::BUILT_IN_SIZE)?,
+                    Some(format!("{e:#} (showing the built-in scene)")),
+                ),
+            },
+        };
+        let nav = navigator_for(&first);
+        let editor =
+            crate::tf_editor::TfEditor::new(&preset_for(&first, first.preset), &first.histogram);
+        let controller = Rc::new(Controller {
+            ui: ui.as_weak(),
+            state: RefCell::new(State {
+                current: None,
+                nav,
+                quality: QualityPolicy::default(),
+                editor,
+                scene: None,
+                latest: None,
+                shown: (0, 0),
+                last_stats: None,
+                ended: None,
+                busy: false,
+            }),
+            scheduled,
+            wake: wake.clone(),
+            installs,
+            settle: slint::Timer::default(),
+        });
+        ACTIVE.with(|a| *a.borrow_mut() = Rc::downgrade(&controller));
+        let front =
+            RenderFront::with_labels(first.volume.clone(), first.labels.clone(), None, Some(wake))
+                .context("cannot prepare the volume for rendering")?;
+        let message = format!("opened {}", first.description);
+        controller.install(Ok(Install {
+            loaded: Loaded {
+                volume: first,
+                front,
+            },
+            new_volume: true,
+            scene: None,
+            message,
+        }));
+        if let Some(error) = error {
+            controller.show_message(&error, true);
+        }
+        if let Source::File(path) = &source {
+            ui.set_file_path(path.display().to_string().into());
+        }
+        connect(&ui, &controller);
+        if let Some(path) = scene {
+            ui.set_scene_path(path.display().to_string().into());
+            controller.load_scene(&path);
+        }
+        Ok(Viewer { ui, controller })
+    }
+
+    /// The window.
+    pub fn ui(&self) -> &App {
+        &self.ui
+    }
+
+    /// Shows the window and runs the event loop until it closes.
+    pub fn run(&self) -> Result<()> {
+        self.ui.run().context("the viewer's event loop failed")
+    }
+
+    /// Takes in what the renderer and loaders produced (the event loop does this
+    /// on every wake-up; tests call it directly).
+    pub fn pump(&self) {
+        self.controller.pump();
+    }
+
+    /// Whether the newest frame request has ended and is on screen, and no volume
+    /// is loading.
+    pub fn idle(&self) -> bool {
+        let st = self.controller.state.borrow();
+        !st.busy
+            && st
+                .latest
+                .is_some_and(|(id, _)| st.ended == Some(id) && st.shown.0 == id)
+    }
+
+    /// The camera's orbit.
+    pub fn orbit(&self) -> raycaster::render::Orbit {
+        *self.controller.state.borrow().nav.orbit()
+    }
+
+    /// Path of the volume on screen (built-in scenes have a descriptive name).
+    pub fn volume_name(&self) -> String {
+        let st = self.controller.state.borrow();
+        st.current
+            .as_ref()
+            .map(|c| c.volume.volume.path().display().to_string())
+            .unwrap_or_default()
+    }
+
+    /// The statistics of the last finished frame and whether it was interactive.
+    pub fn last_stats(&self) -> Option<(FrameStats, bool)> {
+        self.controller.state.borrow().last_stats
+    }
+}
+
+fn init_models(ui: &App) {
+    let strings = |items: Vec<&str>| -> ModelRc<SharedString> {
+        ModelRc::new(VecModel::from(
+            items
+                .into_iter()
+                .map(SharedString::from)
+                .collect::<Vec<_>>(),
+        ))
+    };
+    ui.set_presets(strings(PRESETS.iter().map(|(n, _)| *n).collect()));
+    ui.set_modes(strings(Mode::ALL.iter().map(|m| m.name()).collect()));
+    ui.set_local_modes(strings(LOCAL_MODES.to_vec()));
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    ui.set_max_threads((cores * 2).max(4) as i32);
+    ui.set_threads(cores as i32);
+    ui.set_tile_index(1);
+}
+
+/// A wake-up the renderer threads may call: posts one pump to the event loop.
+fn wake_up(scheduled: Arc<AtomicBool>) -> Notify {
+    Arc::new(move || {
+        if !scheduled.swap(true, Ordering::SeqCst) {
+            let posted = slint::invoke_from_event_loop(|| {
+                if let Some(c) = ACTIVE.with(|a| a.borrow().upgrade()) {
+                    c.pump();
+                }
+            });
+            if posted.is_err() {
+                // No event loop (yet): the next pump picks everything up.
+                scheduled.store(false, Ordering::SeqCst);
+            }
+        }
+    })
+}
+
+fn navigator_for(v: &LoadedVolume) -> Navigator {
+    let dims = v.volume.dims();
+    let spacing = v.volume.spacing();
+    let hi = raycaster::render::Vec3::new(
+        (dims[0].max(2) - 1) as f32 * spacing[0],
+        (dims[1].max(2) - 1) as f32 * spacing[1],
+        (dims[2].max(2) - 1) as f32 * spacing[2],
+    );
+    Navigator::new(raycaster::render::Vec3::ZERO, hi)
+}
+
+fn preset_for(v: &LoadedVolume, name: &str) -> TransferFunction {
+    let mut tf = TransferFunction::preset(name)
+        .unwrap_or_else(|_| TransferFunction::preset("grayscale").expect("built-in preset"));
+    tf.domain = v.domain;
+    tf
+}
+
+fn connect(ui: &App, c: &Rc<Controller>) {
+    let weak = Rc::downgrade(c);
+    let with = move |f: &dyn Fn(&Controller)| {
+        if let Some(c) = weak.upgrade() {
+            f(&c);
+        }
+    };
+    macro_rules! on {
+        ($setter:ident, |$c:ident $(, $arg:ident)*| $body:expr) => {{
+            let with = with.clone();
+            ui.$setter(move |$($arg),*| with(&|$c: &Controller| $body));
+        }};
+    }
+    on!(on_drag_started, |c, x, y, pan| {
+        let kind = if pan { DragKind::Pan } else { DragKind::Orbit };
+        c.state.borrow_mut().nav.begin_drag(kind, x, y);
+    });
+    on!(on_dragged, |c, x, y| {
+        let height = c.ui.upgrade().map_or(1.0, |ui| ui.get_canvas_height());
+        let moved = c.state.borrow_mut().nav.drag_to(x, y, height);
+        if moved {
+            c.request_frame(true);
+        }
+    });
+    on!(on_drag_ended, |c| {
+        c.state.borrow_mut().nav.end_drag();
+        c.request_frame(false);
+    });
+    on!(on_zoomed, |c, delta| {
+        if c.state.borrow_mut().nav.wheel(delta) {
+            c.request_frame(true);
+        }
+    });
+    on!(on_reset_view, |c| {
+        c.state.borrow_mut().nav.reset();
+        c.request_frame(false);
+    });
+    on!(on_axis_view, |c, label| {
+        if let Some(view) = AxisView::parse(&label) {
+            c.state.borrow_mut().nav.axis_view(view);
+            c.request_frame(false);
+        }
+    });
+    on!(on_open_file, |c, path| c
+        .open(Source::File(PathBuf::from(path.as_str()))));
+    on!(on_save_screenshot, |c, path| c
+        .save_screenshot(Path::new(path.as_str())));
+    on!(on_preset_selected, |c, index| c.select_preset(index));
+    on!(on_tf_pressed, |c, x, y, right| {
+        let (w, h) = c.tf_size();
+        let changed = c.state.borrow_mut().editor.press(x, y, w, h, right);
+        c.redraw_tf();
+        if changed {
+            c.request_frame(true);
+        }
+    });
+    on!(on_tf_moved, |c, x, y| {
+        let (w, h) = c.tf_size();
+        if c.state.borrow_mut().editor.drag_to(x, y, w, h) {
+            c.redraw_tf();
+            c.request_frame(true);
+        }
+    });
+    on!(on_tf_released, |c| {
+        c.state.borrow_mut().editor.release();
+        c.request_frame(false);
+    });
+    on!(on_tf_color, |c, color| {
+        let rgb = [color.red(), color.green(), color.blue()].map(|v| f32::from(v) / 255.0);
+        if c.state.borrow_mut().editor.set_color(rgb) {
+            c.redraw_tf();
+            c.request_frame(false);
+        }
+    });
+    on!(on_settings_changed, |c| c.request_frame(false));
+    on!(on_load_scene, |c, path| c
+        .load_scene(Path::new(path.as_str())));
+    on!(on_save_scene, |c, path| c
+        .save_scene(Path::new(path.as_str())));
+    on!(on_clear_scene, |c| {
+        c.state.borrow_mut().scene = None;
+        c.show_objects();
+        c.request_frame(false);
+    });
+    on!(on_object_changed, |c, index, row| c
+        .edit_object(index, &row));
+    on!(on_canvas_resized, |c| c.request_frame(true));
+}
+
+impl Controller {
+    fn ui(&self) -> Option<App> {
+        self.ui.upgrade()
+    }
+
+    fn show_message(&self, text: &str, error: bool) {
+        if let Some(ui) = self.ui() {
+            ui.set_message(text.into());
+            ui.set_message_is_error(error);
+        }
+    }
+
+    /// Opens a volume on a background thread; the current one stays until it is
+    /// ready (and stays for good if opening fails).
+    fn open(&self, source: Source) {
+        self.state.borrow_mut().busy = true;
+        let what = match &source {
+            Source::File(p) => p.display().to_string(),
+            Source::BuiltIn(kind, _) => format!("the built-in {} scene", kind.name()),
+        };
+        self.show_message(&format!("opening {what} …"), false);
+        let wake = self.wake.clone();
+        let tx = self.installs.0.clone();
+        std::thread::spawn(move || {
+            let result = (|| -> Result<Install> {
+                let volume = match &source {
+                    Source::BuiltIn(kind, size) => loader::built_in(*kind, *size)?,
+                    Source::File(path) => loader::open_file(path)?,
+                };
+                let front = RenderFront::with_labels(
+                    volume.volume.clone(),
+                    volume.labels.clone(),
+                    None,
+                    Some(wake.clone()),
+                )
+                .context("cannot prepare the volume for rendering")?;
+                Ok(Install {
+                    message: format!("opened {}", volume.description),
+                    loaded: Loaded { volume, front },
+                    new_volume: true,
+                    scene: None,
+                })
+            })();
+            let _ = tx.send(result.map_err(|e| format!("{e:#}")));
+            wake();
+        });
+    }
+
+    fn install(&self, result: Result<Install, String>) {
+        let install = match result {
+            Ok(install) => install,
+            Err(e) => {
+                self.state.borrow_mut().busy = false;
+                self.show_message(&format!("{e} (the previous volume stays)"), true);
+                return;
+            }
+        };
+        {
+            let mut st = self.state.borrow_mut();
+            st.busy = false;
+            if install.new_volume {
+                let v = &install.loaded.volume;
+                st.nav = navigator_for(v);
+                let tf = preset_for(v, v.preset);
+                st.editor.set_transfer(&tf);
+                st.editor.set_histogram(&v.histogram);
+                st.scene = None;
+                if let Some(ui) = self.ui() {
+                    ui.set_volume_info(v.description.clone().into());
+                    ui.set_preset_index(
+                        PRESETS
+                            .iter()
+                            .position(|(n, _)| *n == v.preset)
+                            .map_or(-1, |i| i as i32),
+                    );
+                }
+            }
+            if let Some(scene) = install.scene {
+                st.scene = Some(scene);
+            }
+            // The old front (if any) is dropped here: its frame is cancelled and its
+            // threads joined.
+            st.current = Some(install.loaded);
+            st.latest = None;
+            st.last_stats = None;
+        }
+        self.show_message(&install.message, false);
+        self.show_objects();
+        self.redraw_tf();
+        self.request_frame(false);
+    }
+
+    /// Requests a frame of the current view: interactive (coarser, followed by a
+    /// full-quality frame once the view rests) or full quality.
+    fn request_frame(&self, moving: bool) {
+        let Some(ui) = self.ui() else { return };
+        let mut st = self.state.borrow_mut();
+        st.quality.preset = StepPreset::from_index(ui.get_step_index());
+        st.quality.full_quality_only = ui.get_full_quality_only();
+        let quality = if moving {
+            st.quality.moving()
+        } else {
+            st.quality.still()
+        };
+        let scale = ui.window().scale_factor();
+        let canvas = (
+            (ui.get_canvas_width() * scale).round() as u32,
+            (ui.get_canvas_height() * scale).round() as u32,
+        );
+        let canvas = if canvas.0 < 8 || canvas.1 < 8 {
+            FALLBACK_CANVAS
+        } else {
+            canvas
+        };
+        let (w, h) = QualityPolicy::frame_size(quality, canvas.0, canvas.1);
+        let camera = match st.nav.orbit().camera(w, h) {
+            Ok(camera) => camera,
+            Err(e) => {
+                drop(st);
+                self.show_message(&format!("camera: {e}"), true);
+                return;
+            }
+        };
+        let settings = RenderSettings {
+            mode: Mode::ALL
+                .get(ui.get_mode_index().max(0) as usize)
+                .copied()
+                .unwrap_or(Mode::Dvr),
+            step: quality.step,
+            early_termination: ui.get_ert().then_some(DEFAULT_ERT_THRESHOLD),
+            empty_space_skipping: ui.get_ess(),
+            shading: ui.get_shading().then(Shading::default),
+            transfer: st.editor.transfer(),
+            segments: st.scene.clone(),
+            ..RenderSettings::default()
+        };
+        let options = ParallelOptions {
+            render_threads: ui.get_threads().max(1) as usize,
+            tile_size: TILE_SIZES
+                .get(ui.get_tile_index().max(0) as usize)
+                .copied()
+                .unwrap_or(16),
+            ..ParallelOptions::default()
+        };
+        let Some(current) = &st.current else { return };
+        let id = current.front.request(FrameRequest {
+            camera,
+            settings,
+            options,
+        });
+        st.latest = Some((id, moving));
+        drop(st);
+        if moving {
+            let weak = ACTIVE.with(|a| a.borrow().clone());
+            self.settle
+                .start(slint::TimerMode::SingleShot, SETTLE, move || {
+                    if let Some(c) = weak.upgrade() {
+                        c.request_frame(false);
+                    }
+                });
+        } else {
+            self.settle.stop();
+        }
+    }
+
+    fn pump(&self) {
+        self.scheduled.store(false, Ordering::SeqCst);
+        while let Ok(result) = self.installs.1.try_recv() {
+            self.install(result);
+        }
+        self.take_events();
+        self.show_frame();
+    }
+
+    fn take_events(&self) {
+        let mut failures = Vec::new();
+        {
+            let mut guard = self.state.borrow_mut();
+            let st = &mut *guard;
+            let Some(current) = &st.current else { return };
+            let latest = st.latest;
+            for event in current.front.events().try_iter() {
+                match event {
+                    FrameEvent::Done { id, stats } => {
+                        let moving = latest.is_some_and(|(l, m)| l == id && m);
+                        if moving {
+                            st.quality.moving_frame_took(stats.time);
+                        }
+                        if latest.is_some_and(|(l, _)| l == id) {
+                            st.last_stats = Some((stats, moving));
+                            st.ended = Some(id);
+                        }
+                    }
+                    FrameEvent::Failed { id, error } => {
+                        if latest.is_some_and(|(l, _)| l == id) {
+                            st.ended = Some(id);
+                        }
+                        failures.push(error);
+                    }
+                    FrameEvent::Superseded { .. } => {}
+                }
+            }
+        }
+        if let Some(e) = failures.last() {
+            self.show_message(&format!("cannot render: {e}"), true);
+        }
+        let status = self
+            .state
+            .borrow()
+            .last_stats
+            .as_ref()
+            .map(|(s, m)| status_line(s, *m));
+        if let (Some(ui), Some(status)) = (self.ui(), status) {
+            ui.set_status(status.into());
+        }
+    }
+
+    /// Copies the frame buffer to the canvas when tiles landed since last time.
+    fn show_frame(&self) {
+        let Some(ui) = self.ui() else { return };
+        let mut st = self.state.borrow_mut();
+        let Some(current) = &st.current else { return };
+        let image = {
+            let fb = current.front.framebuffer().lock();
+            if (fb.frame_id, fb.tiles_written) == st.shown || fb.width == 0 {
+                return;
+            }
+            let pixels = SharedPixelBuffer::<Rgba8Pixel>::clone_from_slice(
+                fb.pixels.as_flattened(),
+                fb.width,
+                fb.height,
+            );
+            (fb.frame_id, fb.tiles_written, pixels)
+        };
+        st.shown = (image.0, image.1);
+        drop(st);
+        ui.set_frame(Image::from_rgba8(image.2));
+    }
+
+    fn tf_size(&self) -> (f32, f32) {
+        self.ui()
+            .map_or((1.0, 1.0), |ui| (ui.get_tf_width(), ui.get_tf_height()))
+    }
+
+    fn redraw_tf(&self) {
+        let Some(ui) = self.ui() else { return };
+        let scale = ui.window().scale_factor();
+        let (w, h) = self.tf_size();
+        let (w, h) = (
+            ((w * scale) as u32).clamp(64, 2048),
+            ((h * scale) as u32).clamp(32, 1024),
+        );
+        let pixels = self.state.borrow().editor.draw(w, h);
+        let buffer = SharedPixelBuffer::<Rgba8Pixel>::clone_from_slice(pixels.as_flattened(), w, h);
+        ui.set_tf_image(Image::from_rgba8(buffer));
+    }
+
+    fn select_preset(&self, index: i32) {
+        let Some((name, _)) = PRESETS.get(index.max(0) as usize) else {
+            return;
+        };
+        {
+            let mut st = self.state.borrow_mut();
+            let Some(current) = &st.current else { return };
+            let tf = preset_for(&current.volume, name);
+            st.editor.set_transfer(&tf);
+        }
+        self.redraw_tf();
+        self.request_frame(false);
+    }
+
+    fn save_screenshot(&self, path: &Path) {
+        let image = {
+            let st = self.state.borrow();
+            let Some(current) = &st.current else { return };
+            let fb = current.front.framebuffer().lock();
+            let rgb = fb.pixels.iter().flat_map(|p| [p[0], p[1], p[2]]).collect();
+            RgbImage::new(fb.width, fb.height, rgb)
+        };
+        match image.save_png(path) {
+            Ok(()) => self.show_message(
+                &format!(
+                    "saved {} ({}×{})",
+                    path.display(),
+                    image.width(),
+                    image.height()
+                ),
+                false,
+            ),
+            Err(e) => self.show_message(&format!("cannot save the screenshot: {e}"), true),
+        }
+    }
+
+    fn load_scene(&self, path: &Path) {
+        let scene = match SegmentScene::load(path) {
+            Ok(scene) => scene,
+            Err(e) => return self.show_message(&format!("{e}"), true),
+        };
+        let labels_path = match &scene.membership {
+            Membership::Labels(p) => Some(p.clone()),
+            Membership::Layers(_) => None,
+        };
+        let has_labels = {
+            let st = self.state.borrow();
+            st.current
+                .as_ref()
+                .is_some_and(|c| c.volume.labels.is_some())
+        };
+        match labels_path {
+            // Layers, or labels the volume brought along (built-in scenes).
+            None => self.use_scene(scene, path),
+            Some(_) if has_labels => self.use_scene(scene, path),
+            Some(labels) => self.attach_labels(scene, labels),
+        }
+    }
+
+    fn use_scene(&self, scene: SegmentScene, path: &Path) {
+        self.state.borrow_mut().scene = Some(scene);
+        self.show_objects();
+        self.show_message(&format!("loaded scene {}", path.display()), false);
+        self.request_frame(false);
+    }
+
+    /// Rebuilds the renderer with the scene's label volume, in the background.
+    fn attach_labels(&self, scene: SegmentScene, labels: PathBuf) {
+        let volume = {
+            let st = self.state.borrow();
+            let Some(current) = &st.current else { return };
+            current.volume.clone()
+        };
+        self.state.borrow_mut().busy = true;
+        self.show_message(&format!("opening labels {} …", labels.display()), false);
+        let wake = self.wake.clone();
+        let tx = self.installs.0.clone();
+        std::thread::spawn(move || {
+            let result = (|| -> Result<Install> {
+                let label_volume = Arc::new(
+                    Volume::open(&labels)
+                        .with_context(|| format!("cannot open labels {}", labels.display()))?,
+                );
+                let front = RenderFront::with_labels(
+                    volume.volume.clone(),
+                    Some(label_volume.clone()),
+                    None,
+                    Some(wake.clone()),
+                )?;
+                let mut volume = volume;
+                volume.labels = Some(label_volume);
+                Ok(Install {
+                    message: format!("labels {} attached", labels.display()),
+                    loaded: Loaded { volume, front },
+                    new_volume: false,
+                    scene: Some(scene),
+                })
+            })();
+            let _ = tx.send(result.map_err(|e| format!("{e:#}")));
+            wake();
+        });
+    }
+
+    /// Writes the scene on screen; without one, the plain view as a one-layer
+    /// scene (which renders the same image).
+    fn save_scene(&self, path: &Path) {
+        let scene = {
+            let st = self.state.borrow();
+            st.scene.clone().unwrap_or_else(|| {
+                let mode = self.ui().map_or(0, |ui| ui.get_mode_index());
+                SegmentScene {
+                    membership: Membership::Layers(vec![[0.0, 1.0]]),
+                    objects: vec![ObjectStyle {
+                        name: "volume".into(),
+                        id: 1,
+                        visible: true,
+                        transfer: st.editor.transfer(),
+                        mode: match Mode::ALL.get(mode.max(0) as usize) {
+                            Some(Mode::Mip) => LocalMode::Mip,
+                            Some(Mode::Average) => LocalMode::Average,
+                            Some(Mode::FirstHit) => LocalMode::FirstHit { iso: 0.5 },
+                            _ => LocalMode::Dvr,
+                        },
+                    }],
+                    global: GlobalMode::Dvr,
+                }
+            })
+        };
+        match write_file_atomically(path, scene.to_toml().as_bytes()) {
+            Ok(()) => self.show_message(&format!("saved scene {}", path.display()), false),
+            Err(e) => self.show_message(&format!("cannot save {}: {e}", path.display()), true),
+        }
+    }
+
+    fn show_objects(&self) {
+        let Some(ui) = self.ui() else { return };
+        let rows: Vec<ObjectRow> = self
+            .state
+            .borrow()
+            .scene
+            .iter()
+            .flat_map(|s| s.objects.iter())
+            .map(|o| to_ui_row(&segments_panel::row_of(o)))
+            .collect();
+        ui.set_objects(ModelRc::new(VecModel::from(rows)));
+    }
+
+    fn edit_object(&self, index: i32, row: &ObjectRow) {
+        {
+            let mut st = self.state.borrow_mut();
+            let Some(object) = st
+                .scene
+                .as_mut()
+                .and_then(|s| s.objects.get_mut(index.max(0) as usize))
+            else {
+                return;
+            };
+            segments_panel::apply(object, &from_ui_row(row));
+        }
+        self.show_objects();
+        self.request_frame(false);
+    }
+}
+
+fn to_ui_row(r: &ObjectRowData) -> ObjectRow {
+    ObjectRow {
+        id: i32::from(r.id),
+        name: r.name.clone().into(),
+        visible: r.visible,
+        mode_index: r.mode_index as i32,
+        preset_index: r.preset_index.map_or(-1, |i| i as i32),
+        param: r.param,
+        param_label: r.param_label.as_str().into(),
+        param_max: r.param_max,
+    }
+}
+
+fn from_ui_row(r: &ObjectRow) -> ObjectRowData {
+    ObjectRowData {
+        id: r.id.clamp(0, 255) as u8,
+        name: r.name.to_string(),
+        visible: r.visible,
+        mode_index: r.mode_index.max(0) as usize,
+        preset_index: usize::try_from(r.preset_index).ok(),
+        param: r.param,
+        param_label: r.param_label.to_string(),
+        param_max: r.param_max,
+    }
+}
+
+/// The status line of a finished frame.
+pub fn status_line(s: &FrameStats, interactive: bool) -> String {
+    let c = &s.counters;
+    let ms = s.time.as_secs_f64() * 1e3;
+    let rays = c.rays.max(1) as f64;
+    format!(
+        "{}{}×{} in {ms:.0} ms · {:.1} M samples/s · {:.2} M samples ({:.1}/ray) · \
+         {:.0} % skipped empty · {:.0} % rays ended early · {} tasks ({} occluded) · {} bricks \
+         ({} transparent) · {} threads",
+        if interactive { "interactive " } else { "" },
+        s.width,
+        s.height,
+        s.samples_per_second() / 1e6,
+        c.samples as f64 / 1e6,
+        c.samples as f64 / rays,
+        100.0 * c.samples_skipped_empty as f64
+            / (c.samples + c.samples_skipped_empty).max(1) as f64,
+        100.0 * c.rays_terminated as f64 / rays,
+        c.tasks,
+        c.tasks_skipped_occluded,
+        s.bricks,
+        s.bricks_transparent,
+        s.threads,
+    )
+}

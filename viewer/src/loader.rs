@@ -1,0 +1,154 @@
+//! Opening volumes for the viewer: files or the built-in generated scene, with
+//! what the panels need (value domain, histogram, a fitting preset).
+
+use std::path::Path;
+use std::sync::Arc;
+
+use anyhow::{Context, Result, bail};
+use raycaster::synth::{SceneKind, synthesize, synthesize_labels};
+use raycaster::volume::{Content, SampleType, Volume};
+
+/// Bins of the histogram drawn behind the transfer function.
+pub const HISTOGRAM_BINS: usize = 256;
+/// Voxels the histogram looks at, at most (a regular subsample of big volumes).
+const HISTOGRAM_SAMPLES: u64 = 2_000_000;
+/// Edge of the built-in scene.
+pub const BUILT_IN_SIZE: u32 = 160;
+
+/// A volume ready to hand to the render front.
+#[derive(Clone)]
+pub struct LoadedVolume {
+    /// The data.
+    pub volume: Arc<Volume>,
+    /// Its segmentation, when it comes with one (built-in scenes).
+    pub labels: Option<Arc<Volume>>,
+    /// One line for the status bar.
+    pub description: String,
+    /// Raw value domain the transfer function maps to 0..1 (u16: the data range).
+    pub domain: Option<[f32; 2]>,
+    /// Counts per bin over the domain.
+    pub histogram: Vec<u64>,
+    /// The preset that suits it.
+    pub preset: &'static str,
+}
+
+/// The built-in `shapes` scene the viewer starts with.
+pub fn built_in(kind: SceneKind, size: u32) -> Result<LoadedVolume> {
+    let scene = kind.build([size; 3], 1);
+    let name = format!("built-in {} scene {size}³", kind.name());
+    let volume = synthesize(scene.as_ref(), &name, [size; 3], [1.0; 3], SampleType::U8)?;
+    let labels = synthesize_labels(scene.as_ref(), &name, [size; 3], [1.0; 3])?;
+    let preset = match kind {
+        SceneKind::Shapes => "shapes",
+        SceneKind::Shells => "shells",
+        SceneKind::Noise => "cloud",
+        SceneKind::Gradient => "rainbow",
+    };
+    Ok(finish(volume, labels.map(Arc::new), name, preset))
+}
+
+/// Opens a `.vol` file (mapped, never read whole).
+pub fn open_file(path: &Path) -> Result<LoadedVolume> {
+    if path.as_os_str().is_empty() {
+        bail!("no file given: type a path to a .vol file");
+    }
+    let volume = Volume::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+    if volume.content() == Content::Labels {
+        bail!(
+            "{} is a label volume (object ids), not data: open the data volume and load a \
+             label scene",
+            path.display()
+        );
+    }
+    let name = path.display().to_string();
+    let preset = match volume.sample_type() {
+        SampleType::U8 => "shapes",
+        SampleType::U16 => "ct-bone",
+    };
+    Ok(finish(volume, None, name, preset))
+}
+
+fn finish(
+    volume: Volume,
+    labels: Option<Arc<Volume>>,
+    name: String,
+    preset: &'static str,
+) -> LoadedVolume {
+    let [x, y, z] = volume.dims();
+    let domain = match volume.sample_type() {
+        SampleType::U8 => None,
+        SampleType::U16 => {
+            let [lo, hi] = volume.ranges().overall();
+            (hi > lo).then(|| [f32::from(lo), f32::from(hi)])
+        }
+    };
+    let histogram = histogram(&volume, domain);
+    let description = format!(
+        "{name}: {x}×{y}×{z} {}, {:?}",
+        match volume.sample_type() {
+            SampleType::U8 => "u8",
+            SampleType::U16 => "u16",
+        },
+        volume.layout()
+    );
+    LoadedVolume {
+        volume: Arc::new(volume),
+        labels,
+        description,
+        domain,
+        histogram,
+        preset,
+    }
+}
+
+/// Counts of a regular subsample of the voxels, binned over `domain` (default: the
+/// sample type's range).
+pub fn histogram(volume: &Volume, domain: Option<[f32; 2]>) -> Vec<u64> {
+    let dims = volume.dims();
+    let total: u64 = dims.iter().map(|&d| u64::from(d)).product();
+    let stride = ((total as f64 / HISTOGRAM_SAMPLES as f64).cbrt().ceil() as u32).max(1);
+    let [lo, hi] = domain.unwrap_or([0.0, f32::from(volume.sample_type().max_value())]);
+    let width = (hi - lo).max(1.0);
+    let mut counts = vec![0u64; HISTOGRAM_BINS];
+    for z in (0..dims[2]).step_by(stride as usize) {
+        for y in (0..dims[1]).step_by(stride as usize) {
+            for x in (0..dims[0]).step_by(stride as usize) {
+                let v = f32::from(volume.voxel([x, y, z]));
+                let bin = ((v - lo) / width * HISTOGRAM_BINS as f32).floor();
+                if (0.0..HISTOGRAM_BINS as f32).contains(&bin) {
+                    counts[bin as usize] += 1;
+                } else if v == hi {
+                    counts[HISTOGRAM_BINS - 1] += 1;
+                }
+            }
+        }
+    }
+    counts
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_built_in_scene_loads_with_a_histogram() {
+        let loaded = built_in(SceneKind::Shells, 32).unwrap();
+        assert_eq!(loaded.volume.dims(), [32; 3]);
+        assert!(loaded.labels.is_some(), "shells bring their labels");
+        assert_eq!(loaded.histogram.len(), HISTOGRAM_BINS);
+        assert_eq!(loaded.histogram.iter().sum::<u64>(), 32 * 32 * 32);
+        assert!(loaded.description.contains("32×32×32"));
+    }
+
+    #[test]
+    fn bad_files_are_named_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        let e = open_file(&dir.path().join("missing.vol")).err().unwrap();
+        assert!(format!("{e:#}").contains("missing.vol"), "{e:#}");
+        let junk = dir.path().join("junk.vol");
+        std::fs::write(&junk, b"not a volume at all").unwrap();
+        let e = open_file(&junk).err().unwrap();
+        assert!(format!("{e:#}").contains("junk.vol"), "{e:#}");
+        assert!(open_file(Path::new("")).is_err());
+    }
+}

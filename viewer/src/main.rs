@@ -1,0 +1,55 @@
+//! `viewer [FILE]`: the interactive volume viewer.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::Parser;
+use raycaster::synth::SceneKind;
+use viewer::{Source, Viewer};
+
+/// Interactive CPU volume viewer for huge bricked, memory-mapped volumes.
+///
+/// Left drag orbits, middle or shift + left drag pans, the wheel zooms. Without
+/// FILE it shows a generated scene at once.
+#[derive(Parser)]
+#[command(version, about, long_about)]
+struct Args {
+    /// A `.vol` volume to open (mapped, never read whole).
+    file: Option<PathBuf>,
+
+    /// Built-in scene shown without FILE: shapes, shells, noise or gradient.
+    #[arg(long, default_value = "shapes", value_parser = parse_scene)]
+    scene: SceneKind,
+
+    /// Edge of the built-in scene in voxels.
+    #[arg(long, default_value_t = viewer::loader::BUILT_IN_SIZE,
+          value_parser = clap::value_parser!(u32).range(8..=1024))]
+    scene_size: u32,
+
+    /// A two-level scene description (TOML) to load at start.
+    #[arg(long, value_name = "SCENE.toml")]
+    segments: Option<PathBuf>,
+}
+
+fn parse_scene(s: &str) -> Result<SceneKind, String> {
+    SceneKind::ALL
+        .into_iter()
+        .find(|k| k.name() == s)
+        .ok_or_else(|| format!("unknown scene {s:?} (shapes, shells, noise, gradient)"))
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    let source = match args.file {
+        Some(path) => Source::File(path),
+        None => Source::BuiltIn(args.scene, args.scene_size),
+    };
+    let result = Viewer::new(source, args.segments).and_then(|v| v.run());
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,177 @@
+//! The segments panel: one row per object of a two-level scene (visible, local
+//! mode, transfer-function preset, the mode's main parameter).
+
+use raycaster::render::{ImportanceSource, LocalMode, ObjectStyle, PRESETS, TransferFunction};
+
+/// Local modes in the order the panel lists them.
+pub const LOCAL_MODES: [&str; 8] = [
+    "dvr",
+    "mip",
+    "average",
+    "xray",
+    "first-hit",
+    "importance",
+    "context",
+    "silhouette",
+];
+
+/// What the panel shows of one object.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ObjectRowData {
+    /// Object id.
+    pub id: u8,
+    /// Name.
+    pub name: String,
+    /// Shown or clipped.
+    pub visible: bool,
+    /// Index into [`LOCAL_MODES`].
+    pub mode_index: usize,
+    /// Index into [`PRESETS`], or `None` for an edited/loaded function.
+    pub preset_index: Option<usize>,
+    /// The mode's main parameter.
+    pub param: f32,
+    /// Its label (empty: the mode has none).
+    pub param_label: String,
+    /// The slider's upper end.
+    pub param_max: f32,
+}
+
+/// The row of `object`.
+pub fn row_of(object: &ObjectStyle) -> ObjectRowData {
+    let mode_index = LOCAL_MODES
+        .iter()
+        .position(|&m| m == object.mode.name())
+        .unwrap_or(0);
+    let (param, param_label, param_max) = parameter(object.mode);
+    let preset_index = PRESETS.iter().position(|(name, _)| {
+        TransferFunction::preset(name).is_ok_and(|p| p.points() == object.transfer.points())
+    });
+    ObjectRowData {
+        id: object.id,
+        name: object.name.clone(),
+        visible: object.visible,
+        mode_index,
+        preset_index,
+        param,
+        param_label: param_label.to_owned(),
+        param_max,
+    }
+}
+
+/// The main parameter of a mode: value, label, slider maximum.
+fn parameter(mode: LocalMode) -> (f32, &'static str, f32) {
+    match mode {
+        LocalMode::XRay { gain } => (gain, "gain", 2.0),
+        LocalMode::FirstHit { iso } => (iso, "iso", 1.0),
+        LocalMode::ContextPreserving { kt, .. } => (kt, "κt", 6.0),
+        LocalMode::Importance {
+            source:
+                ImportanceSource::Constant(w)
+                | ImportanceSource::Intensity(w)
+                | ImportanceSource::Gradient(w),
+        } => (w, "weight", 5.0),
+        _ => (0.0, "", 1.0),
+    }
+}
+
+/// Applies an edited row to `object`: a new mode starts from its defaults, the
+/// same mode takes the row's parameter; a picked preset keeps the value domain.
+pub fn apply(object: &mut ObjectStyle, row: &ObjectRowData) {
+    object.visible = row.visible;
+    let name = LOCAL_MODES.get(row.mode_index).copied().unwrap_or("dvr");
+    if name != object.mode.name() {
+        object.mode = default_mode(name);
+    } else {
+        let p = row.param.max(0.0);
+        object.mode = match object.mode {
+            LocalMode::XRay { .. } => LocalMode::XRay { gain: p },
+            LocalMode::FirstHit { .. } => LocalMode::FirstHit { iso: p.min(1.0) },
+            LocalMode::ContextPreserving { ks, .. } => LocalMode::ContextPreserving { kt: p, ks },
+            LocalMode::Importance { source } => LocalMode::Importance {
+                source: match source {
+                    ImportanceSource::Constant(_) => ImportanceSource::Constant(p),
+                    ImportanceSource::Intensity(_) => ImportanceSource::Intensity(p),
+                    ImportanceSource::Gradient(_) => ImportanceSource::Gradient(p),
+                    other => other,
+                },
+            },
+            other => other,
+        };
+    }
+    if let Some(i) = row.preset_index
+        && Some(i) != row_of(object).preset_index
+        && let Some(Ok(mut tf)) = PRESETS.get(i).map(|(n, _)| TransferFunction::preset(n))
+    {
+        tf.domain = object.transfer.domain;
+        object.transfer = tf;
+    }
+}
+
+/// A mode with the scene format's default parameters.
+fn default_mode(name: &str) -> LocalMode {
+    match name {
+        "mip" => LocalMode::Mip,
+        "average" => LocalMode::Average,
+        "xray" => LocalMode::XRay { gain: 1.0 },
+        "first-hit" => LocalMode::FirstHit { iso: 0.5 },
+        "importance" => LocalMode::Importance {
+            source: ImportanceSource::Intensity(1.0),
+        },
+        "context" => LocalMode::ContextPreserving { kt: 1.5, ks: 0.4 },
+        "silhouette" => LocalMode::Silhouette,
+        _ => LocalMode::Dvr,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn object() -> ObjectStyle {
+        let mut transfer = TransferFunction::preset("cloud").unwrap();
+        transfer.domain = Some([10.0, 900.0]);
+        ObjectStyle {
+            name: "haze".into(),
+            id: 3,
+            visible: true,
+            transfer,
+            mode: LocalMode::ContextPreserving { kt: 2.0, ks: 0.3 },
+        }
+    }
+
+    #[test]
+    fn a_row_shows_the_object_and_edits_come_back() {
+        let mut o = object();
+        let row = row_of(&o);
+        assert_eq!(LOCAL_MODES[row.mode_index], "context");
+        assert_eq!((row.param, row.param_label.as_str()), (2.0, "κt"));
+        assert_eq!(PRESETS[row.preset_index.unwrap()].0, "cloud");
+        let edited = ObjectRowData {
+            param: 0.0,
+            visible: false,
+            ..row.clone()
+        };
+        apply(&mut o, &edited);
+        assert_eq!(o.mode, LocalMode::ContextPreserving { kt: 0.0, ks: 0.3 });
+        assert!(!o.visible);
+    }
+
+    #[test]
+    fn a_new_mode_or_preset_replaces_the_old_keeping_the_domain() {
+        let mut o = object();
+        let xray = LOCAL_MODES.iter().position(|&m| m == "xray").unwrap();
+        let shells = PRESETS.iter().position(|(n, _)| *n == "shells").unwrap();
+        let row = ObjectRowData {
+            mode_index: xray,
+            preset_index: Some(shells),
+            ..row_of(&o)
+        };
+        apply(&mut o, &row);
+        assert_eq!(o.mode, LocalMode::XRay { gain: 1.0 });
+        assert_eq!(
+            o.transfer.points(),
+            TransferFunction::preset("shells").unwrap().points()
+        );
+        assert_eq!(o.transfer.domain, Some([10.0, 900.0]));
+    }
+}

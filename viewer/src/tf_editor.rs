@@ -1,0 +1,299 @@
+//! The transfer-function editor: control points for colour and opacity drawn over
+//! the volume's histogram, edited with the mouse.
+//!
+//! The horizontal axis is the normalised value (the transfer function's domain);
+//! the vertical axis shows opacity on a square-root scale so the small
+//! per-step opacities of translucent materials stay editable.
+
+use raycaster::render::{ControlPoint, TransferFunction};
+
+/// Pick radius around a control point, in pixels.
+const PICK_RADIUS: f32 = 8.0;
+/// Height of the colour bar under the curve, in pixels.
+const COLOR_BAR: u32 = 10;
+
+/// Editable control points plus what is drawn behind them.
+#[derive(Clone, Debug)]
+pub struct TfEditor {
+    points: Vec<ControlPoint>,
+    domain: Option<[f32; 2]>,
+    gradient_ramp: Option<[f32; 2]>,
+    selected: Option<usize>,
+    dragging: bool,
+    /// Histogram bins over the normalised value, scaled to `[0, 1]`.
+    histogram: Vec<f32>,
+}
+
+impl TfEditor {
+    /// Edits `tf`, drawn over `histogram` (counts per bin over the domain).
+    pub fn new(tf: &TransferFunction, histogram: &[u64]) -> TfEditor {
+        let mut editor = TfEditor {
+            points: Vec::new(),
+            domain: None,
+            gradient_ramp: None,
+            selected: None,
+            dragging: false,
+            histogram: scale_histogram(histogram),
+        };
+        editor.set_transfer(tf);
+        editor
+    }
+
+    /// Replaces the edited function (e.g. a preset was picked).
+    pub fn set_transfer(&mut self, tf: &TransferFunction) {
+        self.points = tf.points().to_vec();
+        self.domain = tf.domain;
+        self.gradient_ramp = tf.gradient_ramp;
+        self.selected = None;
+        self.dragging = false;
+    }
+
+    /// Replaces the histogram drawn behind the curve.
+    pub fn set_histogram(&mut self, histogram: &[u64]) {
+        self.histogram = scale_histogram(histogram);
+    }
+
+    /// The edited transfer function.
+    pub fn transfer(&self) -> TransferFunction {
+        let mut tf = TransferFunction::new(self.points.clone())
+            .expect("the editor keeps at least two valid points");
+        tf.domain = self.domain;
+        tf.gradient_ramp = self.gradient_ramp;
+        tf
+    }
+
+    /// The control points.
+    pub fn points(&self) -> &[ControlPoint] {
+        &self.points
+    }
+
+    /// The selected point, if any.
+    pub fn selected(&self) -> Option<usize> {
+        self.selected
+    }
+
+    /// A button went down at `(x, y)` in a `width × height` editor: picks a point
+    /// (right button removes it), or adds one under the pointer. Returns whether
+    /// the function changed.
+    pub fn press(&mut self, x: f32, y: f32, width: f32, height: f32, remove: bool) -> bool {
+        let (width, height) = (width.max(1.0), curve_height(height));
+        let hit = self
+            .points
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                let (px, py) = (p.value * width, alpha_to_y(p.alpha) * height);
+                (i, (px - x).hypot(py - y))
+            })
+            .filter(|&(_, d)| d <= PICK_RADIUS)
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(i, _)| i);
+        match (hit, remove) {
+            (Some(i), true) => {
+                if self.points.len() <= 2 {
+                    return false;
+                }
+                self.points.remove(i);
+                self.selected = None;
+                true
+            }
+            (None, true) => false,
+            (Some(i), false) => {
+                self.selected = Some(i);
+                self.dragging = true;
+                false
+            }
+            (None, false) => {
+                let value = (x / width).clamp(0.0, 1.0);
+                let [r, g, b, _] = self.transfer().evaluate(value);
+                let point = ControlPoint {
+                    value,
+                    color: [r, g, b],
+                    alpha: y_to_alpha(y / height),
+                };
+                let at = self.points.partition_point(|p| p.value <= value);
+                self.points.insert(at, point);
+                self.selected = Some(at);
+                self.dragging = true;
+                true
+            }
+        }
+    }
+
+    /// The pointer moved while a point is held: moves it (between its
+    /// neighbours). Returns whether the function changed.
+    pub fn drag_to(&mut self, x: f32, y: f32, width: f32, height: f32) -> bool {
+        let (Some(i), true) = (self.selected, self.dragging) else {
+            return false;
+        };
+        let lo = if i == 0 {
+            0.0
+        } else {
+            self.points[i - 1].value
+        };
+        let hi = self.points.get(i + 1).map_or(1.0, |p| p.value);
+        let point = &mut self.points[i];
+        let value = (x / width.max(1.0)).clamp(lo, hi);
+        let alpha = y_to_alpha(y / curve_height(height));
+        let changed = point.value != value || point.alpha != alpha;
+        point.value = value;
+        point.alpha = alpha;
+        changed
+    }
+
+    /// The button went up.
+    pub fn release(&mut self) {
+        self.dragging = false;
+    }
+
+    /// Colours the selected point; returns whether the function changed.
+    pub fn set_color(&mut self, color: [f32; 3]) -> bool {
+        match self.selected {
+            Some(i) if self.points[i].color != color => {
+                self.points[i].color = color;
+                true
+            }
+            _ => false,
+        }
+    }
+
+    /// Draws the editor into `width × height` RGBA8 pixels (rows from the top).
+    pub fn draw(&self, width: u32, height: u32) -> Vec<[u8; 4]> {
+        let (w, h) = (width.max(1), height.max(COLOR_BAR + 2));
+        let curve_h = h - COLOR_BAR;
+        let mut px = vec![[32, 33, 36, 255]; (w * h) as usize];
+        let tf = self.transfer();
+        let bins = self.histogram.len().max(1);
+        for x in 0..w {
+            let v = (x as f32 + 0.5) / w as f32;
+            let bar = self
+                .histogram
+                .get(((v * bins as f32) as usize).min(bins - 1))
+                .copied()
+                .unwrap_or(0.0);
+            let top = ((1.0 - bar) * curve_h as f32) as u32;
+            for y in top..curve_h {
+                px[(y * w + x) as usize] = [70, 72, 78, 255];
+            }
+            let [r, g, b, a] = tf.evaluate(v);
+            let shade = |c: f32| (c * (0.35 + 0.65 * a.sqrt()) * 255.0) as u8;
+            for y in curve_h..h {
+                px[(y * w + x) as usize] = [shade(r), shade(g), shade(b), 255];
+            }
+        }
+        // The opacity curve, one segment per pixel column.
+        let y_of = |a: f32| alpha_to_y(a) * (curve_h - 1) as f32;
+        let mut previous = y_of(tf.evaluate(0.0)[3]);
+        for x in 0..w {
+            let y = y_of(tf.evaluate((x as f32 + 0.5) / w as f32)[3]);
+            let (a, b) = (previous.min(y) as u32, previous.max(y) as u32);
+            for yy in a..=b.min(curve_h - 1) {
+                px[(yy * w + x) as usize] = [232, 234, 237, 255];
+            }
+            previous = y;
+        }
+        for (i, p) in self.points.iter().enumerate() {
+            let cx = p.value * (w - 1) as f32;
+            let cy = y_of(p.alpha);
+            let [r, g, b] = p.color.map(|c| (c * 255.0) as u8);
+            let ring = if Some(i) == self.selected {
+                [138, 180, 248, 255]
+            } else {
+                [20, 20, 20, 255]
+            };
+            for dy in -5i32..=5 {
+                for dx in -5i32..=5 {
+                    let d = ((dx * dx + dy * dy) as f32).sqrt();
+                    let (x, y) = (cx as i32 + dx, cy as i32 + dy);
+                    if d > 5.0 || x < 0 || y < 0 || x >= w as i32 || y >= curve_h as i32 {
+                        continue;
+                    }
+                    px[(y as u32 * w + x as u32) as usize] =
+                        if d > 3.5 { ring } else { [r, g, b, 255] };
+                }
+            }
+        }
+        px
+    }
+}
+
+fn curve_height(height: f32) -> f32 {
+    (height - COLOR_BAR as f32).max(1.0)
+}
+
+/// Opacity to the fraction of the curve's height from the top (square-root scale).
+fn alpha_to_y(alpha: f32) -> f32 {
+    1.0 - alpha.clamp(0.0, 1.0).sqrt()
+}
+
+fn y_to_alpha(y: f32) -> f32 {
+    let s = (1.0 - y).clamp(0.0, 1.0);
+    s * s
+}
+
+/// Log-scaled bins in `[0, 1]`.
+fn scale_histogram(counts: &[u64]) -> Vec<f32> {
+    let max = counts.iter().copied().max().unwrap_or(0);
+    if max == 0 {
+        return vec![0.0; counts.len()];
+    }
+    let top = (max as f32).ln_1p();
+    counts.iter().map(|&c| (c as f32).ln_1p() / top).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn editor() -> TfEditor {
+        TfEditor::new(
+            &TransferFunction::preset("grayscale").unwrap(),
+            &[1, 10, 100, 0],
+        )
+    }
+
+    #[test]
+    fn clicking_empty_space_adds_a_point_that_drags_between_its_neighbours() {
+        let mut e = editor();
+        let (w, h) = (200.0, 110.0);
+        assert!(e.press(100.0, 50.0, w, h, false));
+        assert_eq!(e.points().len(), 3);
+        let i = e.selected().unwrap();
+        assert!((e.points()[i].value - 0.5).abs() < 1e-6);
+        assert!((e.points()[i].alpha - 0.25).abs() < 1e-6, "sqrt scale");
+        // Dragging far right stops at the last point's value.
+        assert!(e.drag_to(500.0, 0.0, w, h));
+        assert_eq!(e.points()[i].value, 1.0);
+        assert_eq!(e.points()[i].alpha, 1.0);
+        e.release();
+        assert!(!e.drag_to(10.0, 10.0, w, h));
+        let tf = e.transfer();
+        assert_eq!(tf.points().len(), 3);
+    }
+
+    #[test]
+    fn right_click_removes_a_point_but_keeps_two() {
+        let mut e = editor();
+        let (w, h) = (200.0, 110.0);
+        e.press(100.0, 50.0, w, h, false);
+        e.release();
+        assert!(e.press(100.0, 50.0, w, h, true));
+        assert_eq!(e.points().len(), 2);
+        // The first point sits at (0, alpha 0 → bottom of the curve).
+        assert!(!e.press(0.0, 100.0, w, h, true));
+        assert_eq!(e.points().len(), 2);
+    }
+
+    #[test]
+    fn the_selected_point_takes_a_colour_and_the_drawing_shows_it() {
+        let mut e = editor();
+        assert!(!e.set_color([1.0, 0.0, 0.0]), "nothing selected");
+        e.press(0.0, 100.0, 200.0, 110.0, false);
+        assert_eq!(e.selected(), Some(0));
+        assert!(e.set_color([1.0, 0.0, 0.0]));
+        let px = e.draw(200, 110);
+        assert_eq!(px.len(), 200 * 110);
+        assert!(px.contains(&[255, 0, 0, 255]), "the red point is drawn");
+        assert!(px.contains(&[70, 72, 78, 255]), "the histogram is drawn");
+    }
+}

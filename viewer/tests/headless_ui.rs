@@ -1,0 +1,262 @@
+//! The viewer driven headless: Slint's testing backend with the software
+//! renderer, mock time and no event loop (the test pumps the controller).
+//!
+//! One test function: the platform can be set once per process.
+
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use i_slint_backend_testing::{ElementHandle, TestingBackend, TestingBackendOptions};
+use raycaster::render::SegmentScene;
+use raycaster::synth::SceneKind;
+use slint::platform::PointerEventButton;
+use slint::{ComponentHandle, LogicalPosition};
+use viewer::{Source, Viewer};
+
+/// Pumps until the newest frame is on screen.
+fn wait_for_frame(v: &Viewer) {
+    let start = Instant::now();
+    loop {
+        v.pump();
+        if v.idle() {
+            return;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "no frame arrived; status: {:?}, message: {:?}",
+            v.ui().get_status(),
+            v.ui().get_message()
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+/// The canvas image as RGB triples, with its size.
+fn frame(v: &Viewer) -> (u32, u32, Vec<[u8; 3]>) {
+    let image = v.ui().get_frame();
+    let buffer = image.to_rgba8().expect("the canvas holds a pixel image");
+    let pixels = buffer
+        .as_bytes()
+        .chunks(4)
+        .map(|p| [p[0], p[1], p[2]])
+        .collect();
+    (buffer.width(), buffer.height(), pixels)
+}
+
+fn lit(pixels: &[[u8; 3]]) -> usize {
+    pixels.iter().filter(|p| p.iter().any(|&c| c > 8)).count()
+}
+
+fn element(v: &Viewer, id: &str) -> ElementHandle {
+    ElementHandle::find_by_element_id(v.ui(), id)
+        .next()
+        .unwrap_or_else(|| panic!("no element {id}"))
+}
+
+#[test]
+fn the_viewer_runs_headless() {
+    slint::platform::set_platform(Box::new(TestingBackend::new(TestingBackendOptions {
+        mock_time: true,
+        threading: false,
+        renderer_name: Some("software".into()),
+    })))
+    .expect("the first platform of this process");
+
+    let v = Viewer::new(Source::BuiltIn(SceneKind::Shapes, 64), None).unwrap();
+    v.ui()
+        .window()
+        .set_size(slint::LogicalSize::new(1000.0, 700.0));
+    v.ui().show().unwrap();
+
+    // 1. It starts on the built-in scene and shows a non-empty image (a
+    // full-quality frame of the laid-out canvas).
+    v.pump();
+    v.ui().invoke_reset_view();
+    wait_for_frame(&v);
+    assert_eq!(v.last_stats().map(|(_, moving)| moving), Some(false));
+    let (w, h, first) = frame(&v);
+    assert!(w > 200 && h > 200, "canvas frame {w}×{h}");
+    assert!(lit(&first) > first.len() / 50, "the scene is visible");
+    assert!(
+        v.ui().get_status().contains("samples/s"),
+        "{}",
+        v.ui().get_status()
+    );
+    let shot = v.ui().window().take_snapshot().unwrap();
+    let canvas_lit = shot
+        .as_bytes()
+        .chunks(4)
+        .filter(|p| p[0] > 100 && p[1] > 40 && p[2] < 120)
+        .count();
+    assert!(
+        canvas_lit > 500,
+        "orange solids on screen: {canvas_lit} pixels"
+    );
+
+    // 2. A drag orbits the camera; an interactive frame, then full quality.
+    let before = v.orbit();
+    let canvas = element(&v, "App::canvas");
+    let c = canvas.absolute_position();
+    let size = canvas.size();
+    let centre = LogicalPosition::new(c.x + size.width / 2.0, c.y + size.height / 2.0);
+    canvas.mock_drag(
+        LogicalPosition::new(centre.x + 120.0, centre.y + 30.0),
+        PointerEventButton::Left,
+    );
+    let after = v.orbit();
+    assert!(
+        (after.azimuth - before.azimuth).abs() > 0.5,
+        "azimuth {} → {}",
+        before.azimuth,
+        after.azimuth
+    );
+    assert!(after.elevation != before.elevation);
+    wait_for_frame(&v);
+    let (_, _, dragged) = frame(&v);
+    assert_eq!(v.last_stats().map(|(_, moving)| moving), Some(false));
+    assert_ne!(dragged, first, "the rotated view differs");
+
+    // The wheel zooms: a coarser interactive frame first, full quality once the
+    // view rests.
+    canvas.scroll(0.0, 240.0);
+    wait_for_frame(&v);
+    let (iw, ih, _) = frame(&v);
+    let (stats, moving) = v.last_stats().unwrap();
+    assert!(moving, "the wheel frame is interactive");
+    assert!(iw < w && ih < h, "interactive frame {iw}×{ih} vs {w}×{h}");
+    assert_eq!((stats.width, stats.height), (iw, ih));
+    i_slint_backend_testing::mock_elapsed_time(Duration::from_millis(300));
+    slint::platform::update_timers_and_animations();
+    wait_for_frame(&v);
+    let (fw, fh, zoomed) = frame(&v);
+    assert_eq!((fw, fh), (w, h), "full quality after the motion stops");
+    assert_eq!(v.last_stats().map(|(_, m)| m), Some(false));
+    assert!(
+        lit(&zoomed) > lit(&dragged),
+        "zoomed in, the scene fills more"
+    );
+
+    // "Full quality only": moving frames are full size too.
+    v.ui().set_full_quality_only(true);
+    canvas.scroll(0.0, -120.0);
+    wait_for_frame(&v);
+    assert_eq!(frame(&v).0, w);
+    v.ui().set_full_quality_only(false);
+
+    // 3. Another preset changes the image.
+    let (_, _, before_preset) = frame(&v);
+    let grayscale = raycaster::render::PRESETS
+        .iter()
+        .position(|(n, _)| *n == "grayscale")
+        .unwrap() as i32;
+    v.ui().set_preset_index(grayscale);
+    v.ui().invoke_preset_selected(grayscale);
+    wait_for_frame(&v);
+    let (_, _, gray) = frame(&v);
+    assert_ne!(gray, before_preset);
+    assert!(
+        gray.iter()
+            .filter(|p| p[0] > 20)
+            .all(|p| p[0].abs_diff(p[2]) <= 2),
+        "the grayscale preset renders grey"
+    );
+
+    // Editing the transfer function: a click adds a point and re-renders.
+    let tf = element(&v, "App::tf-area");
+    tf.mock_single_click(PointerEventButton::Left);
+    wait_for_frame(&v);
+    assert_ne!(frame(&v).2, gray, "the new control point changes the image");
+
+    // 4. A bad file shows an error and keeps the old volume.
+    let dir = tempfile::tempdir().unwrap();
+    let name = v.volume_name();
+    for bad in [dir.path().join("missing.vol"), {
+        let junk = dir.path().join("junk.vol");
+        std::fs::write(&junk, b"this is not a volume").unwrap();
+        junk
+    }] {
+        v.ui().set_file_path(bad.display().to_string().into());
+        element(&v, "App::open-button").invoke_accessible_default_action();
+        let start = Instant::now();
+        while !v.ui().get_message_is_error() {
+            v.pump();
+            assert!(start.elapsed() < Duration::from_secs(30), "no error shown");
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        let message = v.ui().get_message().to_string();
+        let file = bad.file_name().unwrap().to_string_lossy().into_owned();
+        assert!(message.contains(&file), "{message}");
+        assert!(message.contains("previous volume stays"), "{message}");
+        assert_eq!(v.volume_name(), name, "the old volume stays");
+        v.ui().invoke_reset_view();
+        wait_for_frame(&v);
+        assert!(lit(&frame(&v).2) > 0, "and still renders");
+        v.ui().set_message_is_error(false);
+    }
+
+    // A good file opens (in the background) and replaces the volume.
+    let good = dir.path().join("shells.vol");
+    let header = raycaster::volume::Header::new(
+        [48; 3],
+        [1.0; 3],
+        raycaster::volume::Layout::Bricked { side: 16 },
+        raycaster::volume::SampleType::U8,
+        raycaster::volume::Content::Scalar,
+        raycaster::volume::Format::Extended,
+    );
+    raycaster::generate::generate(
+        SceneKind::Shells.build([48; 3], 1).as_ref(),
+        &header,
+        &good,
+        &Default::default(),
+        &raycaster::job::Job::silent(),
+    )
+    .unwrap();
+    v.ui().invoke_open_file(good.display().to_string().into());
+    let start = Instant::now();
+    while v.volume_name() != good.display().to_string() {
+        v.pump();
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "{:?}",
+            v.ui().get_message()
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    wait_for_frame(&v);
+    assert!(v.ui().get_volume_info().contains("48×48×48"));
+
+    // Segments: a layer scene loads into the panel, renders, edits and saves.
+    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../volumes/scenes");
+    let plain = frame(&v).2;
+    v.ui()
+        .invoke_load_scene(scenes.join("shapes-npr.toml").display().to_string().into());
+    wait_for_frame(&v);
+    use slint::Model;
+    let rows = v.ui().get_objects();
+    assert_eq!(rows.row_count(), 2);
+    assert_ne!(frame(&v).2, plain, "two-level rendering differs");
+    let mut row = rows.row_data(1).unwrap();
+    row.visible = false;
+    v.ui().invoke_object_changed(1, row);
+    wait_for_frame(&v);
+    assert!(!v.ui().get_objects().row_data(1).unwrap().visible);
+    let saved = dir.path().join("saved.toml");
+    v.ui().invoke_save_scene(saved.display().to_string().into());
+    let back = SegmentScene::load(&saved).unwrap();
+    assert!(!back.objects[1].visible, "the edit is saved");
+
+    // Screenshot.
+    let png = dir.path().join("shot.png");
+    v.ui()
+        .invoke_save_screenshot(png.display().to_string().into());
+    let image = raycaster::render::RgbImage::load_png(&png).unwrap();
+    let (sw, sh, shown) = frame(&v);
+    assert_eq!((image.width(), image.height()), (sw, sh));
+    assert_eq!(
+        image.data(),
+        shown.as_flattened(),
+        "the screenshot is the frame on screen"
+    );
+    assert_eq!((sw, sh), (w, h), "long paths do not resize the canvas");
+}
