@@ -26,7 +26,7 @@ use crate::render::ModeArg;
 /// Renders a view of a volume (FILE, or a generated `shapes` volume of
 /// `--volume-size` voxels, written once to `--cache-dir` and reused) for every
 /// combination of `--threads`, `--tiles`, `--bricks` and `--optimisations`, each
-/// `--frames` times (after one warm-up frame), and reports the fastest frame.
+/// `--frames` times (after `--warm-up` untimed frames), and reports the fastest frame.
 /// Bricks are logical bricks over linear storage (any size, no conversion); a
 /// bricked volume is rendered by its own bricks or sub-bricks that divide them.
 #[derive(Args, Debug)]
@@ -95,6 +95,10 @@ pub struct BenchArgs {
     /// Timed frames per configuration (the fastest is reported).
     #[arg(long, default_value_t = 3, value_name = "N")]
     frames: u32,
+
+    /// Untimed frames before the timed ones (page cache, allocations).
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    warm_up: u32,
 
     /// Sample step in voxels.
     #[arg(long, default_value_t = 0.5)]
@@ -292,7 +296,7 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
         }
         let (_, shared) = prepared.take().expect("prepared above");
         let ready = case.prepare_with(shared)?;
-        let record = measure(&case, &ready, args.frames)?;
+        let record = measure(&case, &ready, args.warm_up, args.frames)?;
         prepared = Some((case.brick, ready.volume));
         println!("{}", table_row(&record.fields()));
         records.push(record);
@@ -309,13 +313,16 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
     Ok(())
 }
 
-/// One warm-up frame, then the fastest of `frames`.
+/// `warm_up` untimed frames, then the fastest of `frames`.
 fn measure(
     case: &BenchCase,
     ready: &raycaster_benches::PreparedCase<'_>,
+    warm_up: u32,
     frames: u32,
 ) -> Result<Record> {
-    ready.frame()?;
+    for _ in 0..warm_up {
+        ready.frame()?;
+    }
     let mut best = Duration::MAX;
     let mut samples = 0;
     for _ in 0..frames {
