@@ -194,7 +194,7 @@ impl BenchCase {
         )
     }
 
-    /// `brick16`, or `brick-file` for the default bricks.
+    /// `brick16`, or `brick-default` for the default bricks.
     fn brick_name(&self) -> String {
         match self.brick {
             Some(b) => format!("brick{b}"),
