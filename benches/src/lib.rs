@@ -172,6 +172,8 @@ mod tests {
 
     #[test]
     fn every_group_has_unique_names_and_quick_mode_is_small() {
+        // `cargo test` runs without `--bench`: criterion's test mode, hence quick.
+        assert!(quick_mode());
         for quick in [false, true] {
             for group in [
                 optimisation_cases(quick),
