@@ -1,16 +1,16 @@
 //! Two-level compositing with 10 value layers, all DVR with the plain transfer
-//! function, against plain DVR of the same view (the issue's target: ≤ 1.3×).
+//! function, against plain DVR of the same view (issue 5's target: ≤ 1.3×).
 
-use std::hint::black_box;
+mod common;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use raycaster::render::{
-    GlobalMode, LocalMode, Membership, ObjectStyle, ParallelOptions, RenderSettings, RenderVolume,
-    SegmentScene, render_parallel,
+    GlobalMode, LocalMode, Membership, ObjectStyle, RenderSettings, SegmentScene,
 };
-use raycaster_benches::{default_camera, shaded_dvr, shapes_volume};
+use raycaster_benches::{quick_mode, two_level_case};
 
-fn ten_layers(plain: &RenderSettings) -> RenderSettings {
+/// Ten value layers of equal width, each local DVR with the plain transfer function.
+fn ten_layers(plain: &RenderSettings) -> SegmentScene {
     let layers: Vec<[f32; 2]> = (0..10)
         .map(|i| [i as f32 / 10.0, (i + 1) as f32 / 10.0])
         .collect();
@@ -23,33 +23,25 @@ fn ten_layers(plain: &RenderSettings) -> RenderSettings {
             mode: LocalMode::Dvr,
         })
         .collect();
-    RenderSettings {
-        segments: Some(SegmentScene {
-            membership: Membership::Layers(layers),
-            objects,
-            global: GlobalMode::Dvr,
-        }),
-        ..plain.clone()
+    SegmentScene {
+        membership: Membership::Layers(layers),
+        objects,
+        global: GlobalMode::Dvr,
     }
 }
 
 fn two_level(c: &mut Criterion) {
-    let volume = shapes_volume(256);
-    let prepared = RenderVolume::new(&volume, None).expect("valid volume");
-    let camera = default_camera(&volume, 256);
-    let options = ParallelOptions::default();
-    let plain = shaded_dvr(true, true);
-    let layered = ten_layers(&plain);
-    let mut group = c.benchmark_group("two-level-256");
-    group.sample_size(10);
-    for (name, settings) in [("plain-dvr", &plain), ("10-layers-dvr", &layered)] {
-        group.bench_function(name, |b| {
-            b.iter(|| {
-                black_box(render_parallel(&prepared, &camera, settings, &options).expect("renders"))
-            })
-        });
-    }
-    group.finish();
+    let case = two_level_case(quick_mode());
+    let settings = case.settings().expect("valid case");
+    let cases = [
+        ("plain-dvr".to_string(), &case, None),
+        (
+            "10-layers-dvr".to_string(),
+            &case,
+            Some(ten_layers(&settings)),
+        ),
+    ];
+    common::run_cases(c, "two-level", cases);
 }
 
 criterion_group!(benches, two_level);

@@ -1,33 +1,41 @@
 //! `raycaster bench`: frame time and samples/s/core over a grid of render threads ×
-//! tile size × brick size (× optimisations), as a table, CSV and an SVG plot.
+//! tile size × brick size (× optimisations), as a table, CSV and a PNG or SVG plot.
+//!
+//! Every grid point is a [`BenchCase`] of the benchmark crate, the type the
+//! criterion benches are built from, so a sweep row and a criterion id describe a
+//! frame the same way.
 
 use std::path::{Path, PathBuf};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use raycaster::generate::generate;
-use raycaster::io::WriteOptions;
-use raycaster::job::Job;
-use raycaster::render::{
-    Orbit, ParallelOptions, RenderSettings, RenderVolume, TransferFunction, Vec3, render_parallel,
-    render_sequential,
+use raycaster::render::{PRESETS, RenderVolume};
+use raycaster::volume::{Access, Layout, SampleType};
+use raycaster_benches::{
+    BenchCase, Optimisations, SceneSpec, View, VolumeSource, VolumeSpec, parse_layout,
+    parse_sample_type,
 };
-use raycaster::synth::SceneKind;
-use raycaster::volume::{Access, Content, Format, Header, Layout, OpenOptions, SampleType, Volume};
 
 use crate::args::parse_size;
 use crate::plot;
+use crate::render::ModeArg;
 
 /// Benchmark the renderers over a parameter grid.
 ///
-/// Renders the default view of a volume (FILE, or a generated `shapes` volume of
+/// Renders a view of a volume (FILE, or a generated `shapes` volume of
 /// `--volume-size` voxels, written once to `--cache-dir` and reused) for every
 /// combination of `--threads`, `--tiles`, `--bricks` and `--optimisations`, each
-/// `--frames` times (after one warm-up frame), and reports the fastest frame.
+/// `--frames` times (after `--warm-up` untimed frames), and reports the fastest frame.
 /// Bricks are logical bricks over linear storage (any size, no conversion); a
-/// bricked FILE is rendered by its own bricks or sub-bricks that divide them.
+/// bricked volume is rendered by its own bricks or sub-bricks that divide them.
 #[derive(Args, Debug)]
+#[command(after_help = "\
+Examples:
+  raycaster bench --quick --plot sweep.png
+  raycaster bench --volume-size 512 --sequential --csv sweep.csv --plot sweep.png
+  raycaster bench --volume-size 800 --threads 1 --sequential --optimisations none,ert,ess,both
+  raycaster bench head.vol --ram --tiles 16 --bricks 16 --image 700x700 --step 0.2")]
 pub struct BenchArgs {
     /// Volume to render (default: a generated `shapes` volume).
     file: Option<PathBuf>,
@@ -35,6 +43,18 @@ pub struct BenchArgs {
     /// Size of the generated volume (voxels per axis).
     #[arg(long, default_value_t = 256, value_name = "N")]
     volume_size: u32,
+
+    /// Sample type of the generated volume: u8, u16.
+    #[arg(long, default_value = "u8", value_parser = parse_sample_type, value_name = "TYPE")]
+    sample_type: SampleType,
+
+    /// Storage of the generated volume: linear, bricked (side 16), bricked:N.
+    #[arg(long, default_value = "linear", value_parser = parse_layout, value_name = "LAYOUT")]
+    layout: Layout,
+
+    /// Read the volume into RAM instead of mapping it.
+    #[arg(long)]
+    ram: bool,
 
     /// Where generated volumes are kept between runs.
     #[arg(long, default_value = "target/bench-volumes", value_name = "DIR")]
@@ -57,12 +77,28 @@ pub struct BenchArgs {
     bricks: Vec<u32>,
 
     /// Optimisation settings to try: none, ert, ess, both.
-    #[arg(long, value_delimiter = ',', default_values_t = ["both".to_string()], value_name = "SET,..")]
-    optimisations: Vec<String>,
+    #[arg(long, value_delimiter = ',', default_values_t = [Optimisations::Both], value_name = "SET,..")]
+    optimisations: Vec<Optimisations>,
+
+    /// Camera preset: default, front (face-on from +x), close (twice as near).
+    #[arg(long, default_value = "default", value_parser = parse_view, value_name = "VIEW")]
+    view: View,
+
+    /// Compositing mode.
+    #[arg(long, value_enum, default_value_t = ModeArg::Dvr)]
+    mode: ModeArg,
+
+    /// Transfer-function preset.
+    #[arg(long = "tf", default_value = "shapes", value_parser = parse_preset, value_name = "PRESET")]
+    transfer: &'static str,
 
     /// Timed frames per configuration (the fastest is reported).
     #[arg(long, default_value_t = 3, value_name = "N")]
     frames: u32,
+
+    /// Untimed frames before the timed ones (page cache, allocations).
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    warm_up: u32,
 
     /// Sample step in voxels.
     #[arg(long, default_value_t = 0.5)]
@@ -72,7 +108,7 @@ pub struct BenchArgs {
     #[arg(long)]
     sequential: bool,
 
-    /// Small and fast: a 96³ volume, 128×128 image, one frame (for CI).
+    /// Small and fast: at most a 96³ volume, 128×128 image, one frame (for CI).
     #[arg(long)]
     quick: bool,
 
@@ -80,13 +116,14 @@ pub struct BenchArgs {
     #[arg(long, value_name = "FILE")]
     csv: Option<PathBuf>,
 
-    /// Write a plot of frame time and samples/s per core (SVG).
+    /// Plot frame time and samples/s per core against threads, tile and brick:
+    /// PNG, or SVG when FILE ends in `.svg`.
     #[arg(long, value_name = "FILE")]
     plot: Option<PathBuf>,
 }
 
 fn default_threads() -> Vec<usize> {
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let cores = raycaster_benches::cores();
     let mut t = vec![1];
     let mut n = 2;
     while n < cores {
@@ -99,19 +136,26 @@ fn default_threads() -> Vec<usize> {
     t
 }
 
+fn parse_view(s: &str) -> Result<View, String> {
+    [View::Default, View::Front, View::Close]
+        .into_iter()
+        .find(|v| v.name() == s)
+        .ok_or_else(|| format!("unknown view {s:?} (default, front, close)"))
+}
+
+fn parse_preset(s: &str) -> Result<&'static str, String> {
+    PRESETS
+        .iter()
+        .map(|(name, _)| *name)
+        .find(|name| *name == s)
+        .ok_or_else(|| format!("unknown transfer-function preset {s:?}"))
+}
+
 /// One measured configuration.
 #[derive(Clone, Debug)]
 pub struct Record {
-    /// "parallel" or "sequential".
-    pub renderer: &'static str,
-    /// Render threads.
-    pub threads: usize,
-    /// Tile side (0 for the sequential renderer).
-    pub tile: u32,
-    /// Brick side.
-    pub brick: u32,
-    /// none / ert / ess / both.
-    pub optimisations: String,
+    /// What was rendered.
+    pub case: BenchCase,
     /// Fastest frame.
     pub frame: Duration,
     /// Samples taken per frame.
@@ -119,24 +163,92 @@ pub struct Record {
 }
 
 impl Record {
-    /// The record's fields as text, in CSV column order.
-    fn fields(&self) -> [String; 8] {
+    /// The record's fields as text, in CSV column order ([`HEADER`]).
+    fn fields(&self) -> [String; 12] {
+        let c = &self.case;
         [
-            self.renderer.to_string(),
-            self.threads.to_string(),
-            self.tile.to_string(),
-            self.brick.to_string(),
-            self.optimisations.clone(),
+            c.renderer().to_string(),
+            c.render_threads().to_string(),
+            if c.threads.is_some() { c.tile } else { 0 }.to_string(),
+            c.brick.map_or(0, |b| b).to_string(),
+            c.optimisations.to_string(),
             format!("{:.3}", self.frame.as_secs_f64() * 1e3),
             self.samples.to_string(),
             format!("{:.0}", self.samples_per_second_per_core()),
+            c.volume.name(),
+            format!("{}x{}", c.image[0], c.image[1]),
+            c.step.to_string(),
+            c.view.name().to_string(),
         ]
     }
 
     /// Samples per second per render thread.
     pub fn samples_per_second_per_core(&self) -> f64 {
-        self.samples as f64 / self.frame.as_secs_f64().max(1e-9) / self.threads as f64
+        self.samples as f64 / self.frame.as_secs_f64().max(1e-9) / self.case.render_threads() as f64
     }
+
+    /// Frame time in milliseconds.
+    pub fn frame_ms(&self) -> f64 {
+        self.frame.as_secs_f64() * 1e3
+    }
+}
+
+/// The grid of cases of the arguments, brick by brick (bricks outermost, so a
+/// prepared volume serves every case of its brick side).
+fn cases(args: &BenchArgs) -> Vec<BenchCase> {
+    let access = if args.ram {
+        Access::Ram
+    } else {
+        Access::Mapped
+    };
+    let volume = match &args.file {
+        Some(p) => VolumeSpec::file(p, access),
+        None => VolumeSpec {
+            source: VolumeSource::Scene(SceneSpec {
+                scene: raycaster::synth::SceneKind::Shapes,
+                dims: [args.volume_size; 3],
+                sample_type: args.sample_type,
+                layout: args.layout,
+                seed: 1,
+            }),
+            access,
+        },
+    };
+    let base = BenchCase {
+        volume,
+        view: args.view,
+        step: args.step,
+        mode: args.mode.into(),
+        transfer: args.transfer,
+        image: args.image,
+        ..BenchCase::default()
+    };
+    let mut out = Vec::new();
+    for &brick in &args.bricks {
+        for &optimisations in &args.optimisations {
+            let case = BenchCase {
+                brick: Some(brick),
+                optimisations,
+                ..base.clone()
+            };
+            if args.sequential {
+                out.push(BenchCase {
+                    threads: None,
+                    ..case.clone()
+                });
+            }
+            for &threads in &args.threads {
+                for &tile in &args.tiles {
+                    out.push(BenchCase {
+                        threads: Some(threads),
+                        tile,
+                        ..case.clone()
+                    });
+                }
+            }
+        }
+    }
+    out
 }
 
 /// Runs the bench command.
@@ -155,184 +267,119 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
     if !(args.step > 0.0 && args.step.is_finite()) {
         bail!("--step must be a positive number");
     }
-    let opts: Vec<(String, bool, bool)> = args
-        .optimisations
-        .iter()
-        .map(|o| match o.as_str() {
-            "none" => Ok((o.clone(), false, false)),
-            "ert" => Ok((o.clone(), true, false)),
-            "ess" => Ok((o.clone(), false, true)),
-            "both" => Ok((o.clone(), true, true)),
-            other => bail!("unknown optimisation set {other:?} (none, ert, ess, both)"),
-        })
-        .collect::<Result<_>>()?;
-    let path = match &args.file {
-        Some(p) => p.clone(),
-        None => generated_volume(&args.cache_dir, args.volume_size)?,
+    let cases = cases(&args);
+    let Some(first) = cases.first() else {
+        bail!(
+            "nothing to measure: give at least one thread count, tile, brick and optimisation set"
+        );
     };
-    let volume = Volume::open_with(
-        &path,
-        OpenOptions {
-            access: Access::Mapped,
-            ..OpenOptions::default()
-        },
-    )?;
+    let volume = first.open_volume(&args.cache_dir)?;
     let [w, h] = args.image;
-    let hi = Vec3::from(volume.dims().map(|d| (d - 1) as f32)) * Vec3::from(volume.spacing());
-    let camera = Orbit::default_view(Vec3::ZERO, hi).camera(w, h)?;
     eprintln!(
-        "bench: {} ({}×{}×{}), image {w}×{h}, step {}, {} frame(s) per configuration",
-        path.display(),
+        "bench: {} ({}×{}×{}, {}), image {w}×{h}, step {}, {} frame(s) per configuration",
+        volume.path().display(),
         volume.dims()[0],
         volume.dims()[1],
         volume.dims()[2],
+        first.volume.name(),
         args.step,
         args.frames
     );
-    let mut records = Vec::new();
+    let mut records: Vec<Record> = Vec::new();
     println!("{}", table_row(&HEADER.map(String::from)));
-    for &brick in &args.bricks {
-        let prepared = RenderVolume::new(&volume, Some(brick))
-            .with_context(|| format!("brick side {brick}"))?;
-        for (name, ert, ess) in &opts {
-            let settings = RenderSettings {
-                step: args.step,
-                early_termination: ert.then_some(raycaster::render::DEFAULT_ERT_THRESHOLD),
-                empty_space_skipping: *ess,
-                transfer: TransferFunction::preset("shapes")?,
-                ..RenderSettings::default()
-            };
-            let mut measure =
-                |renderer, threads, tile, f: &dyn Fn() -> Result<u64>| -> Result<()> {
-                    f()?; // warm-up
-                    let mut best = Duration::MAX;
-                    let mut samples = 0;
-                    for _ in 0..args.frames {
-                        let start = std::time::Instant::now();
-                        samples = f()?;
-                        best = best.min(start.elapsed());
-                    }
-                    let r = Record {
-                        renderer,
-                        threads,
-                        tile,
-                        brick,
-                        optimisations: name.clone(),
-                        frame: best,
-                        samples,
-                    };
-                    println!("{}", table_row(&r.fields()));
-                    records.push(r);
-                    Ok(())
-                };
-            if args.sequential {
-                measure("sequential", 1, 0, &|| {
-                    Ok(render_sequential(&prepared, &camera, &settings)?
-                        .stats
-                        .counters
-                        .samples)
-                })?;
-            }
-            for &threads in &args.threads {
-                for &tile in &args.tiles {
-                    let options = ParallelOptions {
-                        render_threads: threads,
-                        compositing_threads: 1,
-                        tile_size: tile,
-                    };
-                    measure("parallel", threads, tile, &|| {
-                        Ok(render_parallel(&prepared, &camera, &settings, &options)?
-                            .stats
-                            .counters
-                            .samples)
-                    })?;
-                }
-            }
+    let mut prepared: Option<(Option<u32>, RenderVolume<'_>)> = None;
+    for case in cases {
+        if prepared.as_ref().is_none_or(|(b, _)| *b != case.brick) {
+            let p = RenderVolume::new(&volume, case.brick)
+                .with_context(|| format!("brick side {:?}", case.brick))?;
+            prepared = Some((case.brick, p));
         }
+        let (_, shared) = prepared.take().expect("prepared above");
+        let ready = case.prepare_with(shared)?;
+        let record = measure(&case, &ready, args.warm_up, args.frames)?;
+        prepared = Some((case.brick, ready.volume));
+        println!("{}", table_row(&record.fields()));
+        records.push(record);
     }
     summarise(&records);
     if let Some(csv) = &args.csv {
         write_atomically(csv, csv_text(&records).as_bytes())?;
         eprintln!("wrote {}", csv.display());
     }
-    if let Some(svg) = &args.plot {
-        write_atomically(svg, plot::svg(&records).as_bytes())?;
-        eprintln!("wrote {}", svg.display());
+    if let Some(path) = &args.plot {
+        plot::write(path, &records)?;
+        eprintln!("wrote {}", path.display());
     }
     Ok(())
 }
 
-/// The cached `shapes` volume of `n³` voxels (linear, so any brick size applies).
-fn generated_volume(dir: &Path, n: u32) -> Result<PathBuf> {
-    let path = dir.join(format!("shapes-{n}-linear.vol"));
-    if path.is_file() {
-        return Ok(path);
+/// `warm_up` untimed frames, then the fastest of `frames`.
+fn measure(
+    case: &BenchCase,
+    ready: &raycaster_benches::PreparedCase<'_>,
+    warm_up: u32,
+    frames: u32,
+) -> Result<Record> {
+    for _ in 0..warm_up {
+        ready.frame()?;
     }
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    eprintln!("bench: generating {} (once)", path.display());
-    let header = Header::new(
-        [n; 3],
-        [1.0; 3],
-        Layout::Linear,
-        SampleType::U8,
-        Content::Scalar,
-        Format::Extended,
-    );
-    let scene = SceneKind::Shapes.build([n; 3], 1);
-    generate(
-        scene.as_ref(),
-        &header,
-        &path,
-        &WriteOptions::default(),
-        &Job::silent(),
-    )?;
-    Ok(path)
+    let mut best = Duration::MAX;
+    let mut samples = 0;
+    for _ in 0..frames {
+        let start = Instant::now();
+        samples = ready.samples()?;
+        best = best.min(start.elapsed());
+    }
+    Ok(Record {
+        case: case.clone(),
+        frame: best,
+        samples,
+    })
 }
 
 /// Speedups and the best configuration, on stderr.
 fn summarise(records: &[Record]) {
     let parallel: Vec<&Record> = records
         .iter()
-        .filter(|r| r.renderer == "parallel")
+        .filter(|r| r.case.threads.is_some())
         .collect();
     if let Some(best) = parallel.iter().min_by_key(|r| r.frame) {
         eprintln!(
-            "fastest: {} threads, tile {}, brick {}, {}: {:.2} ms",
-            best.threads,
-            best.tile,
-            best.brick,
-            best.optimisations,
-            best.frame.as_secs_f64() * 1e3
+            "fastest: {} threads, tile {}, brick {:?}, {}: {:.2} ms",
+            best.case.render_threads(),
+            best.case.tile,
+            best.case.brick,
+            best.case.optimisations,
+            best.frame_ms()
         );
     }
+    let same =
+        |a: &BenchCase, b: &BenchCase| a.brick == b.brick && a.optimisations == b.optimisations;
     for r in &parallel {
         let one = parallel.iter().find(|o| {
-            o.threads == 1
-                && o.tile == r.tile
-                && o.brick == r.brick
-                && o.optimisations == r.optimisations
+            o.case.threads == Some(1) && o.case.tile == r.case.tile && same(&o.case, &r.case)
         });
-        if let Some(one) = one.filter(|_| r.threads > 1) {
+        if let Some(one) = one.filter(|_| r.case.render_threads() > 1) {
             eprintln!(
-                "speedup {} threads over 1 (tile {}, brick {}, {}): {:.2}×",
-                r.threads,
-                r.tile,
-                r.brick,
-                r.optimisations,
+                "speedup {} threads over 1 (tile {}, brick {:?}, {}): {:.2}×",
+                r.case.render_threads(),
+                r.case.tile,
+                r.case.brick,
+                r.case.optimisations,
                 one.frame.as_secs_f64() / r.frame.as_secs_f64()
             );
         }
     }
-    for s in records.iter().filter(|r| r.renderer == "sequential") {
+    for s in records.iter().filter(|r| r.case.threads.is_none()) {
         for p in parallel
             .iter()
-            .filter(|p| p.threads == 1 && p.brick == s.brick && p.optimisations == s.optimisations)
+            .filter(|p| p.case.threads == Some(1) && same(&p.case, &s.case))
         {
             eprintln!(
-                "1-thread parallel / sequential (tile {}, brick {}, {}): {:.2} (same samples: {})",
-                p.tile,
-                p.brick,
-                p.optimisations,
+                "1-thread parallel / sequential (tile {}, brick {:?}, {}): {:.2} (same samples: {})",
+                p.case.tile,
+                p.case.brick,
+                p.case.optimisations,
                 p.frame.as_secs_f64() / s.frame.as_secs_f64(),
                 p.samples == s.samples
             );
@@ -341,7 +388,7 @@ fn summarise(records: &[Record]) {
 }
 
 /// Column names (CSV header and table heading).
-const HEADER: [&str; 8] = [
+const HEADER: [&str; 12] = [
     "renderer",
     "threads",
     "tile",
@@ -350,17 +397,21 @@ const HEADER: [&str; 8] = [
     "frame_ms",
     "samples",
     "samples_per_s_per_core",
+    "volume",
+    "image",
+    "step",
+    "view",
 ];
 
 /// One aligned table row.
-fn table_row(fields: &[String; 8]) -> String {
-    let widths = [10, 7, 5, 5, 13, 10, 12, 22];
+fn table_row(fields: &[String; 12]) -> String {
+    let widths = [10, 7, 5, 5, 13, 10, 12, 22, 0, 0, 0, 0];
     fields
         .iter()
         .zip(widths)
         .enumerate()
         .map(|(i, (f, w))| {
-            if i == 0 {
+            if i == 0 || w == 0 {
                 format!("{f:<w$}")
             } else {
                 format!("{f:>w$}")
@@ -379,7 +430,8 @@ fn csv_text(records: &[Record]) -> String {
     out
 }
 
-fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
+/// Writes `bytes` to a temporary file beside `path` and renames it into place.
+pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
     let dir = path
         .parent()
         .filter(|p| !p.as_os_str().is_empty())

@@ -1,92 +1,280 @@
-//! A small SVG plot of benchmark records: frame time and samples/s per core for
-//! every configuration, as two bar charts one above the other.
+//! The sweep's plot: frame time and samples/s per core against render threads,
+//! tile size and brick size (2 × 3 panels), drawn with plotters as PNG or SVG.
+//!
+//! Each panel draws every record as a faint point and, per renderer and
+//! optimisation set, a line through the best value at each parameter value (the
+//! other parameters at their best). Text uses an embedded subset of DejaVu Sans, so
+//! no system font is needed.
 
-use std::fmt::Write as _;
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::sync::OnceLock;
 
-use crate::bench::Record;
+use anyhow::{Context, Result, anyhow};
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use raycaster::render::RgbImage;
 
-const WIDTH: f64 = 900.0;
-const CHART: f64 = 260.0;
-const LEFT: f64 = 70.0;
-const TOP: f64 = 40.0;
+use crate::bench::{Record, write_atomically};
 
-/// A value plotted per record.
-type Metric = fn(&Record) -> f64;
+/// Plot size in pixels.
+const SIZE: (u32, u32) = (1500, 900);
 
-/// The SVG document.
-pub fn svg(records: &[Record]) -> String {
-    let n = records.len().max(1) as f64;
-    let bar = ((WIDTH - LEFT - 20.0) / n).max(2.0);
-    let height = TOP + 2.0 * (CHART + 90.0);
-    let mut out = format!(
-        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{WIDTH}\" height=\"{height}\" font-family=\"sans-serif\" font-size=\"11\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
-    );
-    let charts: [(&str, Metric); 2] = [
-        ("frame time (ms)", |r| r.frame.as_secs_f64() * 1e3),
-        ("M samples/s per render thread", |r| {
-            r.samples_per_second_per_core() / 1e6
-        }),
-    ];
-    for (c, (title, value)) in charts.iter().enumerate() {
-        let y0 = TOP + c as f64 * (CHART + 90.0);
-        let max = records.iter().map(value).fold(0.0f64, f64::max).max(1e-9);
-        let _ = writeln!(
-            out,
-            "<text x=\"{LEFT}\" y=\"{}\" font-size=\"14\">{title}</text>",
-            y0 - 10.0
-        );
-        let _ = writeln!(
-            out,
-            "<line x1=\"{LEFT}\" y1=\"{}\" x2=\"{}\" y2=\"{}\" stroke=\"black\"/>",
-            y0 + CHART,
-            WIDTH - 10.0,
-            y0 + CHART
-        );
-        for tick in 0..=4 {
-            let v = max * tick as f64 / 4.0;
-            let y = y0 + CHART - CHART * tick as f64 / 4.0;
-            let _ = writeln!(
-                out,
-                "<text x=\"{}\" y=\"{y}\" text-anchor=\"end\">{v:.1}</text><line x1=\"{LEFT}\" y1=\"{y}\" x2=\"{}\" y2=\"{y}\" stroke=\"#ddd\"/>",
-                LEFT - 5.0,
-                WIDTH - 10.0
-            );
-        }
-        for (i, r) in records.iter().enumerate() {
-            let h = CHART * value(r) / max;
-            let x = LEFT + i as f64 * bar;
-            let colour = match r.threads {
-                1 if r.renderer == "sequential" => "#888888",
-                1 => "#4e79a7",
-                2 => "#f28e2b",
-                3 | 4 => "#59a14f",
-                _ => "#e15759",
-            };
-            let _ = writeln!(
-                out,
-                "<rect x=\"{x:.1}\" y=\"{:.1}\" width=\"{:.1}\" height=\"{h:.1}\" fill=\"{colour}\"><title>{} t{} tile{} brick{} {}: {:.2}</title></rect>",
-                y0 + CHART - h,
-                (bar - 1.0).max(1.0),
-                r.renderer,
-                r.threads,
-                r.tile,
-                r.brick,
-                r.optimisations,
-                value(r)
-            );
-            let label = if r.renderer == "sequential" {
-                format!("seq b{}", r.brick)
-            } else {
-                format!("t{} {}px b{}", r.threads, r.tile, r.brick)
-            };
-            let (lx, ly) = (x + bar / 2.0, y0 + CHART + 8.0);
-            let _ = writeln!(
-                out,
-                "<text x=\"{lx:.1}\" y=\"{ly:.1}\" transform=\"rotate(60 {lx:.1} {ly:.1})\" font-size=\"9\">{label} {}</text>",
-                r.optimisations
-            );
+/// DejaVu Sans, printable ASCII and a few symbols (see fonts/LICENSE-DejaVu.txt).
+static FONT: &[u8] = include_bytes!("../fonts/DejaVuSans-subset.ttf");
+
+/// Writes the plot of `records` to `path`: SVG when it ends in `.svg`, else PNG.
+pub fn write(path: &Path, records: &[Record]) -> Result<()> {
+    register_font()?;
+    let svg = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("svg"));
+    if svg {
+        let mut text = String::new();
+        draw(
+            SVGBackend::with_string(&mut text, SIZE).into_drawing_area(),
+            records,
+        )?;
+        write_atomically(path, text.as_bytes())
+    } else {
+        let mut rgb = vec![0u8; (SIZE.0 * SIZE.1 * 3) as usize];
+        draw(
+            BitMapBackend::with_buffer(&mut rgb, SIZE).into_drawing_area(),
+            records,
+        )?;
+        RgbImage::new(SIZE.0, SIZE.1, rgb)
+            .save_png(path)
+            .with_context(|| format!("cannot write {}", path.display()))
+    }
+}
+
+fn register_font() -> Result<()> {
+    static REGISTERED: OnceLock<bool> = OnceLock::new();
+    let ok = *REGISTERED.get_or_init(|| {
+        plotters::style::register_font("sans-serif", FontStyle::Normal, FONT).is_ok()
+    });
+    ok.then_some(())
+        .ok_or_else(|| anyhow!("the embedded plot font does not load"))
+}
+
+/// A parameter on the x axis.
+struct Parameter {
+    name: &'static str,
+    value: fn(&Record) -> Option<f64>,
+}
+
+/// A value on the y axis, and whether smaller is better.
+struct Metric {
+    name: &'static str,
+    value: fn(&Record) -> f64,
+    lower_is_better: bool,
+}
+
+/// Series colours (distinct on white).
+const COLOURS: [RGBColor; 6] = [
+    RGBColor(0xd6, 0x27, 0x28),
+    RGBColor(0x1f, 0x77, 0xb4),
+    RGBColor(0x2c, 0xa0, 0x2c),
+    RGBColor(0xff, 0x7f, 0x0e),
+    RGBColor(0x94, 0x67, 0xbd),
+    RGBColor(0x8c, 0x56, 0x4b),
+];
+
+const PARAMETERS: [Parameter; 3] = [
+    Parameter {
+        name: "render threads",
+        value: |r| r.case.threads.map(|t| t as f64),
+    },
+    Parameter {
+        name: "tile side (px)",
+        value: |r| r.case.threads.map(|_| f64::from(r.case.tile)),
+    },
+    Parameter {
+        name: "brick side (voxels)",
+        value: |r| r.case.brick.map(f64::from),
+    },
+];
+
+const METRICS: [Metric; 2] = [
+    Metric {
+        name: "frame time (ms)",
+        value: Record::frame_ms,
+        lower_is_better: true,
+    },
+    Metric {
+        name: "M samples/s per render thread",
+        value: |r| r.samples_per_second_per_core() / 1e6,
+        lower_is_better: false,
+    },
+];
+
+fn draw<B: DrawingBackend>(root: DrawingArea<B, Shift>, records: &[Record]) -> Result<()>
+where
+    B::ErrorType: 'static,
+{
+    let err = |e: DrawingAreaErrorKind<B::ErrorType>| anyhow!("cannot draw the plot: {e}");
+    root.fill(&WHITE).map_err(err)?;
+    let title = records.first().map_or_else(String::new, |r| {
+        format!(
+            "raycaster bench: {}, {}x{}, step {}",
+            r.case.volume.name(),
+            r.case.image[0],
+            r.case.image[1],
+            r.case.step
+        )
+    });
+    let root = root.titled(&title, ("sans-serif", 22)).map_err(err)?;
+    let panels = root.split_evenly((METRICS.len(), PARAMETERS.len()));
+    for (i, area) in panels.iter().enumerate() {
+        let metric = &METRICS[i / PARAMETERS.len()];
+        let parameter = &PARAMETERS[i % PARAMETERS.len()];
+        panel(area, records, parameter, metric).map_err(err)?;
+    }
+    root.present().map_err(err)?;
+    Ok(())
+}
+
+/// Series key: renderer and optimisation set, e.g. "parallel both".
+fn series_name(r: &Record) -> String {
+    format!("{} {}", r.case.renderer(), r.case.optimisations)
+}
+
+fn panel<B: DrawingBackend>(
+    area: &DrawingArea<B, Shift>,
+    records: &[Record],
+    parameter: &Parameter,
+    metric: &Metric,
+) -> Result<(), DrawingAreaErrorKind<B::ErrorType>> {
+    let points: Vec<(String, f64, f64)> = records
+        .iter()
+        .filter_map(|r| Some((series_name(r), (parameter.value)(r)?, (metric.value)(r))))
+        .collect();
+    // Parameter values are categories, evenly spaced (8, 16, 32 read as a log axis).
+    let mut keys: Vec<f64> = points.iter().map(|p| p.1).collect();
+    keys.sort_by(f64::total_cmp);
+    keys.dedup();
+    let at = |x: f64| SegmentValue::CenterOf(keys.iter().position(|&k| k == x).unwrap_or(0) as i32);
+    let y_hi = points.iter().map(|p| p.2).fold(0.0, f64::max).max(1e-6) * 1.1;
+    let mut chart = ChartBuilder::on(area)
+        .caption(
+            format!("{} by {}", metric.name, parameter.name),
+            ("sans-serif", 16),
+        )
+        .margin(12)
+        .x_label_area_size(36)
+        .y_label_area_size(60)
+        .build_cartesian_2d(
+            (0..keys.len().saturating_sub(1) as i32).into_segmented(),
+            0.0..y_hi,
+        )?;
+    chart
+        .configure_mesh()
+        .light_line_style(TRANSPARENT)
+        .x_desc(parameter.name)
+        .x_labels(keys.len().max(1))
+        .x_label_formatter(&|x| match x {
+            SegmentValue::CenterOf(i) => keys
+                .get(*i as usize)
+                .map_or_else(String::new, |k| format!("{k}")),
+            _ => String::new(),
+        })
+        .y_label_formatter(&|y| format!("{y:.1}"))
+        .label_style(("sans-serif", 13))
+        .draw()?;
+    chart.draw_series(
+        points
+            .iter()
+            .map(|&(_, x, y)| Circle::new((at(x), y), 3, BLACK.mix(0.25).filled())),
+    )?;
+    // Best value per series and parameter value.
+    let mut best: BTreeMap<&str, BTreeMap<u64, f64>> = BTreeMap::new();
+    for (name, x, y) in &points {
+        let slot = best
+            .entry(name.as_str())
+            .or_default()
+            .entry(x.to_bits())
+            .or_insert(*y);
+        let better = if metric.lower_is_better {
+            *y < *slot
+        } else {
+            *y > *slot
+        };
+        if better {
+            *slot = *y;
         }
     }
-    out.push_str("</svg>\n");
-    out
+    for (i, (name, line)) in best.into_iter().enumerate() {
+        let colour = COLOURS[i % COLOURS.len()];
+        let mut line: Vec<(f64, f64)> = line
+            .into_iter()
+            .map(|(x, y)| (f64::from_bits(x), y))
+            .collect();
+        line.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let line: Vec<(SegmentValue<i32>, f64)> =
+            line.into_iter().map(|(x, y)| (at(x), y)).collect();
+        chart
+            .draw_series(LineSeries::new(line.clone(), colour.stroke_width(2)))?
+            .label(name)
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 16, y)], colour.stroke_width(2))
+            });
+        chart.draw_series(
+            line.into_iter()
+                .map(move |(x, y)| Circle::new((x, y), 4, colour.filled())),
+        )?;
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK.mix(0.3))
+        .label_font(("sans-serif", 12))
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The embedded font loads, and a plot draws text (dark pixels in the title band).
+    #[test]
+    fn the_png_plot_has_text_and_lines() {
+        let dir = tempfile::tempdir().unwrap();
+        let case = raycaster_benches::BenchCase::default();
+        let records: Vec<Record> = [(1, 8, 30.0), (2, 8, 16.0), (1, 16, 28.0), (2, 16, 15.0)]
+            .into_iter()
+            .map(|(t, tile, ms)| Record {
+                case: raycaster_benches::BenchCase {
+                    threads: Some(t),
+                    tile,
+                    brick: Some(16),
+                    ..case.clone()
+                },
+                frame: std::time::Duration::from_secs_f64(ms / 1e3),
+                samples: 1_000_000,
+            })
+            .collect();
+        let path = dir.path().join("p.png");
+        write(&path, &records).unwrap();
+        let image = RgbImage::load_png(&path).unwrap();
+        assert_eq!((image.width(), image.height()), SIZE);
+        let dark = |y0: u32, y1: u32| {
+            (y0..y1)
+                .flat_map(|y| (0..SIZE.0).map(move |x| (x, y)))
+                .filter(|&(x, y)| image.pixel(x, y).iter().all(|&c| c < 100))
+                .count()
+        };
+        assert!(dark(0, 30) > 200, "the title is drawn");
+        let coloured = image
+            .data()
+            .chunks(3)
+            .filter(|p| p.iter().max().unwrap() - p.iter().min().unwrap() > 80)
+            .count();
+        assert!(coloured > 500, "series lines are drawn ({coloured} pixels)");
+        let svg = dir.path().join("p.svg");
+        write(&svg, &records).unwrap();
+        let text = std::fs::read_to_string(&svg).unwrap();
+        assert!(text.starts_with("<svg") && text.contains("render threads"));
+    }
 }

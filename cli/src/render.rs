@@ -222,7 +222,7 @@ impl SceneArg {
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
-enum ModeArg {
+pub(crate) enum ModeArg {
     /// Direct volume rendering (emission-absorption, front to back).
     Dvr,
     /// Maximum intensity projection.

@@ -206,7 +206,7 @@ fn bench_quick_writes_a_table_csv_and_plot() {
             "--csv",
             "b.csv",
             "--plot",
-            "b.svg",
+            "b.png",
         ],
         dir.path(),
     );
@@ -220,19 +220,87 @@ fn bench_quick_writes_a_table_csv_and_plot() {
     let samples = |r: &str| r.split(',').nth(6).unwrap().parse::<u64>().unwrap();
     assert_eq!(samples(rows[1]), samples(rows[2]));
     assert_eq!(samples(rows[2]), samples(rows[3]));
+    // The plot is a valid PNG with something drawn on it.
+    let plot = RgbImage::load_png(&dir.path().join("b.png")).unwrap();
+    assert!(plot.width() >= 800 && plot.height() >= 500);
+    let drawn = plot
+        .data()
+        .chunks(3)
+        .filter(|p| p != &[255, 255, 255])
+        .count();
+    assert!(drawn > 10_000, "{drawn} drawn pixels");
+    // The CSV names the volume, image and step of every row.
     assert!(
-        std::fs::read_to_string(dir.path().join("b.svg"))
-            .unwrap()
-            .contains("<svg")
+        rows[1].ends_with(",shapes-32-u8-linear-mapped,128x128,0.5,default"),
+        "{}",
+        rows[1]
     );
     assert!(
-        dir.path().join("vols/shapes-32-linear.vol").exists(),
+        dir.path().join("vols/shapes-32-u8-linear.vol").exists(),
         "the volume is cached"
     );
     assert!(stderr(&out).contains("speedup 2 threads over 1"));
     let bad = raycaster(&["bench", "--quick", "--optimisations", "fast"], dir.path());
     assert!(!bad.status.success());
     assert!(stderr(&bad).contains("unknown optimisation set"));
+}
+
+/// The memory kinds of the generated volume (u16, bricked, in RAM) are separate
+/// cached files; an SVG plot is written when the name ends in `.svg`.
+#[test]
+fn bench_generates_the_volume_kind_asked_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = raycaster(
+        &[
+            "bench",
+            "--quick",
+            "--volume-size",
+            "24",
+            "--sample-type",
+            "u16",
+            "--layout",
+            "bricked:9",
+            "--ram",
+            "--threads",
+            "2",
+            "--tiles",
+            "16",
+            "--bricks",
+            "5,9",
+            "--cache-dir",
+            "vols",
+            "--csv",
+            "b.csv",
+            "--plot",
+            "b.svg",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(dir.path().join("vols/shapes-24-u16-b9.vol").exists());
+    let csv = std::fs::read_to_string(dir.path().join("b.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 3, "{csv}");
+    assert!(csv.contains("shapes-24-u16-b9-ram"), "{csv}");
+    let svg = std::fs::read_to_string(dir.path().join("b.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.contains("brick side"));
+    // A brick that does not divide the stored bricks is an error naming it.
+    let bad = raycaster(
+        &[
+            "bench",
+            "--quick",
+            "--volume-size",
+            "24",
+            "--layout",
+            "bricked:9",
+            "--bricks",
+            "4",
+            "--cache-dir",
+            "vols",
+        ],
+        dir.path(),
+    );
+    assert!(!bad.status.success());
+    assert!(stderr(&bad).contains("brick side"), "{}", stderr(&bad));
 }
 
 /// Every ready-made scene in `volumes/scenes/` renders on the built-in volume its
