@@ -327,12 +327,13 @@ mod tests {
     #[test]
     fn rejects_what_it_cannot_read_with_a_reason() {
         let good = header(2, [3, 4, 5], [1.0; 3]);
-        let mut cases: Vec<(Vec<u8>, &str)> = Vec::new();
-        cases.push((header(64, [3, 4, 5], [1.0; 3]), "float64"));
-        cases.push((header(2, [3, 0, 5], [1.0; 3]), "size 0"));
-        cases.push((header(2, [3, -4, 5], [1.0; 3]), "size 0"));
-        cases.push((header(2, [3, 4, 5], [1.0, f32::NAN, 1.0]), "spacing NaN"));
-        cases.push((good[..200].to_vec(), "348 bytes"));
+        let mut cases: Vec<(Vec<u8>, &str)> = vec![
+            (header(64, [3, 4, 5], [1.0; 3]), "float64"),
+            (header(2, [3, 0, 5], [1.0; 3]), "size 0"),
+            (header(2, [3, -4, 5], [1.0; 3]), "size 0"),
+            (header(2, [3, 4, 5], [1.0, f32::NAN, 1.0]), "spacing NaN"),
+            (good[..200].to_vec(), "348 bytes"),
+        ];
         let mut m = good.clone();
         m[344..348].copy_from_slice(b"abcd");
         cases.push((m, "magic"));
