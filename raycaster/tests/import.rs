@@ -177,7 +177,7 @@ fn open_volume_any_stores_values_as_documented() {
     assert_eq!(import::detect(&vol), None);
     assert_eq!(
         import::open_volume_any(&vol, 0).unwrap().voxel([5, 4, 3]),
-        205
+        195
     );
 }
 
