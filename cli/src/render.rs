@@ -26,7 +26,8 @@ use crate::stats;
 #[command(after_help = AFTER_HELP)]
 pub struct RenderArgs {
     /// The volume to render (default: a built-in generated scene): a .vol file, or a
-    /// NRRD (.nrrd/.nhdr), NIfTI-1 (.nii/.nii.gz) or MetaImage (.mha/.mhd) file,
+    /// NRRD (.nrrd/.nhdr), NIfTI-1 (.nii/.nii.gz) or MetaImage (.mha/.mhd) file or a
+    /// DICOM series folder,
     /// converted in memory when its samples take at most 1 GiB (larger ones:
     /// convert with `volgen convert` first).
     file: Option<PathBuf>,

@@ -6,7 +6,7 @@
 //! - [`io`]: streaming readers (raw and `.vol`) and the atomic volume writer;
 //! - [`synth`]: deterministic synthetic scenes;
 //! - [`generate`] and [`convert`]: the generation and conversion jobs;
-//! - [`import`]: readers for NRRD, NIfTI-1 and MetaImage files;
+//! - [`import`]: readers for NRRD, NIfTI-1, MetaImage files and DICOM series;
 //! - [`job`]: progress reporting and cancellation;
 //! - [`render`]: cameras, transfer functions and the ray casters.
 

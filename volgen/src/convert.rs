@@ -19,10 +19,11 @@ use crate::args::{
 use crate::generate::{describe_layout, describe_size};
 use crate::progress::{CANCEL, voxel_bar};
 
-/// Convert a raw, .vol, NRRD, NIfTI-1 or MetaImage file into a .vol file.
+/// Convert a raw, .vol, NRRD, NIfTI-1, MetaImage file or DICOM series into a .vol file.
 ///
 /// Inputs: .vol; NRRD (.nrrd, .nhdr; raw or gzip); NIfTI-1 (.nii, .nii.gz, .hdr/.img);
-/// MetaImage (.mha, .mhd; raw or zlib); headerless raw with --raw. Foreign files
+/// MetaImage (.mha, .mhd; raw or zlib); a folder (or .dcm file) of an uncompressed
+/// DICOM series; headerless raw with --raw. Foreign files
 /// keep their spacing and axis order (first axis fastest = x); orientation and
 /// value scaling are not applied (docs/import.md).
 ///
@@ -43,8 +44,8 @@ use crate::progress::{CANCEL, voxel_bar};
 ///   volgen convert shapes.vol --layout linear -o shapes-linear.vol
 #[derive(Args, Debug)]
 pub struct ConvertArgs {
-    /// Input file: .vol, .nrrd/.nhdr, .nii/.nii.gz/.hdr, .mha/.mhd, or a headerless
-    /// raw file when --raw is given.
+    /// Input: .vol, .nrrd/.nhdr, .nii/.nii.gz/.hdr, .mha/.mhd, a DICOM series folder
+    /// (or .dcm file), or a headerless raw file when --raw is given.
     #[arg(value_name = "IN")]
     input: PathBuf,
     /// Output .vol file.

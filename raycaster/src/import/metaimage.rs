@@ -278,6 +278,7 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
             Encoding::Raw
         },
         scaling: None,
+        slices: Vec::new(),
     })
 }
 

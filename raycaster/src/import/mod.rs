@@ -1,4 +1,5 @@
-//! Importing the volume formats users arrive with: NRRD, NIfTI-1 and MetaImage.
+//! Importing the volume formats users arrive with: NRRD, NIfTI-1, MetaImage and
+//! DICOM series.
 //!
 //! Each format module parses its header into an [`Imported`] description: sizes,
 //! spacing, sample type and byte order, and where the samples are (a region of a file,
@@ -12,6 +13,7 @@
 //! Headers are parsed by pure functions of their bytes (`parse_header` in each
 //! module), which the fuzz targets and the no-panic tests drive directly.
 
+pub mod dicom;
 pub mod metaimage;
 pub mod nifti;
 pub mod nrrd;
@@ -43,6 +45,8 @@ pub enum ImportFormat {
     Nifti,
     /// MetaImage (`.mha` with attached data, `.mhd` with a detached data file).
     MetaImage,
+    /// A DICOM series: a folder of single-frame slices (or one `.dcm` file of it).
+    Dicom,
 }
 
 impl ImportFormat {
@@ -52,6 +56,7 @@ impl ImportFormat {
             ImportFormat::Nrrd => "NRRD",
             ImportFormat::Nifti => "NIfTI-1",
             ImportFormat::MetaImage => "MetaImage",
+            ImportFormat::Dicom => "DICOM",
         }
     }
 }
@@ -65,6 +70,8 @@ pub enum Encoding {
     Gzip,
     /// A zlib stream (MetaImage `CompressedData = True`).
     Zlib,
+    /// One uncompressed slice per file ([`Imported::slices`], DICOM).
+    Slices,
 }
 
 /// A foreign volume file, parsed: what it holds and where its samples are.
@@ -95,6 +102,9 @@ pub struct Imported {
     /// The linear value scaling the file declares (`value = slope · stored +
     /// intercept`), reported but not applied.
     pub scaling: Option<(f32, f32)>,
+    /// For [`Encoding::Slices`]: each z-slice's file and the offset of its samples,
+    /// in z order.
+    pub slices: Vec<(PathBuf, u64)>,
 }
 
 /// An error about one foreign file.
@@ -144,7 +154,7 @@ pub enum ImportErrorKind {
     Compressed(std::io::Error),
     /// The file's extension and first bytes match no known format.
     #[error(
-        "not a known volume format (expected .vol, .nrrd, .nhdr, .nii, .nii.gz, .hdr, .mha or .mhd)"
+        "not a known volume format (expected .vol, .nrrd, .nhdr, .nii, .nii.gz, .hdr, .mha, .mhd, or a DICOM folder or .dcm file)"
     )]
     UnknownFormat,
     /// The volume is too large to be built in memory.
@@ -227,8 +237,11 @@ pub(crate) fn check_spacing(
 }
 
 /// Which format `path` is, by extension, then by its first bytes; `None` for `.vol`
-/// files and anything unknown.
+/// files and anything unknown. A folder is taken for a DICOM series.
 pub fn detect(path: &Path) -> Option<ImportFormat> {
+    if path.is_dir() {
+        return Some(ImportFormat::Dicom);
+    }
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().to_ascii_lowercase())
@@ -241,6 +254,7 @@ pub fn detect(path: &Path) -> Option<ImportFormat> {
         (".hdr", ImportFormat::Nifti),
         (".mha", ImportFormat::MetaImage),
         (".mhd", ImportFormat::MetaImage),
+        (".dcm", ImportFormat::Dicom),
     ];
     if let Some((_, f)) = by_ext.iter().find(|(ext, _)| name.ends_with(ext)) {
         return Some(*f);
@@ -259,6 +273,8 @@ pub fn detect(path: &Path) -> Option<ImportFormat> {
         Some(ImportFormat::Nifti)
     } else if metaimage::parse_header(head).is_ok() {
         Some(ImportFormat::MetaImage)
+    } else if head.len() >= 132 && &head[128..132] == b"DICM" {
+        Some(ImportFormat::Dicom)
     } else {
         None
     }
@@ -270,6 +286,7 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
         Some(ImportFormat::Nrrd) => nrrd::open(path),
         Some(ImportFormat::Nifti) => nifti::open(path),
         Some(ImportFormat::MetaImage) => metaimage::open(path),
+        Some(ImportFormat::Dicom) => dicom::open(path),
         None => Err(ImportError::new(path, ImportErrorKind::UnknownFormat)),
     }
 }
@@ -307,6 +324,11 @@ impl Imported {
             order: RawOrder::XFastest,
         };
         let at_data = |e: std::io::Error| ImportError::new(&self.data_path, e);
+        if self.encoding == Encoding::Slices {
+            let data = self.gather_slices(scratch_dir, memory_max)?;
+            return Input::from_raw_data(&self.path, data, spec, Some(self.spacing))
+                .map_err(|e| ImportError::new(&self.path, e));
+        }
         let file = File::open(&self.data_path).map_err(at_data)?;
         let data = match self.encoding {
             Encoding::Raw => {
@@ -334,7 +356,7 @@ impl Imported {
                 )
                 .map_err(|e| ImportError::new(&self.path, e));
             }
-            Encoding::Gzip | Encoding::Zlib => self.decompress(file, scratch_dir, memory_max)?,
+            _ => self.decompress(file, scratch_dir, memory_max)?,
         };
         Input::from_raw_data(&self.path, data, spec, Some(self.spacing))
             .map_err(|e| ImportError::new(&self.path, e))
@@ -365,20 +387,7 @@ impl Imported {
         )
         .map_err(compressed)?;
         let expected = self.sample_bytes();
-        // Read one byte more than needed: a longer stream is an error too.
-        let mut limited = (&mut stream).take(expected + 1);
-        let (data, got) = if expected <= memory_max {
-            let mut buf = Vec::with_capacity(expected as usize);
-            limited.read_to_end(&mut buf).map_err(compressed)?;
-            let got = buf.len() as u64;
-            (RawData::Memory(buf), got)
-        } else {
-            let dir = scratch_dir.map_or_else(std::env::temp_dir, Path::to_path_buf);
-            let mut tmp = tempfile::tempfile_in(&dir).map_err(|e| ImportError::new(&dir, e))?;
-            let got = std::io::copy(&mut limited, &mut tmp).map_err(compressed)?;
-            tmp.flush().map_err(|e| ImportError::new(&dir, e))?;
-            (RawData::File(tmp), got)
-        };
+        let (data, got) = self.collect(&mut stream, scratch_dir, memory_max, &compressed)?;
         if skipped < self.skip_after_decode || got != expected {
             return Err(ImportError::new(
                 &self.data_path,
@@ -390,6 +399,77 @@ impl Imported {
                     } else {
                         got
                     },
+                },
+            ));
+        }
+        Ok(data)
+    }
+
+    /// Reads up to one byte more than the samples from `stream` into memory (at most
+    /// `memory_max` bytes) or an anonymous temporary file; returns the bytes read.
+    fn collect(
+        &self,
+        stream: &mut dyn Read,
+        scratch_dir: Option<&Path>,
+        memory_max: u64,
+        read_error: &dyn Fn(std::io::Error) -> ImportError,
+    ) -> Result<(RawData, u64), ImportError> {
+        let expected = self.sample_bytes();
+        // One byte more than needed: a longer stream is an error too.
+        let mut limited = stream.take(expected + 1);
+        if expected <= memory_max {
+            let mut buf = Vec::with_capacity(expected as usize);
+            limited.read_to_end(&mut buf).map_err(read_error)?;
+            let got = buf.len() as u64;
+            Ok((RawData::Memory(buf), got))
+        } else {
+            let dir = scratch_dir.map_or_else(std::env::temp_dir, Path::to_path_buf);
+            let mut tmp = tempfile::tempfile_in(&dir).map_err(|e| ImportError::new(&dir, e))?;
+            let got = std::io::copy(&mut limited, &mut tmp).map_err(read_error)?;
+            tmp.flush().map_err(|e| ImportError::new(&dir, e))?;
+            Ok((RawData::File(tmp), got))
+        }
+    }
+
+    /// Concatenates the slices' samples (each checked to be whole).
+    fn gather_slices(
+        &self,
+        scratch_dir: Option<&Path>,
+        memory_max: u64,
+    ) -> Result<RawData, ImportError> {
+        use std::io::{Seek, SeekFrom};
+        let per_slice = self.sample_bytes() / self.slices.len().max(1) as u64;
+        let mut readers: Vec<std::io::Take<File>> = Vec::with_capacity(self.slices.len());
+        for (path, offset) in &self.slices {
+            let at = |e: std::io::Error| ImportError::new(path, e);
+            let mut f = File::open(path).map_err(at)?;
+            let len = f.metadata().map_err(at)?.len();
+            if len.saturating_sub(*offset) < per_slice {
+                return Err(ImportError::new(
+                    path,
+                    ImportErrorKind::WrongDataSize {
+                        what: "the slice",
+                        expected: per_slice,
+                        actual: len.saturating_sub(*offset),
+                    },
+                ));
+            }
+            f.seek(SeekFrom::Start(*offset)).map_err(at)?;
+            readers.push(f.take(per_slice));
+        }
+        let mut chained: Box<dyn Read> = Box::new(std::io::empty());
+        for r in readers {
+            chained = Box::new(chained.chain(r));
+        }
+        let read_error = |e: std::io::Error| ImportError::new(&self.path, e);
+        let (data, got) = self.collect(&mut chained, scratch_dir, memory_max, &read_error)?;
+        if got != self.sample_bytes() {
+            return Err(ImportError::new(
+                &self.path,
+                ImportErrorKind::WrongDataSize {
+                    what: "the series",
+                    expected: self.sample_bytes(),
+                    actual: got,
                 },
             ));
         }

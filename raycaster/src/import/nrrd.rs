@@ -357,6 +357,7 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
         skip_after_decode,
         encoding: h.encoding,
         scaling: None,
+        slices: Vec::new(),
     })
 }
 
