@@ -107,12 +107,20 @@ const FIXTURES: &[(&str, ImportFormat, RawType, Encoding)] = &[
     ),
 ];
 
-/// All values of an import, z fastest (the `.vol` linear order).
+/// All values of an import, z fastest (the `.vol` linear order), read twice: with
+/// compressed data decompressed into memory, and into a temporary file.
 fn read_all(imported: &Imported) -> Vec<f32> {
-    let input = imported.input(None, 1 << 20).unwrap();
-    let mut out = vec![0f32; imported.voxels() as usize];
-    input.read_slab(0, DIMS[0], &|v| v, &mut out).unwrap();
-    out
+    let scratch = tempfile::tempdir().unwrap();
+    let mut both = [1u64 << 20, 0].map(|memory_max| {
+        let input = imported.input(Some(scratch.path()), memory_max).unwrap();
+        let mut out = vec![0f32; imported.voxels() as usize];
+        input.read_slab(0, DIMS[0], &|v| v, &mut out).unwrap();
+        out
+    });
+    assert_eq!(both[0], both[1], "{}", imported.path.display());
+    // The temporary file is anonymous: nothing is left in the scratch folder.
+    assert_eq!(std::fs::read_dir(scratch.path()).unwrap().count(), 0);
+    std::mem::take(&mut both[0])
 }
 
 fn each_voxel(mut f: impl FnMut(u32, u32, u32)) {
