@@ -273,17 +273,21 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
         let pos: Vec<f64> = slices.iter().map(|s| along(s).unwrap_or(0.0)).collect();
         let gaps: Vec<f64> = pos.windows(2).map(|w| w[1] - w[0]).collect();
         let mean = (pos[pos.len() - 1] - pos[0]) / gaps.len() as f64;
+        // Gaps are judged against the median, which a missing slice does not move.
+        let mut sorted = gaps.clone();
+        sorted.sort_by(f64::total_cmp);
+        let median = sorted[sorted.len() / 2];
         if let Some((i, g)) = gaps
             .iter()
             .enumerate()
-            .find(|(_, g)| (*g - mean).abs() > 0.05 * mean.abs().max(1e-6))
+            .find(|(_, g)| (*g - median).abs() > 0.05 * median.abs().max(1e-6))
         {
             return Err(ImportError::new(
                 &slices[i + 1].path,
                 header_error(
                     F,
                     format!(
-                        "slices are not evenly spaced: a gap of {g:.4} mm where the series averages {mean:.4} mm (a missing or duplicate slice?)"
+                        "slices are not evenly spaced: a gap of {g:.4} mm before this slice where the median gap is {median:.4} mm (a missing or duplicate slice?)"
                     ),
                 ),
             ));

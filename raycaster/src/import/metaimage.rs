@@ -223,7 +223,7 @@ pub fn parse_header(bytes: &[u8]) -> Result<MetaHeader, ImportErrorKind> {
         compressed,
         data_file,
         header_size,
-        header_len: header_len.expect("the ElementDataFile key ended the loop"),
+        header_len: header_len.unwrap_or(bytes.len()),
     })
 }
 

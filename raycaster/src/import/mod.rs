@@ -149,6 +149,14 @@ pub enum ImportErrorKind {
         /// Bytes found.
         actual: u64,
     },
+    /// The detached data file the header names cannot be opened.
+    #[error("cannot open the data file {}: {source}", file.display())]
+    DataFile {
+        /// The data file.
+        file: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
     /// A gzip or zlib stream is corrupt or ends early.
     #[error("the compressed data is truncated or corrupt ({0})")]
     Compressed(std::io::Error),
@@ -329,7 +337,10 @@ impl Imported {
             return Input::from_raw_data(&self.path, data, spec, Some(self.spacing))
                 .map_err(|e| ImportError::new(&self.path, e));
         }
-        let file = File::open(&self.data_path).map_err(at_data)?;
+        let file = File::open(&self.data_path).map_err(|source| {
+            let file = self.data_path.clone();
+            ImportError::new(&self.path, ImportErrorKind::DataFile { file, source })
+        })?;
         let data = match self.encoding {
             Encoding::Raw => {
                 let len = file.metadata().map_err(at_data)?.len();
