@@ -3,6 +3,7 @@
 //! random mutations of every text/binary header (no panics), and the real scans of
 //! `volumes/fetch.sh` when they are present.
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use raycaster::convert::{ConvertOptions, ValueMap, convert};
@@ -493,7 +494,10 @@ fn real(name: &str) -> Option<PathBuf> {
     if path.exists() {
         Some(path)
     } else {
-        eprintln!(
+        // Straight to stderr, not through `eprintln!`: the test harness captures
+        // that for passing tests, and the skip must be visible.
+        let _ = writeln!(
+            std::io::stderr(),
             "SKIPPED: {} is absent (run volumes/fetch.sh to fetch the real scans)",
             path.display()
         );
