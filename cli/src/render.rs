@@ -25,7 +25,11 @@ use crate::stats;
 #[derive(Args, Debug)]
 #[command(after_help = AFTER_HELP)]
 pub struct RenderArgs {
-    /// The .vol file to render (default: a built-in generated scene).
+    /// The volume to render (default: a built-in generated scene): a .vol file, or a
+    /// NRRD (.nrrd/.nhdr), NIfTI-1 (.nii/.nii.gz) or MetaImage (.mha/.mhd) file or a
+    /// DICOM series folder,
+    /// converted in memory when its samples take at most 1 GiB (larger ones:
+    /// convert with `volgen convert` first).
     file: Option<PathBuf>,
 
     /// Output PNG.
@@ -191,7 +195,8 @@ A transfer-function file holds lines `point VALUE R G B ALPHA` (all 0..1), optio
 Examples:
   raycaster render -o shapes.png
   raycaster render head.vol --tf ct-bone --size 800x800 --stats
-  raycaster render head.vol --mode mip --azimuth 0 --elevation 0 -o mip.png";
+  raycaster render head.vol --mode mip --azimuth 0 --elevation 0 -o mip.png
+  raycaster render ch2.nii.gz --tf ct-skin -o head.png   # NRRD, NIfTI, MetaImage open directly";
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
 enum SceneArg {
@@ -310,6 +315,10 @@ pub fn run(args: RenderArgs) -> Result<()> {
 
 fn open_volume(args: &RenderArgs) -> Result<Volume> {
     match &args.file {
+        Some(path) if raycaster::import::detect(path).is_some() => {
+            let limit = raycaster::import::DEFAULT_IN_MEMORY_LIMIT;
+            Ok(raycaster::import::open_volume_any(path, limit)?)
+        }
         Some(path) => {
             let access = if args.ram {
                 Access::Ram

@@ -398,3 +398,31 @@ fn bad_segment_scenes_fail_with_a_clear_message_and_no_output() {
         );
     }
 }
+
+#[test]
+fn renders_a_nifti_file_directly() {
+    let dir = tempfile::tempdir().unwrap();
+    let nii = Path::new(env!("CARGO_MANIFEST_DIR")).join("../volumes/fixtures/i16.nii.gz");
+    let out = raycaster(
+        &[
+            "render",
+            nii.to_str().unwrap(),
+            "--size",
+            "48",
+            "--tf",
+            "opaque",
+            "-o",
+            "nii.png",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let image = RgbImage::load_png(&dir.path().join("nii.png")).unwrap();
+    let lit = image.data().chunks(3).filter(|p| p != &[0, 0, 0]).count();
+    assert!(lit > 50, "the volume must be visible ({lit} lit pixels)");
+    // Not a volume: a clear error naming the file.
+    std::fs::write(dir.path().join("junk.nrrd"), b"NRRD0004\ntype: double\n\n").unwrap();
+    let out = raycaster(&["render", "junk.nrrd"], dir.path());
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("junk.nrrd"), "{}", stderr(&out));
+}

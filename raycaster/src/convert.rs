@@ -1,12 +1,13 @@
-//! Converting raw files and `.vol` files into `.vol` files of another layout, brick
-//! size or sample type, streaming in bounded memory.
+//! Converting raw files, `.vol` files and imported foreign files (NRRD, NIfTI,
+//! MetaImage) into `.vol` files of another layout, brick size or sample type,
+//! streaming in bounded memory.
 
 use std::path::Path;
 
-use crate::io::{Input, WriteOptions, WriteSummary, write_volume};
+use crate::io::{Input, InputType, WriteOptions, WriteSummary, write_volume};
 use crate::job::Job;
 use crate::volume::{
-    Content, Format, Header, Layout, Sample, SampleType, VolumeError, VolumeErrorKind,
+    AtPath, Content, Format, Header, Layout, Sample, SampleType, VolumeError, VolumeErrorKind,
 };
 
 /// What the output of a conversion looks like.
@@ -21,16 +22,71 @@ pub struct ConvertOptions {
     /// Output spacing; `None` keeps the input's (raw inputs: 1, 1, 1).
     pub spacing: Option<[f32; 3]>,
     /// Input values mapped linearly onto the output's full range, clamped outside.
-    /// `None` copies values when the output type holds them all and otherwise uses
-    /// the input's own min..max (found in an extra streaming pass).
+    /// `None` chooses a [`ValueMap`] with [`plan_values`].
     pub window: Option<(f32, f32)>,
+}
+
+/// How input values become stored samples.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ValueMap {
+    /// Values are stored unchanged (the output type holds them all).
+    Copy,
+    /// i16 values are stored as `value + 32768` in u16 samples: exact, and the same
+    /// for every file, so original units are `stored − 32768`.
+    Offset,
+    /// Values `lo..=hi` map linearly onto the output's full range, clamped outside.
+    Window(f32, f32),
+}
+
+/// The offset [`ValueMap::Offset`] adds to i16 values.
+pub const I16_OFFSET: f32 = 32768.0;
+
+impl ValueMap {
+    /// The function from an input value to a stored sample of type `T`.
+    pub fn to_sample<T: Sample>(self) -> impl Fn(f32) -> T + Copy {
+        move |v: f32| match self {
+            // `as` saturates: values beyond the type clamp, NaN becomes 0.
+            ValueMap::Copy => T::from_u16_saturating(v as u16),
+            ValueMap::Offset => T::from_u16_saturating((v + I16_OFFSET) as u16),
+            ValueMap::Window(lo, hi) if hi > lo => T::from_unit((v - lo) / (hi - lo)),
+            ValueMap::Window(..) => T::from_unit(0.0),
+        }
+    }
+}
+
+/// The output sample type and value mapping for `input`: `sample_type` or the
+/// default for the input (u8 stays u8, everything else becomes u16); then values are
+/// copied when the output holds them all, i16 → u16 is offset by 32768, and otherwise
+/// `window` (default: the input's own min..max, found in an extra streaming pass)
+/// maps onto the output's full range.
+pub fn plan_values(
+    input: &Input,
+    sample_type: Option<SampleType>,
+    window: Option<(f32, f32)>,
+    job: &Job,
+) -> Result<(SampleType, ValueMap), VolumeError> {
+    let value_type = input.value_type();
+    let sample_type = sample_type.unwrap_or(match value_type {
+        InputType::U8 => SampleType::U8,
+        _ => SampleType::U16,
+    });
+    let map = match window {
+        Some((lo, hi)) => ValueMap::Window(lo, hi),
+        None if value_type.fits_in(sample_type) => ValueMap::Copy,
+        None if value_type == InputType::I16 && sample_type == SampleType::U16 => ValueMap::Offset,
+        None => {
+            let (lo, hi) = input.value_range(job)?.unwrap_or((0.0, 0.0));
+            ValueMap::Window(lo, hi)
+        }
+    };
+    Ok((sample_type, map))
 }
 
 /// What a conversion did.
 #[derive(Clone, Debug)]
 pub struct ConvertSummary {
-    /// The window applied, if values were mapped rather than copied.
-    pub window: Option<(f32, f32)>,
+    /// How values were mapped to samples.
+    pub values: ValueMap,
     /// The header written.
     pub header: Header,
     /// The written file.
@@ -49,9 +105,8 @@ pub fn convert(
         return Err(VolumeError::new(output, VolumeErrorKind::SameFile));
     }
     let content = input.content();
-    let value_type = input.value_type();
-    let sample_type = options.sample_type.unwrap_or(match value_type {
-        crate::io::InputType::U8 => SampleType::U8,
+    let sample_type = options.sample_type.unwrap_or(match input.value_type() {
+        InputType::U8 => SampleType::U8,
         _ => SampleType::U16,
     });
     let spec_error = |msg: &str| VolumeError::new(output, VolumeErrorKind::RawSpec(msg.into()));
@@ -65,10 +120,7 @@ pub fn convert(
             "the thesis format holds u8 samples only; use the extended format for u16",
         ));
     }
-    let spacing = options
-        .spacing
-        .or(input.header().map(|h| h.spacing))
-        .unwrap_or([1.0; 3]);
+    let spacing = options.spacing.or(input.spacing()).unwrap_or([1.0; 3]);
     let header = Header::new(
         input.dims(),
         spacing,
@@ -77,17 +129,15 @@ pub fn convert(
         content,
         options.format,
     );
-    let window = match options.window {
-        Some(w) => Some(w),
-        None if value_type.fits_in(sample_type) => None,
-        None => Some(input.value_range(job)?.unwrap_or((0.0, 0.0))),
-    };
+    // The header is checked before the (possibly long) value-range pass.
+    header.validate().at(output)?;
+    let (_, values) = plan_values(input, Some(sample_type), options.window, job)?;
     let written = match sample_type {
-        SampleType::U8 => copy_slabs::<u8>(input, output, &header, window, write, job)?,
-        SampleType::U16 => copy_slabs::<u16>(input, output, &header, window, write, job)?,
+        SampleType::U8 => copy_slabs::<u8>(input, output, &header, values, write, job)?,
+        SampleType::U16 => copy_slabs::<u16>(input, output, &header, values, write, job)?,
     };
     Ok(ConvertSummary {
-        window,
+        values,
         header,
         written,
     })
@@ -97,16 +147,11 @@ fn copy_slabs<T: Sample>(
     input: &Input,
     output: &Path,
     header: &Header,
-    window: Option<(f32, f32)>,
+    values: ValueMap,
     write: &WriteOptions,
     job: &Job,
 ) -> Result<WriteSummary, VolumeError> {
-    let map = |v: f32| match window {
-        // `as` saturates: values beyond the type clamp, NaN becomes 0.
-        None => T::from_u16_saturating(v as u16),
-        Some((lo, hi)) if hi > lo => T::from_unit((v - lo) / (hi - lo)),
-        Some(_) => T::from_unit(0.0),
-    };
+    let map = values.to_sample::<T>();
     write_volume::<T>(output, header, write, job, |x0, x1, slab| {
         input.read_slab(x0, x1, &map, slab)
     })

@@ -6,6 +6,7 @@
 //! - [`io`]: streaming readers (raw and `.vol`) and the atomic volume writer;
 //! - [`synth`]: deterministic synthetic scenes;
 //! - [`generate`] and [`convert`]: the generation and conversion jobs;
+//! - [`import`]: readers for NRRD, NIfTI-1, MetaImage files and DICOM series;
 //! - [`job`]: progress reporting and cancellation;
 //! - [`render`]: cameras, transfer functions and the ray casters.
 
@@ -17,6 +18,7 @@ compile_error!(
 pub mod convert;
 pub mod generate;
 pub mod histogram;
+pub mod import;
 pub mod io;
 pub mod job;
 pub mod render;

@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use raycaster::convert::{ConvertOptions, convert};
+use raycaster::convert::{ConvertOptions, ValueMap, convert};
 use raycaster::generate::generate;
 use raycaster::io::{Endian, Input, RawOrder, RawSpec, RawType, WriteOptions, write_volume};
 use raycaster::job::Job;
@@ -413,7 +413,7 @@ fn windowing_maps_the_window_onto_the_full_u8_range() {
         &Job::silent(),
     )
     .unwrap();
-    assert_eq!(done.window, Some((-1000.0, 1300.0)));
+    assert_eq!(done.values, ValueMap::Window(-1000.0, 1300.0));
     let v = Volume::open(&out).unwrap();
     assert_eq!(v.spacing(), [0.5, 0.5, 3.0]);
     // x fastest in the raw file: value index i = (z*3 + y)*4 + x.
@@ -440,7 +440,7 @@ fn windowing_maps_the_window_onto_the_full_u8_range() {
         &Job::silent(),
     )
     .unwrap();
-    assert_eq!(done.window, Some((-1000.0, 1300.0)));
+    assert_eq!(done.values, ValueMap::Window(-1000.0, 1300.0));
     let v = Volume::open(&out2).unwrap();
     assert_eq!(v.voxel([0, 0, 0]), 0);
     assert_eq!(v.voxel([3, 2, 1]), 255);

@@ -12,6 +12,8 @@ use raycaster::volume::{Content, SampleType, Volume};
 pub const HISTOGRAM_BINS: usize = 256;
 /// Voxels the histogram looks at, at most (a regular subsample of big volumes).
 const HISTOGRAM_SAMPLES: u64 = 2_000_000;
+/// Foreign scans up to this many bytes of samples are converted in RAM.
+pub const IN_MEMORY_LIMIT: u64 = raycaster::import::DEFAULT_IN_MEMORY_LIMIT;
 /// Edge of the built-in scene.
 pub const BUILT_IN_SIZE: u32 = 160;
 
@@ -47,12 +49,16 @@ pub fn built_in(kind: SceneKind, size: u32) -> Result<LoadedVolume> {
     Ok(finish(volume, labels.map(Arc::new), name, preset))
 }
 
-/// Opens a `.vol` file (mapped, never read whole).
+/// Opens a `.vol` file (mapped, never read whole) or a scan in a foreign format
+/// (NRRD, NIfTI-1, MetaImage, a DICOM series folder), converted in RAM when it
+/// takes at most [`IN_MEMORY_LIMIT`]; bigger scans are refused with the
+/// `volgen convert` command that makes them a `.vol` file.
 pub fn open_file(path: &Path) -> Result<LoadedVolume> {
     if path.as_os_str().is_empty() {
-        bail!("no file given: type a path to a .vol file");
+        bail!("no file given: type the path of a volume (.vol, .nrrd, .nii, .mhd, DICOM folder)");
     }
-    let volume = Volume::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+    let volume = raycaster::import::open_volume_any(path, IN_MEMORY_LIMIT)
+        .with_context(|| format!("cannot open {}", path.display()))?;
     if volume.content() == Content::Labels {
         bail!(
             "{} is a label volume (object ids), not data: open the data volume and load a \

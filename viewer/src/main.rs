@@ -14,7 +14,9 @@ use viewer::{Source, Viewer};
 #[derive(Parser)]
 #[command(version, about, long_about)]
 struct Args {
-    /// A `.vol` volume to open (mapped, never read whole).
+    /// The volume to open: a `.vol` file (mapped, never read whole), or a scan in
+    /// NRRD, NIfTI-1, MetaImage or a DICOM series folder (converted in RAM up to
+    /// 1 GiB of samples; convert bigger ones with `volgen convert`).
     file: Option<PathBuf>,
 
     /// Built-in scene shown without FILE: shapes, shells, noise or gradient.

@@ -259,4 +259,20 @@ fn the_viewer_runs_headless() {
         "the screenshot is the frame on screen"
     );
     assert_eq!((sw, sh), (w, h), "long paths do not resize the canvas");
+
+    // A scan in a foreign format (a NIfTI-1 fixture written by nibabel) opens directly.
+    let nifti = Path::new(env!("CARGO_MANIFEST_DIR")).join("../volumes/fixtures/u8.nii");
+    v.ui().invoke_open_file(nifti.display().to_string().into());
+    let start = Instant::now();
+    while !v.ui().get_volume_info().contains("6×5×4") {
+        v.pump();
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "{:?}",
+            v.ui().get_message()
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    wait_for_frame(&v);
+    assert!(!v.ui().get_message_is_error(), "{:?}", v.ui().get_message());
 }

@@ -1,12 +1,14 @@
-//! `volgen convert`: raw or `.vol` in, `.vol` of another layout / brick / type out.
+//! `volgen convert`: raw, `.vol`, NRRD, NIfTI-1 or MetaImage in; `.vol` of another
+//! layout / brick / type out.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::bail;
 use clap::Args;
-use raycaster::convert::{ConvertOptions, convert};
-use raycaster::io::{Input, RawSpec, WriteOptions};
+use raycaster::convert::{ConvertOptions, ValueMap, convert};
+use raycaster::import::{self, Imported};
+use raycaster::io::{Input, RawSpec, RawType, WriteOptions};
 use raycaster::job::Job;
 use raycaster::volume::{Format, Layout, SampleType};
 
@@ -17,20 +19,33 @@ use crate::args::{
 use crate::generate::{describe_layout, describe_size};
 use crate::progress::{CANCEL, voxel_bar};
 
-/// Convert a raw file or a .vol file into a .vol file.
+/// Convert a raw, .vol, NRRD, NIfTI-1, MetaImage file or DICOM series into a .vol file.
+///
+/// Inputs: .vol; NRRD (.nrrd, .nhdr; raw or gzip); NIfTI-1 (.nii, .nii.gz, .hdr/.img);
+/// MetaImage (.mha, .mhd; raw or zlib); a folder (or .dcm file) of an uncompressed
+/// DICOM series; headerless raw with --raw. Foreign files
+/// keep their spacing and axis order (first axis fastest = x); orientation and
+/// value scaling are not applied (docs/import.md).
 ///
 /// Streams in bounded memory (slabs of whole x-planes; about 64 MiB at most plus one
-/// row of bricks), so inputs larger than RAM convert. Values are copied when the
-/// output type holds them all; otherwise (u16/i16/f32 to u8, i16/f32 to u16) they
-/// are mapped linearly from --window (default: the input's own min..max) onto the
-/// output's full range. Examples:
+/// row of bricks), so inputs larger than RAM convert; compressed inputs larger than
+/// 256 MiB are first decompressed into a temporary file beside the output. Values
+/// are copied when the output type holds them all; i16 to u16 stores value + 32768
+/// (exact); otherwise (u16/i16/f32 to u8, f32 to u16) they are mapped linearly from
+/// --window (default: the input's own min..max) onto the output's full range.
+/// Examples:
 ///
 ///   volgen convert ct.raw --raw 512x512x300 --raw-type i16 --window -1000:2000 -o ct.vol
+///
+///   volgen convert lung1_image.nrrd -o lung1.vol
+///
+///   volgen convert ch2.nii.gz --layout linear -o ch2.vol
 ///
 ///   volgen convert shapes.vol --layout linear -o shapes-linear.vol
 #[derive(Args, Debug)]
 pub struct ConvertArgs {
-    /// Input file: a .vol file, or a headerless raw file when --raw is given.
+    /// Input: .vol, .nrrd/.nhdr, .nii/.nii.gz/.hdr, .mha/.mhd, a DICOM series folder
+    /// (or .dcm file), or a headerless raw file when --raw is given.
     #[arg(value_name = "IN")]
     input: PathBuf,
     /// Output .vol file.
@@ -95,7 +110,21 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
                 order: a.raw_order.into(),
             },
         )?,
-        None => Input::open_vol(&a.input)?,
+        None => match import::detect(&a.input) {
+            Some(_) => {
+                let imported = import::open(&a.input)?;
+                if !a.quiet {
+                    eprintln!("{}", describe_import(&imported));
+                }
+                let scratch = a
+                    .output
+                    .parent()
+                    .filter(|p| !p.as_os_str().is_empty())
+                    .unwrap_or(Path::new("."));
+                imported.input(Some(scratch), import::DECOMPRESS_IN_MEMORY_MAX)?
+            }
+            None => Input::open_vol(&a.input)?,
+        },
     };
     let input_layout = input.header().map(|h| h.layout);
     let layout = match (a.layout, a.brick) {
@@ -132,9 +161,10 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
     let done = convert(&input, &a.output, &options, &write, &job)?;
     bar.finish_and_clear();
     if !a.quiet {
-        let window = match done.window {
-            Some((lo, hi)) => format!(", values {lo}..={hi} mapped to the full range"),
-            None => ", values copied".to_string(),
+        let window = match done.values {
+            ValueMap::Window(lo, hi) => format!(", values {lo}..={hi} mapped to the full range"),
+            ValueMap::Offset => ", i16 values stored as value + 32768".to_string(),
+            ValueMap::Copy => ", values copied".to_string(),
         };
         println!(
             "wrote {}: {} {}, {} bytes in {:.2} s{window}",
@@ -146,4 +176,26 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// One line on what a foreign file holds.
+fn describe_import(i: &Imported) -> String {
+    let ty = match i.sample {
+        RawType::U8 => "u8",
+        RawType::U16 => "u16",
+        RawType::I16 => "i16",
+        RawType::F32 => "f32",
+    };
+    let [sx, sy, sz] = i.spacing;
+    let mut line = format!(
+        "{}: {} {} {ty}, spacing {sx} x {sy} x {sz}, {:?} data",
+        i.path.display(),
+        i.format.name(),
+        describe_size(i.dims),
+        i.encoding,
+    );
+    if let Some((slope, inter)) = i.scaling {
+        line += &format!(" (declares value = {slope} * stored + {inter}; stored values are kept)");
+    }
+    line
 }

@@ -316,3 +316,68 @@ fn outputs_get_the_usual_file_mode_not_the_temp_file_mode() {
         assert_eq!(mode & 0o777, 0o666 & !umask, "{name}");
     }
 }
+
+fn fixture(name: &str) -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../volumes/fixtures")
+        .join(name)
+}
+
+#[test]
+fn converts_nrrd_nifti_and_metaimage_keeping_spacing() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for (name, kept) in [
+        ("i16_gzip.nrrd", "i16 values stored as value + 32768"),
+        ("u16_detached.nhdr", "values copied"),
+        ("u8.nii", "values copied"),
+        ("f32.nii.gz", "values -0.875..=7.125 mapped"),
+        ("u16_zlib.mha", "values copied"),
+        ("i16.mhd", "i16 values stored"),
+    ] {
+        let input = fixture(name);
+        let o = volgen(
+            d,
+            &[
+                "convert",
+                input.to_str().unwrap(),
+                "-o",
+                "out.vol",
+                "--force",
+            ],
+        );
+        assert!(o.status.success(), "{name}: {}", stderr(&o));
+        assert!(
+            stdout(&o).contains("wrote out.vol: 6x5x4"),
+            "{}",
+            stdout(&o)
+        );
+        assert!(stdout(&o).contains(kept), "{name}: {}", stdout(&o));
+        assert!(
+            stderr(&o).contains("spacing 0.5 x 0.75 x 2"),
+            "{}",
+            stderr(&o)
+        );
+        let info = stdout(&volgen(d, &["info", "out.vol"]));
+        assert!(
+            info.contains("spacing     0.5 x 0.75 x 2"),
+            "{name}: {info}"
+        );
+    }
+}
+
+#[test]
+fn a_truncated_compressed_input_fails_cleanly_without_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let bytes = std::fs::read(fixture("i16.nii.gz")).unwrap();
+    std::fs::write(d.join("cut.nii.gz"), &bytes[..bytes.len() - 30]).unwrap();
+    let o = volgen(d, &["convert", "cut.nii.gz", "-o", "cut.vol"]);
+    assert!(!o.status.success());
+    let err = stderr(&o);
+    assert!(
+        err.contains("cut.nii.gz") && err.contains("truncated or corrupt"),
+        "{err}"
+    );
+    assert_eq!(files_in(d), ["cut.nii.gz"]);
+}

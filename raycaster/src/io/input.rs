@@ -68,17 +68,64 @@ enum Source {
     Vol(Header),
 }
 
+/// Where an input's bytes are: an open file (read with positioned reads) or a buffer
+/// (a decompressed stream).
+#[derive(Debug)]
+pub enum RawData {
+    /// A file, read with positioned reads.
+    File(File),
+    /// Bytes in memory.
+    Memory(Vec<u8>),
+}
+
+impl RawData {
+    fn len(&self) -> std::io::Result<u64> {
+        match self {
+            RawData::File(f) => Ok(f.metadata()?.len()),
+            RawData::Memory(b) => Ok(b.len() as u64),
+        }
+    }
+
+    fn read_exact_at(&self, buf: &mut [u8], offset: u64) -> std::io::Result<()> {
+        match self {
+            RawData::File(f) => f.read_exact_at(buf, offset),
+            RawData::Memory(bytes) => {
+                let src = usize::try_from(offset)
+                    .ok()
+                    .and_then(|o| bytes.get(o..)?.get(..buf.len()))
+                    .ok_or(std::io::ErrorKind::UnexpectedEof)?;
+                buf.copy_from_slice(src);
+                Ok(())
+            }
+        }
+    }
+}
+
 /// A volume being read slab by slab (runs of whole x-planes).
 #[derive(Debug)]
 pub struct Input {
     path: PathBuf,
-    file: File,
+    file: RawData,
     source: Source,
+    spacing: Option<[f32; 3]>,
 }
 
 impl Input {
     /// Opens a headerless raw file described by `spec`; its size must match exactly.
     pub fn open_raw(path: &Path, spec: RawSpec) -> Result<Input, VolumeError> {
+        let file = File::open(path).at(path)?;
+        Self::from_raw_data(path, RawData::File(file), spec, None)
+    }
+
+    /// Reads raw samples described by `spec` from `data` (a file or a buffer), whose
+    /// length must be exactly `spec.skip` plus the samples; `path` names the input in
+    /// errors and `spacing` is the voxel spacing the input declares, if any.
+    pub fn from_raw_data(
+        path: &Path,
+        data: RawData,
+        spec: RawSpec,
+        spacing: Option<[f32; 3]>,
+    ) -> Result<Input, VolumeError> {
         let bad = |msg: String| VolumeError::new(path, VolumeErrorKind::RawSpec(msg));
         for (axis, &d) in ['x', 'y', 'z'].iter().zip(&spec.dims) {
             if d == 0 || d > MAX_AXIS {
@@ -87,8 +134,8 @@ impl Input {
                 )));
             }
         }
-        let file = File::open(path).at(path)?;
-        let len = file.metadata().at(path)?.len();
+        let file = data;
+        let len = file.len().at(path)?;
         let needed = spec
             .dims
             .iter()
@@ -109,6 +156,7 @@ impl Input {
             path: path.to_path_buf(),
             file,
             source: Source::Raw(spec),
+            spacing,
         })
     }
 
@@ -117,8 +165,9 @@ impl Input {
         let (header, file, _) = read_header(path)?;
         Ok(Input {
             path: path.to_path_buf(),
-            file,
+            file: RawData::File(file),
             source: Source::Vol(header),
+            spacing: None,
         })
     }
 
@@ -133,6 +182,12 @@ impl Input {
             Source::Raw(spec) => spec.dims,
             Source::Vol(h) => h.dims,
         }
+    }
+
+    /// Voxel spacing: a `.vol` input's, or what a foreign file declared; `None` for
+    /// headerless raw files.
+    pub fn spacing(&self) -> Option<[f32; 3]> {
+        self.header().map(|h| h.spacing).or(self.spacing)
     }
 
     /// The header of a `.vol` input.

@@ -10,5 +10,5 @@ mod input;
 mod writer;
 
 pub use decode::{Endian, RawType};
-pub use input::{Input, InputType, RawOrder, RawSpec};
+pub use input::{Input, InputType, RawData, RawOrder, RawSpec};
 pub use writer::{WriteOptions, WriteSummary, write_volume};

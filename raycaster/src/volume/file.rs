@@ -147,6 +147,49 @@ impl Volume {
         })
     }
 
+    /// Builds a volume in RAM from a header whose samples `fill` writes in file order
+    /// into the buffer it is given (no intermediate copy), as if read from `name`.
+    ///
+    /// The header's sample type must be `T`'s; its range table offset is ignored.
+    pub fn from_fill<T: Sample>(
+        name: impl Into<PathBuf>,
+        header: &Header,
+        fill: impl FnOnce(&mut [T]) -> Result<(), VolumeError>,
+    ) -> Result<Volume, VolumeError> {
+        let path = name.into();
+        let mut header = header.clone();
+        header.ranges_offset = None;
+        if header.sample_type != T::TYPE {
+            let kind = VolumeErrorKind::Header(HeaderError::SampleTypeMismatch {
+                header: header.sample_type,
+                samples: T::TYPE,
+            });
+            return Err(VolumeError::new(&path, kind));
+        }
+        let head = header.encode().at(&path)?;
+        let start = head.len();
+        let len = header.data_end().at(&path)? as usize;
+        let mut words = vec![0u64; len.div_ceil(8)];
+        {
+            let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut words);
+            bytes[..start].copy_from_slice(&head);
+            // u16 samples need the extended header (64 bytes): they stay aligned.
+            let samples = bytemuck::try_cast_slice_mut::<u8, T>(&mut bytes[start..len])
+                .map_err(|_| VolumeError::new(&path, VolumeErrorKind::Misaligned))?;
+            fill(samples)?;
+        }
+        let storage = Storage::Ram { words, len };
+        let header = Header::parse(storage.bytes(), len as u64).at(&path)?;
+        let data = typed_data(&header, storage.bytes()).at(&path)?;
+        let ranges = compute_ranges(&header, data);
+        Ok(Volume {
+            path,
+            header,
+            storage,
+            ranges,
+        })
+    }
+
     /// Scans the samples for the per-brick ranges (what open does without a cache).
     pub fn compute_ranges(&self) -> BrickRanges {
         compute_ranges(&self.header, self.data())

@@ -1,0 +1,561 @@
+//! Importing the volume formats users arrive with: NRRD, NIfTI-1, MetaImage and
+//! DICOM series.
+//!
+//! Each format module parses its header into an [`Imported`] description: sizes,
+//! spacing, sample type and byte order, and where the samples are (a region of a file,
+//! or a gzip/zlib stream). All three formats store the first axis fastest, so the
+//! samples are read as raw x-fastest data through [`crate::io::Input`], and the
+//! existing conversion machinery streams them into a `.vol` file
+//! ([`Imported::input`] + [`crate::convert::convert`]) or into a volume in RAM
+//! ([`open_volume_any`]). `docs/import.md` describes what is kept (axis order,
+//! spacing) and what is ignored (direction cosines, origin, value scaling).
+//!
+//! Headers are parsed by pure functions of their bytes (`parse_header` in each
+//! module), which the fuzz targets and the no-panic tests drive directly.
+
+pub mod dicom;
+pub mod metaimage;
+pub mod nifti;
+pub mod nrrd;
+
+use std::fs::File;
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+
+use crate::convert::{ValueMap, plan_values};
+use crate::io::{Endian, Input, RawData, RawOrder, RawSpec, RawType};
+use crate::job::Job;
+use crate::volume::{
+    Content, Format as VolFormat, Header, Layout, MAX_AXIS, Sample, SampleType, Volume, VolumeError,
+};
+
+/// Default limit of [`open_volume_any`] on the samples built in memory: 1 GiB.
+pub const DEFAULT_IN_MEMORY_LIMIT: u64 = 1 << 30;
+
+/// Compressed streams up to this many decompressed bytes are decompressed into
+/// memory; larger ones into an anonymous temporary file (bounded memory).
+pub const DECOMPRESS_IN_MEMORY_MAX: u64 = 256 << 20;
+
+/// A foreign file format this module reads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ImportFormat {
+    /// NRRD (`.nrrd` with attached data, `.nhdr` with a detached data file).
+    Nrrd,
+    /// NIfTI-1 (`.nii`, `.nii.gz`, or an `.hdr`/`.img` pair).
+    Nifti,
+    /// MetaImage (`.mha` with attached data, `.mhd` with a detached data file).
+    MetaImage,
+    /// A DICOM series: a folder of single-frame slices (or one `.dcm` file of it).
+    Dicom,
+}
+
+impl ImportFormat {
+    /// The format's usual name.
+    pub fn name(self) -> &'static str {
+        match self {
+            ImportFormat::Nrrd => "NRRD",
+            ImportFormat::Nifti => "NIfTI-1",
+            ImportFormat::MetaImage => "MetaImage",
+            ImportFormat::Dicom => "DICOM",
+        }
+    }
+}
+
+/// How the samples are encoded.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Encoding {
+    /// Plain samples.
+    Raw,
+    /// A gzip stream (NRRD `gzip`, `.nii.gz`); concatenated members are read through.
+    Gzip,
+    /// A zlib stream (MetaImage `CompressedData = True`).
+    Zlib,
+    /// One uncompressed slice per file ([`Imported::slices`], DICOM).
+    Slices,
+}
+
+/// A foreign volume file, parsed: what it holds and where its samples are.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Imported {
+    /// The file the user named (the header).
+    pub path: PathBuf,
+    /// Its format.
+    pub format: ImportFormat,
+    /// Voxel counts along the file's axes, fastest first.
+    pub dims: [u32; 3],
+    /// Distance between voxel centres on each axis (positive; 1 where the file says
+    /// nothing).
+    pub spacing: [f32; 3],
+    /// Sample type.
+    pub sample: RawType,
+    /// Byte order of multi-byte samples.
+    pub endian: Endian,
+    /// The file holding the samples (the header itself for attached data).
+    pub data_path: PathBuf,
+    /// Byte offset of the samples in `data_path` (of the compressed stream when
+    /// compressed).
+    pub data_offset: u64,
+    /// Bytes to skip after decompression (NRRD `byte skip` of compressed data).
+    pub skip_after_decode: u64,
+    /// Raw or compressed.
+    pub encoding: Encoding,
+    /// The linear value scaling the file declares (`value = slope · stored +
+    /// intercept`), reported but not applied.
+    pub scaling: Option<(f32, f32)>,
+    /// For [`Encoding::Slices`]: each z-slice's file and the offset of its samples,
+    /// in z order.
+    pub slices: Vec<(PathBuf, u64)>,
+}
+
+/// An error about one foreign file.
+#[derive(Debug, thiserror::Error)]
+#[error("{}: {kind}", path.display())]
+pub struct ImportError {
+    /// The file concerned.
+    pub path: PathBuf,
+    /// What went wrong.
+    pub kind: ImportErrorKind,
+}
+
+/// What went wrong with a foreign file.
+#[derive(Debug, thiserror::Error)]
+pub enum ImportErrorKind {
+    /// The operating system refused or failed an operation.
+    #[error("{0}")]
+    Io(#[from] std::io::Error),
+    /// The header is malformed.
+    #[error("invalid {format} header: {message}")]
+    Header {
+        /// The format being parsed.
+        format: &'static str,
+        /// What is wrong, naming the field.
+        message: String,
+    },
+    /// A valid file using a feature this reader does not support.
+    #[error("unsupported {format} file: {message}")]
+    Unsupported {
+        /// The format being parsed.
+        format: &'static str,
+        /// What is not supported.
+        message: String,
+    },
+    /// The data is shorter or longer than the header says.
+    #[error("{what} holds {actual} bytes of samples but the header needs {expected}")]
+    WrongDataSize {
+        /// Which data (the file or the decompressed stream).
+        what: &'static str,
+        /// Bytes the header needs.
+        expected: u64,
+        /// Bytes found.
+        actual: u64,
+    },
+    /// The detached data file the header names cannot be opened.
+    #[error("cannot open the data file {}: {source}", file.display())]
+    DataFile {
+        /// The data file.
+        file: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// A gzip or zlib stream is corrupt or ends early.
+    #[error("the compressed data is truncated or corrupt ({0})")]
+    Compressed(std::io::Error),
+    /// The file's extension and first bytes match no known format.
+    #[error(
+        "not a known volume format (expected .vol, .nrrd, .nhdr, .nii, .nii.gz, .hdr, .mha, .mhd, or a DICOM folder or .dcm file)"
+    )]
+    UnknownFormat,
+    /// The volume is too large to be built in memory.
+    #[error(
+        "{samples} bytes of samples exceed the {limit}-byte limit for opening foreign files in memory; \
+         convert it first: volgen convert {file} -o {stem}.vol"
+    )]
+    TooLargeForMemory {
+        /// Bytes of samples the volume needs.
+        samples: u64,
+        /// The limit.
+        limit: u64,
+        /// The file, for the hint.
+        file: String,
+        /// Suggested output name, for the hint.
+        stem: String,
+    },
+    /// Reading samples or building the volume failed.
+    #[error("{0}")]
+    Volume(#[from] VolumeError),
+}
+
+impl ImportError {
+    /// An error about `path`.
+    pub fn new(path: &Path, kind: impl Into<ImportErrorKind>) -> Self {
+        ImportError {
+            path: path.to_path_buf(),
+            kind: kind.into(),
+        }
+    }
+}
+
+/// A header problem of `format`, for the parsers.
+pub(crate) fn header_error(format: ImportFormat, message: impl Into<String>) -> ImportErrorKind {
+    ImportErrorKind::Header {
+        format: format.name(),
+        message: message.into(),
+    }
+}
+
+/// An unsupported feature of `format`, for the parsers.
+pub(crate) fn unsupported(format: ImportFormat, message: impl Into<String>) -> ImportErrorKind {
+    ImportErrorKind::Unsupported {
+        format: format.name(),
+        message: message.into(),
+    }
+}
+
+/// Checks sizes parsed from a header: 1..=[`MAX_AXIS`] each.
+pub(crate) fn check_dims(format: ImportFormat, dims: &[u64]) -> Result<[u32; 3], ImportErrorKind> {
+    let mut out = [1u32; 3];
+    for (i, &d) in dims.iter().enumerate() {
+        if d == 0 || d > u64::from(MAX_AXIS) {
+            return Err(header_error(
+                format,
+                format!("size {d} on axis {i} is outside 1..={MAX_AXIS}"),
+            ));
+        }
+        out[i] = d as u32;
+    }
+    Ok(out)
+}
+
+/// Checks one spacing value: finite and non-zero; its magnitude is kept (a negative
+/// spacing only says the axis points the other way, which we do not apply).
+pub(crate) fn check_spacing(
+    format: ImportFormat,
+    axis: usize,
+    s: f64,
+) -> Result<f32, ImportErrorKind> {
+    let a = s.abs() as f32;
+    if a.is_finite() && a > 0.0 {
+        Ok(a)
+    } else {
+        Err(header_error(
+            format,
+            format!("spacing {s} on axis {axis} must be a finite non-zero number"),
+        ))
+    }
+}
+
+/// Which format `path` is, by extension, then by its first bytes; `None` for `.vol`
+/// files and anything unknown. A folder is taken for a DICOM series.
+pub fn detect(path: &Path) -> Option<ImportFormat> {
+    if path.is_dir() {
+        return Some(ImportFormat::Dicom);
+    }
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    let by_ext = [
+        (".nrrd", ImportFormat::Nrrd),
+        (".nhdr", ImportFormat::Nrrd),
+        (".nii", ImportFormat::Nifti),
+        (".nii.gz", ImportFormat::Nifti),
+        (".hdr", ImportFormat::Nifti),
+        (".mha", ImportFormat::MetaImage),
+        (".mhd", ImportFormat::MetaImage),
+        (".dcm", ImportFormat::Dicom),
+    ];
+    if let Some((_, f)) = by_ext.iter().find(|(ext, _)| name.ends_with(ext)) {
+        return Some(*f);
+    }
+    if name.ends_with(".vol") {
+        return None;
+    }
+    let mut head = [0u8; 348];
+    let n = File::open(path)
+        .and_then(|f| f.take(348).read(&mut head))
+        .unwrap_or(0);
+    let head = &head[..n];
+    if head.starts_with(b"NRRD000") {
+        Some(ImportFormat::Nrrd)
+    } else if head.len() == 348 && nifti::parse_header(head).is_ok() {
+        Some(ImportFormat::Nifti)
+    } else if metaimage::parse_header(head).is_ok() {
+        Some(ImportFormat::MetaImage)
+    } else if head.len() >= 132 && &head[128..132] == b"DICM" {
+        Some(ImportFormat::Dicom)
+    } else {
+        None
+    }
+}
+
+/// Parses the foreign file at `path` (any supported format).
+pub fn open(path: &Path) -> Result<Imported, ImportError> {
+    match detect(path) {
+        Some(ImportFormat::Nrrd) => nrrd::open(path),
+        Some(ImportFormat::Nifti) => nifti::open(path),
+        Some(ImportFormat::MetaImage) => metaimage::open(path),
+        Some(ImportFormat::Dicom) => dicom::open(path),
+        None => Err(ImportError::new(path, ImportErrorKind::UnknownFormat)),
+    }
+}
+
+impl Imported {
+    /// Number of voxels.
+    pub fn voxels(&self) -> u64 {
+        self.dims.iter().map(|&d| u64::from(d)).product()
+    }
+
+    /// Bytes of samples the file holds (decompressed).
+    pub fn sample_bytes(&self) -> u64 {
+        self.voxels() * self.sample.size() as u64
+    }
+
+    /// The sample type a `.vol` stores this file's values in by default (u8 stays u8;
+    /// u16, i16 and f32 become u16).
+    pub fn default_sample_type(&self) -> SampleType {
+        match self.sample {
+            RawType::U8 => SampleType::U8,
+            _ => SampleType::U16,
+        }
+    }
+
+    /// The samples as a slab-wise [`Input`]. Uncompressed data is read in place with
+    /// positioned reads; compressed data is decompressed first, into memory when it
+    /// is at most `memory_max` bytes, otherwise into an anonymous temporary file in
+    /// `scratch_dir` (default: the system's temporary directory).
+    pub fn input(&self, scratch_dir: Option<&Path>, memory_max: u64) -> Result<Input, ImportError> {
+        let spec = RawSpec {
+            dims: self.dims,
+            sample: self.sample,
+            endian: self.endian,
+            skip: 0,
+            order: RawOrder::XFastest,
+        };
+        let at_data = |e: std::io::Error| ImportError::new(&self.data_path, e);
+        if self.encoding == Encoding::Slices {
+            let data = self.gather_slices(scratch_dir, memory_max)?;
+            return Input::from_raw_data(&self.path, data, spec, Some(self.spacing))
+                .map_err(|e| ImportError::new(&self.path, e));
+        }
+        let file = File::open(&self.data_path).map_err(|source| {
+            let file = self.data_path.clone();
+            ImportError::new(&self.path, ImportErrorKind::DataFile { file, source })
+        })?;
+        let data = match self.encoding {
+            Encoding::Raw => {
+                let len = file.metadata().map_err(at_data)?.len();
+                let actual = len.saturating_sub(self.data_offset);
+                if actual != self.sample_bytes() {
+                    return Err(ImportError::new(
+                        &self.data_path,
+                        ImportErrorKind::WrongDataSize {
+                            what: "the data file",
+                            expected: self.sample_bytes(),
+                            actual,
+                        },
+                    ));
+                }
+                let spec = RawSpec {
+                    skip: self.data_offset,
+                    ..spec
+                };
+                return Input::from_raw_data(
+                    &self.path,
+                    RawData::File(file),
+                    spec,
+                    Some(self.spacing),
+                )
+                .map_err(|e| ImportError::new(&self.path, e));
+            }
+            _ => self.decompress(file, scratch_dir, memory_max)?,
+        };
+        Input::from_raw_data(&self.path, data, spec, Some(self.spacing))
+            .map_err(|e| ImportError::new(&self.path, e))
+    }
+
+    /// Decompresses the stream after `data_offset`, drops `skip_after_decode` bytes
+    /// and checks that exactly the samples remain.
+    fn decompress(
+        &self,
+        mut file: File,
+        scratch_dir: Option<&Path>,
+        memory_max: u64,
+    ) -> Result<RawData, ImportError> {
+        use std::io::{Seek, SeekFrom};
+        let at_data = |e: std::io::Error| ImportError::new(&self.data_path, e);
+        file.seek(SeekFrom::Start(self.data_offset))
+            .map_err(at_data)?;
+        let reader = std::io::BufReader::with_capacity(1 << 20, file);
+        let mut stream: Box<dyn Read> = match self.encoding {
+            Encoding::Gzip => Box::new(flate2::read::MultiGzDecoder::new(reader)),
+            _ => Box::new(flate2::read::ZlibDecoder::new(reader)),
+        };
+        let compressed =
+            |e: std::io::Error| ImportError::new(&self.data_path, ImportErrorKind::Compressed(e));
+        let skipped = std::io::copy(
+            &mut (&mut stream).take(self.skip_after_decode),
+            &mut std::io::sink(),
+        )
+        .map_err(compressed)?;
+        let expected = self.sample_bytes();
+        let (data, got) = self.collect(&mut stream, scratch_dir, memory_max, &compressed)?;
+        if skipped < self.skip_after_decode || got != expected {
+            return Err(ImportError::new(
+                &self.data_path,
+                ImportErrorKind::WrongDataSize {
+                    what: "the decompressed stream",
+                    expected,
+                    actual: if skipped < self.skip_after_decode {
+                        0
+                    } else {
+                        got
+                    },
+                },
+            ));
+        }
+        Ok(data)
+    }
+
+    /// Reads up to one byte more than the samples from `stream` into memory (at most
+    /// `memory_max` bytes) or an anonymous temporary file; returns the bytes read.
+    fn collect(
+        &self,
+        stream: &mut dyn Read,
+        scratch_dir: Option<&Path>,
+        memory_max: u64,
+        read_error: &dyn Fn(std::io::Error) -> ImportError,
+    ) -> Result<(RawData, u64), ImportError> {
+        let expected = self.sample_bytes();
+        // One byte more than needed: a longer stream is an error too.
+        let mut limited = stream.take(expected + 1);
+        if expected <= memory_max {
+            let mut buf = Vec::with_capacity(expected as usize);
+            limited.read_to_end(&mut buf).map_err(read_error)?;
+            let got = buf.len() as u64;
+            Ok((RawData::Memory(buf), got))
+        } else {
+            let dir = scratch_dir.map_or_else(std::env::temp_dir, Path::to_path_buf);
+            let mut tmp = tempfile::tempfile_in(&dir).map_err(|e| ImportError::new(&dir, e))?;
+            let got = std::io::copy(&mut limited, &mut tmp).map_err(read_error)?;
+            tmp.flush().map_err(|e| ImportError::new(&dir, e))?;
+            Ok((RawData::File(tmp), got))
+        }
+    }
+
+    /// Concatenates the slices' samples (each checked to be whole).
+    fn gather_slices(
+        &self,
+        scratch_dir: Option<&Path>,
+        memory_max: u64,
+    ) -> Result<RawData, ImportError> {
+        use std::io::{Seek, SeekFrom};
+        let per_slice = self.sample_bytes() / self.slices.len().max(1) as u64;
+        let mut readers: Vec<std::io::Take<File>> = Vec::with_capacity(self.slices.len());
+        for (path, offset) in &self.slices {
+            let at = |e: std::io::Error| ImportError::new(path, e);
+            let mut f = File::open(path).map_err(at)?;
+            let len = f.metadata().map_err(at)?.len();
+            if len.saturating_sub(*offset) < per_slice {
+                return Err(ImportError::new(
+                    path,
+                    ImportErrorKind::WrongDataSize {
+                        what: "the slice",
+                        expected: per_slice,
+                        actual: len.saturating_sub(*offset),
+                    },
+                ));
+            }
+            f.seek(SeekFrom::Start(*offset)).map_err(at)?;
+            readers.push(f.take(per_slice));
+        }
+        let mut chained: Box<dyn Read> = Box::new(std::io::empty());
+        for r in readers {
+            chained = Box::new(chained.chain(r));
+        }
+        let read_error = |e: std::io::Error| ImportError::new(&self.path, e);
+        let (data, got) = self.collect(&mut chained, scratch_dir, memory_max, &read_error)?;
+        if got != self.sample_bytes() {
+            return Err(ImportError::new(
+                &self.path,
+                ImportErrorKind::WrongDataSize {
+                    what: "the series",
+                    expected: self.sample_bytes(),
+                    actual: got,
+                },
+            ));
+        }
+        Ok(data)
+    }
+}
+
+/// Opens any volume file: a `.vol` file is mapped as usual; a foreign file (NRRD,
+/// NIfTI-1, MetaImage) is converted into a linear volume in RAM when its stored
+/// samples take at most `limit` bytes, and otherwise refused with an error that
+/// says how to convert it with `volgen convert`.
+///
+/// Values are stored as [`crate::convert::plan_values`] chooses for a conversion
+/// without options (u8 and u16 copied, i16 offset by 32768, f32 mapped from its
+/// min..max onto u16).
+pub fn open_volume_any(path: &Path, limit: u64) -> Result<Volume, ImportError> {
+    let Some(_) = detect(path) else {
+        return Volume::open(path).map_err(|e| ImportError::new(path, e));
+    };
+    let imported = open(path)?;
+    imported.to_volume(limit)
+}
+
+impl Imported {
+    /// Builds the volume in RAM (linear layout), refusing volumes whose stored
+    /// samples exceed `limit` bytes.
+    pub fn to_volume(&self, limit: u64) -> Result<Volume, ImportError> {
+        let sample_type = self.default_sample_type();
+        let samples = self.voxels() * sample_type.size();
+        if samples > limit {
+            let file = self.path.display().to_string();
+            let stem = self
+                .path
+                .file_name()
+                .map(|n| n.to_string_lossy().to_string())
+                .unwrap_or_default();
+            let stem = stem.split('.').next().unwrap_or("volume").to_string();
+            return Err(ImportError::new(
+                &self.path,
+                ImportErrorKind::TooLargeForMemory {
+                    samples,
+                    limit,
+                    file,
+                    stem,
+                },
+            ));
+        }
+        let input = self.input(None, u64::MAX)?;
+        let job = Job::silent();
+        let (sample_type, values) = plan_values(&input, Some(sample_type), None, &job)
+            .map_err(|e| ImportError::new(&self.path, e))?;
+        let header = Header::new(
+            self.dims,
+            self.spacing,
+            Layout::Linear,
+            sample_type,
+            Content::Scalar,
+            VolFormat::Extended,
+        );
+        let volume = match sample_type {
+            SampleType::U8 => build::<u8>(&input, &header, values),
+            SampleType::U16 => build::<u16>(&input, &header, values),
+        };
+        volume.map_err(|e| ImportError::new(&self.path, e))
+    }
+}
+
+fn build<T: Sample>(
+    input: &Input,
+    header: &Header,
+    values: ValueMap,
+) -> Result<Volume, VolumeError> {
+    let map = values.to_sample::<T>();
+    let dx = header.dims[0];
+    Volume::from_fill::<T>(input.path(), header, |samples| {
+        input.read_slab(0, dx, &map, samples)
+    })
+}

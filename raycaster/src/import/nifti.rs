@@ -1,0 +1,356 @@
+//! NIfTI-1 (`.nii`, `.nii.gz`, and `.hdr` + `.img` pairs): a fixed 348-byte binary
+//! header.
+//!
+//! Read by hand rather than with the `nifti` crate: that crate loads whole volumes
+//! into `ndarray`s, while conversion here must stream in bounded memory, which needs
+//! only the few fields below. Supported: either byte order (detected from
+//! `sizeof_hdr`), magic `n+1` (single file, data at `vox_offset`) and `ni1` (pair),
+//! `dim[0]` 3 (or 4..7 with every extra dimension 1), datatypes 2 (u8), 4 (i16),
+//! 512 (u16) and 16 (f32), spacing from `pixdim[1..=3]`. `scl_slope`/`scl_inter` are
+//! reported but not applied; qform/sform orientation is not applied (see
+//! `docs/import.md`). NIfTI-2 files are refused with a clear message.
+
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+use super::{
+    Encoding, ImportError, ImportErrorKind, ImportFormat, Imported, check_dims, check_spacing,
+    header_error, unsupported,
+};
+use crate::io::{Endian, RawType};
+
+const F: ImportFormat = ImportFormat::Nifti;
+
+/// Length of the NIfTI-1 header.
+pub const HEADER_LEN: usize = 348;
+
+/// The fields of a NIfTI-1 header this reader uses.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NiftiHeader {
+    /// `dim[1..=3]`.
+    pub dims: [u32; 3],
+    /// `|pixdim[1..=3]|`.
+    pub spacing: [f32; 3],
+    /// From `datatype`.
+    pub sample: RawType,
+    /// Byte order of the header and the data.
+    pub endian: Endian,
+    /// `vox_offset`: where the data starts (in the `.nii`, or in the `.img` of a pair).
+    pub vox_offset: u64,
+    /// Whether this is a single file (`n+1`) rather than a pair (`ni1`).
+    pub single_file: bool,
+    /// `(scl_slope, scl_inter)` when the slope is set and not the identity.
+    pub scaling: Option<(f32, f32)>,
+}
+
+/// Parses a NIfTI-1 header from the first bytes of a (decompressed) file.
+/// A pure function of the bytes: it never panics, whatever they hold.
+pub fn parse_header(bytes: &[u8]) -> Result<NiftiHeader, ImportErrorKind> {
+    if bytes.len() < HEADER_LEN {
+        return Err(header_error(
+            F,
+            format!(
+                "the header needs {HEADER_LEN} bytes but the file has {}",
+                bytes.len()
+            ),
+        ));
+    }
+    let b = |o: usize, n: usize| &bytes[o..o + n];
+    let le = i32::from_le_bytes(b(0, 4).try_into().unwrap_or_default());
+    let be = i32::from_be_bytes(b(0, 4).try_into().unwrap_or_default());
+    let endian = match (le, be) {
+        (348, _) => Endian::Little,
+        (_, 348) => Endian::Big,
+        (540, _) | (_, 540) => {
+            return Err(unsupported(
+                F,
+                "NIfTI-2 (540-byte header); only NIfTI-1 is read",
+            ));
+        }
+        _ => {
+            return Err(header_error(
+                F,
+                format!("sizeof_hdr is {le}, not 348: not a NIfTI-1 file"),
+            ));
+        }
+    };
+    let big = endian == Endian::Big;
+    let i16_at = |o: usize| {
+        let a = [bytes[o], bytes[o + 1]];
+        if big {
+            i16::from_be_bytes(a)
+        } else {
+            i16::from_le_bytes(a)
+        }
+    };
+    let f32_at = |o: usize| {
+        let a = [bytes[o], bytes[o + 1], bytes[o + 2], bytes[o + 3]];
+        if big {
+            f32::from_be_bytes(a)
+        } else {
+            f32::from_le_bytes(a)
+        }
+    };
+    let single_file = match b(344, 4) {
+        b"n+1\0" => true,
+        b"ni1\0" => false,
+        m => {
+            return Err(header_error(
+                F,
+                format!(
+                    "magic {:?} is neither \"n+1\" nor \"ni1\" (ANALYZE 7.5 files are not read)",
+                    String::from_utf8_lossy(m)
+                ),
+            ));
+        }
+    };
+    let dim: Vec<i16> = (0..8).map(|i| i16_at(40 + 2 * i)).collect();
+    let ndim = dim[0];
+    if !(1..=7).contains(&ndim) {
+        return Err(header_error(F, format!("dim[0] = {ndim} is outside 1..=7")));
+    }
+    if ndim < 3 {
+        return Err(unsupported(
+            F,
+            format!("{ndim}-dimensional images (3D volumes are read)"),
+        ));
+    }
+    if let Some(extra) = dim[4..=ndim as usize].iter().find(|&&d| d != 1) {
+        return Err(unsupported(
+            F,
+            format!(
+                "a {ndim}-dimensional image with {extra} entries beyond the third dimension (one 3D volume is read)"
+            ),
+        ));
+    }
+    let sizes: Vec<u64> = dim[1..=3]
+        .iter()
+        .map(|&d| if d < 0 { 0 } else { d as u64 })
+        .collect();
+    let dims = check_dims(F, &sizes)?;
+    let datatype = i16_at(70);
+    let sample = match datatype {
+        2 => RawType::U8,
+        4 => RawType::I16,
+        512 => RawType::U16,
+        16 => RawType::F32,
+        other => {
+            let name = match other {
+                1 => "binary",
+                8 => "int32",
+                32 => "complex64",
+                64 => "float64",
+                128 => "rgb24",
+                256 => "int8",
+                768 => "uint32",
+                1024 => "int64",
+                1280 => "uint64",
+                2304 => "rgba32",
+                _ => "unknown",
+            };
+            return Err(unsupported(
+                F,
+                format!(
+                    "datatype {other} ({name}); supported: 2 (uint8), 4 (int16), 512 (uint16), 16 (float32)"
+                ),
+            ));
+        }
+    };
+    let mut spacing = [1f32; 3];
+    for (axis, s) in spacing.iter_mut().enumerate() {
+        let v = f32_at(76 + 4 * (axis + 1));
+        // Writers leave 0 where they have no spacing; treat it as 1.
+        *s = if v == 0.0 {
+            1.0
+        } else {
+            check_spacing(F, axis, f64::from(v))?
+        };
+    }
+    let vox_offset = f32_at(108);
+    if !(vox_offset.is_finite()
+        && vox_offset >= 0.0
+        && vox_offset.fract() == 0.0
+        && vox_offset < 1e12)
+    {
+        return Err(header_error(
+            F,
+            format!("vox_offset {vox_offset} is not a byte offset"),
+        ));
+    }
+    let vox_offset = vox_offset as u64;
+    if single_file && vox_offset < HEADER_LEN as u64 {
+        return Err(header_error(
+            F,
+            format!("vox_offset {vox_offset} lies inside the 348-byte header"),
+        ));
+    }
+    let (slope, inter) = (f32_at(112), f32_at(116));
+    let scaling = (slope.is_finite() && slope != 0.0 && (slope != 1.0 || inter != 0.0))
+        .then_some((slope, inter));
+    Ok(NiftiHeader {
+        dims,
+        spacing,
+        sample,
+        endian,
+        vox_offset,
+        single_file,
+        scaling,
+    })
+}
+
+/// Whether `path` names a gzip-compressed file (by its first two bytes).
+fn is_gzip(path: &Path) -> std::io::Result<bool> {
+    let mut magic = [0u8; 2];
+    let n = std::fs::File::open(path)?.take(2).read(&mut magic)?;
+    Ok(n == 2 && magic == [0x1f, 0x8b])
+}
+
+/// Parses the NIfTI-1 file at `path` (`.nii`, `.nii.gz`, or the `.hdr` of a pair).
+pub fn open(path: &Path) -> Result<Imported, ImportError> {
+    let at = |e: ImportErrorKind| ImportError::new(path, e);
+    let gz = is_gzip(path).map_err(|e| at(e.into()))?;
+    let file = std::fs::File::open(path).map_err(|e| at(e.into()))?;
+    let mut head = Vec::with_capacity(HEADER_LEN);
+    let read = if gz {
+        flate2::read::MultiGzDecoder::new(file)
+            .take(HEADER_LEN as u64)
+            .read_to_end(&mut head)
+            .map_err(|e| at(ImportErrorKind::Compressed(e)))
+    } else {
+        file.take(HEADER_LEN as u64)
+            .read_to_end(&mut head)
+            .map_err(|e| at(e.into()))
+    };
+    read?;
+    let h = parse_header(&head).map_err(at)?;
+    let data_path = if h.single_file {
+        path.to_path_buf()
+    } else {
+        image_path(path)
+    };
+    let encoding = if !h.single_file {
+        if is_gzip(&data_path).map_err(|e| ImportError::new(&data_path, e))? {
+            Encoding::Gzip
+        } else {
+            Encoding::Raw
+        }
+    } else if gz {
+        Encoding::Gzip
+    } else {
+        Encoding::Raw
+    };
+    let (data_offset, skip_after_decode) = match encoding {
+        Encoding::Raw => (h.vox_offset, 0),
+        _ => (0, h.vox_offset),
+    };
+    Ok(Imported {
+        path: path.to_path_buf(),
+        format: F,
+        dims: h.dims,
+        spacing: h.spacing,
+        sample: h.sample,
+        endian: h.endian,
+        data_path,
+        data_offset,
+        skip_after_decode,
+        encoding,
+        scaling: h.scaling,
+        slices: Vec::new(),
+    })
+}
+
+/// The `.img` beside a `.hdr` (`.img.gz` when only that exists).
+fn image_path(hdr: &Path) -> PathBuf {
+    let name = hdr
+        .file_name()
+        .map(|n| n.to_string_lossy().to_string())
+        .unwrap_or_default();
+    let stem = name
+        .strip_suffix(".gz")
+        .unwrap_or(&name)
+        .trim_end_matches(".hdr")
+        .trim_end_matches(".HDR")
+        .to_string();
+    let img = hdr.with_file_name(format!("{stem}.img"));
+    let img_gz = hdr.with_file_name(format!("{stem}.img.gz"));
+    if !img.exists() && img_gz.exists() {
+        img_gz
+    } else {
+        img
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    pub(crate) fn header(datatype: i16, dims: [i16; 3], pixdim: [f32; 3]) -> Vec<u8> {
+        let mut h = vec![0u8; 352];
+        h[0..4].copy_from_slice(&348i32.to_le_bytes());
+        let dim = [3, dims[0], dims[1], dims[2], 1, 1, 1, 1];
+        for (i, d) in dim.iter().enumerate() {
+            h[40 + 2 * i..42 + 2 * i].copy_from_slice(&d.to_le_bytes());
+        }
+        h[70..72].copy_from_slice(&datatype.to_le_bytes());
+        for (i, p) in [1.0, pixdim[0], pixdim[1], pixdim[2]].iter().enumerate() {
+            h[76 + 4 * i..80 + 4 * i].copy_from_slice(&p.to_le_bytes());
+        }
+        h[108..112].copy_from_slice(&352f32.to_le_bytes());
+        h[344..348].copy_from_slice(b"n+1\0");
+        h
+    }
+
+    #[test]
+    fn parses_either_byte_order() {
+        let h = parse_header(&header(4, [3, 4, 5], [0.5, 1.0, 2.0])).unwrap();
+        assert_eq!(h.dims, [3, 4, 5]);
+        assert_eq!(h.spacing, [0.5, 1.0, 2.0]);
+        assert_eq!(h.sample, RawType::I16);
+        assert_eq!(h.vox_offset, 352);
+        assert!(h.single_file);
+        // The same header big-endian: swap every field we read.
+        let mut be = header(4, [3, 4, 5], [0.5, 1.0, 2.0]);
+        for (o, n) in [(0, 4), (70, 2), (108, 4)]
+            .into_iter()
+            .chain((0..8).map(|i| (40 + 2 * i, 2)))
+            .chain((0..8).map(|i| (76 + 4 * i, 4)))
+        {
+            be[o..o + n].reverse();
+        }
+        let hb = parse_header(&be).unwrap();
+        assert_eq!(hb.endian, Endian::Big);
+        assert_eq!(
+            (hb.dims, hb.spacing, hb.sample),
+            (h.dims, h.spacing, h.sample)
+        );
+    }
+
+    #[test]
+    fn rejects_what_it_cannot_read_with_a_reason() {
+        let good = header(2, [3, 4, 5], [1.0; 3]);
+        let mut cases: Vec<(Vec<u8>, &str)> = vec![
+            (header(64, [3, 4, 5], [1.0; 3]), "float64"),
+            (header(2, [3, 0, 5], [1.0; 3]), "size 0"),
+            (header(2, [3, -4, 5], [1.0; 3]), "size 0"),
+            (header(2, [3, 4, 5], [1.0, f32::NAN, 1.0]), "spacing NaN"),
+            (good[..200].to_vec(), "348 bytes"),
+        ];
+        let mut m = good.clone();
+        m[344..348].copy_from_slice(b"abcd");
+        cases.push((m, "magic"));
+        let mut v2 = good.clone();
+        v2[0..4].copy_from_slice(&540i32.to_le_bytes());
+        cases.push((v2, "NIfTI-2"));
+        let mut d4 = good.clone();
+        d4[40..42].copy_from_slice(&4i16.to_le_bytes());
+        d4[48..50].copy_from_slice(&7i16.to_le_bytes());
+        cases.push((d4, "beyond the third"));
+        let mut off = good.clone();
+        off[108..112].copy_from_slice(&100f32.to_le_bytes());
+        cases.push((off, "inside the 348-byte header"));
+        for (bytes, needle) in cases {
+            let err = parse_header(&bytes).unwrap_err().to_string();
+            assert!(err.contains(needle), "{needle}: {err}");
+        }
+    }
+}

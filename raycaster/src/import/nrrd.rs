@@ -1,0 +1,436 @@
+//! NRRD (`.nrrd`, detached `.nhdr`): a text header of `field: value` lines.
+//!
+//! Supported: `NRRD0001`..`NRRD0005` magic, `dimension: 3`, types u8, i16, u16 and
+//! f32 under any of their NRRD spellings, `raw` and `gzip` encodings, `endian`,
+//! `sizes`, `spacings` or `space directions` (spacing = length of each direction
+//! vector), `byte skip` (including `-1` for raw data at the end of the file),
+//! `line skip`, and `data file` naming one detached file (relative to the header's
+//! directory). Key/value pairs (`key:=value`) and comments are skipped; `space
+//! origin` and the directions' orientation are not applied (see `docs/import.md`).
+
+use std::io::Read;
+use std::path::Path;
+
+use super::{
+    Encoding, ImportError, ImportErrorKind, ImportFormat, Imported, check_dims, check_spacing,
+    header_error, unsupported,
+};
+use crate::io::{Endian, RawType};
+
+const F: ImportFormat = ImportFormat::Nrrd;
+
+/// The largest header read (a NRRD header is a few hundred bytes).
+pub const MAX_HEADER_BYTES: usize = 1 << 20;
+
+/// Where a NRRD header says the samples are.
+#[derive(Clone, Debug, PartialEq)]
+pub enum DataFile {
+    /// After the blank line that ends the header, in the same file.
+    Attached,
+    /// In another file (a path relative to the header's directory, or absolute).
+    Detached(String),
+}
+
+/// The fields of a NRRD header this reader uses.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NrrdHeader {
+    /// Sizes, fastest axis first.
+    pub dims: [u32; 3],
+    /// Spacing per axis (1 when the header gives none).
+    pub spacing: [f32; 3],
+    /// Sample type.
+    pub sample: RawType,
+    /// Byte order (little when the type has one byte).
+    pub endian: Endian,
+    /// Raw or gzip.
+    pub encoding: Encoding,
+    /// Where the samples are.
+    pub data_file: DataFile,
+    /// `byte skip`: bytes before the samples (after decompression for gzip);
+    /// `None` for `-1` (raw data at the end of the file).
+    pub byte_skip: Option<u64>,
+    /// `line skip`: lines before the samples in a detached file.
+    pub line_skip: u64,
+    /// Length of the header in bytes, including the blank line that ends it (the
+    /// offset of attached data).
+    pub header_len: usize,
+}
+
+fn parse_type(s: &str) -> Result<RawType, ImportErrorKind> {
+    match s {
+        "uchar" | "unsigned char" | "uint8" | "uint8_t" => Ok(RawType::U8),
+        "short" | "short int" | "signed short" | "signed short int" | "int16" | "int16_t" => {
+            Ok(RawType::I16)
+        }
+        "ushort" | "unsigned short" | "unsigned short int" | "uint16" | "uint16_t" => {
+            Ok(RawType::U16)
+        }
+        "float" => Ok(RawType::F32),
+        other => Err(unsupported(
+            F,
+            format!("sample type `{other}` (supported: uchar, short, ushort, float)"),
+        )),
+    }
+}
+
+/// Parses a vector `(a,b,c)` of `space directions`; `none` gives `None`.
+fn parse_vector(s: &str) -> Result<Option<Vec<f64>>, ImportErrorKind> {
+    if s == "none" {
+        return Ok(None);
+    }
+    let inner = s
+        .strip_prefix('(')
+        .and_then(|s| s.strip_suffix(')'))
+        .ok_or_else(|| header_error(F, format!("space direction `{s}` is not (x,y,z)")))?;
+    inner
+        .split(',')
+        .map(|p| {
+            p.trim()
+                .parse::<f64>()
+                .map_err(|_| header_error(F, format!("`{p}` in space direction is not a number")))
+        })
+        .collect::<Result<Vec<_>, _>>()
+        .map(Some)
+}
+
+/// Splits `space directions: (1,0,0) (0,1,0) none` into its vectors.
+fn split_vectors(s: &str) -> Vec<&str> {
+    let mut out = Vec::new();
+    let mut rest = s.trim();
+    while !rest.is_empty() {
+        let end = if rest.starts_with('(') {
+            rest.find(')').map_or(rest.len(), |i| i + 1)
+        } else {
+            rest.find(char::is_whitespace).unwrap_or(rest.len())
+        };
+        out.push(rest[..end].trim());
+        rest = rest[end..].trim_start();
+    }
+    out
+}
+
+/// Parses a NRRD header from the start of `bytes` (which may go on into the data).
+///
+/// A pure function of the bytes: it never panics, whatever they hold.
+pub fn parse_header(bytes: &[u8]) -> Result<NrrdHeader, ImportErrorKind> {
+    if !bytes.starts_with(b"NRRD000") {
+        return Err(header_error(
+            F,
+            "the file does not start with the magic NRRD000X",
+        ));
+    }
+    let mut pos = 0;
+    let mut lines = Vec::new();
+    let mut header_len = None;
+    while pos < bytes.len().min(MAX_HEADER_BYTES) {
+        let end = bytes[pos..]
+            .iter()
+            .position(|&b| b == b'\n')
+            .map_or(bytes.len(), |i| pos + i);
+        let line = &bytes[pos..end];
+        let line = line.strip_suffix(b"\r").unwrap_or(line);
+        pos = (end + 1).min(bytes.len());
+        if line.is_empty() {
+            header_len = Some(pos);
+            break;
+        }
+        let line = std::str::from_utf8(line)
+            .map_err(|_| header_error(F, format!("header line {} is not text", lines.len() + 1)))?;
+        lines.push(line);
+        if end >= bytes.len() {
+            break;
+        }
+    }
+    let magic = lines.first().copied().unwrap_or_default();
+    match magic
+        .strip_prefix("NRRD000")
+        .and_then(|v| v.parse::<u8>().ok())
+    {
+        Some(1..=5) => {}
+        _ => {
+            return Err(unsupported(
+                F,
+                format!("magic `{magic}` (NRRD0001..NRRD0005 are read)"),
+            ));
+        }
+    }
+    let mut fields = std::collections::HashMap::new();
+    for (i, line) in lines.iter().enumerate().skip(1) {
+        if line.starts_with('#') || line.contains(":=") {
+            continue;
+        }
+        let (key, value) = line.split_once(": ").ok_or_else(|| {
+            header_error(F, format!("line {} `{line}` is not `field: value`", i + 1))
+        })?;
+        fields.insert(key.trim().to_ascii_lowercase(), value.trim().to_string());
+    }
+    let get = |k: &str| fields.get(k).map(String::as_str);
+    let need = |k: &str| {
+        get(k).ok_or_else(|| header_error(F, format!("the required field `{k}` is missing")))
+    };
+
+    let dimension = need("dimension")?;
+    if dimension != "3" {
+        return Err(unsupported(
+            F,
+            format!("dimension {dimension} (only 3D volumes are read)"),
+        ));
+    }
+    let sample = parse_type(need("type")?)?;
+    let sizes = need("sizes")?
+        .split_whitespace()
+        .map(|s| {
+            s.parse::<u64>()
+                .map_err(|_| header_error(F, format!("size `{s}` is not a whole number")))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    if sizes.len() != 3 {
+        return Err(header_error(
+            F,
+            format!("`sizes` has {} values for dimension 3", sizes.len()),
+        ));
+    }
+    let dims = check_dims(F, &sizes)?;
+    let encoding = match need("encoding")? {
+        "raw" => Encoding::Raw,
+        "gzip" | "gz" => Encoding::Gzip,
+        other => {
+            return Err(unsupported(
+                F,
+                format!("encoding `{other}` (raw and gzip are read)"),
+            ));
+        }
+    };
+    let endian = match (get("endian"), sample.size()) {
+        (_, 1) => Endian::Little,
+        (Some("little"), _) => Endian::Little,
+        (Some("big"), _) => Endian::Big,
+        (Some(other), _) => {
+            return Err(header_error(
+                F,
+                format!("endian `{other}` is neither little nor big"),
+            ));
+        }
+        (None, _) => return Err(header_error(F, "multi-byte samples need an `endian` field")),
+    };
+    let mut spacing = [1f32; 3];
+    if let Some(s) = get("spacings") {
+        let values: Vec<&str> = s.split_whitespace().collect();
+        if values.len() != 3 {
+            return Err(header_error(
+                F,
+                format!("`spacings` has {} values for dimension 3", values.len()),
+            ));
+        }
+        for (axis, v) in values.iter().enumerate() {
+            if *v == "nan" || *v == "NaN" {
+                continue; // NRRD's "no spacing on this axis"
+            }
+            let v = v
+                .parse::<f64>()
+                .map_err(|_| header_error(F, format!("spacing `{v}` is not a number")))?;
+            spacing[axis] = check_spacing(F, axis, v)?;
+        }
+    } else if let Some(s) = get("space directions") {
+        let vectors = split_vectors(s);
+        if vectors.len() != 3 {
+            return Err(header_error(
+                F,
+                format!(
+                    "`space directions` has {} entries for dimension 3",
+                    vectors.len()
+                ),
+            ));
+        }
+        for (axis, v) in vectors.iter().enumerate() {
+            if let Some(v) = parse_vector(v)? {
+                let len = v.iter().map(|c| c * c).sum::<f64>().sqrt();
+                spacing[axis] = check_spacing(F, axis, len)?;
+            }
+        }
+    }
+    let data_file = match get("data file").or(get("datafile")) {
+        None => DataFile::Attached,
+        Some(f) if f.starts_with("LIST") || f.split_whitespace().count() > 1 => {
+            return Err(unsupported(
+                F,
+                format!("data file `{f}` (one detached file is read, not lists or patterns)"),
+            ));
+        }
+        Some(f) => DataFile::Detached(f.to_string()),
+    };
+    let byte_skip = match get("byte skip").or(get("byteskip")) {
+        None => Some(0),
+        Some("-1") => None,
+        Some(s) => Some(s.parse::<u64>().map_err(|_| {
+            header_error(F, format!("byte skip `{s}` is not -1 or a whole number"))
+        })?),
+    };
+    if byte_skip.is_none() && encoding != Encoding::Raw {
+        return Err(header_error(
+            F,
+            "byte skip -1 is only valid for raw encoding",
+        ));
+    }
+    let line_skip = match get("line skip").or(get("lineskip")) {
+        None => 0,
+        Some(s) => s
+            .parse::<u64>()
+            .map_err(|_| header_error(F, format!("line skip `{s}` is not a whole number")))?,
+    };
+    let header_len = match (header_len, &data_file) {
+        (Some(n), _) => n,
+        (None, DataFile::Detached(_)) => pos,
+        (None, DataFile::Attached) => {
+            return Err(header_error(
+                F,
+                "the header does not end with a blank line before the data",
+            ));
+        }
+    };
+    Ok(NrrdHeader {
+        dims,
+        spacing,
+        sample,
+        endian,
+        encoding,
+        data_file,
+        byte_skip,
+        line_skip,
+        header_len,
+    })
+}
+
+/// Parses the NRRD file at `path` (a `.nrrd` or `.nhdr` header).
+pub fn open(path: &Path) -> Result<Imported, ImportError> {
+    let at = |e: ImportErrorKind| ImportError::new(path, e);
+    let mut bytes = Vec::new();
+    std::fs::File::open(path)
+        .and_then(|f| f.take(MAX_HEADER_BYTES as u64).read_to_end(&mut bytes))
+        .map_err(|e| at(e.into()))?;
+    let h = parse_header(&bytes).map_err(at)?;
+    let (data_path, mut offset) = match &h.data_file {
+        DataFile::Attached => (path.to_path_buf(), h.header_len as u64),
+        DataFile::Detached(name) => {
+            let dir = path.parent().unwrap_or(Path::new("."));
+            (dir.join(name), 0)
+        }
+    };
+    if h.line_skip > 0 {
+        offset += skip_lines(&data_path, offset, h.line_skip)
+            .map_err(|e| ImportError::new(&data_path, e))?;
+    }
+    let sample_bytes =
+        h.dims.iter().map(|&d| u64::from(d)).product::<u64>() * h.sample.size() as u64;
+    let (data_offset, skip_after_decode) = match (h.encoding, h.byte_skip) {
+        (Encoding::Raw, Some(skip)) => (offset + skip, 0),
+        (Encoding::Raw, None) => {
+            let len = std::fs::metadata(&data_path)
+                .map_err(|e| ImportError::new(&data_path, e))?
+                .len();
+            let start = len
+                .checked_sub(sample_bytes)
+                .filter(|&s| s >= offset)
+                .ok_or_else(|| {
+                    ImportError::new(
+                        &data_path,
+                        ImportErrorKind::WrongDataSize {
+                            what: "the data file",
+                            expected: sample_bytes,
+                            actual: len.saturating_sub(offset),
+                        },
+                    )
+                })?;
+            (start, 0)
+        }
+        (_, skip) => (offset, skip.unwrap_or(0)),
+    };
+    Ok(Imported {
+        path: path.to_path_buf(),
+        format: F,
+        dims: h.dims,
+        spacing: h.spacing,
+        sample: h.sample,
+        endian: h.endian,
+        data_path,
+        data_offset,
+        skip_after_decode,
+        encoding: h.encoding,
+        scaling: None,
+        slices: Vec::new(),
+    })
+}
+
+/// Bytes taken by the first `lines` lines of `path` after `offset`.
+fn skip_lines(path: &Path, offset: u64, lines: u64) -> std::io::Result<u64> {
+    use std::io::{BufRead, Seek, SeekFrom};
+    let mut f = std::fs::File::open(path)?;
+    f.seek(SeekFrom::Start(offset))?;
+    let mut r = std::io::BufReader::new(f);
+    let mut total = 0;
+    let mut line = Vec::new();
+    for _ in 0..lines {
+        line.clear();
+        let n = r.read_until(b'\n', &mut line)?;
+        if n == 0 {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::UnexpectedEof,
+                "the data file ends within its `line skip` lines",
+            ));
+        }
+        total += n as u64;
+    }
+    Ok(total)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_a_typical_header() {
+        let h = parse_header(
+            b"NRRD0004\n# comment\ntype: short\ndimension: 3\nspace: left-posterior-superior\n\
+              sizes: 4 5 6\nspace directions: (0.5,0,0) (0,0.5,0) (0,0,2.5)\nkinds: domain domain domain\n\
+              endian: little\nencoding: gzip\nspace origin: (1,2,3)\nfoo:=bar\n\nDATA",
+        )
+        .unwrap();
+        assert_eq!(h.dims, [4, 5, 6]);
+        assert_eq!(h.spacing, [0.5, 0.5, 2.5]);
+        assert_eq!(h.sample, RawType::I16);
+        assert_eq!(h.encoding, Encoding::Gzip);
+        assert_eq!(h.data_file, DataFile::Attached);
+        assert_eq!(h.header_len, b"NRRD0004\n# comment\ntype: short\ndimension: 3\nspace: left-posterior-superior\n\
+              sizes: 4 5 6\nspace directions: (0.5,0,0) (0,0.5,0) (0,0,2.5)\nkinds: domain domain domain\n\
+              endian: little\nencoding: gzip\nspace origin: (1,2,3)\nfoo:=bar\n\n".len());
+    }
+
+    #[test]
+    fn rejects_what_it_cannot_read_with_a_reason() {
+        let base = "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nencoding: raw\n\n";
+        assert!(parse_header(base.as_bytes()).is_ok());
+        for (bad, needle) in [
+            (base.replace("uchar", "double"), "double"),
+            (base.replace("dimension: 3", "dimension: 4"), "dimension 4"),
+            (base.replace("encoding: raw", "encoding: bzip2"), "bzip2"),
+            (base.replace("sizes: 2 2 2", "sizes: 2 0 2"), "size 0"),
+            (base.replace("sizes: 2 2 2", "sizes: 2 2"), "2 values"),
+            (base.replace("NRRD0004", "NRRD0009"), "NRRD0009"),
+            (base.replace("uchar", "short"), "endian"),
+            (base.replace("type: uchar\n", ""), "`type`"),
+            (base.replace("\n\n", "\n"), "blank line"),
+            (
+                base.replace("sizes: 2 2 2", "sizes: 2 2 2\nspacings: 1 nan0 1"),
+                "nan0",
+            ),
+            (
+                base.replace("sizes: 2 2 2", "sizes: 2 2 2\nspacings: 1 0 1"),
+                "spacing 0",
+            ),
+            ("PNG".to_string(), "magic"),
+        ] {
+            let err = parse_header(bad.as_bytes()).unwrap_err().to_string();
+            assert!(err.contains(needle), "{bad:?}: {err}");
+        }
+    }
+}

