@@ -76,6 +76,54 @@ impl<'a, T: Sample> BrickSampler<'a, T> {
         let c11 = lerp(v(ox + oy), v(ox + oy + oz), fz);
         lerp(lerp(c00, c01, fy), lerp(c10, c11, fy), fx)
     }
+
+    /// The central-difference gradient at local position `l` when the 4×4×4 voxels
+    /// around its cell lie in this brick, else `None` (near the brick's faces).
+    ///
+    /// It equals [`VolumeSampler::gradient`] there — the same six trilinear reads
+    /// `f(l ± e)`, in the same order of operations — but loads each z-run of the
+    /// neighbourhood once, with one bounds check per run, instead of addressing
+    /// 48 voxels one cell at a time.
+    #[inline]
+    pub fn gradient_interior(&self, l: Vec3) -> Option<Vec3> {
+        let extent = self.view.extent();
+        if !(l.x >= 1.0 && l.y >= 1.0 && l.z >= 1.0) {
+            return None;
+        }
+        let (ix, iy, iz) = (l.x as u32, l.y as u32, l.z as u32);
+        if ix + 2 >= extent[0] || iy + 2 >= extent[1] || iz + 2 >= extent[2] {
+            return None;
+        }
+        let (fx, fy, fz) = (l.x - ix as f32, l.y - iy as f32, l.z - iz as f32);
+        let [sx, sy, _] = self.view.strides();
+        let base = (ix - 1) as usize * sx + (iy - 1) as usize * sy + (iz - 1) as usize;
+        let block = &self.view.samples_from(base)[..3 * sx + 3 * sy + 4];
+        // The z-run at block column (x, y): voxels z − 1 ..= z + 2 of the cell.
+        let run = |x: usize, y: usize| -> [f32; 4] {
+            let r = &block[x * sx + y * sy..][..4];
+            let f = |v: T| f32::from(v.to_u16());
+            [f(r[0]), f(r[1]), f(r[2]), f(r[3])]
+        };
+        // z-lerps of a run for the cell one below (0), the cell itself (1), one above (2).
+        let zl = |r: &[f32; 4], k: usize| lerp(r[k], r[k + 1], fz);
+        // Trilinear value from the z-lerps of a cell's four columns.
+        let tri = |c00: f32, c01: f32, c10: f32, c11: f32| {
+            lerp(lerp(c00, c01, fy), lerp(c10, c11, fy), fx)
+        };
+        // The twelve columns the six reads touch (the block's corners are unused),
+        // written out: array `map`s here do not inline and cost twice the time.
+        let (r11, r12, r21, r22) = (run(1, 1), run(1, 2), run(2, 1), run(2, 2));
+        let (m01, m02) = (zl(&run(0, 1), 1), zl(&run(0, 2), 1));
+        let (m10, m13) = (zl(&run(1, 0), 1), zl(&run(1, 3), 1));
+        let (m20, m23) = (zl(&run(2, 0), 1), zl(&run(2, 3), 1));
+        let (m31, m32) = (zl(&run(3, 1), 1), zl(&run(3, 2), 1));
+        let (m11, m12, m21, m22) = (zl(&r11, 1), zl(&r12, 1), zl(&r21, 1), zl(&r22, 1));
+        let gx = tri(m21, m22, m31, m32) - tri(m01, m02, m11, m12);
+        let gy = tri(m12, m13, m22, m23) - tri(m10, m11, m20, m21);
+        let gz = tri(zl(&r11, 2), zl(&r12, 2), zl(&r21, 2), zl(&r22, 2))
+            - tri(zl(&r11, 0), zl(&r12, 0), zl(&r21, 0), zl(&r22, 0));
+        Some(Vec3::new(gx, gy, gz) * 0.5)
+    }
 }
 
 #[inline]
@@ -141,6 +189,14 @@ impl<'a, T: Sample> VolumeSampler<'a, T> {
     /// the volume's faces. Reads come from `local` when it covers them.
     #[inline]
     pub fn gradient(&self, local: &BrickSampler<'a, T>, p: Vec3) -> Vec3 {
+        if let Some(g) = local.gradient_interior(p - local.origin) {
+            return g;
+        }
+        // Linear storage: near a brick's face the whole volume usually still
+        // holds the neighbourhood.
+        if let Some(g) = self.whole.as_ref().and_then(|w| w.gradient_interior(p)) {
+            return g;
+        }
         let mut g = [0f32; 3];
         for (a, e) in [Vec3::X, Vec3::Y, Vec3::Z].into_iter().enumerate() {
             let hi = (p + e).min(self.last);
@@ -206,6 +262,50 @@ mod tests {
                 assert!((g - Vec3::new(3.0, 5.0, 7.0)).length() < 1e-3, "{p}: {g}");
             }
         }
+    }
+
+    #[test]
+    fn the_interior_gradient_equals_central_differences_of_trilinear_reads() {
+        let dims = [20, 18, 22];
+        let mut seed = 0x2545_f491_u32;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed
+        };
+        let samples: Vec<u16> = (0..20 * 18 * 22).map(|_| (next() % 4096) as u16).collect();
+        let vol = TypedVolume::new(&samples, dims, Layout::Linear);
+        let sampler = VolumeSampler::new(vol);
+        let grid = BlockGrid::new(dims, 8);
+        let (mut interior, mut total) = (0, 0);
+        for b in grid.iter() {
+            let brick = BrickSampler::new(vol.brick(&grid, b));
+            let o = Vec3::from(grid.origin(b).map(|v| v as f32));
+            let e = Vec3::from(grid.extent(b).map(|v| (v - 1) as f32));
+            for _ in 0..200 {
+                let f = Vec3::new(
+                    (next() % 10_000) as f32 / 9_999.0,
+                    (next() % 10_000) as f32 / 9_999.0,
+                    (next() % 10_000) as f32 / 9_999.0,
+                );
+                let p = o + f * e;
+                total += 1;
+                let Some(fast) = brick.gradient_interior(p - o) else {
+                    continue;
+                };
+                interior += 1;
+                let central = |a: Vec3| (sampler.value(p + a) - sampler.value(p - a)) / 2.0;
+                let expected = Vec3::new(central(Vec3::X), central(Vec3::Y), central(Vec3::Z));
+                assert!(
+                    (fast - expected).abs().max_element() < 1e-2,
+                    "{p}: {fast} vs {expected}"
+                );
+                assert_eq!(sampler.gradient(&brick, p), fast);
+            }
+        }
+        assert!(interior > total / 4, "{interior} of {total} interior");
+        assert!(interior < total, "the faces take the general path");
     }
 
     #[test]
