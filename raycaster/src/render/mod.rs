@@ -45,7 +45,7 @@ pub use parallel::{
     DEFAULT_TILE_SIZE, ParallelOptions, TileSink, render_parallel, render_parallel_into,
 };
 pub use pixel::{PixelRay, PixelState, over_background};
-pub use prepared::{FramePlan, RenderVolume};
+pub use prepared::{FramePlan, LARGE_LINEAR_BRICKS, RenderVolume, default_linear_brick_side};
 pub use ray::Ray;
 pub use sampler::{BrickSampler, VolumeSampler};
 pub use schedule::{FrameSchedule, ScheduledBrick, TileQueue};

@@ -29,13 +29,34 @@ pub struct RenderVolume<'a> {
     labels: Option<&'a Volume>,
 }
 
+/// Bricks of the [`LINEAR_RANGE_SIDE`] grid beyond which linear volumes are rendered
+/// with larger bricks: per-frame scheduling and ray–brick clipping grow with the
+/// brick count (2000³, 700², step 0.2, 2 threads: 1.32 s with 16-voxel bricks,
+/// 0.91 s with 32), while up to about 800³ the two sides are equally fast.
+pub const LARGE_LINEAR_BRICKS: u64 = 1 << 18;
+
+/// The default logical brick side of a linear volume of `dims`: [`LINEAR_RANGE_SIDE`]
+/// (16), or for volumes whose 16-grid has more than [`LARGE_LINEAR_BRICKS`] bricks,
+/// bricks spanning two of those per axis (side 31), whose ranges merge from the
+/// file's table without a scan.
+pub fn default_linear_brick_side(dims: [u32; 3]) -> u32 {
+    let fine = BlockGrid::new(dims, LINEAR_RANGE_SIDE);
+    if fine.block_count() > LARGE_LINEAR_BRICKS {
+        2 * fine.step() + 1
+    } else {
+        LINEAR_RANGE_SIDE
+    }
+}
+
 impl<'a> RenderVolume<'a> {
     /// Prepares `volume` for rendering by bricks of `brick_side` voxels. Linear files
-    /// are cut into logical bricks of any side (default [`LINEAR_RANGE_SIDE`], whose
-    /// ranges the file already has); bricked files use their stored bricks (default)
-    /// or logical sub-bricks whose step divides the stored one (side 16 → 4, 6, 16;
-    /// side 32 → 2, 32). Ranges of other grids are scanned here. The small cells' ranges are scanned here (in parallel), once
-    /// per prepared volume; transfer-function changes never rescan.
+    /// are cut into logical bricks of any side (default
+    /// [`default_linear_brick_side`]); bricked files use their stored bricks
+    /// (default) or logical sub-bricks whose step divides the stored one (side 16 →
+    /// 4, 6, 16; side 32 → 2, 32). Brick ranges come from the file's table when the
+    /// grid is the table's or a multiple of it, else they are scanned here; the small
+    /// cells' ranges are scanned here (in parallel), once per prepared volume;
+    /// transfer-function changes never rescan.
     pub fn new(volume: &'a Volume, brick_side: Option<u32>) -> Result<Self, RenderError> {
         if let Some(side) = brick_side
             && side < 2
@@ -51,9 +72,10 @@ impl<'a> RenderVolume<'a> {
                 }
                 BlockGrid::new(volume.dims(), side)
             }
-            Layout::Linear => {
-                BlockGrid::new(volume.dims(), brick_side.unwrap_or(LINEAR_RANGE_SIDE))
-            }
+            Layout::Linear => BlockGrid::new(
+                volume.dims(),
+                brick_side.unwrap_or_else(|| default_linear_brick_side(volume.dims())),
+            ),
         };
         let mut prepared = RenderVolume {
             volume,
@@ -77,7 +99,18 @@ impl<'a> RenderVolume<'a> {
     fn scan<T: Sample>(&self, data: &TypedVolume<'_, T>) -> (Option<BrickRanges>, CellRanges) {
         let grid = *self.geometry.grid();
         let view = |b: [u32; 3]| self.brick_view(data, b);
-        let ranges = (self.volume.ranges().grid() != &grid).then(|| {
+        let known = self.volume.ranges();
+        let factor = grid.step() / known.grid().step();
+        let coarser = factor > 1
+            && grid.step().is_multiple_of(known.grid().step())
+            && grid.dims() == known.grid().dims();
+        if coarser {
+            return (
+                Some(known.coarsened(factor)),
+                CellRanges::compute(&grid, view),
+            );
+        }
+        let ranges = (known.grid() != &grid).then(|| {
             let ranges = (0..grid.block_count())
                 .into_par_iter()
                 .map(|i| {
@@ -287,5 +320,22 @@ impl FramePlan {
     /// Bricks the transfer function makes fully transparent.
     pub fn transparent_bricks(&self) -> u64 {
         self.transparent.iter().filter(|&&t| t).count() as u64
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn large_linear_volumes_get_bricks_of_two_range_blocks() {
+        assert_eq!(default_linear_brick_side([256; 3]), LINEAR_RANGE_SIDE);
+        assert_eq!(
+            default_linear_brick_side([800, 800, 800]),
+            LINEAR_RANGE_SIDE
+        );
+        assert_eq!(default_linear_brick_side([1024; 3]), 31);
+        assert_eq!(default_linear_brick_side([2000; 3]), 31);
+        assert_eq!(default_linear_brick_side([1, 1, 1]), LINEAR_RANGE_SIDE);
     }
 }

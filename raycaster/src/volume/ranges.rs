@@ -53,6 +53,34 @@ impl BrickRanges {
         BrickRanges { grid, ranges }
     }
 
+    /// The ranges of the coarser grid whose bricks span `factor` of these bricks
+    /// per axis (step `factor × step`), merged from these without reading a sample:
+    /// brick `j` of the coarse grid covers exactly bricks `j·factor ..
+    /// j·factor + factor − 1` of this one (clamped at the volume's end).
+    pub fn coarsened(&self, factor: u32) -> BrickRanges {
+        let factor = factor.max(1);
+        let grid = BlockGrid::new(self.grid.dims(), factor * self.grid.step() + 1);
+        let fine = self.grid.counts();
+        let ranges = grid
+            .iter()
+            .map(|j| {
+                let lo = j.map(|c| c * factor);
+                let hi = [0, 1, 2].map(|a| (lo[a] + factor).min(fine[a]));
+                let mut merged = [u16::MAX, 0];
+                for x in lo[0]..hi[0] {
+                    for y in lo[1]..hi[1] {
+                        for z in lo[2]..hi[2] {
+                            let [l, h] = self.range([x, y, z]);
+                            merged = [merged[0].min(l), merged[1].max(h)];
+                        }
+                    }
+                }
+                merged
+            })
+            .collect();
+        BrickRanges { grid, ranges }
+    }
+
     /// The grid the ranges belong to.
     pub fn grid(&self) -> &BlockGrid {
         &self.grid
@@ -181,6 +209,30 @@ mod tests {
     fn ramp_volume(dims: [u32; 3]) -> Vec<u8> {
         let n = dims.iter().product::<u32>();
         (0..n).map(|i| (i % 251) as u8).collect()
+    }
+
+    #[test]
+    fn coarsened_ranges_equal_a_scan_of_the_coarse_grid() {
+        let dims = [37, 50, 23];
+        let mut seed = 12345u32;
+        let samples: Vec<u16> = (0..dims.iter().product::<u32>())
+            .map(|_| {
+                seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                (seed >> 20) as u16
+            })
+            .collect();
+        let volume = TypedVolume::new(&samples, dims, Layout::Linear);
+        let fine = BrickRanges::compute(&volume, &BlockGrid::new(dims, 6));
+        for factor in [1, 2, 3, 7, 20] {
+            let coarse = fine.coarsened(factor);
+            let grid = BlockGrid::new(dims, factor * 5 + 1);
+            assert_eq!(coarse.grid(), &grid);
+            assert_eq!(
+                coarse,
+                BrickRanges::compute(&volume, &grid),
+                "factor {factor}"
+            );
+        }
     }
 
     #[test]
