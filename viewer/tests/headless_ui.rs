@@ -31,6 +31,22 @@ fn wait_for_frame(v: &Viewer) {
     }
 }
 
+/// Pumps until `done` holds (a background open has landed), then until its frame
+/// is on screen.
+fn wait_until(v: &Viewer, done: impl Fn(&Viewer) -> bool) {
+    let start = Instant::now();
+    while !done(v) {
+        v.pump();
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "{:?}",
+            v.ui().get_message()
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    wait_for_frame(v);
+}
+
 /// The canvas image as RGB triples, with its size.
 fn frame(v: &Viewer) -> (u32, u32, Vec<[u8; 3]>) {
     let image = v.ui().get_frame();
@@ -213,17 +229,7 @@ fn the_viewer_runs_headless() {
     )
     .unwrap();
     v.ui().invoke_open_file(good.display().to_string().into());
-    let start = Instant::now();
-    while v.volume_name() != good.display().to_string() {
-        v.pump();
-        assert!(
-            start.elapsed() < Duration::from_secs(60),
-            "{:?}",
-            v.ui().get_message()
-        );
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    wait_for_frame(&v);
+    wait_until(&v, |v| v.volume_name() == good.display().to_string());
     assert!(v.ui().get_volume_info().contains("48×48×48"));
 
     // Segments: a layer scene loads into the panel, renders, edits and saves.
@@ -263,16 +269,6 @@ fn the_viewer_runs_headless() {
     // A scan in a foreign format (a NIfTI-1 fixture written by nibabel) opens directly.
     let nifti = Path::new(env!("CARGO_MANIFEST_DIR")).join("../volumes/fixtures/u8.nii");
     v.ui().invoke_open_file(nifti.display().to_string().into());
-    let start = Instant::now();
-    while !v.ui().get_volume_info().contains("6×5×4") {
-        v.pump();
-        assert!(
-            start.elapsed() < Duration::from_secs(60),
-            "{:?}",
-            v.ui().get_message()
-        );
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    wait_for_frame(&v);
+    wait_until(&v, |v| v.ui().get_volume_info().contains("6×5×4"));
     assert!(!v.ui().get_message_is_error(), "{:?}", v.ui().get_message());
 }
