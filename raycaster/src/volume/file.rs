@@ -135,10 +135,14 @@ impl Volume {
             return Err(VolumeError::new(&path, kind));
         }
         image.extend_from_slice(bytes);
-        let storage = Storage::from_bytes(&image);
-        let header = Header::parse(&image, image.len() as u64).at(&path)?;
-        let data = typed_data(&header, storage.bytes()).at(&path)?;
-        let ranges = compute_ranges(&header, data);
+        Volume::in_ram(path, Storage::from_bytes(&image))
+    }
+
+    /// A volume over a file image in RAM: its header parsed, its ranges scanned.
+    fn in_ram(path: PathBuf, storage: Storage) -> Result<Volume, VolumeError> {
+        let bytes = storage.bytes();
+        let header = Header::parse(bytes, bytes.len() as u64).at(&path)?;
+        let ranges = compute_ranges(&header, typed_data(&header, bytes).at(&path)?);
         Ok(Volume {
             path,
             header,
@@ -178,16 +182,7 @@ impl Volume {
                 .map_err(|_| VolumeError::new(&path, VolumeErrorKind::Misaligned))?;
             fill(samples)?;
         }
-        let storage = Storage::Ram { words, len };
-        let header = Header::parse(storage.bytes(), len as u64).at(&path)?;
-        let data = typed_data(&header, storage.bytes()).at(&path)?;
-        let ranges = compute_ranges(&header, data);
-        Ok(Volume {
-            path,
-            header,
-            storage,
-            ranges,
-        })
+        Volume::in_ram(path, Storage::Ram { words, len })
     }
 
     /// Scans the samples for the per-brick ranges (what open does without a cache).
