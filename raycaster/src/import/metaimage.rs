@@ -9,12 +9,11 @@
 //! `TransformMatrix`/`Orientation`, `Offset`/`Position` and `AnatomicalOrientation`
 //! are read past and not applied (see `docs/import.md`).
 
-use std::io::Read;
 use std::path::Path;
 
 use super::{
     Encoding, ImportError, ImportErrorKind, ImportFormat, Imported, check_dims, check_spacing,
-    header_error, unsupported,
+    data_at_end, header_error, read_text_header, unsupported,
 };
 use crate::io::{Endian, RawType};
 
@@ -229,12 +228,8 @@ pub fn parse_header(bytes: &[u8]) -> Result<MetaHeader, ImportErrorKind> {
 
 /// Parses the MetaImage file at `path` (`.mha` or `.mhd`).
 pub fn open(path: &Path) -> Result<Imported, ImportError> {
-    let at = |e: ImportErrorKind| ImportError::new(path, e);
-    let mut bytes = Vec::new();
-    std::fs::File::open(path)
-        .and_then(|f| f.take(MAX_HEADER_BYTES as u64).read_to_end(&mut bytes))
-        .map_err(|e| at(e.into()))?;
-    let h = parse_header(&bytes).map_err(at)?;
+    let bytes = read_text_header(path, MAX_HEADER_BYTES)?;
+    let h = parse_header(&bytes).map_err(|e| ImportError::new(path, e))?;
     let sample_bytes =
         h.dims.iter().map(|&d| u64::from(d)).product::<u64>() * h.sample.size() as u64;
     let (data_path, data_offset) = match &h.data_file {
@@ -243,21 +238,7 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
             let data_path = path.parent().unwrap_or(Path::new(".")).join(name);
             let offset = match h.header_size {
                 Some(n) => n,
-                None => {
-                    let len = std::fs::metadata(&data_path)
-                        .map_err(|e| ImportError::new(&data_path, e))?
-                        .len();
-                    len.checked_sub(sample_bytes).ok_or_else(|| {
-                        ImportError::new(
-                            &data_path,
-                            ImportErrorKind::WrongDataSize {
-                                what: "the data file",
-                                expected: sample_bytes,
-                                actual: len,
-                            },
-                        )
-                    })?
-                }
+                None => data_at_end(&data_path, sample_bytes, 0)?,
             };
             (data_path, offset)
         }

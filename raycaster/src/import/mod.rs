@@ -244,6 +244,41 @@ pub(crate) fn check_spacing(
     }
 }
 
+/// The first `max` bytes of the text header at `path` (at most: the header's end is
+/// found by its parser).
+pub(crate) fn read_text_header(path: &Path, max: usize) -> Result<Vec<u8>, ImportError> {
+    let mut bytes = Vec::new();
+    File::open(path)
+        .and_then(|f| f.take(max as u64).read_to_end(&mut bytes))
+        .map_err(|e| ImportError::new(path, e))?;
+    Ok(bytes)
+}
+
+/// Where raw samples start when a header says they end the data file (NRRD
+/// `byte skip: -1`, MetaImage `HeaderSize = -1`): `sample_bytes` before its end, not
+/// before `not_before` (the end of what precedes the data in that file).
+pub(crate) fn data_at_end(
+    data_path: &Path,
+    sample_bytes: u64,
+    not_before: u64,
+) -> Result<u64, ImportError> {
+    let len = std::fs::metadata(data_path)
+        .map_err(|e| ImportError::new(data_path, e))?
+        .len();
+    len.checked_sub(sample_bytes)
+        .filter(|&start| start >= not_before)
+        .ok_or_else(|| {
+            ImportError::new(
+                data_path,
+                ImportErrorKind::WrongDataSize {
+                    what: "the data file",
+                    expected: sample_bytes,
+                    actual: len.saturating_sub(not_before),
+                },
+            )
+        })
+}
+
 /// Which format `path` is, by extension, then by its first bytes; `None` for `.vol`
 /// files and anything unknown. A folder is taken for a DICOM series.
 pub fn detect(path: &Path) -> Option<ImportFormat> {

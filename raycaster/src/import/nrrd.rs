@@ -8,12 +8,11 @@
 //! directory). Key/value pairs (`key:=value`) and comments are skipped; `space
 //! origin` and the directions' orientation are not applied (see `docs/import.md`).
 
-use std::io::Read;
 use std::path::Path;
 
 use super::{
     Encoding, ImportError, ImportErrorKind, ImportFormat, Imported, check_dims, check_spacing,
-    header_error, unsupported,
+    data_at_end, header_error, read_text_header, unsupported,
 };
 use crate::io::{Endian, RawType};
 
@@ -303,12 +302,8 @@ pub fn parse_header(bytes: &[u8]) -> Result<NrrdHeader, ImportErrorKind> {
 
 /// Parses the NRRD file at `path` (a `.nrrd` or `.nhdr` header).
 pub fn open(path: &Path) -> Result<Imported, ImportError> {
-    let at = |e: ImportErrorKind| ImportError::new(path, e);
-    let mut bytes = Vec::new();
-    std::fs::File::open(path)
-        .and_then(|f| f.take(MAX_HEADER_BYTES as u64).read_to_end(&mut bytes))
-        .map_err(|e| at(e.into()))?;
-    let h = parse_header(&bytes).map_err(at)?;
+    let bytes = read_text_header(path, MAX_HEADER_BYTES)?;
+    let h = parse_header(&bytes).map_err(|e| ImportError::new(path, e))?;
     let (data_path, mut offset) = match &h.data_file {
         DataFile::Attached => (path.to_path_buf(), h.header_len as u64),
         DataFile::Detached(name) => {
@@ -324,25 +319,7 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
         h.dims.iter().map(|&d| u64::from(d)).product::<u64>() * h.sample.size() as u64;
     let (data_offset, skip_after_decode) = match (h.encoding, h.byte_skip) {
         (Encoding::Raw, Some(skip)) => (offset + skip, 0),
-        (Encoding::Raw, None) => {
-            let len = std::fs::metadata(&data_path)
-                .map_err(|e| ImportError::new(&data_path, e))?
-                .len();
-            let start = len
-                .checked_sub(sample_bytes)
-                .filter(|&s| s >= offset)
-                .ok_or_else(|| {
-                    ImportError::new(
-                        &data_path,
-                        ImportErrorKind::WrongDataSize {
-                            what: "the data file",
-                            expected: sample_bytes,
-                            actual: len.saturating_sub(offset),
-                        },
-                    )
-                })?;
-            (start, 0)
-        }
+        (Encoding::Raw, None) => (data_at_end(&data_path, sample_bytes, offset)?, 0),
         (_, skip) => (offset, skip.unwrap_or(0)),
     };
     Ok(Imported {
