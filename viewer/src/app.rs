@@ -377,34 +377,44 @@ impl Controller {
     /// Opens a volume on a background thread; the current one stays until it is
     /// ready (and stays for good if opening fails).
     fn open(&self, source: Source) {
-        self.state.borrow_mut().busy = true;
         let what = match &source {
             Source::File(p) => p.display().to_string(),
             Source::BuiltIn(kind, _) => format!("the built-in {} scene", kind.name()),
         };
-        self.show_message(&format!("opening {what} …"), false);
+        self.in_background(format!("opening {what} …"), move |wake| {
+            let volume = match &source {
+                Source::BuiltIn(kind, size) => loader::built_in(*kind, *size)?,
+                Source::File(path) => loader::open_file(path)?,
+            };
+            let front = RenderFront::with_labels(
+                volume.volume.clone(),
+                volume.labels.clone(),
+                None,
+                Some(wake),
+            )
+            .context("cannot prepare the volume for rendering")?;
+            Ok(Install {
+                message: format!("opened {}", volume.description),
+                loaded: Loaded { volume, front },
+                new_volume: true,
+                scene: None,
+            })
+        });
+    }
+
+    /// Shows `message` and runs `job` on a worker thread (the viewer is busy until
+    /// it ends); its volume, or its error, is installed by the next pump.
+    fn in_background(
+        &self,
+        message: String,
+        job: impl FnOnce(Notify) -> Result<Install> + Send + 'static,
+    ) {
+        self.state.borrow_mut().busy = true;
+        self.show_message(&message, false);
         let wake = self.wake.clone();
         let tx = self.installs.0.clone();
         std::thread::spawn(move || {
-            let result = (|| -> Result<Install> {
-                let volume = match &source {
-                    Source::BuiltIn(kind, size) => loader::built_in(*kind, *size)?,
-                    Source::File(path) => loader::open_file(path)?,
-                };
-                let front = RenderFront::with_labels(
-                    volume.volume.clone(),
-                    volume.labels.clone(),
-                    None,
-                    Some(wake.clone()),
-                )
-                .context("cannot prepare the volume for rendering")?;
-                Ok(Install {
-                    message: format!("opened {}", volume.description),
-                    loaded: Loaded { volume, front },
-                    new_volume: true,
-                    scene: None,
-                })
-            })();
+            let result = job(wake.clone());
             let _ = tx.send(result.map_err(|e| format!("{e:#}")));
             wake();
         });
@@ -692,12 +702,9 @@ impl Controller {
             let Some(current) = &st.current else { return };
             current.volume.clone()
         };
-        self.state.borrow_mut().busy = true;
-        self.show_message(&format!("opening labels {} …", labels.display()), false);
-        let wake = self.wake.clone();
-        let tx = self.installs.0.clone();
-        std::thread::spawn(move || {
-            let result = (|| -> Result<Install> {
+        self.in_background(
+            format!("opening labels {} …", labels.display()),
+            move |wake| {
                 let label_volume = Arc::new(
                     Volume::open(&labels)
                         .with_context(|| format!("cannot open labels {}", labels.display()))?,
@@ -706,7 +713,7 @@ impl Controller {
                     volume.volume.clone(),
                     Some(label_volume.clone()),
                     None,
-                    Some(wake.clone()),
+                    Some(wake),
                 )?;
                 let mut volume = volume;
                 volume.labels = Some(label_volume);
@@ -716,10 +723,8 @@ impl Controller {
                     new_volume: false,
                     scene: Some(scene),
                 })
-            })();
-            let _ = tx.send(result.map_err(|e| format!("{e:#}")));
-            wake();
-        });
+            },
+        );
     }
 
     /// Writes the scene on screen; without one, the plain view as a one-layer
