@@ -4,8 +4,14 @@
 //! Each brick's owned cells (`step` per axis) are split into `m³` cells of about
 //! [`target_cell_step`] voxels; a cell spans its cells plus the voxel after, so the
 //! trilinear reads of any sample it owns lie within its range.
+//!
+//! Nothing is scanned when a volume is opened: a brick's cells are computed the first
+//! time a frame marches a ray through it and cached for later frames. Bricks that no
+//! frame visits (empty under every transfer function used, or never in view) are
+//! never read; a brick whose stored range is a single value needs no read at all.
 
-use rayon::prelude::*;
+use std::sync::OnceLock;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::volume::{BlockGrid, BrickView, Sample};
 
@@ -13,7 +19,7 @@ use crate::volume::{BlockGrid, BrickView, Sample};
 pub const TARGET_CELL_STEP: u32 = 4;
 
 /// Cells beyond which larger cells are used, to bound the index's memory
-/// (4 bytes of range and 1 byte of flag per cell: about 80 MB).
+/// (4 bytes of range per cell: about 64 MB if every brick were visited).
 pub const MAX_CELLS: u64 = 1 << 24;
 
 /// The cell step aimed at for a volume of `dims`: [`TARGET_CELL_STEP`], or larger
@@ -24,48 +30,44 @@ pub fn target_cell_step(dims: [u32; 3]) -> u32 {
     bound.max(TARGET_CELL_STEP)
 }
 
-/// Per-brick cell ranges of a whole brick grid.
-#[derive(Clone, Debug, PartialEq, Eq)]
+/// Per-brick cell ranges of a brick grid, computed lazily brick by brick.
+#[derive(Debug)]
 pub struct CellRanges {
     /// Cells per brick and axis.
     per_axis: u32,
     /// Cell step in voxels.
     cell_step: u32,
-    /// `per_axis³` ranges per brick, bricks in file order, cells x-slowest.
-    ranges: Vec<[u16; 2]>,
+    /// Per brick (file order): its `per_axis³` ranges, cells x-slowest, once known.
+    bricks: Vec<OnceLock<Box<[[u16; 2]]>>>,
+    /// Bricks whose cells were computed by reading samples.
+    scanned: AtomicU64,
 }
 
 impl CellRanges {
-    /// No cells (a placeholder before a scan).
-    pub fn empty() -> Self {
+    /// The (not yet computed) cell ranges of the bricks of `grid`.
+    pub fn lazy(grid: &BlockGrid) -> Self {
+        let per_axis = grid.step().div_ceil(target_cell_step(grid.dims())).max(1);
+        let cell_step = grid.step().div_ceil(per_axis);
         CellRanges {
-            per_axis: 1,
-            cell_step: 1,
-            ranges: Vec::new(),
+            per_axis,
+            cell_step,
+            bricks: (0..grid.block_count()).map(|_| OnceLock::new()).collect(),
+            scanned: AtomicU64::new(0),
         }
     }
 
-    /// Scans every brick of `grid`, whose views `brick` gives (in parallel).
+    /// Scans every brick of `grid`, whose views `brick` gives (in parallel); what a
+    /// renderer computes lazily, all at once (for tests and tools).
     pub fn compute<'a, T: Sample>(
         grid: &BlockGrid,
         brick: impl Fn([u32; 3]) -> BrickView<'a, T> + Sync,
     ) -> Self {
-        let per_axis = grid.step().div_ceil(target_cell_step(grid.dims())).max(1);
-        let cell_step = grid.step().div_ceil(per_axis);
-        let cells = (per_axis * per_axis * per_axis) as usize;
-        let mut ranges = vec![[0u16; 2]; grid.block_count() as usize * cells];
-        ranges
-            .par_chunks_mut(cells)
-            .enumerate()
-            .for_each(|(i, out)| {
-                let view = brick(grid.coords(i as u64));
-                brick_cells(&view, per_axis, cell_step, out);
-            });
-        CellRanges {
-            per_axis,
-            cell_step,
-            ranges,
-        }
+        use rayon::prelude::*;
+        let cells = Self::lazy(grid);
+        (0..grid.block_count()).into_par_iter().for_each(|i| {
+            cells.of_brick(i, None, || brick(grid.coords(i)));
+        });
+        cells
     }
 
     /// Cells per brick and axis.
@@ -83,15 +85,41 @@ impl CellRanges {
         (self.per_axis * self.per_axis * self.per_axis) as usize
     }
 
-    /// The ranges of brick number `index` (file order).
-    pub fn of_brick(&self, index: u64) -> &[[u16; 2]] {
-        let n = self.per_brick();
-        &self.ranges[index as usize * n..(index as usize + 1) * n]
+    /// The ranges of brick number `index` (file order), computed from the view
+    /// `view` gives on first use. `known` is the brick's exact value range when the
+    /// caller has it: a brick of one value needs no read.
+    pub fn of_brick<'a, T: Sample>(
+        &self,
+        index: u64,
+        known: Option<[u16; 2]>,
+        view: impl FnOnce() -> BrickView<'a, T>,
+    ) -> &[[u16; 2]] {
+        self.bricks[index as usize].get_or_init(|| {
+            let mut out = vec![[0u16; 2]; self.per_brick()].into_boxed_slice();
+            match known {
+                Some([lo, hi]) if lo == hi => out.fill([lo, hi]),
+                _ => {
+                    self.scanned.fetch_add(1, Ordering::Relaxed);
+                    brick_cells(&view(), self.per_axis, self.cell_step, &mut out);
+                }
+            }
+            out
+        })
     }
 
-    /// All ranges, brick by brick.
-    pub fn as_slice(&self) -> &[[u16; 2]] {
-        &self.ranges
+    /// The ranges of brick number `index` if some frame already computed them.
+    pub fn cached(&self, index: u64) -> Option<&[[u16; 2]]> {
+        self.bricks[index as usize].get().map(|b| &b[..])
+    }
+
+    /// Bricks whose cells are known.
+    pub fn bricks_known(&self) -> u64 {
+        self.bricks.iter().filter(|b| b.get().is_some()).count() as u64
+    }
+
+    /// Bricks whose cells were computed by reading their samples.
+    pub fn bricks_scanned(&self) -> u64 {
+        self.scanned.load(Ordering::Relaxed)
     }
 }
 
@@ -149,7 +177,7 @@ mod tests {
         let cells = CellRanges::compute(&grid, |b| vol.brick(&grid, b));
         assert_eq!((cells.per_axis(), cells.cell_step()), (4, 4));
         for b in grid.iter() {
-            let ranges = cells.of_brick(grid.index(b));
+            let ranges = cells.cached(grid.index(b)).unwrap();
             let o = grid.origin(b);
             let e = grid.extent(b);
             for x in 0..e[0] {

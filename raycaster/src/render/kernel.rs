@@ -22,7 +22,7 @@ use crate::volume::{BrickView, Sample, TypedVolume, VolumeData};
 const BOX_SLACK: f32 = 1e-3;
 
 /// A brick ready to be marched.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct BrickContext<'a, T: Sample> {
     /// Brick coordinates in the grid.
     pub coords: [u32; 3],
@@ -34,8 +34,8 @@ pub struct BrickContext<'a, T: Sample> {
     pub transparent: bool,
     /// Value ranges of the brick's small cells.
     cells: &'a [[u16; 2]],
-    /// Per small cell: transparent under the transfer function.
-    cell_transparent: &'a [bool],
+    /// Per small cell: transparent under the frame's classification.
+    cell_transparent: Vec<bool>,
     /// Cells per axis.
     cells_per_axis: u32,
     /// 1 / cell step.
@@ -55,15 +55,23 @@ impl<'a, T: Sample> BrickContext<'a, T> {
         let grid = volume.geometry().grid();
         let index = grid.index(b);
         let cells = volume.cells();
-        let n = cells.per_brick();
-        let first_cell = index as usize * n;
+        let range = volume.ranges().range(b);
+        // A brick every ray skips is never read, not even for its cells.
+        let ranges: &[[u16; 2]] = if plan.brick_droppable(index as usize, range) {
+            &[]
+        } else {
+            volume.cells_of(data, b)
+        };
         BrickContext {
             coords: b,
             sampler: BrickSampler::new(volume.brick_view(data, b)),
-            range: volume.ranges().range(b),
+            range,
             transparent: plan.transparent[index as usize],
-            cells: cells.of_brick(index),
-            cell_transparent: &plan.cell_transparent[first_cell..first_cell + n],
+            cells: ranges,
+            cell_transparent: ranges
+                .iter()
+                .map(|&[lo, hi]| plan.range_empty(lo, hi))
+                .collect(),
             cells_per_axis: cells.per_axis(),
             inv_cell_step: 1.0 / cells.cell_step() as f32,
             labels: volume.labels().map(|l| match l.data() {

@@ -53,10 +53,11 @@ impl<'a> RenderVolume<'a> {
     /// are cut into logical bricks of any side (default
     /// [`default_linear_brick_side`]); bricked files use their stored bricks
     /// (default) or logical sub-bricks whose step divides the stored one (side 16 →
-    /// 4, 6, 16; side 32 → 2, 32). Brick ranges come from the file's table when the
-    /// grid is the table's or a multiple of it, else they are scanned here; the small
-    /// cells' ranges are scanned here (in parallel), once per prepared volume;
-    /// transfer-function changes never rescan.
+    /// 4, 6, 16; side 32 → 2, 32). Nothing is read here: brick ranges are merged
+    /// from the file's table (exact when the grid is the table's or a multiple of
+    /// it, else a superset: [`BrickRanges::covering`]), and the small cells' ranges
+    /// are computed the first time a frame visits their brick and kept for later
+    /// frames ([`CellRanges`]); transfer-function changes never rescan.
     pub fn new(volume: &'a Volume, brick_side: Option<u32>) -> Result<Self, RenderError> {
         if let Some(side) = brick_side
             && side < 2
@@ -77,50 +78,25 @@ impl<'a> RenderVolume<'a> {
                 brick_side.unwrap_or_else(|| default_linear_brick_side(volume.dims())),
             ),
         };
-        let mut prepared = RenderVolume {
+        let known = volume.ranges();
+        let ranges = if known.grid() == &grid {
+            Cow::Borrowed(known)
+        } else {
+            let factor = grid.step() / known.grid().step();
+            let coarser = factor > 1 && grid.step().is_multiple_of(known.grid().step());
+            Cow::Owned(if coarser {
+                known.coarsened(factor)
+            } else {
+                known.covering(&grid)
+            })
+        };
+        Ok(RenderVolume {
             volume,
             geometry: VolumeGeometry::new(grid, volume.spacing()),
-            ranges: Cow::Borrowed(volume.ranges()),
-            cells: CellRanges::empty(),
+            ranges,
+            cells: CellRanges::lazy(&grid),
             labels: None,
-        };
-        let (ranges, cells) = match volume.data() {
-            VolumeData::U8(v) => prepared.scan(&v),
-            VolumeData::U16(v) => prepared.scan(&v),
-        };
-        if let Some(ranges) = ranges {
-            prepared.ranges = Cow::Owned(ranges);
-        }
-        prepared.cells = cells;
-        Ok(prepared)
-    }
-
-    /// Brick ranges (when the file's do not fit the grid) and cell ranges.
-    fn scan<T: Sample>(&self, data: &TypedVolume<'_, T>) -> (Option<BrickRanges>, CellRanges) {
-        let grid = *self.geometry.grid();
-        let view = |b: [u32; 3]| self.brick_view(data, b);
-        let known = self.volume.ranges();
-        let factor = grid.step() / known.grid().step();
-        let coarser = factor > 1
-            && grid.step().is_multiple_of(known.grid().step())
-            && grid.dims() == known.grid().dims();
-        if coarser {
-            return (
-                Some(known.coarsened(factor)),
-                CellRanges::compute(&grid, view),
-            );
-        }
-        let ranges = (known.grid() != &grid).then(|| {
-            let ranges = (0..grid.block_count())
-                .into_par_iter()
-                .map(|i| {
-                    let (lo, hi) = view(grid.coords(i)).value_range();
-                    [lo.to_u16(), hi.to_u16()]
-                })
-                .collect();
-            BrickRanges::from_parts(grid, ranges)
-        });
-        (ranges, CellRanges::compute(&grid, view))
+        })
     }
 
     /// Brick `b` of the rendering grid over `data` (this volume's samples).
@@ -194,9 +170,22 @@ impl<'a> RenderVolume<'a> {
         &self.ranges
     }
 
-    /// Value ranges of the small cells inside each brick.
+    /// Value ranges of the small cells inside each brick (those computed so far).
     pub fn cells(&self) -> &CellRanges {
         &self.cells
+    }
+
+    /// The small cells' ranges of brick `b`, computed from `data` (this volume's
+    /// samples) on the first visit.
+    pub fn cells_of<'s, T: Sample>(
+        &'s self,
+        data: &TypedVolume<'_, T>,
+        b: [u32; 3],
+    ) -> &'s [[u16; 2]] {
+        let index = self.geometry.grid().index(b);
+        let known = self.ranges.range(b);
+        self.cells
+            .of_brick(index, Some(known), || self.brick_view(data, b))
     }
 }
 
@@ -224,8 +213,6 @@ pub struct FramePlan {
     pub gradient_scale: Vec3,
     /// Per brick (file order): transparent under this transfer function.
     pub transparent: Vec<bool>,
-    /// Per small cell (brick by brick, as [`CellRanges`]): transparent.
-    pub cell_transparent: Vec<bool>,
     /// The background colour.
     pub background: [f32; 3],
     /// Two-level compositing, when the settings have segments.
@@ -264,27 +251,7 @@ impl FramePlan {
             }
             None => None,
         };
-        // Empty under this frame's classification: the transfer function, or every
-        // visible object's for two-level scenes whose objects all composite by
-        // emission–absorption (others see every sample).
-        let is_empty = |lo: u16, hi: u16| match &segments {
-            None => table.is_transparent(lo, hi),
-            Some(seg) => seg.all_dvr && seg.is_transparent(lo, hi),
-        };
-        let transparent = volume
-            .ranges()
-            .as_slice()
-            .iter()
-            .map(|&[lo, hi]| is_empty(lo, hi))
-            .collect();
-        let cell_transparent = volume
-            .cells()
-            .as_slice()
-            .par_iter()
-            .map(|&[lo, hi]| lo > hi || is_empty(lo, hi))
-            .collect();
-        let min_spacing = geometry.min_spacing();
-        Ok(FramePlan {
+        let mut plan = FramePlan {
             table,
             mode: if segments.is_some() {
                 Mode::Dvr
@@ -296,15 +263,32 @@ impl FramePlan {
             shading: settings.shading,
             iso_raw: d0 + settings.iso_value * (d1 - d0),
             step_ratio: settings.step,
-            dt: settings.step * min_spacing,
-            gradient_scale: Vec3::splat(min_spacing / (d1 - d0)) / geometry.spacing(),
-            transparent,
-            cell_transparent,
+            dt: settings.step * geometry.min_spacing(),
+            gradient_scale: Vec3::splat(geometry.min_spacing() / (d1 - d0)) / geometry.spacing(),
+            transparent: Vec::new(),
             background: settings.background,
             segments,
-        })
+        };
+        plan.transparent = volume
+            .ranges()
+            .as_slice()
+            .par_iter()
+            .map(|&[lo, hi]| plan.range_empty(lo, hi))
+            .collect();
+        Ok(plan)
     }
 
+    /// Whether every value in `lo..=hi` is empty under this frame's classification:
+    /// the transfer function, or every visible object's for two-level scenes whose
+    /// objects all composite by emission–absorption (others see every sample). An
+    /// empty range (`lo > hi`, a cell owning no sample) is empty.
+    pub fn range_empty(&self, lo: u16, hi: u16) -> bool {
+        lo > hi
+            || match &self.segments {
+                None => self.table.is_transparent(lo, hi),
+                Some(seg) => seg.all_dvr && seg.is_transparent(lo, hi),
+            }
+    }
     /// Whether brick number `index` (with value range `range`) can be left out of
     /// the frame: nothing in it can change a pixel, whatever came before.
     pub fn brick_droppable(&self, index: usize, range: [u16; 2]) -> bool {

@@ -81,6 +81,45 @@ impl BrickRanges {
         BrickRanges { grid, ranges }
     }
 
+    /// Ranges for another grid over the same volume, merged from these without
+    /// reading a sample: each brick of `grid` gets the union of the ranges of the
+    /// bricks here that hold any of its voxels. Exact when `grid`'s bricks are
+    /// unions of these (the same grid, or [`Self::coarsened`]'s); otherwise a
+    /// superset of the true range, which empty-space skipping may use safely.
+    pub fn covering(&self, grid: &BlockGrid) -> BrickRanges {
+        let step = self.grid.step();
+        let counts = self.grid.counts();
+        let ranges = grid
+            .iter()
+            .map(|b| {
+                let origin = grid.origin(b);
+                let extent = grid.extent(b);
+                // Bricks j whose voxels [j·step, j·step + step] meet [a, z]; one
+                // sharing only voxel z is left out when its neighbour holds z too.
+                let span = |a: usize| {
+                    let (lo, hi) = (origin[a], origin[a] + extent[a] - 1);
+                    let first = (lo / step).min(counts[a] - 1);
+                    let last = ((hi.max(lo + 1) - 1) / step).min(counts[a] - 1);
+                    first..=last
+                };
+                let mut merged = [u16::MAX, 0];
+                for x in span(0) {
+                    for y in span(1) {
+                        for z in span(2) {
+                            let [l, h] = self.range([x, y, z]);
+                            merged = [merged[0].min(l), merged[1].max(h)];
+                        }
+                    }
+                }
+                merged
+            })
+            .collect();
+        BrickRanges {
+            grid: *grid,
+            ranges,
+        }
+    }
+
     /// The grid the ranges belong to.
     pub fn grid(&self) -> &BlockGrid {
         &self.grid
@@ -232,6 +271,27 @@ mod tests {
                 BrickRanges::compute(&volume, &grid),
                 "factor {factor}"
             );
+        }
+    }
+
+    #[test]
+    fn covering_ranges_hold_every_voxel_and_are_exact_for_coarser_grids() {
+        let dims = [37, 50, 23];
+        let samples: Vec<u8> = (0..dims.iter().product::<u32>())
+            .map(|i| (i.wrapping_mul(2_654_435_761) >> 24) as u8)
+            .collect();
+        let volume = TypedVolume::new(&samples, dims, Layout::Linear);
+        let fine = BrickRanges::compute(&volume, &BlockGrid::new(dims, 6));
+        for side in [6, 11, 16, 4, 9, 31] {
+            let grid = BlockGrid::new(dims, side);
+            let covering = fine.covering(&grid);
+            let exact = BrickRanges::compute(&volume, &grid);
+            if (side - 1) % 5 == 0 {
+                assert_eq!(covering, exact, "side {side}");
+            }
+            for (c, e) in covering.as_slice().iter().zip(exact.as_slice()) {
+                assert!(c[0] <= e[0] && c[1] >= e[1], "side {side}: {c:?} ⊉ {e:?}");
+            }
         }
     }
 
