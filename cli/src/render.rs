@@ -5,8 +5,9 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use raycaster::render::{
-    Camera, Light, Membership, Mode, Orbit, ParallelOptions, Projection, RenderSettings,
-    RenderVolume, SegmentScene, Shading, TransferFunction, render_parallel, render_sequential,
+    Camera, LevelChoice, Light, Membership, Mode, Orbit, ParallelOptions, Projection,
+    RenderSettings, RenderVolume, SegmentScene, Shading, TransferFunction, render_parallel,
+    render_sequential,
 };
 use raycaster::synth::{SceneKind, synthesize, synthesize_labels};
 use raycaster::volume::{Access, OpenOptions, SampleType, Volume};
@@ -166,6 +167,23 @@ pub struct RenderArgs {
     #[arg(long)]
     ram: bool,
 
+    /// Resolution level of the file's pyramid to sample: `auto` (the coarsest
+    /// whose voxels project to at most a pixel) or a level number (0 = full
+    /// resolution, 1 = half on every axis, ...). Files without a pyramid
+    /// (`volgen pyramid FILE` adds one) always render level 0.
+    #[arg(long, default_value = "auto", value_parser = |s: &str| s.parse::<LevelChoice>(), value_name = "auto|N")]
+    level: LevelChoice,
+
+    /// Shifts the automatic level choice by this many levels (1: one coarser,
+    /// -1: one finer).
+    #[arg(
+        long,
+        default_value_t = 0.0,
+        allow_negative_numbers = true,
+        value_name = "LEVELS"
+    )]
+    lod_bias: f32,
+
     /// Two-level rendering of a segmented volume: a scene description (TOML) of
     /// value layers or a label volume, with each object's transfer function and
     /// local mode (see volumes/scenes/).
@@ -261,6 +279,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     if !(0.0..=1.0).contains(&args.iso) {
         bail!("--iso {} must lie in [0, 1]", args.iso);
     }
+    let read_before = stats::bytes_read();
     let volume = open_volume(&args)?;
     let settings = settings(&args, &volume)?;
     let label_volume = match (&settings.segments, &args.labels) {
@@ -273,11 +292,24 @@ pub fn run(args: RenderArgs) -> Result<()> {
         },
         (None, _) => None,
     };
-    let mut prepared = RenderVolume::new(&volume, args.brick)?;
+    let choice = match args.level {
+        LevelChoice::Auto { .. } => LevelChoice::Auto {
+            bias: args.lod_bias,
+        },
+        fixed => fixed,
+    };
+    let camera = camera(&args, volume_bounds(&volume))?;
+    // Two-level scenes with labels sample labels of the same level, when they have it.
+    let level = match &label_volume {
+        Some(labels) => choice
+            .resolve(&volume, &camera)
+            .min(labels.level_count() - 1),
+        None => choice.resolve(&volume, &camera),
+    };
+    let mut prepared = RenderVolume::new(volume.level(level), args.brick)?;
     if let Some(labels) = &label_volume {
-        prepared = prepared.with_labels(labels)?;
+        prepared = prepared.with_labels(labels.level(level))?;
     }
-    let camera = camera(&args, &prepared)?;
     let frame = if args.sequential {
         render_sequential(&prepared, &camera, &settings)?
     } else {
@@ -295,11 +327,16 @@ pub fn run(args: RenderArgs) -> Result<()> {
         .to_image()
         .save_png(&args.output)
         .context("cannot write the image")?;
+    let bytes_read = stats::bytes_read().saturating_sub(read_before);
     if args.stats {
         eprint!("{}", stats::table(&frame.stats));
+        eprint!("{}", stats::level_table(&volume, level, bytes_read));
     }
     if args.stats_json {
-        println!("{}", stats::json(&frame.stats, &volume, &settings));
+        println!(
+            "{}",
+            stats::json(&frame.stats, &volume, &settings, level, bytes_read)
+        );
     }
     if !args.quiet {
         eprintln!(
@@ -410,9 +447,21 @@ fn glam_vec(v: [f32; 3]) -> raycaster::render::Vec3 {
     raycaster::render::Vec3::from(v)
 }
 
-fn camera(args: &RenderArgs, volume: &RenderVolume<'_>) -> Result<Camera> {
+/// The world box of level 0 (every level is framed alike).
+fn volume_bounds(volume: &Volume) -> (raycaster::render::Vec3, raycaster::render::Vec3) {
+    let hi = volume.dims().map(|d| (d - 1) as f32);
+    let spacing = volume.spacing();
+    (
+        raycaster::render::Vec3::ZERO,
+        glam_vec([0, 1, 2].map(|a| hi[a] * spacing[a])),
+    )
+}
+
+fn camera(
+    args: &RenderArgs,
+    (lo, hi): (raycaster::render::Vec3, raycaster::render::Vec3),
+) -> Result<Camera> {
     let [w, h] = args.size;
-    let (lo, hi) = volume.geometry().world_bounds();
     let target = args.target.map(glam_vec).unwrap_or((lo + hi) / 2.0);
     let up = glam_vec(args.up);
     if let Some(position) = args.position {

@@ -42,11 +42,21 @@ pub fn table(s: &FrameStats) -> String {
 }
 
 /// The counters and the main settings as one JSON object.
-pub fn json(s: &FrameStats, volume: &Volume, settings: &RenderSettings) -> String {
+pub fn json(
+    s: &FrameStats,
+    volume: &Volume,
+    settings: &RenderSettings,
+    level: usize,
+    bytes_read: u64,
+) -> String {
     let c = &s.counters;
     serde_json::json!({
         "volume": volume.path().display().to_string(),
         "dims": volume.dims(),
+        "level": level,
+        "levels": volume.level_count(),
+        "level_dims": volume.level(level).dims(),
+        "bytes_read": bytes_read,
         "width": s.width,
         "height": s.height,
         "mode": settings.mode.name(),
@@ -68,4 +78,29 @@ pub fn json(s: &FrameStats, volume: &Volume, settings: &RenderSettings) -> Strin
         "samples_per_second": s.samples_per_second(),
     })
     .to_string()
+}
+
+/// The level line and the bytes read from storage, for [`table`]'s reader.
+pub fn level_table(volume: &Volume, level: usize, bytes_read: u64) -> String {
+    let [x, y, z] = volume.level(level).dims();
+    format!(
+        "level            {level} of 0..={} ({x}×{y}×{z} voxels)\n\
+         read from disk   {:.1} MB (this process, open and frame)\n",
+        volume.level_count() - 1,
+        bytes_read as f64 / 1e6
+    )
+}
+
+/// Bytes this process has caused to be read from storage so far (Linux
+/// `/proc/self/io` `read_bytes`: page-cache misses, including faults on mapped
+/// files); 0 where that is not available.
+pub fn bytes_read() -> u64 {
+    std::fs::read_to_string("/proc/self/io")
+        .ok()
+        .and_then(|text| {
+            text.lines()
+                .find_map(|l| l.strip_prefix("read_bytes:"))
+                .and_then(|v| v.trim().parse().ok())
+        })
+        .unwrap_or(0)
 }

@@ -42,6 +42,7 @@ fn write_pattern(path: &Path, header: &Header) {
         overwrite: false,
         // Small slabs: several slabs per file, so slab seams are exercised.
         slab_bytes: 4096,
+        pyramid: true,
     };
     match header.sample_type {
         SampleType::U8 => write_volume::<u8>(path, header, &options, &Job::silent(), |x0, _, s| {
@@ -331,6 +332,7 @@ fn convert_to(
     let write = WriteOptions {
         overwrite: false,
         slab_bytes: 2048,
+        pyramid: true,
     };
     convert(input, out, &options, &write, &Job::silent()).unwrap();
     Volume::open(out).unwrap()

@@ -10,13 +10,13 @@ use raycaster::convert::{ConvertOptions, ValueMap, convert};
 use raycaster::import::{self, Imported};
 use raycaster::io::{Input, RawSpec, RawType, WriteOptions};
 use raycaster::job::Job;
-use raycaster::volume::{Format, Layout, SampleType};
+use raycaster::volume::{Format, Layout, SampleType, pyramid_voxels};
 
 use crate::args::{
     EndianArg, FormatArg, LayoutArg, RawOrderArg, RawTypeArg, SampleArg, parse_brick, parse_dims,
     parse_spacing, parse_window,
 };
-use crate::generate::{describe_layout, describe_size};
+use crate::generate::{describe_layout, describe_pyramid, describe_size};
 use crate::progress::{CANCEL, voxel_bar};
 
 /// Convert a raw, .vol, NRRD, NIfTI-1, MetaImage file or DICOM series into a .vol file.
@@ -87,6 +87,11 @@ pub struct ConvertArgs {
     /// Replace an existing output file.
     #[arg(long)]
     force: bool,
+    /// Do not write the resolution pyramid (levels of half resolution on every
+    /// axis, about 1/7 of the file, that let the renderer show large volumes at
+    /// once; `volgen pyramid FILE` adds it later).
+    #[arg(long)]
+    no_pyramid: bool,
     /// Print nothing but errors.
     #[arg(short, long)]
     quiet: bool,
@@ -148,13 +153,19 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
         window: a.window,
     };
     let voxels: u64 = input.dims().iter().map(|&d| u64::from(d)).product();
-    let bar = voxel_bar(voxels, "convert", a.quiet);
+    let extra = if a.no_pyramid {
+        0
+    } else {
+        pyramid_voxels(input.dims())
+    };
+    let bar = voxel_bar(voxels + extra, "convert", a.quiet);
     let on_progress = |n| bar.inc(n);
     let job = Job::silent()
         .with_progress(&on_progress)
         .with_cancel(&CANCEL);
     let write = WriteOptions {
         overwrite: a.force,
+        pyramid: !a.no_pyramid,
         ..WriteOptions::default()
     };
     let start = Instant::now();
@@ -167,10 +178,11 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
             ValueMap::Copy => ", values copied".to_string(),
         };
         println!(
-            "wrote {}: {} {}, {} bytes in {:.2} s{window}",
+            "wrote {}: {} {}{}, {} bytes in {:.2} s{window}",
             a.output.display(),
             describe_size(done.header.dims),
             describe_layout(&done.header),
+            describe_pyramid(done.written.pyramid_levels),
             done.written.file_bytes,
             start.elapsed().as_secs_f64(),
         );

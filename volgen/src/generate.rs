@@ -9,7 +9,7 @@ use raycaster::generate::generate;
 use raycaster::io::WriteOptions;
 use raycaster::job::Job;
 use raycaster::synth::SceneKind;
-use raycaster::volume::{Content, Format, Header, Layout, SampleType};
+use raycaster::volume::{Content, Format, Header, Layout, SampleType, pyramid_voxels};
 
 use crate::args::{FormatArg, LayoutArg, SampleArg, parse_brick, parse_dims, parse_spacing};
 use crate::progress::{CANCEL, voxel_bar};
@@ -83,6 +83,11 @@ pub struct GenerateArgs {
     /// Replace existing output files.
     #[arg(long)]
     force: bool,
+    /// Do not write the resolution pyramid (levels of half resolution on every
+    /// axis, about 1/7 of the file, that let the renderer show large volumes at
+    /// once; `volgen pyramid FILE` adds it later).
+    #[arg(long)]
+    no_pyramid: bool,
     /// Print nothing but errors.
     #[arg(short, long)]
     quiet: bool,
@@ -119,6 +124,7 @@ pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
     }
     let options = WriteOptions {
         overwrite: a.force,
+        pyramid: !a.no_pyramid,
         ..WriteOptions::default()
     };
     // Refuse before doing any work when an output exists.
@@ -154,7 +160,12 @@ pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
         } else {
             kind.name()
         };
-        let bar = voxel_bar(voxels, what, a.quiet);
+        let extra = if a.no_pyramid {
+            0
+        } else {
+            pyramid_voxels(header.dims)
+        };
+        let bar = voxel_bar(voxels + extra, what, a.quiet);
         let on_progress = |n| bar.inc(n);
         let job = Job::silent()
             .with_progress(&on_progress)
@@ -166,10 +177,11 @@ pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
         if !a.quiet {
             let [lo, hi] = written.ranges.overall();
             println!(
-                "wrote {}: {} {}, {} bytes in {:.2} s ({:.1} M voxels/s), values {lo}..={hi}",
+                "wrote {}: {} {}{}, {} bytes in {:.2} s ({:.1} M voxels/s), values {lo}..={hi}",
                 path.display(),
                 describe_size(header.dims),
                 describe_layout(&header),
+                describe_pyramid(written.pyramid_levels),
                 written.file_bytes,
                 secs,
                 voxels as f64 / secs / 1e6,
@@ -177,6 +189,15 @@ pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// `, pyramid of 3 levels` (or nothing).
+pub fn describe_pyramid(levels: usize) -> String {
+    match levels {
+        0 => String::new(),
+        1 => ", pyramid of 1 level".to_string(),
+        n => format!(", pyramid of {n} levels"),
+    }
 }
 
 /// `256x256x256`.

@@ -45,7 +45,7 @@ pub fn run(a: InfoArgs) -> anyhow::Result<()> {
         Format::Thesis => println!("header      26 bytes (reference thesis format)"),
         Format::Extended => println!(
             "header      64 bytes (extension version {})",
-            raycaster::volume::EXTENSION_VERSION
+            if h.pyramid_offset.is_some() { 2 } else { 1 }
         ),
     }
     println!(
@@ -77,6 +77,36 @@ pub fn run(a: InfoArgs) -> anyhow::Result<()> {
         100.0 * zero as f64 / all.len() as f64,
         100.0 * constant as f64 / all.len() as f64
     );
+    if volume.level_count() > 1 {
+        let place = match h.pyramid_offset {
+            Some(_) => "in the file".to_string(),
+            None => format!(
+                "in {}",
+                raycaster::volume::pyramid_sidecar_path(&a.file).display()
+            ),
+        };
+        println!(
+            "pyramid     {} levels beyond full resolution, {place}",
+            volume.level_count() - 1
+        );
+        for k in 1..volume.level_count() {
+            let level = volume.level(k);
+            let [lo, hi] = level.ranges().overall();
+            println!(
+                "  level {k}   {} spacing {} x {} x {}, {} bytes, values {lo}..={hi}",
+                describe_size(level.dims()),
+                level.spacing()[0],
+                level.spacing()[1],
+                level.spacing()[2],
+                level.data_bytes()
+            );
+        }
+    } else if !raycaster::volume::level_dims(h.dims).is_empty() {
+        println!(
+            "pyramid     none (`volgen pyramid {}` adds one)",
+            a.file.display()
+        );
+    }
     if !a.no_histogram {
         let input = Input::open_vol(&a.file)?;
         let bar = voxel_bar(voxels, "histogram", a.quiet);

@@ -8,6 +8,7 @@ mod convert;
 mod generate;
 mod info;
 mod progress;
+mod pyramid;
 
 use clap::{Parser, Subcommand};
 
@@ -31,6 +32,7 @@ enum Command {
     Generate(generate::GenerateArgs),
     Convert(convert::ConvertArgs),
     Info(info::InfoArgs),
+    Pyramid(pyramid::PyramidArgs),
 }
 
 fn main() {
@@ -50,6 +52,7 @@ fn main() {
         Command::Generate(a) => generate::run(a),
         Command::Convert(a) => convert::run(a),
         Command::Info(a) => info::run(a),
+        Command::Pyramid(a) => pyramid::run(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

@@ -11,4 +11,5 @@ mod writer;
 
 pub use decode::{Endian, RawType};
 pub use input::{Input, InputType, RawData, RawOrder, RawSpec};
+pub(crate) use writer::stream_samples;
 pub use writer::{WriteOptions, WriteSummary, write_volume};

@@ -7,9 +7,10 @@ use std::sync::mpsc;
 use rayon::prelude::*;
 
 use crate::job::Job;
+use crate::volume::pyramid::{level_dims, map_region, write_block};
 use crate::volume::{
     AtPath, BlockGrid, BrickRanges, BrickView, Format, Header, LINEAR_RANGE_SIDE, Layout, Sample,
-    VolumeError, VolumeErrorKind, ranges_sidecar_path,
+    TypedVolume, VolumeError, VolumeErrorKind, ranges_sidecar_path,
 };
 
 /// Bytes the writer thread writes between two flushes to disk.
@@ -23,6 +24,10 @@ pub struct WriteOptions {
     pub overwrite: bool,
     /// Upper bound on the slab buffer, in bytes (at least one brick row is used).
     pub slab_bytes: usize,
+    /// Also write the resolution pyramid: embedded in extended files, in a
+    /// `FILE.pyramid` sidecar for thesis files (volumes larger than
+    /// [`crate::volume::COARSEST_EDGE`] on some axis only).
+    pub pyramid: bool,
 }
 
 impl Default for WriteOptions {
@@ -30,6 +35,7 @@ impl Default for WriteOptions {
         WriteOptions {
             overwrite: false,
             slab_bytes: 16 << 20,
+            pyramid: true,
         }
     }
 }
@@ -41,6 +47,8 @@ pub struct WriteSummary {
     pub file_bytes: u64,
     /// The per-brick value ranges stored with it.
     pub ranges: BrickRanges,
+    /// Levels of the resolution pyramid written with it (0: none).
+    pub pyramid_levels: usize,
 }
 
 /// Writes the volume described by `header` to `path`.
@@ -65,6 +73,7 @@ pub fn write_volume<T: Sample>(
     );
     let mut header = header.clone();
     header.ranges_offset = None;
+    header.pyramid_offset = None;
     let head_bytes = header.encode().at(path)?;
     if !options.overwrite && path.exists() {
         return Err(VolumeError::new(path, VolumeErrorKind::Exists));
@@ -72,8 +81,74 @@ pub fn write_volume<T: Sample>(
     let tmp = crate::volume::temp_file_beside(path).at(path)?;
     let file = tmp.as_file();
     file.write_all_at(&head_bytes, 0).at(path)?;
-    let grid = header.block_grid(LINEAR_RANGE_SIDE);
+    let ranges = stream_samples(
+        file,
+        head_bytes.len() as u64,
+        &header,
+        options,
+        job,
+        path,
+        &mut fill,
+    )?;
+    let data_end = header.data_end().at(path)?;
+    let mut pyramid_levels = 0;
+    let wants_pyramid = options.pyramid && !level_dims(header.dims).is_empty();
+    if header.format == Format::Extended {
+        let table = ranges.encode();
+        file.write_all_at(&table, data_end).at(path)?;
+        header.ranges_offset = Some(data_end);
+        if wants_pyramid {
+            let block_start = (data_end + table.len() as u64).div_ceil(64) * 64;
+            file.sync_data().at(path)?;
+            let map = map_region(file, header.data_offset, header.data_len().at(path)?).at(path)?;
+            let samples: &[T] = bytemuck::try_cast_slice(&map[..])
+                .map_err(|_| VolumeError::new(path, VolumeErrorKind::Misaligned))?;
+            let level0 = TypedVolume::new(samples, header.dims, header.layout);
+            let layout = write_block(file, block_start, &header, level0, options, job, path)?;
+            pyramid_levels = layout.levels.len();
+            header.pyramid_offset = Some(block_start);
+        }
+        file.write_all_at(&header.encode().at(path)?, 0).at(path)?;
+    }
+    tmp.as_file().sync_all().at(path)?;
+    let file_bytes = tmp.as_file().metadata().at(path)?.len();
+    debug_assert!(file_bytes >= data_end);
+    if options.overwrite {
+        tmp.persist(path)
+            .map_err(|e| VolumeError::new(path, e.error))?;
+    } else {
+        tmp.persist_noclobber(path)
+            .map_err(|e| VolumeError::new(path, e.error))?;
+    }
+    if header.format == Format::Thesis {
+        let meta = std::fs::metadata(path).at(path)?;
+        let sidecar = ranges.encode_sidecar(meta.len(), meta.modified().at(path)?);
+        let sidecar_path = ranges_sidecar_path(path);
+        crate::volume::write_file_atomically(&sidecar_path, &sidecar).at(&sidecar_path)?;
+        if wants_pyramid {
+            pyramid_levels = crate::volume::write_pyramid_sidecar(path, options, job)?;
+        }
+    }
+    Ok(WriteSummary {
+        file_bytes,
+        ranges,
+        pyramid_levels,
+    })
+}
 
+/// Writes the samples `fill` gives (see [`write_volume`]) in `header`'s layout into
+/// `file` from byte `start`, computing on this thread (and rayon) while a writer
+/// thread drains finished buffers. Returns the brick value ranges.
+pub(crate) fn stream_samples<T: Sample>(
+    file: &std::fs::File,
+    start: u64,
+    header: &Header,
+    options: &WriteOptions,
+    job: &Job,
+    path: &Path,
+    fill: &mut impl FnMut(u32, u32, &mut [T]) -> Result<(), VolumeError>,
+) -> Result<BrickRanges, VolumeError> {
+    let grid = header.block_grid(LINEAR_RANGE_SIDE);
     // Compute on this thread (and rayon) while a writer thread drains finished
     // buffers, so generation runs at the speed of the slower of the two.
     let (full_tx, full_rx) = mpsc::sync_channel::<(Vec<T>, usize)>(1);
@@ -81,7 +156,7 @@ pub fn write_volume<T: Sample>(
     let recycle = empty_tx.clone();
     let ranges = std::thread::scope(|scope| {
         let writer = scope.spawn(move || -> std::io::Result<()> {
-            let mut offset = head_bytes.len() as u64;
+            let mut offset = start;
             let mut unsynced = 0;
             for (buf, len) in full_rx {
                 let bytes: &[u8] = bytemuck::cast_slice(&buf[..len]);
@@ -102,12 +177,12 @@ pub fn write_volume<T: Sample>(
         let mut take_buffer = || empty_rx.try_recv().unwrap_or_default();
         let mut send = |buf: Vec<T>, len: usize| full_tx.send((buf, len)).is_ok();
         let produced = produce_slabs(
-            &header,
+            header,
             &grid,
             options,
             job,
             path,
-            &mut fill,
+            fill,
             &mut take_buffer,
             &mut send,
             &recycle,
@@ -120,31 +195,7 @@ pub fn write_volume<T: Sample>(
             .at(path)?;
         produced
     })?;
-
-    let ranges = BrickRanges::from_parts(grid, ranges);
-    let data_end = header.data_end().at(path)?;
-    if header.format == Format::Extended {
-        file.write_all_at(&ranges.encode(), data_end).at(path)?;
-        header.ranges_offset = Some(data_end);
-        file.write_all_at(&header.encode().at(path)?, 0).at(path)?;
-    }
-    tmp.as_file().sync_all().at(path)?;
-    let file_bytes = tmp.as_file().metadata().at(path)?.len();
-    debug_assert!(file_bytes >= data_end);
-    if options.overwrite {
-        tmp.persist(path)
-            .map_err(|e| VolumeError::new(path, e.error))?;
-    } else {
-        tmp.persist_noclobber(path)
-            .map_err(|e| VolumeError::new(path, e.error))?;
-    }
-    if header.format == Format::Thesis {
-        let meta = std::fs::metadata(path).at(path)?;
-        let sidecar = ranges.encode_sidecar(meta.len(), meta.modified().at(path)?);
-        let sidecar_path = ranges_sidecar_path(path);
-        crate::volume::write_file_atomically(&sidecar_path, &sidecar).at(&sidecar_path)?;
-    }
-    Ok(WriteSummary { file_bytes, ranges })
+    Ok(BrickRanges::from_parts(grid, ranges))
 }
 
 /// The slab loop of [`write_volume`]: fills each slab, computes its brick ranges and

@@ -267,6 +267,19 @@ impl Camera {
         rect.intersect(&image)
     }
 
+    /// The world size of one pixel's footprint at point `p`: its depth along the
+    /// view times the pixel's angular size (perspective; 0 at or behind the camera
+    /// plane), or the view height over the image height (orthographic).
+    pub fn pixel_footprint(&self, p: Vec3) -> f32 {
+        let pixel = 2.0 * self.half_plane[1] / self.height as f32;
+        match self.projection {
+            Projection::Perspective { .. } => {
+                (p - self.position).dot(self.direction).max(0.0) * pixel
+            }
+            Projection::Orthographic { .. } => pixel,
+        }
+    }
+
     /// A key that orders points front to back: distance from a perspective camera,
     /// depth along the view direction for an orthographic one.
     pub fn depth_key(&self, p: Vec3) -> f32 {

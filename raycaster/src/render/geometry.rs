@@ -13,16 +13,25 @@ use crate::volume::BlockGrid;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct VolumeGeometry {
     grid: BlockGrid,
+    origin: Vec3,
     spacing: Vec3,
     last: Vec3,
     step: f32,
 }
 
 impl VolumeGeometry {
-    /// The geometry of a volume with `spacing` cut by `grid`.
+    /// The geometry of a volume with `spacing` cut by `grid`, voxel `(0, 0, 0)` at
+    /// the world origin.
     pub fn new(grid: BlockGrid, spacing: [f32; 3]) -> Self {
+        Self::placed(grid, spacing, [0.0; 3])
+    }
+
+    /// Like [`Self::new`] with voxel `(0, 0, 0)` at world position `origin` (pyramid
+    /// levels sit half a coarse voxel inside level 0's box).
+    pub fn placed(grid: BlockGrid, spacing: [f32; 3], origin: [f32; 3]) -> Self {
         VolumeGeometry {
             grid,
+            origin: Vec3::from(origin),
             spacing: Vec3::from(spacing),
             last: Vec3::from(grid.dims().map(|d| (d - 1) as f32)),
             step: grid.step() as f32,
@@ -49,9 +58,14 @@ impl VolumeGeometry {
         self.last
     }
 
+    /// World position of voxel `(0, 0, 0)`.
+    pub fn origin(&self) -> Vec3 {
+        self.origin
+    }
+
     /// The volume's world box.
     pub fn world_bounds(&self) -> (Vec3, Vec3) {
-        (Vec3::ZERO, self.last * self.spacing)
+        (self.origin, self.origin + self.last * self.spacing)
     }
 
     /// The cells brick `b` owns, in voxel coordinates.
@@ -63,7 +77,10 @@ impl VolumeGeometry {
     /// The cells brick `b` owns, in world coordinates.
     pub fn brick_world_box(&self, b: [u32; 3]) -> (Vec3, Vec3) {
         let (lo, hi) = self.brick_voxel_box(b);
-        (lo * self.spacing, hi * self.spacing)
+        (
+            self.origin + lo * self.spacing,
+            self.origin + hi * self.spacing,
+        )
     }
 
     /// The brick owning voxel position `p` (clamped into the volume first).

@@ -16,6 +16,7 @@ mod front;
 mod geometry;
 mod image;
 pub mod kernel;
+mod level;
 mod orbit;
 mod parallel;
 mod pixel;
@@ -40,6 +41,7 @@ pub use front::{FrameBuffer, FrameEvent, FrameRequest, Notify, RenderFront};
 pub use geometry::VolumeGeometry;
 pub use glam::Vec3;
 pub use image::{ImageError, RgbImage};
+pub use level::LevelChoice;
 pub use orbit::Orbit;
 pub use parallel::{
     DEFAULT_TILE_SIZE, ParallelOptions, TileSink, render_parallel, render_parallel_into,

@@ -48,7 +48,7 @@ impl PixelRay {
         let last_fraction = ((length - (samples - 1) as f32 * dt) / dt).clamp(0.0, 1.0);
         let inv_spacing = geometry.spacing().recip();
         Some(PixelRay {
-            origin: ray.origin * inv_spacing,
+            origin: (ray.origin - geometry.origin()) * inv_spacing,
             direction: ray.direction * inv_spacing,
             view_dir: ray.direction,
             t_enter,

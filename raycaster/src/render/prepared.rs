@@ -92,7 +92,7 @@ impl<'a> RenderVolume<'a> {
         };
         Ok(RenderVolume {
             volume,
-            geometry: VolumeGeometry::new(grid, volume.spacing()),
+            geometry: VolumeGeometry::placed(grid, volume.spacing(), volume.origin()),
             ranges,
             cells: CellRanges::lazy(&grid),
             labels: None,
@@ -234,7 +234,10 @@ impl FramePlan {
             return Err(RenderError::IsoValue(settings.iso_value));
         }
         let type_max = volume.volume().sample_type().max_value();
-        let table = TransferTable::new(&settings.transfer, type_max, settings.step);
+        // Opacity is defined per level-0 voxel: a coarse level's samples stand for
+        // `2^level` times the distance (the level's spacing).
+        let step_ratio = settings.step * volume.volume().level_scale();
+        let table = TransferTable::new(&settings.transfer, type_max, step_ratio);
         let [d0, d1] = settings
             .transfer
             .domain
@@ -247,7 +250,7 @@ impl FramePlan {
                         "the scene takes objects from a label volume but none is attached".into(),
                     ));
                 }
-                Some(SegmentPlan::new(scene, type_max, [d0, d1], settings.step))
+                Some(SegmentPlan::new(scene, type_max, [d0, d1], step_ratio))
             }
             None => None,
         };
@@ -262,7 +265,7 @@ impl FramePlan {
             empty_space_skipping: settings.empty_space_skipping,
             shading: settings.shading,
             iso_raw: d0 + settings.iso_value * (d1 - d0),
-            step_ratio: settings.step,
+            step_ratio,
             dt: settings.step * geometry.min_spacing(),
             gradient_scale: Vec3::splat(geometry.min_spacing() / (d1 - d0)) / geometry.spacing(),
             transparent: Vec::new(),

@@ -73,7 +73,8 @@ impl FrameSchedule {
                 let Some(rect) = camera.project_box(blo, bhi) else {
                     continue;
                 };
-                let centre = (Vec3::from(b.map(|c| c as f32)) + 0.5) * step * spacing;
+                let centre =
+                    geometry.origin() + (Vec3::from(b.map(|c| c as f32)) + 0.5) * step * spacing;
                 keyed.push((camera.depth_key(centre), ScheduledBrick { coords: b, rect }));
             }
         }

@@ -26,6 +26,9 @@ pub enum VolumeErrorKind {
     /// The embedded value-range table is unreadable.
     #[error("the value-range table after the samples is corrupt")]
     CorruptRanges,
+    /// The resolution pyramid (embedded or sidecar) is inconsistent.
+    #[error("the resolution pyramid is corrupt: {0}")]
+    CorruptPyramid(String),
     /// The samples are not aligned for their type in memory.
     #[error("u16 samples are not 2-byte aligned in memory")]
     Misaligned,

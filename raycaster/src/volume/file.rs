@@ -9,6 +9,10 @@ use super::header::{
     Content, EXTENDED_HEADER_LEN, Format, Header, HeaderError, Layout, SampleType,
     THESIS_HEADER_LEN,
 };
+use super::pyramid::{
+    PyramidLayout, SIDECAR_HEAD_LEN, level_dims, pyramid_sidecar_path, sidecar_head,
+    sidecar_is_fresh, write_block,
+};
 use super::ranges::{BrickRanges, LINEAR_RANGE_SIDE};
 use super::sample::Sample;
 use super::storage::{Access, Storage};
@@ -50,6 +54,10 @@ pub struct Volume {
     header: Header,
     storage: Storage,
     ranges: BrickRanges,
+    /// Levels 1, 2, … of the resolution pyramid, if the file has one.
+    levels: Vec<Volume>,
+    /// Which pyramid level this is (0: the full-resolution volume).
+    level: u32,
 }
 
 /// Reads and validates the header of the volume file `path` (without mapping it).
@@ -92,11 +100,14 @@ impl Volume {
         let storage = Storage::open(&file, len, options.access).at(path)?;
         let data = typed_data(&header, storage.bytes()).at(path)?;
         let ranges = load_ranges(path, &header, &storage, data, &file, len, options)?;
+        let levels = load_pyramid(path, &header, &file, len, options.access)?;
         Ok(Volume {
             path: path.to_path_buf(),
             header,
             storage,
             ranges,
+            levels,
+            level: 0,
         })
     }
 
@@ -113,6 +124,7 @@ impl Volume {
         let path = name.into();
         let mut header = header.clone();
         header.ranges_offset = None;
+        header.pyramid_offset = None;
         header.data_offset = match header.format {
             Format::Thesis => THESIS_HEADER_LEN,
             Format::Extended => EXTENDED_HEADER_LEN,
@@ -148,6 +160,8 @@ impl Volume {
             header,
             storage,
             ranges,
+            levels: Vec::new(),
+            level: 0,
         })
     }
 
@@ -163,6 +177,7 @@ impl Volume {
         let path = name.into();
         let mut header = header.clone();
         header.ranges_offset = None;
+        header.pyramid_offset = None;
         if header.sample_type != T::TYPE {
             let kind = VolumeErrorKind::Header(HeaderError::SampleTypeMismatch {
                 header: header.sample_type,
@@ -188,6 +203,58 @@ impl Volume {
     /// Scans the samples for the per-brick ranges (what open does without a cache).
     pub fn compute_ranges(&self) -> BrickRanges {
         compute_ranges(&self.header, self.data())
+    }
+
+    /// Number of resolution levels: 1 (the volume itself) plus the pyramid's.
+    pub fn level_count(&self) -> usize {
+        1 + self.levels.len()
+    }
+
+    /// Resolution level `k` (0: this volume; `k` is clamped to the coarsest).
+    pub fn level(&self, k: usize) -> &Volume {
+        match k.min(self.levels.len()) {
+            0 => self,
+            k => &self.levels[k - 1],
+        }
+    }
+
+    /// Which pyramid level this volume is (0 for an opened file).
+    pub fn level_index(&self) -> u32 {
+        self.level
+    }
+
+    /// Marks this volume as level `k` of a pyramid whose level 0 had `2^-k` times
+    /// its spacing: it is then placed and composited as [`Self::level`] `k` of such
+    /// a file would be (used to compare a pyramid with a separately reduced volume).
+    pub fn placed_as_level(mut self, k: u32) -> Volume {
+        self.level = k;
+        self
+    }
+
+    /// World position of voxel `(0, 0, 0)`: the origin for level 0; the centre of
+    /// the `2^k` level-0 voxels a level-`k` voxel stands for otherwise.
+    pub fn origin(&self) -> [f32; 3] {
+        let scale = (1u64 << self.level) as f32;
+        self.header
+            .spacing
+            .map(|s| (scale - 1.0) / 2.0 * (s / scale))
+    }
+
+    /// How many level-0 voxels one voxel of this level spans per axis: `2^level`.
+    pub fn level_scale(&self) -> f32 {
+        (1u64 << self.level) as f32
+    }
+
+    /// Bytes of samples of this level.
+    pub fn data_bytes(&self) -> u64 {
+        self.header.data_len().unwrap_or(0)
+    }
+
+    /// Asks the OS to read `len` bytes of samples at byte `offset` of this level's
+    /// data ahead of use (mapped volumes; a no-op in RAM). Best effort.
+    pub fn prefetch(&self, offset: u64, len: u64) {
+        self.storage
+            .will_need(self.header.data_offset + offset, len);
     }
 
     /// The file this volume was opened from.
@@ -317,6 +384,116 @@ fn load_ranges(
         let _ = write_file_atomically(&sidecar, &ranges.encode_sidecar(len, mtime));
     }
     Ok(ranges)
+}
+
+/// The pyramid levels of an opened file: embedded (extended header version 2), else
+/// from a fresh `FILE.pyramid` sidecar, else none. A corrupt embedded pyramid is an
+/// error; a stale or unreadable sidecar is ignored.
+fn load_pyramid(
+    path: &Path,
+    header: &Header,
+    file: &File,
+    len: u64,
+    access: Access,
+) -> Result<Vec<Volume>, VolumeError> {
+    if let Some(start) = header.pyramid_offset {
+        return read_levels(path, header, file, start, len, access);
+    }
+    let sidecar = pyramid_sidecar_path(path);
+    let Ok(side) = File::open(&sidecar) else {
+        return Ok(Vec::new());
+    };
+    let mtime = file.metadata().and_then(|m| m.modified());
+    let side_len = side.metadata().map(|m| m.len()).unwrap_or(0);
+    let mut head = vec![0u8; SIDECAR_HEAD_LEN as usize];
+    let fresh = match mtime {
+        Ok(mtime) => {
+            std::os::unix::fs::FileExt::read_exact_at(&side, &mut head, 0).is_ok()
+                && sidecar_is_fresh(&head, len, mtime)
+        }
+        Err(_) => false,
+    };
+    if !fresh || !side.metadata().is_ok_and(|m| m.is_file()) {
+        return Ok(Vec::new());
+    }
+    Ok(read_levels(path, header, &side, SIDECAR_HEAD_LEN, side_len, access).unwrap_or_default())
+}
+
+fn read_levels(
+    path: &Path,
+    base: &Header,
+    file: &File,
+    start: u64,
+    file_len: u64,
+    access: Access,
+) -> Result<Vec<Volume>, VolumeError> {
+    let layout = PyramidLayout::read(file, start, file_len, base).at(path)?;
+    (1..=layout.levels.len())
+        .map(|k| {
+            let e = &layout.levels[k - 1];
+            let header = layout.level_header(base, k);
+            let storage =
+                Storage::open_region(file, start + e.data_offset, e.data_len, access).at(path)?;
+            typed_data(&header, storage.bytes()).at(path)?;
+            let ranges = layout.read_ranges(file, start, base, k).at(path)?;
+            Ok(Volume {
+                path: path.to_path_buf(),
+                header,
+                storage,
+                ranges,
+                levels: Vec::new(),
+                level: k as u32,
+            })
+        })
+        .collect()
+}
+
+/// Computes the resolution pyramid of the volume file `path` (any format) into its
+/// sidecar `FILE.pyramid`, atomically; returns the number of levels (0 when the
+/// volume is small enough to need none, and then no sidecar is written).
+pub fn write_pyramid_sidecar(
+    path: &Path,
+    options: &crate::io::WriteOptions,
+    job: &crate::job::Job,
+) -> Result<usize, VolumeError> {
+    let volume = Volume::open(path)?;
+    if level_dims(volume.dims()).is_empty() {
+        return Ok(0);
+    }
+    let meta = std::fs::metadata(path).at(path)?;
+    let sidecar = pyramid_sidecar_path(path);
+    let tmp = temp_file_beside(&sidecar).at(&sidecar)?;
+    let out = tmp.as_file();
+    std::os::unix::fs::FileExt::write_all_at(
+        out,
+        &sidecar_head(meta.len(), meta.modified().at(path)?),
+        0,
+    )
+    .at(&sidecar)?;
+    let layout = match volume.data() {
+        VolumeData::U8(v) => write_block(
+            out,
+            SIDECAR_HEAD_LEN,
+            volume.header(),
+            v,
+            options,
+            job,
+            &sidecar,
+        )?,
+        VolumeData::U16(v) => write_block(
+            out,
+            SIDECAR_HEAD_LEN,
+            volume.header(),
+            v,
+            options,
+            job,
+            &sidecar,
+        )?,
+    };
+    out.sync_all().at(&sidecar)?;
+    tmp.persist(&sidecar)
+        .map_err(|e| VolumeError::new(&sidecar, e.error))?;
+    Ok(layout.levels.len())
 }
 
 /// Creates the temporary file that will become `path`: hidden, beside it (so the final

@@ -11,8 +11,12 @@ pub const THESIS_HEADER_LEN: u64 = 26;
 pub const EXTENDED_HEADER_LEN: u64 = 64;
 /// Magic bytes that open the extension block at byte 26.
 pub const EXTENSION_MAGIC: [u8; 4] = *b"RCVX";
-/// The extension version this build writes and reads.
-pub const EXTENSION_VERSION: u16 = 1;
+/// The newest extension version this build writes and reads: version 2 adds a
+/// resolution pyramid; files without one are written as version 1.
+pub const EXTENSION_VERSION: u16 = 2;
+
+/// The extension version of files without a pyramid (older readers open them).
+pub const EXTENSION_VERSION_PLAIN: u16 = 1;
 /// The largest size accepted on any axis (2^20 voxels).
 pub const MAX_AXIS: u32 = 1 << 20;
 /// Order byte of a thesis linear file.
@@ -105,6 +109,8 @@ pub struct Header {
     pub data_offset: u64,
     /// Byte offset of the embedded per-brick value-range table, if the file has one.
     pub ranges_offset: Option<u64>,
+    /// Byte offset of the embedded resolution pyramid (extension version 2), if any.
+    pub pyramid_offset: Option<u64>,
 }
 
 /// What is wrong with a header.
@@ -207,6 +213,18 @@ pub enum HeaderError {
         /// The file's length.
         file_len: u64,
     },
+    /// The pyramid offset is outside the bytes after the samples or not 64-aligned.
+    #[error(
+        "resolution pyramid offset {offset} is not a 64-aligned offset in the file's trailing bytes ({data_end}..{file_len})"
+    )]
+    BadPyramidOffset {
+        /// The offset in the header.
+        offset: u64,
+        /// Where the samples end.
+        data_end: u64,
+        /// The file's length.
+        file_len: u64,
+    },
 }
 
 const AXES: [char; 3] = ['x', 'y', 'z'];
@@ -234,6 +252,7 @@ impl Header {
             format,
             data_offset,
             ranges_offset: None,
+            pyramid_offset: None,
         }
     }
 
@@ -347,7 +366,7 @@ impl Header {
                 return Err(HeaderError::BadExtensionMagic);
             }
             let version = u16::from_le_bytes([bytes[30], bytes[31]]);
-            if version != EXTENSION_VERSION {
+            if !(EXTENSION_VERSION_PLAIN..=EXTENSION_VERSION).contains(&version) {
                 return Err(HeaderError::UnsupportedVersion(version));
             }
             let u64_at = |o: usize| u64::from_le_bytes(bytes[o..o + 8].try_into().unwrap());
@@ -374,6 +393,12 @@ impl Header {
                 return Err(HeaderError::DataLengthMismatch { declared, expected });
             }
             header.ranges_offset = (ranges != 0).then_some(ranges);
+            if version >= 2 {
+                let mut six = [0u8; 8];
+                six[..6].copy_from_slice(&bytes[34..40]);
+                let pyramid = u64::from_le_bytes(six);
+                header.pyramid_offset = (pyramid != 0).then_some(pyramid);
+            }
         } else {
             header.validate()?;
         }
@@ -388,6 +413,15 @@ impl Header {
             && (offset < data_end || offset >= file_len)
         {
             return Err(HeaderError::BadRangesOffset {
+                offset,
+                data_end,
+                file_len,
+            });
+        }
+        if let Some(offset) = header.pyramid_offset
+            && (offset < data_end || offset >= file_len || offset % 64 != 0)
+        {
+            return Err(HeaderError::BadPyramidOffset {
                 offset,
                 data_end,
                 file_len,
@@ -419,13 +453,21 @@ impl Header {
                 out.push(order | ORDER_EXTENDED_BIT);
                 out.push(side);
                 out.extend_from_slice(&EXTENSION_MAGIC);
-                out.extend_from_slice(&EXTENSION_VERSION.to_le_bytes());
+                let version = match self.pyramid_offset {
+                    Some(_) => EXTENSION_VERSION,
+                    None => EXTENSION_VERSION_PLAIN,
+                };
+                out.extend_from_slice(&version.to_le_bytes());
                 out.push(self.sample_type.code());
                 out.push(match self.content {
                     Content::Scalar => 0,
                     Content::Labels => 1,
                 });
-                out.extend_from_slice(&[0u8; 6]);
+                let pyramid = self.pyramid_offset.unwrap_or(0);
+                if pyramid >= 1 << 48 {
+                    return Err(HeaderError::SizeOverflow);
+                }
+                out.extend_from_slice(&pyramid.to_le_bytes()[..6]);
                 out.extend_from_slice(&self.data_offset.to_le_bytes());
                 out.extend_from_slice(&self.data_len()?.to_le_bytes());
                 out.extend_from_slice(&self.ranges_offset.unwrap_or(0).to_le_bytes());

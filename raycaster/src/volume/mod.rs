@@ -10,18 +10,22 @@ mod error;
 mod file;
 mod grid;
 mod header;
+pub mod pyramid;
 mod ranges;
 mod sample;
 mod storage;
 mod view;
 
 pub use error::{VolumeError, VolumeErrorKind};
-pub use file::{OpenOptions, Volume, VolumeData, ranges_sidecar_path, read_header};
+pub use file::{
+    OpenOptions, Volume, VolumeData, ranges_sidecar_path, read_header, write_pyramid_sidecar,
+};
 pub use grid::BlockGrid;
 pub use header::{
     Content, EXTENDED_HEADER_LEN, EXTENSION_MAGIC, EXTENSION_VERSION, Format, Header, HeaderError,
     Layout, MAX_AXIS, SampleType, THESIS_HEADER_LEN,
 };
+pub use pyramid::{COARSEST_EDGE, level_dims, pyramid_sidecar_path, pyramid_voxels};
 pub use ranges::{BrickRanges, LINEAR_RANGE_SIDE};
 pub use sample::Sample;
 pub use storage::Access;

@@ -62,6 +62,41 @@ impl Storage {
         }
     }
 
+    /// `len` bytes of `file` at `offset` (a pyramid level), mapped or read.
+    pub(crate) fn open_region(
+        file: &File,
+        offset: u64,
+        len: u64,
+        access: Access,
+    ) -> std::io::Result<Storage> {
+        match access {
+            Access::Mapped => Ok(Storage::Mapped(super::pyramid::map_region(
+                file, offset, len,
+            )?)),
+            Access::Ram => {
+                let len = usize::try_from(len).map_err(|_| {
+                    std::io::Error::new(std::io::ErrorKind::OutOfMemory, "level too large")
+                })?;
+                let mut words = vec![0u64; len.div_ceil(8)];
+                let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut words);
+                file.read_exact_at(&mut bytes[..len], offset)?;
+                Ok(Storage::Ram { words, len })
+            }
+        }
+    }
+
+    /// Asks the OS to read `len` bytes at `offset` ahead of use (mapped storage
+    /// only; best effort: errors are ignored).
+    pub(crate) fn will_need(&self, offset: u64, len: u64) {
+        if let Storage::Mapped(map) = self {
+            let start = (offset as usize).min(map.len());
+            let len = (len as usize).min(map.len() - start);
+            if len > 0 {
+                let _ = map.advise_range(memmap2::Advice::WillNeed, start, len);
+            }
+        }
+    }
+
     /// A RAM copy of `bytes` (a whole file image built in memory).
     pub(crate) fn from_bytes(bytes: &[u8]) -> Storage {
         let mut words = vec![0u64; bytes.len().div_ceil(8)];

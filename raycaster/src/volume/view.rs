@@ -129,6 +129,37 @@ impl<'a, T: Sample> TypedVolume<'a, T> {
     }
 }
 
+impl<T: Sample> TypedVolume<'_, T> {
+    /// Copies the z-run of voxels `(x, y, 0..dims[2])` into `out` (the first
+    /// `dims[2]` elements), from whichever bricks hold it.
+    ///
+    /// # Panics
+    /// If `(x, y)` is outside the volume or `out` is too short.
+    pub fn row_into(&self, x: u32, y: u32, out: &mut [T]) {
+        let dz = self.dims[2] as usize;
+        match self.layout {
+            Layout::Linear => {
+                let [_, dy, _] = self.dims.map(|d| d as usize);
+                let start = linear_index([dy * dz, dz, 1], [x, y, 0]);
+                out[..dz].copy_from_slice(&self.samples[start..start + dz]);
+            }
+            Layout::Bricked { side } => {
+                let grid = BlockGrid::new(self.dims, u32::from(side));
+                let b = grid.brick_of_voxel([x, y, 0]);
+                let o = grid.origin(b);
+                let step = grid.step() as usize;
+                for bz in 0..grid.counts()[2] {
+                    let view = self.brick(&grid, [b[0], b[1], bz]);
+                    let row = view.row(x - o[0], y - o[1]);
+                    let z0 = bz as usize * step;
+                    let n = row.len().min(dz - z0);
+                    out[z0..z0 + n].copy_from_slice(&row[..n]);
+                }
+            }
+        }
+    }
+}
+
 fn linear_index(strides: [usize; 3], v: [u32; 3]) -> usize {
     v[0] as usize * strides[0] + v[1] as usize * strides[1] + v[2] as usize * strides[2]
 }

@@ -1,0 +1,411 @@
+//! The resolution pyramid: levels 1, 2, … of a volume, each half the previous on
+//! every axis (a 2×2×2 box filter, or the maximum for label volumes), stored in the
+//! same layout as level 0 with their own brick value ranges.
+//!
+//! One block format serves both places a pyramid can live (docs/format.md): embedded
+//! after the range table of an extended file (header version 2), or in a sidecar
+//! `FILE.vol.pyramid` beside any file. The block starts with a directory of the
+//! levels; every offset in it is relative to the block's start, and a directory is
+//! only accepted when it is exactly the one this build would write for the file's
+//! header (so a lying directory is refused, never followed).
+
+use std::fs::File;
+use std::os::unix::fs::FileExt;
+use std::path::{Path, PathBuf};
+use std::time::SystemTime;
+
+use rayon::prelude::*;
+
+use super::error::{AtPath, VolumeError, VolumeErrorKind};
+use super::header::{Content, Format, Header, HeaderError};
+use super::ranges::{BrickRanges, LINEAR_RANGE_SIDE};
+use super::sample::Sample;
+use super::view::TypedVolume;
+
+/// Levels are added until the largest axis is at most this many voxels.
+pub const COARSEST_EDGE: u32 = 64;
+
+const BLOCK_MAGIC: [u8; 4] = *b"RCPY";
+const BLOCK_VERSION: u32 = 1;
+const DIRECTORY_HEAD_LEN: u64 = 16;
+const ENTRY_LEN: u64 = 64;
+const SIDECAR_MAGIC: [u8; 4] = *b"RCPS";
+const SIDECAR_VERSION: u32 = 1;
+/// Bytes before the block in a sidecar.
+pub const SIDECAR_HEAD_LEN: u64 = 64;
+
+/// The sidecar that holds the pyramid of `path` (any format): `FILE.pyramid`.
+pub fn pyramid_sidecar_path(path: &Path) -> PathBuf {
+    let mut name = path.as_os_str().to_owned();
+    name.push(".pyramid");
+    PathBuf::from(name)
+}
+
+/// The dimensions of levels 1, 2, … of a volume of `dims`: each half the previous
+/// (rounded up) until the largest axis is at most [`COARSEST_EDGE`].
+pub fn level_dims(dims: [u32; 3]) -> Vec<[u32; 3]> {
+    let mut out = Vec::new();
+    let mut d = dims;
+    while d.iter().any(|&v| v > COARSEST_EDGE) {
+        d = d.map(|v| v.div_ceil(2));
+        out.push(d);
+    }
+    out
+}
+
+/// Voxels of all pyramid levels of a volume of `dims` together (about a seventh of
+/// level 0's): the extra work of writing a pyramid, for progress bars.
+pub fn pyramid_voxels(dims: [u32; 3]) -> u64 {
+    level_dims(dims)
+        .iter()
+        .map(|d| d.iter().map(|&v| u64::from(v)).product::<u64>())
+        .sum()
+}
+
+fn align64(v: u64) -> u64 {
+    v.div_ceil(64) * 64
+}
+
+/// Where one level lives inside a pyramid block.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LevelEntry {
+    /// Voxel counts.
+    pub dims: [u32; 3],
+    /// Voxel spacing (`2^k` times level 0's).
+    pub spacing: [f32; 3],
+    /// Offset of the samples from the block's start (64-aligned).
+    pub data_offset: u64,
+    /// Bytes of samples.
+    pub data_len: u64,
+    /// Offset of the level's brick value-range table from the block's start.
+    pub ranges_offset: u64,
+    /// Bytes of that table.
+    pub ranges_len: u64,
+}
+
+/// The directory of a pyramid block: levels 1, 2, … in order.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PyramidLayout {
+    /// One entry per level beyond 0.
+    pub levels: Vec<LevelEntry>,
+}
+
+impl PyramidLayout {
+    /// The layout this build writes for a volume with header `base`.
+    pub fn plan(base: &Header) -> Result<Self, HeaderError> {
+        let dims = level_dims(base.dims);
+        let mut offset = align64(DIRECTORY_HEAD_LEN + ENTRY_LEN * dims.len() as u64);
+        let mut levels = Vec::with_capacity(dims.len());
+        for (k, d) in dims.into_iter().enumerate() {
+            let scale = (1u64 << (k + 1)) as f32;
+            let spacing = base.spacing.map(|s| s * scale);
+            let header = level_header(base, d, spacing);
+            let data_len = header.data_len()?;
+            let ranges_len = 28 + 4 * header.block_grid(LINEAR_RANGE_SIDE).block_count();
+            let ranges_offset = offset
+                .checked_add(data_len)
+                .ok_or(HeaderError::SizeOverflow)?;
+            levels.push(LevelEntry {
+                dims: d,
+                spacing,
+                data_offset: offset,
+                data_len,
+                ranges_offset,
+                ranges_len,
+            });
+            offset = align64(ranges_offset + ranges_len);
+        }
+        Ok(PyramidLayout { levels })
+    }
+
+    /// Bytes of the whole block.
+    pub fn block_len(&self) -> u64 {
+        self.levels.last().map_or(align64(DIRECTORY_HEAD_LEN), |l| {
+            align64(l.ranges_offset + l.ranges_len)
+        })
+    }
+
+    /// The header describing level `k` (1-based) on its own: extended format, samples
+    /// at offset 0 of the level's bytes.
+    pub fn level_header(&self, base: &Header, k: usize) -> Header {
+        let e = &self.levels[k - 1];
+        level_header(base, e.dims, e.spacing)
+    }
+
+    /// The directory's bytes (the start of the block).
+    pub fn encode(&self) -> Vec<u8> {
+        let mut out = Vec::new();
+        out.extend_from_slice(&BLOCK_MAGIC);
+        out.extend_from_slice(&BLOCK_VERSION.to_le_bytes());
+        out.extend_from_slice(&(self.levels.len() as u32).to_le_bytes());
+        out.extend_from_slice(&0u32.to_le_bytes());
+        for e in &self.levels {
+            for d in e.dims {
+                out.extend_from_slice(&d.to_le_bytes());
+            }
+            for s in e.spacing {
+                out.extend_from_slice(&s.to_le_bytes());
+            }
+            for v in [e.data_offset, e.data_len, e.ranges_offset, e.ranges_len] {
+                out.extend_from_slice(&v.to_le_bytes());
+            }
+            out.extend_from_slice(&[0u8; 8]);
+        }
+        out.resize(align64(out.len() as u64) as usize, 0);
+        out
+    }
+
+    /// Reads the directory at `block_start` of `file` for a volume with header
+    /// `base`, checking it is exactly the one [`Self::plan`] gives and that the
+    /// block fits in `file_len` bytes.
+    pub fn read(
+        file: &File,
+        block_start: u64,
+        file_len: u64,
+        base: &Header,
+    ) -> Result<Self, VolumeErrorKind> {
+        let corrupt = |why: &str| VolumeErrorKind::CorruptPyramid(why.to_string());
+        let plan = PyramidLayout::plan(base)?;
+        let expected = plan.encode();
+        let mut bytes = vec![0u8; expected.len()];
+        if block_start.saturating_add(expected.len() as u64) > file_len {
+            return Err(corrupt("the directory is cut off"));
+        }
+        file.read_exact_at(&mut bytes, block_start)?;
+        if bytes[..4] != BLOCK_MAGIC {
+            return Err(corrupt("bad magic"));
+        }
+        if bytes[4..8] != BLOCK_VERSION.to_le_bytes() {
+            return Err(corrupt("unsupported pyramid version"));
+        }
+        if bytes != expected {
+            return Err(corrupt(
+                "its directory does not match the volume's dimensions",
+            ));
+        }
+        if block_start.saturating_add(plan.block_len()) > file_len {
+            return Err(corrupt("the levels are cut off"));
+        }
+        Ok(plan)
+    }
+
+    /// Reads and checks the value-range table of level `k` (1-based).
+    pub fn read_ranges(
+        &self,
+        file: &File,
+        block_start: u64,
+        base: &Header,
+        k: usize,
+    ) -> Result<BrickRanges, VolumeErrorKind> {
+        let e = &self.levels[k - 1];
+        let mut bytes = vec![0u8; e.ranges_len as usize];
+        file.read_exact_at(&mut bytes, block_start + e.ranges_offset)?;
+        let header = self.level_header(base, k);
+        BrickRanges::decode(&bytes, e.dims)
+            .filter(|r| r.grid() == &header.block_grid(LINEAR_RANGE_SIDE))
+            .ok_or_else(|| VolumeErrorKind::CorruptPyramid(format!("level {k}'s range table")))
+    }
+}
+
+fn level_header(base: &Header, dims: [u32; 3], spacing: [f32; 3]) -> Header {
+    let mut h = Header::new(
+        dims,
+        spacing,
+        base.layout,
+        base.sample_type,
+        base.content,
+        Format::Extended,
+    );
+    h.data_offset = 0;
+    h
+}
+
+/// The sample of level `k + 1` at `(x, y, z)` from level `k` rows: the rounded mean
+/// of the 2×2×2 block at `2·(x, y, z)` (indices clamped to the level), or its
+/// maximum for labels. `rows` are the four z-runs at `(2x, 2y)`, `(2x+1, 2y)`,
+/// `(2x, 2y+1)`, `(2x+1, 2y+1)` (clamped).
+#[inline]
+fn reduce<T: Sample>(rows: [&[T]; 4], z: usize, labels: bool) -> T {
+    let last = rows[0].len() - 1;
+    let (z0, z1) = (2 * z, (2 * z + 1).min(last));
+    if labels {
+        let m = rows
+            .iter()
+            .map(|r| r[z0].max(r[z1]))
+            .max()
+            .expect("four rows");
+        return m;
+    }
+    let sum: u32 = rows
+        .iter()
+        .map(|r| u32::from(r[z0].to_u16()) + u32::from(r[z1].to_u16()))
+        .sum();
+    T::from_u16_saturating(((sum + 4) / 8) as u16)
+}
+
+/// Fills planes `x0..x1` of the level below `src` (x slowest, z fastest).
+pub(crate) fn downsample_planes<T: Sample>(
+    src: &TypedVolume<'_, T>,
+    dims: [u32; 3],
+    labels: bool,
+    x0: u32,
+    x1: u32,
+    slab: &mut [T],
+) {
+    let s = src.dims();
+    let plane = dims[1] as usize * dims[2] as usize;
+    slab[..(x1 - x0) as usize * plane]
+        .par_chunks_mut(plane)
+        .enumerate()
+        .for_each(|(i, out)| {
+            let x = x0 + i as u32;
+            let xs = [2 * x, (2 * x + 1).min(s[0] - 1)];
+            let n = s[2] as usize;
+            let mut rows = vec![T::from_u16_saturating(0); 4 * n];
+            for y in 0..dims[1] {
+                let ys = [2 * y, (2 * y + 1).min(s[1] - 1)];
+                for (j, chunk) in rows.chunks_mut(n).enumerate() {
+                    src.row_into(xs[j % 2], ys[j / 2], chunk);
+                }
+                let r: Vec<&[T]> = rows.chunks(n).collect();
+                let r = [r[0], r[1], r[2], r[3]];
+                let dst = &mut out[y as usize * dims[2] as usize..][..dims[2] as usize];
+                for (z, d) in dst.iter_mut().enumerate() {
+                    *d = reduce(r, z, labels);
+                }
+            }
+        });
+}
+
+/// Maps `len` bytes of `file` at `offset` read-only.
+pub(crate) fn map_region(file: &File, offset: u64, len: u64) -> std::io::Result<memmap2::Mmap> {
+    let len = usize::try_from(len).map_err(|_| std::io::Error::other("region too large"))?;
+    // SAFETY: read-only map of a region of a file this process wrote or opened
+    // read-only; the same contract as `Storage::open` (a file truncated under us is
+    // outside what we can defend against and would raise SIGBUS, not unsoundness in
+    // any Rust invariant beyond the bytes' values).
+    unsafe {
+        memmap2::MmapOptions::new()
+            .offset(offset)
+            .len(len)
+            .map(file)
+    }
+}
+
+/// Writes the pyramid of the volume whose header is `base` and whose level-0 samples
+/// are `level0`, as a block at `block_start` of `file` (opened for writing). Each
+/// level is computed from the previous one, read back through a mapping of what was
+/// just written, slab by slab (bounded memory).
+pub(crate) fn write_block<T: Sample>(
+    file: &File,
+    block_start: u64,
+    base: &Header,
+    level0: TypedVolume<'_, T>,
+    options: &crate::io::WriteOptions,
+    job: &crate::job::Job,
+    path: &Path,
+) -> Result<PyramidLayout, VolumeError> {
+    let layout = PyramidLayout::plan(base).at(path)?;
+    file.write_all_at(&layout.encode(), block_start).at(path)?;
+    let labels = base.content == Content::Labels;
+    let mut previous: Option<memmap2::Mmap> = None;
+    for k in 1..=layout.levels.len() {
+        let e = &layout.levels[k - 1];
+        let header = layout.level_header(base, k);
+        let ranges = {
+            let src = match &previous {
+                None => level0,
+                Some(map) => {
+                    let prev = layout.level_header(base, k - 1);
+                    let samples: &[T] = bytemuck::try_cast_slice(&map[..])
+                        .map_err(|_| VolumeError::new(path, VolumeErrorKind::Misaligned))?;
+                    TypedVolume::new(samples, prev.dims, prev.layout)
+                }
+            };
+            crate::io::stream_samples(
+                file,
+                block_start + e.data_offset,
+                &header,
+                options,
+                job,
+                path,
+                &mut |x0, x1, slab: &mut [T]| {
+                    downsample_planes(&src, e.dims, labels, x0, x1, slab);
+                    Ok(())
+                },
+            )?
+        };
+        file.write_all_at(&ranges.encode(), block_start + e.ranges_offset)
+            .at(path)?;
+        file.sync_data().at(path)?;
+        previous = Some(map_region(file, block_start + e.data_offset, e.data_len).at(path)?);
+    }
+    // The block ends 64-aligned: pad the file to its length.
+    let end = block_start + layout.block_len();
+    if file.metadata().at(path)?.len() < end {
+        file.set_len(end).at(path)?;
+    }
+    Ok(layout)
+}
+
+/// The head of a pyramid sidecar for a volume file of `file_len` bytes modified at
+/// `mtime`.
+pub(crate) fn sidecar_head(file_len: u64, mtime: SystemTime) -> Vec<u8> {
+    let (secs, nanos) = match mtime.duration_since(SystemTime::UNIX_EPOCH) {
+        Ok(d) => (d.as_secs() as i64, d.subsec_nanos()),
+        Err(e) => (
+            -(e.duration().as_secs() as i64),
+            e.duration().subsec_nanos(),
+        ),
+    };
+    let mut out = Vec::with_capacity(SIDECAR_HEAD_LEN as usize);
+    out.extend_from_slice(&SIDECAR_MAGIC);
+    out.extend_from_slice(&SIDECAR_VERSION.to_le_bytes());
+    out.extend_from_slice(&file_len.to_le_bytes());
+    out.extend_from_slice(&secs.to_le_bytes());
+    out.extend_from_slice(&nanos.to_le_bytes());
+    out.resize(SIDECAR_HEAD_LEN as usize, 0);
+    out
+}
+
+/// Whether a sidecar head describes this version of the volume file.
+pub(crate) fn sidecar_is_fresh(head: &[u8], file_len: u64, mtime: SystemTime) -> bool {
+    head.len() >= SIDECAR_HEAD_LEN as usize
+        && head[..SIDECAR_HEAD_LEN as usize] == sidecar_head(file_len, mtime)[..]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::volume::{Layout, SampleType};
+
+    #[test]
+    fn levels_halve_until_the_coarsest_edge() {
+        assert_eq!(level_dims([64, 10, 3]), Vec::<[u32; 3]>::new());
+        assert_eq!(
+            level_dims([300, 65, 7]),
+            vec![[150, 33, 4], [75, 17, 2], [38, 9, 1]]
+        );
+        assert_eq!(level_dims([3072; 3]).len(), 6);
+    }
+
+    #[test]
+    fn a_directory_round_trips_and_offsets_are_aligned() {
+        let base = Header::new(
+            [300, 200, 129],
+            [1.0, 1.0, 2.0],
+            Layout::Bricked { side: 32 },
+            SampleType::U16,
+            Content::Scalar,
+            Format::Extended,
+        );
+        let plan = PyramidLayout::plan(&base).unwrap();
+        assert_eq!(plan.levels.len(), 3);
+        for e in &plan.levels {
+            assert_eq!(e.data_offset % 64, 0);
+            assert!(e.ranges_offset >= e.data_offset + e.data_len);
+        }
+        assert_eq!(plan.levels[0].spacing, [2.0, 2.0, 4.0]);
+        assert_eq!(plan.encode().len() % 64, 0);
+    }
+}
