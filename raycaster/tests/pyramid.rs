@@ -1,0 +1,526 @@
+//! The resolution pyramid and out-of-core opening: levels against an independent
+//! box filter, renders of a level against a separately reduced volume, interrupted
+//! writes, old files, corrupt or stale pyramids, and that opening reads nothing.
+
+mod render_support;
+
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+
+use raycaster::io::{WriteOptions, write_volume};
+use raycaster::job::Job;
+use raycaster::render::{
+    LevelChoice, ParallelOptions, RenderVolume, render_parallel, render_sequential,
+};
+use raycaster::volume::{
+    Content, Format, Header, Layout, SampleType, Volume, VolumeErrorKind, pyramid_sidecar_path,
+    write_pyramid_sidecar,
+};
+use render_support::{assert_images_match, default_camera, scene_preset};
+use tempfile::TempDir;
+
+const DIMS: [u32; 3] = [150, 97, 70];
+
+/// Deterministic structured values: a few spheres over a ramp, plus noise.
+fn pattern(dims: [u32; 3], max: u16, labels: bool) -> Vec<u16> {
+    let mut out = Vec::with_capacity(dims.iter().product::<u32>() as usize);
+    for x in 0..dims[0] {
+        for y in 0..dims[1] {
+            for z in 0..dims[2] {
+                let d = |c: [f32; 3]| {
+                    ((x as f32 - c[0]).powi(2)
+                        + (y as f32 - c[1]).powi(2)
+                        + (z as f32 - c[2]).powi(2))
+                    .sqrt()
+                };
+                let noise = (x.wrapping_mul(73_856_093)
+                    ^ y.wrapping_mul(19_349_663)
+                    ^ z.wrapping_mul(83_492_791))
+                    % 7;
+                let v = if labels {
+                    if d([40.0, 40.0, 30.0]) < 25.0 {
+                        1
+                    } else if d([110.0, 60.0, 40.0]) < 20.0 {
+                        3
+                    } else {
+                        0
+                    }
+                } else if d([40.0, 40.0, 30.0]) < 25.0 {
+                    max / 2 + noise as u16 * 3
+                } else if d([110.0, 60.0, 40.0]) < 20.0 {
+                    max - noise as u16
+                } else {
+                    (x as u32 * u32::from(max) / (dims[0] * 4)) as u16 + noise as u16
+                };
+                out.push(v.min(max));
+            }
+        }
+    }
+    out
+}
+
+/// The level below `src` computed voxel by voxel: the rounded mean of the 2×2×2
+/// block at twice the coordinates, indices clamped; the maximum for labels.
+fn reduce_reference(src: &[u16], dims: [u32; 3], labels: bool) -> (Vec<u16>, [u32; 3]) {
+    let out_dims = dims.map(|d| d.div_ceil(2));
+    let at = |x: u32, y: u32, z: u32| {
+        src[((x.min(dims[0] - 1) * dims[1] + y.min(dims[1] - 1)) * dims[2] + z.min(dims[2] - 1))
+            as usize]
+    };
+    let mut out = Vec::new();
+    for x in 0..out_dims[0] {
+        for y in 0..out_dims[1] {
+            for z in 0..out_dims[2] {
+                let block: Vec<u16> = (0..8)
+                    .map(|i| at(2 * x + (i & 1), 2 * y + ((i >> 1) & 1), 2 * z + (i >> 2)))
+                    .collect();
+                out.push(if labels {
+                    *block.iter().max().unwrap()
+                } else {
+                    ((block.iter().map(|&v| u32::from(v)).sum::<u32>() + 4) / 8) as u16
+                });
+            }
+        }
+    }
+    (out, out_dims)
+}
+
+fn write(
+    path: &Path,
+    header: &Header,
+    values: &[u16],
+    options: &WriteOptions,
+    job: &Job,
+) -> Result<(), raycaster::volume::VolumeError> {
+    let plane = (header.dims[1] * header.dims[2]) as usize;
+    match header.sample_type {
+        SampleType::U8 => write_volume::<u8>(path, header, options, job, |x0, x1, slab| {
+            let src = &values[x0 as usize * plane..x1 as usize * plane];
+            for (o, &v) in slab.iter_mut().zip(src) {
+                *o = v as u8;
+            }
+            Ok(())
+        }),
+        SampleType::U16 => write_volume::<u16>(path, header, options, job, |x0, x1, slab| {
+            slab.copy_from_slice(&values[x0 as usize * plane..x1 as usize * plane]);
+            Ok(())
+        }),
+    }
+    .map(|_| ())
+}
+
+fn small_slabs() -> WriteOptions {
+    WriteOptions {
+        overwrite: true,
+        slab_bytes: 64 << 10,
+        pyramid: true,
+    }
+}
+
+#[test]
+fn every_level_equals_an_independent_box_filter_or_maximum() {
+    let dir = TempDir::new().unwrap();
+    let cases = [
+        (
+            Format::Extended,
+            Layout::Bricked { side: 16 },
+            SampleType::U8,
+            Content::Scalar,
+        ),
+        (
+            Format::Extended,
+            Layout::Linear,
+            SampleType::U16,
+            Content::Scalar,
+        ),
+        (
+            Format::Thesis,
+            Layout::Bricked { side: 9 },
+            SampleType::U8,
+            Content::Scalar,
+        ),
+        (
+            Format::Thesis,
+            Layout::Linear,
+            SampleType::U8,
+            Content::Scalar,
+        ),
+        (
+            Format::Extended,
+            Layout::Bricked { side: 16 },
+            SampleType::U8,
+            Content::Labels,
+        ),
+    ];
+    for (i, (format, layout, ty, content)) in cases.into_iter().enumerate() {
+        let labels = content == Content::Labels;
+        let header = Header::new(DIMS, [1.0, 0.5, 2.0], layout, ty, content, format);
+        let values = pattern(DIMS, ty.max_value(), labels);
+        let path = dir.path().join(format!("case{i}.vol"));
+        write(&path, &header, &values, &small_slabs(), &Job::silent()).unwrap();
+        let volume = Volume::open(&path).unwrap();
+        assert_eq!(volume.level_count(), 3, "case {i}");
+        assert_eq!(
+            pyramid_sidecar_path(&path).exists(),
+            format == Format::Thesis,
+            "case {i}: thesis files keep the pyramid in a sidecar"
+        );
+        let (mut reference, mut dims) = (values, DIMS);
+        for k in 1..volume.level_count() {
+            (reference, dims) = reduce_reference(&reference, dims, labels);
+            let level = volume.level(k);
+            assert_eq!(level.dims(), dims, "case {i} level {k}");
+            assert_eq!(level.level_index(), k as u32);
+            let scale = (1 << k) as f32;
+            assert_eq!(level.spacing(), [scale, 0.5 * scale, 2.0 * scale]);
+            let mut n = 0;
+            for x in 0..dims[0] {
+                for y in 0..dims[1] {
+                    for z in 0..dims[2] {
+                        assert_eq!(
+                            level.voxel([x, y, z]),
+                            reference[n],
+                            "case {i} level {k} voxel {x},{y},{z}"
+                        );
+                        n += 1;
+                    }
+                }
+            }
+            assert_eq!(
+                level.ranges(),
+                &level.compute_ranges(),
+                "case {i} level {k} ranges"
+            );
+        }
+    }
+}
+
+#[test]
+fn a_render_at_level_k_equals_the_render_of_a_separately_reduced_volume() {
+    let dir = TempDir::new().unwrap();
+    let header = Header::new(
+        DIMS,
+        [1.0; 3],
+        Layout::Bricked { side: 16 },
+        SampleType::U8,
+        Content::Scalar,
+        Format::Extended,
+    );
+    let values = pattern(DIMS, 255, false);
+    let path = dir.path().join("a.vol");
+    write(&path, &header, &values, &small_slabs(), &Job::silent()).unwrap();
+    let volume = Volume::open(&path).unwrap();
+    let camera = default_camera(&volume, 96);
+    let mut settings = raycaster::render::RenderSettings {
+        transfer: scene_preset(raycaster::synth::SceneKind::Shapes),
+        ..Default::default()
+    };
+    settings.transfer.domain = Some([0.0, 255.0]);
+    let (mut reference, mut dims) = (values, DIMS);
+    for k in 1..volume.level_count() {
+        (reference, dims) = reduce_reference(&reference, dims, false);
+        let scale = (1 << k) as f32;
+        let h = Header::new(
+            dims,
+            [scale; 3],
+            Layout::Linear,
+            SampleType::U8,
+            Content::Scalar,
+            Format::Extended,
+        );
+        let bytes: Vec<u8> = reference.iter().map(|&v| v as u8).collect();
+        let separate = Volume::from_samples("separate", &h, &bytes)
+            .unwrap()
+            .placed_as_level(k as u32);
+        assert_eq!(separate.origin(), volume.level(k).origin());
+        let expected = RenderVolume::new(&separate, Some(16)).unwrap();
+        let actual = RenderVolume::new(volume.level(k), Some(16)).unwrap();
+        let want = render_sequential(&expected, &camera, &settings).unwrap();
+        let got = render_sequential(&actual, &camera, &settings).unwrap();
+        assert!(got.stats.counters.samples > 0);
+        assert_eq!(got.stats.counters.samples, want.stats.counters.samples);
+        assert_images_match(
+            &format!("pyramid-level{k}"),
+            &got.to_image(),
+            &want.to_image(),
+            0,
+        );
+        let parallel =
+            render_parallel(&actual, &camera, &settings, &ParallelOptions::default()).unwrap();
+        assert_images_match(
+            &format!("pyramid-level{k}-parallel"),
+            &parallel.to_image(),
+            &want.to_image(),
+            1,
+        );
+        assert_eq!(parallel.stats.counters.samples, want.stats.counters.samples);
+    }
+    // Coarser levels take fewer samples for the same picture size.
+    let full = render_sequential(
+        &RenderVolume::new(&volume, None).unwrap(),
+        &camera,
+        &settings,
+    )
+    .unwrap();
+    let coarse = render_sequential(
+        &RenderVolume::new(volume.level(1), None).unwrap(),
+        &camera,
+        &settings,
+    )
+    .unwrap();
+    assert!(coarse.stats.counters.samples * 3 < full.stats.counters.samples * 2);
+}
+
+#[test]
+fn an_interrupted_pyramid_write_leaves_no_file() {
+    let dir = TempDir::new().unwrap();
+    let level0: u64 = DIMS.iter().map(|&d| u64::from(d)).product();
+    for format in [Format::Extended, Format::Thesis] {
+        let header = Header::new(
+            DIMS,
+            [1.0; 3],
+            Layout::Bricked { side: 16 },
+            SampleType::U8,
+            Content::Scalar,
+            format,
+        );
+        let values = pattern(DIMS, 255, false);
+        let path = dir.path().join("cut.vol");
+        // Cancel once level 0 is written: while the pyramid is being built.
+        let cancel = AtomicBool::new(false);
+        let done = AtomicU64::new(0);
+        let on_progress = |n| {
+            if done.fetch_add(n, Ordering::Relaxed) + n > level0 {
+                cancel.store(true, Ordering::Relaxed);
+            }
+        };
+        let job = Job::silent()
+            .with_progress(&on_progress)
+            .with_cancel(&cancel);
+        let result = write(&path, &header, &values, &small_slabs(), &job);
+        let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        match format {
+            Format::Extended => {
+                let err = result.expect_err("cancelled during the pyramid");
+                assert!(matches!(err.kind, VolumeErrorKind::Cancelled), "{err}");
+                assert!(leftovers.is_empty(), "left behind: {leftovers:?}");
+            }
+            Format::Thesis => {
+                // The volume itself is complete and renamed before its sidecar is
+                // built; an interrupted sidecar leaves no sidecar or partial file.
+                assert!(result.is_err());
+                assert!(!pyramid_sidecar_path(&path).exists());
+                assert!(
+                    leftovers
+                        .iter()
+                        .all(|n| !n.to_string_lossy().contains("partial")),
+                    "left behind: {leftovers:?}"
+                );
+                let volume = Volume::open(&path).unwrap();
+                assert_eq!(volume.level_count(), 1);
+                // `volgen pyramid` interrupted the same way leaves nothing either.
+                let cancel = AtomicBool::new(true);
+                let job = Job::silent().with_cancel(&cancel);
+                assert!(write_pyramid_sidecar(&path, &small_slabs(), &job).is_err());
+                assert!(!pyramid_sidecar_path(&path).exists());
+                let n = std::fs::read_dir(dir.path()).unwrap().count();
+                assert_eq!(n, leftovers.len(), "a partial sidecar was left");
+                // And completes when not interrupted.
+                assert_eq!(
+                    write_pyramid_sidecar(&path, &small_slabs(), &Job::silent()).unwrap(),
+                    2
+                );
+                assert_eq!(Volume::open(&path).unwrap().level_count(), 3);
+                for e in std::fs::read_dir(dir.path()).unwrap() {
+                    std::fs::remove_file(e.unwrap().path()).unwrap();
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn files_without_a_pyramid_still_open_and_render() {
+    let dir = TempDir::new().unwrap();
+    let header = Header::new(
+        DIMS,
+        [1.0; 3],
+        Layout::Linear,
+        SampleType::U8,
+        Content::Scalar,
+        Format::Extended,
+    );
+    let values = pattern(DIMS, 255, false);
+    let path = dir.path().join("old.vol");
+    let options = WriteOptions {
+        pyramid: false,
+        ..small_slabs()
+    };
+    write(&path, &header, &values, &options, &Job::silent()).unwrap();
+    let bytes = std::fs::read(&path).unwrap();
+    assert_eq!(&bytes[30..32], &1u16.to_le_bytes(), "written as version 1");
+    let volume = Volume::open(&path).unwrap();
+    assert_eq!(volume.level_count(), 1);
+    let camera = default_camera(&volume, 32);
+    let far = LevelChoice::Auto { bias: 5.0 };
+    assert_eq!(far.resolve(&volume, &camera), 0, "no pyramid: level 0");
+    let frame = render_sequential(
+        &RenderVolume::new(volume.level(far.resolve(&volume, &camera)), None).unwrap(),
+        &camera,
+        &Default::default(),
+    )
+    .unwrap();
+    assert!(frame.stats.counters.samples > 0);
+    // `volgen pyramid` adds levels in a sidecar beside a version-1 file.
+    assert_eq!(
+        write_pyramid_sidecar(&path, &small_slabs(), &Job::silent()).unwrap(),
+        2
+    );
+    let volume = Volume::open(&path).unwrap();
+    assert_eq!(volume.level_count(), 3);
+    assert_eq!(volume.header().pyramid_offset, None);
+}
+
+#[test]
+fn a_corrupt_embedded_pyramid_is_refused_and_a_stale_sidecar_ignored() {
+    let dir = TempDir::new().unwrap();
+    let values = pattern(DIMS, 255, false);
+    let header = Header::new(
+        DIMS,
+        [1.0; 3],
+        Layout::Bricked { side: 16 },
+        SampleType::U8,
+        Content::Scalar,
+        Format::Extended,
+    );
+    let path = dir.path().join("c.vol");
+    write(&path, &header, &values, &small_slabs(), &Job::silent()).unwrap();
+    let offset = Volume::open(&path)
+        .unwrap()
+        .header()
+        .pyramid_offset
+        .unwrap() as usize;
+    let mut bytes = std::fs::read(&path).unwrap();
+    bytes[offset + 16] ^= 0x40; // level 1's x size in the directory
+    std::fs::write(&path, &bytes).unwrap();
+    let err = Volume::open(&path).expect_err("a lying directory");
+    let msg = err.to_string();
+    assert!(msg.contains("pyramid") && msg.contains("c.vol"), "{msg}");
+    // A pyramid offset past the file's end is a header error.
+    bytes[offset + 16] ^= 0x40;
+    let past_end = (bytes.len() as u64 + 64).to_le_bytes();
+    bytes[34..40].copy_from_slice(&past_end[..6]);
+    std::fs::write(&path, &bytes).unwrap();
+    let msg = Volume::open(&path)
+        .expect_err("offset past the end")
+        .to_string();
+    assert!(msg.contains("pyramid offset"), "{msg}");
+
+    let thesis = Header::new(
+        DIMS,
+        [1.0; 3],
+        Layout::Bricked { side: 16 },
+        SampleType::U8,
+        Content::Scalar,
+        Format::Thesis,
+    );
+    let path = dir.path().join("t.vol");
+    write(&path, &thesis, &values, &small_slabs(), &Job::silent()).unwrap();
+    assert_eq!(Volume::open(&path).unwrap().level_count(), 3);
+    // The file changes: its sidecar no longer describes it and is ignored.
+    let mut f = std::fs::OpenOptions::new()
+        .append(true)
+        .open(&path)
+        .unwrap();
+    std::io::Write::write_all(&mut f, &[0u8; 3]).unwrap();
+    drop(f);
+    assert_eq!(Volume::open(&path).unwrap().level_count(), 1);
+}
+
+#[test]
+fn opening_reads_nothing_and_frames_compute_cells_only_for_bricks_they_visit() {
+    let dir = TempDir::new().unwrap();
+    let header = Header::new(
+        DIMS,
+        [1.0; 3],
+        Layout::Bricked { side: 16 },
+        SampleType::U8,
+        Content::Scalar,
+        Format::Extended,
+    );
+    let values = pattern(DIMS, 255, false);
+    let path = dir.path().join("lazy.vol");
+    write(&path, &header, &values, &small_slabs(), &Job::silent()).unwrap();
+    let volume = Volume::open(&path).unwrap();
+    let prepared = RenderVolume::new(&volume, None).unwrap();
+    assert_eq!(
+        prepared.cells().bricks_known(),
+        0,
+        "nothing computed at open"
+    );
+    let mut settings = raycaster::render::RenderSettings::default();
+    // Only the spheres' values are visible: the ramp's bricks are transparent.
+    settings.transfer = raycaster::render::TransferFunction::parse(
+        "point 0.0 1 1 1 0\npoint 0.45 1 1 1 0\npoint 0.5 1 0.5 0.2 0.8\npoint 1.0 1 0.5 0.2 0.8\n",
+    )
+    .unwrap();
+    let camera = default_camera(&volume, 64);
+    let frame =
+        render_parallel(&prepared, &camera, &settings, &ParallelOptions::default()).unwrap();
+    let visible = prepared.ranges().as_slice().len() as u64 - frame.stats.bricks_transparent;
+    let known = prepared.cells().bricks_known();
+    assert!(
+        known > 0 && known <= visible,
+        "{known} bricks computed, {visible} not transparent"
+    );
+    // A second frame reuses them.
+    let again =
+        render_parallel(&prepared, &camera, &settings, &ParallelOptions::default()).unwrap();
+    assert_eq!(prepared.cells().bricks_known(), known);
+    assert_eq!(again.to_image(), frame.to_image());
+    // The same frame from a prepared volume that scanned every brick up front.
+    let sequential = render_sequential(&prepared, &camera, &settings).unwrap();
+    assert_images_match("lazy-cells", &frame.to_image(), &sequential.to_image(), 1);
+}
+
+#[test]
+fn the_automatic_level_follows_the_projected_voxel_size() {
+    let dir = TempDir::new().unwrap();
+    let header = Header::new(
+        DIMS,
+        [1.0; 3],
+        Layout::Bricked { side: 16 },
+        SampleType::U8,
+        Content::Scalar,
+        Format::Extended,
+    );
+    let path = dir.path().join("lod.vol");
+    write(
+        &path,
+        &header,
+        &pattern(DIMS, 255, false),
+        &small_slabs(),
+        &Job::silent(),
+    )
+    .unwrap();
+    let volume = Volume::open(&path).unwrap();
+    let auto = LevelChoice::default();
+    // The level is chosen at the volume's corner nearest to the camera, so the
+    // picture must be well below a pixel per voxel before it coarsens.
+    let levels = [300, 100, 50, 20].map(|px| auto.resolve(&volume, &default_camera(&volume, px)));
+    assert_eq!(levels, [0, 0, 1, 2]);
+    let coarser = LevelChoice::Auto { bias: 1.0 };
+    let finer = LevelChoice::Auto { bias: -1.0 };
+    assert_eq!(coarser.resolve(&volume, &default_camera(&volume, 50)), 2);
+    assert_eq!(finer.resolve(&volume, &default_camera(&volume, 50)), 0);
+    assert_eq!(
+        LevelChoice::Fixed(9).resolve(&volume, &default_camera(&volume, 300)),
+        2
+    );
+    assert_eq!("auto".parse::<LevelChoice>(), Ok(LevelChoice::default()));
+    assert_eq!("1".parse::<LevelChoice>(), Ok(LevelChoice::Fixed(1)));
+    assert!("coarse".parse::<LevelChoice>().is_err());
+}
