@@ -50,7 +50,7 @@ fn pattern(dims: [u32; 3], max: u16, labels: bool) -> Vec<u16> {
                 } else if d([110.0, 60.0, 40.0]) < 20.0 {
                     max - noise as u16
                 } else {
-                    (x as u32 * u32::from(max) / (dims[0] * 4)) as u16 + noise as u16
+                    (x * u32::from(max) / (dims[0] * 4)) as u16 + noise as u16
                 };
                 out.push(v.min(max));
             }
@@ -461,12 +461,14 @@ fn opening_reads_nothing_and_frames_compute_cells_only_for_bricks_they_visit() {
         0,
         "nothing computed at open"
     );
-    let mut settings = raycaster::render::RenderSettings::default();
     // Only the spheres' values are visible: the ramp's bricks are transparent.
-    settings.transfer = raycaster::render::TransferFunction::parse(
-        "point 0.0 1 1 1 0\npoint 0.45 1 1 1 0\npoint 0.5 1 0.5 0.2 0.8\npoint 1.0 1 0.5 0.2 0.8\n",
-    )
-    .unwrap();
+    let settings = raycaster::render::RenderSettings {
+        transfer: raycaster::render::TransferFunction::parse(
+            "point 0.0 1 1 1 0\npoint 0.45 1 1 1 0\npoint 0.5 1 0.5 0.2 0.8\npoint 1.0 1 0.5 0.2 0.8\n",
+        )
+        .unwrap(),
+        ..Default::default()
+    };
     let camera = default_camera(&volume, 64);
     let frame =
         render_parallel(&prepared, &camera, &settings, &ParallelOptions::default()).unwrap();
