@@ -91,16 +91,7 @@ pub fn level_table(volume: &Volume, level: usize, bytes_read: u64) -> String {
     )
 }
 
-/// Bytes this process has caused to be read from storage so far (Linux
-/// `/proc/self/io` `read_bytes`: page-cache misses, including faults on mapped
-/// files); 0 where that is not available.
+/// Bytes this process has caused to be read from storage so far.
 pub fn bytes_read() -> u64 {
-    std::fs::read_to_string("/proc/self/io")
-        .ok()
-        .and_then(|text| {
-            text.lines()
-                .find_map(|l| l.strip_prefix("read_bytes:"))
-                .and_then(|v| v.trim().parse().ok())
-        })
-        .unwrap_or(0)
+    raycaster::io::process_bytes_read()
 }

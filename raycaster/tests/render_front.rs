@@ -10,8 +10,8 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
 
 use raycaster::render::{
-    FrameEvent, FrameRequest, Mode, ParallelOptions, RenderFront, RenderSettings, RenderVolume,
-    render_parallel,
+    FrameEvent, FrameRequest, LevelChoice, Mode, ParallelOptions, RenderFront, RenderSettings,
+    RenderVolume, render_parallel,
 };
 use raycaster::synth::SceneKind;
 use render_support::*;
@@ -65,6 +65,7 @@ fn a_frame_completes_into_the_buffer_as_the_parallel_renderer_draws_it() {
         camera,
         settings: settings(),
         options,
+        level: LevelChoice::default(),
     });
     let event = front
         .events()
@@ -108,6 +109,7 @@ fn a_newer_request_supersedes_the_one_in_progress() {
                 compositing_threads: 1,
                 tile_size: 16,
             },
+            level: LevelChoice::default(),
         };
         let first = front.request(slow.clone());
         std::thread::sleep(Duration::from_millis(20));
@@ -141,6 +143,7 @@ fn invalid_settings_fail_the_frame_not_the_front() {
             ..settings()
         },
         options: ParallelOptions::default(),
+        level: LevelChoice::default(),
     };
     let id = front.request(bad.clone());
     let event = front.events().recv().unwrap();
@@ -194,6 +197,7 @@ fn request_storms_end_every_frame_exactly_once_and_shut_down() {
                     camera: default_camera(&volume, size),
                     settings,
                     options,
+                    level: LevelChoice::default(),
                 }));
                 if next(4) == 0 {
                     std::thread::sleep(Duration::from_micros(next(2000)));

@@ -16,9 +16,9 @@ use std::time::Duration;
 use anyhow::{Context, Result};
 use crossbeam_channel::{Receiver, Sender};
 use raycaster::render::{
-    DEFAULT_ERT_THRESHOLD, FrameEvent, FrameRequest, FrameStats, GlobalMode, LocalMode, Membership,
-    Mode, Notify, ObjectStyle, PRESETS, ParallelOptions, RenderFront, RenderSettings, RgbImage,
-    SegmentScene, Shading, TransferFunction,
+    DEFAULT_ERT_THRESHOLD, FrameEvent, FrameRequest, FrameStats, GlobalMode, LevelChoice,
+    LocalMode, Membership, Mode, Notify, ObjectStyle, PRESETS, ParallelOptions, RenderFront,
+    RenderSettings, RgbImage, SegmentScene, Shading, TransferFunction,
 };
 use raycaster::synth::SceneKind;
 use raycaster::volume::{Volume, write_file_atomically};
@@ -34,6 +34,8 @@ use crate::ui::{App, ObjectRow};
 
 /// Quiet time after the last camera change before the full-quality frame.
 const SETTLE: Duration = Duration::from_millis(200);
+/// Moving frames sample one pyramid level coarser than still ones.
+const MOVING_LEVEL_BIAS: f32 = 1.0;
 /// Canvas size assumed before the window is laid out.
 const FALLBACK_CANVAS: (u32, u32) = (640, 480);
 /// Tile sizes of the settings panel.
@@ -98,6 +100,9 @@ struct State {
     /// The id of the newest request that ended (done or failed).
     ended: Option<u64>,
     busy: bool,
+    /// The next frame is the first of a newly opened volume: it samples the
+    /// coarsest pyramid level, so a picture shows at once, and refines when it rests.
+    first_frame: bool,
 }
 
 thread_local! {
@@ -140,6 +145,7 @@ impl Viewer {
                 last_stats: None,
                 ended: None,
                 busy: false,
+                first_frame: false,
             }),
             scheduled,
             wake: wake.clone(),
@@ -457,6 +463,7 @@ impl Controller {
             st.current = Some(install.loaded);
             st.latest = None;
             st.last_stats = None;
+            st.first_frame = true;
         }
         self.show_message(&install.message, false);
         self.show_objects();
@@ -469,6 +476,23 @@ impl Controller {
     fn request_frame(&self, moving: bool) {
         let Some(ui) = self.ui() else { return };
         let mut st = self.state.borrow_mut();
+        // A new volume's first frame: its coarsest level at interactive quality,
+        // refined like any moving frame once the view rests.
+        let first_levels = std::mem::take(&mut st.first_frame)
+            .then(|| {
+                st.current
+                    .as_ref()
+                    .map_or(1, |c| c.volume.volume.level_count())
+            })
+            .filter(|&n| n > 1);
+        let moving = moving || first_levels.is_some();
+        let level = match first_levels {
+            Some(n) => LevelChoice::Fixed(n as u32 - 1),
+            None if moving => LevelChoice::Auto {
+                bias: MOVING_LEVEL_BIAS,
+            },
+            None => LevelChoice::default(),
+        };
         st.quality.preset = StepPreset::from_index(ui.get_step_index());
         st.quality.full_quality_only = ui.get_full_quality_only();
         let quality = if moving {
@@ -521,6 +545,7 @@ impl Controller {
             camera,
             settings,
             options,
+            level,
         });
         st.latest = Some((id, moving));
         drop(st);
@@ -583,7 +608,7 @@ impl Controller {
             .borrow()
             .last_stats
             .as_ref()
-            .map(|(s, m)| status_line(s, *m));
+            .map(|(s, m)| status_line(s, *m, raycaster::io::process_bytes_read()));
         if let (Some(ui), Some(status)) = (self.ui(), status) {
             ui.set_status(status.into());
         }
@@ -815,17 +840,19 @@ fn from_ui_row(r: &ObjectRow) -> ObjectRowData {
 }
 
 /// The status line of a finished frame.
-pub fn status_line(s: &FrameStats, interactive: bool) -> String {
+pub fn status_line(s: &FrameStats, interactive: bool, bytes_read: u64) -> String {
     let c = &s.counters;
     let ms = s.time.as_secs_f64() * 1e3;
     let rays = c.rays.max(1) as f64;
     format!(
-        "{}{}×{} in {ms:.0} ms · {:.1} M samples/s · {:.2} M samples ({:.1}/ray) · \
+        "{}{}×{} in {ms:.0} ms · level {} · {:.1} MB read from disk · {:.1} M samples/s · {:.2} M samples ({:.1}/ray) · \
          {:.0} % skipped empty · {:.0} % rays ended early · {} tasks ({} occluded) · {} bricks \
          ({} transparent) · {} threads",
         if interactive { "interactive " } else { "" },
         s.width,
         s.height,
+        s.level,
+        bytes_read as f64 / 1e6,
         s.samples_per_second() / 1e6,
         c.samples as f64 / 1e6,
         c.samples as f64 / rays,

@@ -12,6 +12,8 @@ use raycaster::volume::{Content, SampleType, Volume};
 pub const HISTOGRAM_BINS: usize = 256;
 /// Voxels the histogram looks at, at most (a regular subsample of big volumes).
 const HISTOGRAM_SAMPLES: u64 = 2_000_000;
+/// Volumes up to this many bytes of samples are subsampled for the histogram.
+const SMALL_VOLUME_BYTES: u64 = 256 << 20;
 /// Foreign scans up to this many bytes of samples are converted in RAM.
 pub const IN_MEMORY_LIMIT: u64 = raycaster::import::DEFAULT_IN_MEMORY_LIMIT;
 /// Edge of the built-in scene.
@@ -107,9 +109,18 @@ fn finish(
     }
 }
 
-/// Counts of a regular subsample of the voxels, binned over `domain` (default: the
-/// sample type's range).
+/// Counts binned over `domain` (default: the sample type's range), without a pass
+/// over a large file: every voxel of the coarsest pyramid level when the file has
+/// a pyramid; a regular subsample of small volumes; for large volumes without a
+/// pyramid, an estimate from the stored brick value ranges (each brick's voxels
+/// spread evenly over its range), which reads nothing.
 pub fn histogram(volume: &Volume, domain: Option<[f32; 2]>) -> Vec<u64> {
+    let coarsest = volume.level(volume.level_count() - 1);
+    let small = coarsest.data_bytes() <= SMALL_VOLUME_BYTES;
+    if !small {
+        return histogram_from_ranges(volume, domain);
+    }
+    let volume = coarsest;
     let dims = volume.dims();
     let total: u64 = dims.iter().map(|&d| u64::from(d)).product();
     let stride = ((total as f64 / HISTOGRAM_SAMPLES as f64).cbrt().ceil() as u32).max(1);
@@ -132,6 +143,26 @@ pub fn histogram(volume: &Volume, domain: Option<[f32; 2]>) -> Vec<u64> {
     counts
 }
 
+/// The histogram estimated from the brick value ranges alone.
+fn histogram_from_ranges(volume: &Volume, domain: Option<[f32; 2]>) -> Vec<u64> {
+    let [lo, hi] = domain.unwrap_or([0.0, f32::from(volume.sample_type().max_value())]);
+    let width = (hi - lo).max(1.0);
+    let bin = |v: f32| ((v - lo) / width * HISTOGRAM_BINS as f32).floor();
+    let ranges = volume.ranges();
+    let grid = ranges.grid();
+    let per_brick = u64::from(grid.step()).pow(3);
+    let mut counts = vec![0u64; HISTOGRAM_BINS];
+    for &[l, h] in ranges.as_slice() {
+        let first = bin(f32::from(l)).clamp(0.0, HISTOGRAM_BINS as f32 - 1.0) as usize;
+        let last = bin(f32::from(h)).clamp(0.0, HISTOGRAM_BINS as f32 - 1.0) as usize;
+        let share = per_brick / (last - first + 1) as u64;
+        for c in &mut counts[first..=last] {
+            *c += share.max(1);
+        }
+    }
+    counts
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -144,6 +175,47 @@ mod tests {
         assert_eq!(loaded.histogram.len(), HISTOGRAM_BINS);
         assert_eq!(loaded.histogram.iter().sum::<u64>(), 32 * 32 * 32);
         assert!(loaded.description.contains("32×32×32"));
+    }
+
+    #[test]
+    fn large_files_get_their_histogram_without_a_pass_over_the_data() {
+        use raycaster::io::{WriteOptions, write_volume};
+        use raycaster::volume::{Format, Header, Layout};
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("ramp.vol");
+        let dims = [130, 40, 40];
+        let header = Header::new(
+            dims,
+            [1.0; 3],
+            Layout::Bricked { side: 16 },
+            SampleType::U8,
+            Content::Scalar,
+            Format::Extended,
+        );
+        let plane = (dims[1] * dims[2]) as usize;
+        let job = raycaster::job::Job::silent();
+        write_volume::<u8>(
+            &path,
+            &header,
+            &WriteOptions::default(),
+            &job,
+            |x0, _, slab| {
+                for (i, v) in slab.iter_mut().enumerate() {
+                    *v = (x0 as usize + i / plane) as u8;
+                }
+                Ok(())
+            },
+        )
+        .unwrap();
+        let loaded = open_file(&path).unwrap();
+        // The coarsest level (65×20×20) is counted, every voxel of it.
+        assert_eq!(loaded.volume.level_count(), 2);
+        assert_eq!(loaded.histogram.iter().sum::<u64>(), 65 * 20 * 20);
+        assert_eq!(loaded.histogram[200], 0);
+        // The estimate from ranges covers the values present, and only those.
+        let estimate = histogram_from_ranges(&loaded.volume, None);
+        assert!(estimate[..130].iter().all(|&c| c > 0), "{estimate:?}");
+        assert!(estimate[130..].iter().all(|&c| c == 0), "{estimate:?}");
     }
 
     #[test]

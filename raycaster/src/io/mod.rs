@@ -5,10 +5,12 @@
 //! `.vol` file with positioned reads (never mapping or reading the whole input);
 //! [`write_volume`] asks for slabs in order and writes a `.vol` file atomically.
 
+mod bytes_read;
 mod decode;
 mod input;
 mod writer;
 
+pub use bytes_read::process_bytes_read;
 pub use decode::{Endian, RawType};
 pub use input::{Input, InputType, RawData, RawOrder, RawSpec};
 pub(crate) use writer::stream_samples;

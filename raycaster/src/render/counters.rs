@@ -54,6 +54,8 @@ pub struct FrameStats {
     pub threads: u32,
     /// Wall time of the frame.
     pub time: Duration,
+    /// The pyramid level the frame sampled (0: full resolution).
+    pub level: u32,
 }
 
 impl FrameStats {

@@ -20,6 +20,7 @@ use parking_lot::Mutex;
 use super::camera::{Camera, PixelRect};
 use super::counters::FrameStats;
 use super::error::RenderError;
+use super::level::LevelChoice;
 use super::parallel::{ParallelOptions, TileSink, render_parallel_into};
 use super::pixel::over_background;
 use super::prepared::RenderVolume;
@@ -35,6 +36,8 @@ pub struct FrameRequest {
     pub settings: RenderSettings,
     /// Threads and tiles.
     pub options: ParallelOptions,
+    /// Which level of the volume's resolution pyramid to sample.
+    pub level: LevelChoice,
 }
 
 /// How a requested frame ended.
@@ -138,16 +141,26 @@ impl RenderFront {
         let thread = std::thread::Builder::new()
             .name("renderer".into())
             .spawn(move || {
-                let prepared = RenderVolume::new(&volume, brick_side).and_then(|prepared| {
-                    match labels.as_deref() {
-                        Some(labels) => prepared.with_labels(labels),
-                        None => Ok(prepared),
-                    }
-                });
+                // Every level of the pyramid (those the labels have too), prepared
+                // once: preparing reads nothing, and each level keeps the cells its
+                // frames computed.
+                let count = match labels.as_deref() {
+                    Some(l) => volume.level_count().min(l.level_count()),
+                    None => volume.level_count(),
+                };
+                let prepared: Result<Vec<RenderVolume<'_>>, RenderError> = (0..count)
+                    .map(|k| {
+                        let level = RenderVolume::new(volume.level(k), brick_side)?;
+                        match labels.as_deref() {
+                            Some(labels) => level.with_labels(labels.level(k)),
+                            None => Ok(level),
+                        }
+                    })
+                    .collect();
                 match prepared {
-                    Ok(prepared) => {
+                    Ok(levels) => {
                         let _ = ready_tx.send(Ok(()));
-                        worker.serve(&prepared, &command_rx);
+                        worker.serve(&volume, &levels, &command_rx);
                     }
                     Err(e) => {
                         let _ = ready_tx.send(Err(e));
@@ -231,7 +244,7 @@ impl Worker {
         }
     }
 
-    fn serve(&self, volume: &RenderVolume<'_>, commands: &Receiver<Command>) {
+    fn serve(&self, volume: &Volume, levels: &[RenderVolume<'_>], commands: &Receiver<Command>) {
         while let Ok(mut command) = commands.recv() {
             // Only the newest command counts; older renders are superseded unstarted.
             while let Ok(newer) = commands.try_recv() {
@@ -248,7 +261,8 @@ impl Worker {
                 self.emit(FrameEvent::Superseded { id });
                 continue;
             }
-            let event = self.render(volume, id, &request);
+            let level = request.level.resolve(volume, &request.camera);
+            let event = self.render(&levels[level.min(levels.len() - 1)], id, &request);
             self.emit(event);
         }
     }

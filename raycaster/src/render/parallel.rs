@@ -128,6 +128,7 @@ pub fn render_parallel_into(
         bricks_transparent: plan.transparent_bricks(),
         threads: options.render_threads as u32,
         time: start.elapsed(),
+        level: volume.volume().level_index(),
     }))
 }
 
@@ -160,6 +161,7 @@ impl FrameJob<'_> {
             .map(|_| crossbeam_channel::unbounded())
             .unzip();
         std::thread::scope(|scope| {
+            scope.spawn(|| self.read_ahead());
             for _ in 0..options.render_threads.max(1) {
                 let task_rx = task_rx.clone();
                 let result_txs = result_txs.clone();
@@ -186,6 +188,19 @@ impl FrameJob<'_> {
             }
             total
         })
+    }
+
+    /// Asks the OS to read the frame's bricks in the order the frame visits them
+    /// (front to back, visible and non-empty only), so that render threads find
+    /// them in the page cache instead of stalling on page faults; returns when
+    /// every request is made or the frame is cancelled.
+    fn read_ahead(&self) {
+        for scheduled in &self.schedule.bricks {
+            if (self.cancelled)() {
+                return;
+            }
+            self.volume.prefetch_brick(scheduled.coords);
+        }
     }
 
     /// A render thread: march each task's tile through its brick, send it back.

@@ -36,6 +36,7 @@ pub fn render_sequential(
     frame.stats.bricks = volume.geometry().grid().block_count();
     frame.stats.bricks_transparent = plan.transparent_bricks();
     frame.stats.threads = 1;
+    frame.stats.level = volume.volume().level_index();
     frame.stats.time = start.elapsed();
     Ok(frame)
 }
