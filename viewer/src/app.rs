@@ -100,8 +100,8 @@ struct State {
     /// The id of the newest request that ended (done or failed).
     ended: Option<u64>,
     busy: bool,
-    /// The next frame is the first of a newly opened volume: it samples the
-    /// coarsest pyramid level, so a picture shows at once, and refines when it rests.
+    /// No frame of the newly opened volume is done yet: frames sample the coarsest
+    /// pyramid level, so a picture shows at once, and refine when the view rests.
     first_frame: bool,
 }
 
@@ -476,9 +476,10 @@ impl Controller {
     fn request_frame(&self, moving: bool) {
         let Some(ui) = self.ui() else { return };
         let mut st = self.state.borrow_mut();
-        // A new volume's first frame: its coarsest level at interactive quality,
-        // refined like any moving frame once the view rests.
-        let first_levels = std::mem::take(&mut st.first_frame)
+        // Until a new volume's first frame is done: its coarsest level at
+        // interactive quality, refined like any moving frame once the view rests.
+        let first_levels = st
+            .first_frame
             .then(|| {
                 st.current
                     .as_ref()
@@ -588,6 +589,7 @@ impl Controller {
                         if latest.is_some_and(|(l, _)| l == id) {
                             st.last_stats = Some((stats, moving));
                             st.ended = Some(id);
+                            st.first_frame = false;
                         }
                     }
                     FrameEvent::Failed { id, error } => {

@@ -6,21 +6,28 @@
 //! trilinear reads of any sample it owns lie within its range.
 //!
 //! Nothing is scanned when a volume is opened: a brick's cells are computed the first
-//! time a frame marches a ray through it and cached for later frames. Bricks that no
+//! time a frame marches a ray through it and kept for later frames, up to a memory
+//! budget ([`CELL_CACHE_BYTES`]; beyond it they are computed again for each visit,
+//! which costs one pass over a brick the task then marches anyway). Bricks that no
 //! frame visits (empty under every transfer function used, or never in view) are
 //! never read; a brick whose stored range is a single value needs no read at all.
 
-use std::sync::OnceLock;
+use std::collections::HashMap;
+use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
+
+use parking_lot::RwLock;
 
 use crate::volume::{BlockGrid, BrickView, Sample};
 
 /// Smallest cell size aimed at, in voxel steps per axis.
 pub const TARGET_CELL_STEP: u32 = 4;
 
-/// Cells beyond which larger cells are used, to bound the index's memory
-/// (4 bytes of range per cell: about 64 MB if every brick were visited).
+/// Cells beyond which larger cells are used, to bound the work per brick.
 pub const MAX_CELLS: u64 = 1 << 24;
+
+/// Memory the cache of computed cell ranges may take, per prepared volume.
+pub const CELL_CACHE_BYTES: usize = 48 << 20;
 
 /// The cell step aimed at for a volume of `dims`: [`TARGET_CELL_STEP`], or larger
 /// when the volume would need more than [`MAX_CELLS`] cells.
@@ -30,6 +37,9 @@ pub fn target_cell_step(dims: [u32; 3]) -> u32 {
     bound.max(TARGET_CELL_STEP)
 }
 
+/// The ranges of one brick's cells, `per_axis³` of them, x slowest.
+pub type BrickCells = Arc<[[u16; 2]]>;
+
 /// Per-brick cell ranges of a brick grid, computed lazily brick by brick.
 #[derive(Debug)]
 pub struct CellRanges {
@@ -37,8 +47,10 @@ pub struct CellRanges {
     per_axis: u32,
     /// Cell step in voxels.
     cell_step: u32,
-    /// Per brick (file order): its `per_axis³` ranges, cells x-slowest, once known.
-    bricks: Vec<OnceLock<Box<[[u16; 2]]>>>,
+    /// Computed bricks by file-order index, while within the budget.
+    cache: RwLock<HashMap<u64, BrickCells>>,
+    /// Bricks the cache may hold.
+    capacity: usize,
     /// Bricks whose cells were computed by reading samples.
     scanned: AtomicU64,
 }
@@ -48,10 +60,14 @@ impl CellRanges {
     pub fn lazy(grid: &BlockGrid) -> Self {
         let per_axis = grid.step().div_ceil(target_cell_step(grid.dims())).max(1);
         let cell_step = grid.step().div_ceil(per_axis);
+        let per_brick = (per_axis * per_axis * per_axis) as usize;
+        // The ranges, their Arc's counts and a map entry.
+        let entry = per_brick * 4 + 64;
         CellRanges {
             per_axis,
             cell_step,
-            bricks: (0..grid.block_count()).map(|_| OnceLock::new()).collect(),
+            cache: RwLock::new(HashMap::new()),
+            capacity: CELL_CACHE_BYTES / entry,
             scanned: AtomicU64::new(0),
         }
     }
@@ -63,7 +79,8 @@ impl CellRanges {
         brick: impl Fn([u32; 3]) -> BrickView<'a, T> + Sync,
     ) -> Self {
         use rayon::prelude::*;
-        let cells = Self::lazy(grid);
+        let mut cells = Self::lazy(grid);
+        cells.capacity = usize::MAX;
         (0..grid.block_count()).into_par_iter().for_each(|i| {
             cells.of_brick(i, None, || brick(grid.coords(i)));
         });
@@ -86,38 +103,44 @@ impl CellRanges {
     }
 
     /// The ranges of brick number `index` (file order), computed from the view
-    /// `view` gives on first use. `known` is the brick's exact value range when the
+    /// `view` gives unless cached. `known` is the brick's exact value range when the
     /// caller has it: a brick of one value needs no read.
     pub fn of_brick<'a, T: Sample>(
         &self,
         index: u64,
         known: Option<[u16; 2]>,
         view: impl FnOnce() -> BrickView<'a, T>,
-    ) -> &[[u16; 2]] {
-        self.bricks[index as usize].get_or_init(|| {
-            let mut out = vec![[0u16; 2]; self.per_brick()].into_boxed_slice();
-            match known {
-                Some([lo, hi]) if lo == hi => out.fill([lo, hi]),
-                _ => {
-                    self.scanned.fetch_add(1, Ordering::Relaxed);
-                    brick_cells(&view(), self.per_axis, self.cell_step, &mut out);
-                }
+    ) -> BrickCells {
+        if let Some(cells) = self.cache.read().get(&index) {
+            return cells.clone();
+        }
+        let cells: BrickCells = match known {
+            Some([lo, hi]) if lo == hi => vec![[lo, hi]; self.per_brick()].into(),
+            _ => {
+                self.scanned.fetch_add(1, Ordering::Relaxed);
+                let mut out = vec![[0u16; 2]; self.per_brick()];
+                brick_cells(&view(), self.per_axis, self.cell_step, &mut out);
+                out.into()
             }
-            out
-        })
+        };
+        let mut cache = self.cache.write();
+        if cache.len() < self.capacity {
+            cache.insert(index, cells.clone());
+        }
+        cells
     }
 
-    /// The ranges of brick number `index` if some frame already computed them.
-    pub fn cached(&self, index: u64) -> Option<&[[u16; 2]]> {
-        self.bricks[index as usize].get().map(|b| &b[..])
+    /// The ranges of brick number `index` if they are cached.
+    pub fn cached(&self, index: u64) -> Option<BrickCells> {
+        self.cache.read().get(&index).cloned()
     }
 
-    /// Bricks whose cells are known.
+    /// Bricks whose cells are cached.
     pub fn bricks_known(&self) -> u64 {
-        self.bricks.iter().filter(|b| b.get().is_some()).count() as u64
+        self.cache.read().len() as u64
     }
 
-    /// Bricks whose cells were computed by reading their samples.
+    /// Bricks whose cells were computed by reading their samples (cached or not).
     pub fn bricks_scanned(&self) -> u64 {
         self.scanned.load(Ordering::Relaxed)
     }
@@ -159,6 +182,27 @@ fn brick_cells<T: Sample>(
 mod tests {
     use super::*;
     use crate::volume::{Layout, TypedVolume};
+
+    #[test]
+    fn beyond_the_cache_budget_cells_are_computed_again_and_equal() {
+        let dims = [40, 33, 20];
+        let samples: Vec<u8> = (0..40 * 33 * 20).map(|i| (i * 53 % 241) as u8).collect();
+        let vol = TypedVolume::new(&samples, dims, Layout::Linear);
+        let grid = BlockGrid::new(dims, 9);
+        let all = CellRanges::compute(&grid, |b| vol.brick(&grid, b));
+        let mut small = CellRanges::lazy(&grid);
+        small.capacity = 3;
+        for round in 0..2 {
+            for b in grid.iter() {
+                let i = grid.index(b);
+                let cells = small.of_brick(i, None, || vol.brick(&grid, b));
+                assert_eq!(cells, all.cached(i).unwrap(), "round {round} brick {b:?}");
+            }
+        }
+        assert_eq!(small.bricks_known(), 3);
+        // The three cached bricks were read once, every other brick twice.
+        assert_eq!(small.bricks_scanned(), 2 * grid.block_count() - 3);
+    }
 
     #[test]
     fn huge_volumes_get_larger_cells() {

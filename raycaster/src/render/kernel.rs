@@ -5,8 +5,11 @@
 //! handles the samples whose positions it owns ([`owned_samples`]), so a ray's
 //! samples are processed exactly once, in order, however the volume is cut.
 
+use std::sync::Arc;
+
 use glam::Vec3;
 
+use super::cells::BrickCells;
 use super::counters::Counters;
 use super::geometry::VolumeGeometry;
 use super::pixel::{PixelRay, PixelState};
@@ -33,7 +36,7 @@ pub struct BrickContext<'a, T: Sample> {
     /// The transfer function makes every value in the brick transparent.
     pub transparent: bool,
     /// Value ranges of the brick's small cells.
-    cells: &'a [[u16; 2]],
+    cells: BrickCells,
     /// Per small cell: transparent under the frame's classification.
     cell_transparent: Vec<bool>,
     /// Cells per axis.
@@ -57,8 +60,8 @@ impl<'a, T: Sample> BrickContext<'a, T> {
         let cells = volume.cells();
         let range = volume.ranges().range(b);
         // A brick every ray skips is never read, not even for its cells.
-        let ranges: &[[u16; 2]] = if plan.brick_droppable(index as usize, range) {
-            &[]
+        let ranges: BrickCells = if plan.brick_droppable(index as usize, range) {
+            Arc::new([])
         } else {
             volume.cells_of(data, b)
         };
@@ -67,11 +70,11 @@ impl<'a, T: Sample> BrickContext<'a, T> {
             sampler: BrickSampler::new(volume.brick_view(data, b)),
             range,
             transparent: plan.transparent[index as usize],
-            cells: ranges,
             cell_transparent: ranges
                 .iter()
                 .map(|&[lo, hi]| plan.range_empty(lo, hi))
                 .collect(),
+            cells: ranges,
             cells_per_axis: cells.per_axis(),
             inv_cell_step: 1.0 / cells.cell_step() as f32,
             labels: volume.labels().map(|l| match l.data() {

@@ -33,7 +33,9 @@ mod transfer;
 mod two_level;
 
 pub use camera::{Camera, CameraError, PixelRect, Projection};
-pub use cells::{CellRanges, MAX_CELLS, TARGET_CELL_STEP, target_cell_step};
+pub use cells::{
+    BrickCells, CELL_CACHE_BYTES, CellRanges, MAX_CELLS, TARGET_CELL_STEP, target_cell_step,
+};
 pub use counters::{Counters, FrameStats};
 pub use error::RenderError;
 pub use frame::Frame;

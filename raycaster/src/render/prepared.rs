@@ -6,7 +6,7 @@ use std::borrow::Cow;
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::cells::CellRanges;
+use super::cells::{BrickCells, CellRanges};
 use super::error::RenderError;
 use super::geometry::VolumeGeometry;
 use super::segments::Membership;
@@ -200,11 +200,7 @@ impl<'a> RenderVolume<'a> {
 
     /// The small cells' ranges of brick `b`, computed from `data` (this volume's
     /// samples) on the first visit.
-    pub fn cells_of<'s, T: Sample>(
-        &'s self,
-        data: &TypedVolume<'_, T>,
-        b: [u32; 3],
-    ) -> &'s [[u16; 2]] {
+    pub fn cells_of<T: Sample>(&self, data: &TypedVolume<'_, T>, b: [u32; 3]) -> BrickCells {
         let index = self.geometry.grid().index(b);
         let known = self.ranges.range(b);
         self.cells
