@@ -461,7 +461,10 @@ impl Controller {
             // The old front (if any) is dropped here: its frame is cancelled and its
             // threads joined.
             st.current = Some(install.loaded);
+            // Request ids start again with the new front: forget the old front's.
             st.latest = None;
+            st.ended = None;
+            st.shown = (0, 0);
             st.last_stats = None;
             st.first_frame = true;
         }

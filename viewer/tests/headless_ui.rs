@@ -271,4 +271,56 @@ fn the_viewer_runs_headless() {
     v.ui().invoke_open_file(nifti.display().to_string().into());
     wait_until(&v, |v| v.ui().get_volume_info().contains("6×5×4"));
     assert!(!v.ui().get_message_is_error(), "{:?}", v.ui().get_message());
+
+    // A file with a resolution pyramid: the first picture samples the coarsest
+    // level at once, the resting view refines to full resolution (close enough
+    // that a voxel covers a pixel), and the status line names the level.
+    let big = dir.path().join("pyramid.vol");
+    let header = raycaster::volume::Header::new(
+        [160; 3],
+        [1.0; 3],
+        raycaster::volume::Layout::Bricked { side: 16 },
+        raycaster::volume::SampleType::U8,
+        raycaster::volume::Content::Scalar,
+        raycaster::volume::Format::Extended,
+    );
+    raycaster::generate::generate(
+        SceneKind::Shapes.build([160; 3], 1).as_ref(),
+        &header,
+        &big,
+        &Default::default(),
+        &raycaster::job::Job::silent(),
+    )
+    .unwrap();
+    v.ui().invoke_open_file(big.display().to_string().into());
+    wait_until(&v, |v| v.volume_name() == big.display().to_string());
+    let (first, moving) = v.last_stats().unwrap_or_else(|| {
+        panic!(
+            "no stats: {:?} {:?}",
+            v.ui().get_message(),
+            v.ui().get_status()
+        )
+    });
+    assert_eq!(first.level, 2, "the coarsest of levels 0..=2 first");
+    assert!(moving, "the first picture refines when the view rests");
+    assert!(
+        v.ui().get_status().contains("level 2"),
+        "{}",
+        v.ui().get_status()
+    );
+    assert!(
+        lit(&frame(&v).2) > 500,
+        "the coarse picture shows the scene"
+    );
+    i_slint_backend_testing::mock_elapsed_time(Duration::from_millis(300));
+    slint::platform::update_timers_and_animations();
+    wait_for_frame(&v);
+    let (refined, moving) = v.last_stats().unwrap();
+    assert!(!moving);
+    assert_eq!(refined.level, 0, "{}", v.ui().get_status());
+    assert!(
+        v.ui().get_status().contains("level 0"),
+        "{}",
+        v.ui().get_status()
+    );
 }
