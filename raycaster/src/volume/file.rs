@@ -98,6 +98,9 @@ impl Volume {
         let path = path.as_ref();
         let (header, file, len) = read_header(path)?;
         let storage = Storage::open(&file, len, options.access).at(path)?;
+        if matches!(header.layout, Layout::Bricked { .. }) {
+            storage.advise_random();
+        }
         let data = typed_data(&header, storage.bytes()).at(path)?;
         let ranges = load_ranges(path, &header, &storage, data, &file, len, options)?;
         let levels = load_pyramid(path, &header, &file, len, options.access)?;
@@ -362,8 +365,18 @@ fn load_ranges(
     let dims = header.dims;
     let grid = header.block_grid(LINEAR_RANGE_SIDE);
     if let Some(offset) = header.ranges_offset {
-        let table = &storage.bytes()[offset as usize..];
-        return BrickRanges::decode(table, dims)
+        // Read with one positioned read, not through the map: bricked files are
+        // mapped for random access, where faults read page by page.
+        let table_len = (28 + 4 * grid.block_count()).min(len - offset);
+        let mut table = vec![0u8; table_len as usize];
+        match storage {
+            Storage::Mapped(_) => {
+                std::os::unix::fs::FileExt::read_exact_at(file, &mut table, offset).at(path)?
+            }
+            Storage::Ram { .. } => table
+                .copy_from_slice(&storage.bytes()[offset as usize..(offset + table_len) as usize]),
+        }
+        return BrickRanges::decode(&table, dims)
             .filter(|r| r.grid() == &grid)
             .ok_or_else(|| VolumeError::new(path, VolumeErrorKind::CorruptRanges));
     }
@@ -434,6 +447,9 @@ fn read_levels(
             let header = layout.level_header(base, k);
             let storage =
                 Storage::open_region(file, start + e.data_offset, e.data_len, access).at(path)?;
+            if matches!(header.layout, Layout::Bricked { .. }) {
+                storage.advise_random();
+            }
             typed_data(&header, storage.bytes()).at(path)?;
             let ranges = layout.read_ranges(file, start, base, k).at(path)?;
             Ok(Volume {

@@ -85,6 +85,16 @@ impl Storage {
         }
     }
 
+    /// Tells the OS that pages are used in no particular order (bricked files: a
+    /// page fault reads that page, not its neighbours, which belong to other
+    /// bricks); the renderer asks for the bricks it needs itself
+    /// ([`Self::will_need`]). Best effort.
+    pub(crate) fn advise_random(&self) {
+        if let Storage::Mapped(map) = self {
+            let _ = map.advise(memmap2::Advice::Random);
+        }
+    }
+
     /// Asks the OS to read `len` bytes at `offset` ahead of use (mapped storage
     /// only; best effort: errors are ignored).
     pub(crate) fn will_need(&self, offset: u64, len: u64) {
