@@ -7,10 +7,12 @@ use std::sync::mpsc;
 use rayon::prelude::*;
 
 use crate::job::Job;
-use crate::volume::pyramid::{level_dims, map_region, write_block};
+use crate::volume::pyramid::{
+    PlaneFeed, PlaneTap, PyramidLayout, level_dims, map_region, write_levels,
+};
 use crate::volume::{
-    AtPath, BlockGrid, BrickRanges, BrickView, Format, Header, LINEAR_RANGE_SIDE, Layout, Sample,
-    TypedVolume, VolumeError, VolumeErrorKind, ranges_sidecar_path,
+    AtPath, BlockGrid, BrickRanges, BrickView, Content, Format, Header, LINEAR_RANGE_SIDE, Layout,
+    Sample, TypedVolume, VolumeError, VolumeErrorKind, ranges_sidecar_path,
 };
 
 /// Bytes the writer thread writes between two flushes to disk.
@@ -81,30 +83,87 @@ pub fn write_volume<T: Sample>(
     let tmp = crate::volume::temp_file_beside(path).at(path)?;
     let file = tmp.as_file();
     file.write_all_at(&head_bytes, 0).at(path)?;
-    let ranges = stream_samples(
-        file,
-        head_bytes.len() as u64,
-        &header,
-        options,
-        job,
-        path,
-        &mut fill,
-    )?;
     let data_end = header.data_end().at(path)?;
-    let mut pyramid_levels = 0;
     let wants_pyramid = options.pyramid && !level_dims(header.dims).is_empty();
+    // Extended files embed the pyramid after the range table; its level 1 is built
+    // from level 0's slabs while they are written, the rest from level 1.
+    let embedded = (wants_pyramid && header.format == Format::Extended)
+        .then(|| PyramidLayout::plan(&header))
+        .transpose()
+        .at(path)?;
+    let table_len = 28 + 4 * header.block_grid(LINEAR_RANGE_SIDE).block_count();
+    let block_start = (data_end + table_len).div_ceil(64) * 64;
+    let level0_start = head_bytes.len() as u64;
+    let ranges = match &embedded {
+        None => stream_samples(file, level0_start, &header, options, job, path, &mut fill)?,
+        Some(layout) => {
+            file.write_all_at(&layout.encode(), block_start).at(path)?;
+            let level1 = &layout.levels[0];
+            let level1_header = layout.level_header(&header, 1);
+            let labels = header.content == Content::Labels;
+            let (to_level1, from_level0) = mpsc::sync_channel(4);
+            let (ranges, level1_ranges) = std::thread::scope(|scope| {
+                let writer = scope.spawn(|| {
+                    let mut feed = PlaneFeed::new(from_level0);
+                    stream_samples(
+                        file,
+                        block_start + level1.data_offset,
+                        &level1_header,
+                        options,
+                        job,
+                        path,
+                        &mut |x0, x1, slab: &mut [T]| feed.fill(x0, x1, slab, path),
+                    )
+                });
+                let mut tap = PlaneTap::new(to_level1, header.dims, labels);
+                let level0 = stream_samples(
+                    file,
+                    level0_start,
+                    &header,
+                    options,
+                    job,
+                    path,
+                    &mut |x0, x1, slab: &mut [T]| {
+                        fill(x0, x1, slab)?;
+                        tap.push(x0, x1, slab);
+                        Ok(())
+                    },
+                );
+                // Level 1 ends when level 0 does (its feed sees the channel close).
+                drop(tap);
+                let level1 = writer.join().expect("the level-1 writer does not panic");
+                (level0, level1)
+            });
+            // Level 0's error explains a level 1 that stopped for want of planes.
+            let (ranges, level1_ranges) = (ranges?, level1_ranges?);
+            file.write_all_at(&level1_ranges.encode(), block_start + level1.ranges_offset)
+                .at(path)?;
+            ranges
+        }
+    };
+    let mut pyramid_levels = 0;
     if header.format == Format::Extended {
-        let table = ranges.encode();
-        file.write_all_at(&table, data_end).at(path)?;
+        file.write_all_at(&ranges.encode(), data_end).at(path)?;
         header.ranges_offset = Some(data_end);
-        if wants_pyramid {
-            let block_start = (data_end + table.len() as u64).div_ceil(64) * 64;
+        if let Some(layout) = &embedded {
             file.sync_data().at(path)?;
-            let map = map_region(file, header.data_offset, header.data_len().at(path)?).at(path)?;
+            let level1 = &layout.levels[0];
+            let map =
+                map_region(file, block_start + level1.data_offset, level1.data_len).at(path)?;
             let samples: &[T] = bytemuck::try_cast_slice(&map[..])
                 .map_err(|_| VolumeError::new(path, VolumeErrorKind::Misaligned))?;
-            let level0 = TypedVolume::new(samples, header.dims, header.layout);
-            let layout = write_block(file, block_start, &header, level0, options, job, path)?;
+            let level1_view = TypedVolume::new(samples, level1.dims, header.layout);
+            write_levels(
+                file,
+                block_start,
+                &header,
+                layout,
+                2,
+                level1_view,
+                options,
+                job,
+                path,
+            )?;
             pyramid_levels = layout.levels.len();
             header.pyramid_offset = Some(block_start);
         }

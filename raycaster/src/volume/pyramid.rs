@@ -12,6 +12,7 @@
 use std::fs::File;
 use std::os::unix::fs::FileExt;
 use std::path::{Path, PathBuf};
+use std::sync::mpsc;
 use std::time::SystemTime;
 
 use rayon::prelude::*;
@@ -243,6 +244,26 @@ fn reduce<T: Sample>(rows: [&[T]; 4], z: usize, labels: bool) -> T {
     T::from_u16_saturating(((sum + 4) / 8) as u16)
 }
 
+/// Plane `x` of the level below from planes `2x` and `2x + 1` (or `2x` twice at an
+/// odd end) of a level whose planes are `src_yz` (y, z) voxels: into `out`, a plane
+/// of `ceil(src_yz / 2)` voxels.
+fn reduce_plane_pair<T: Sample>(p0: &[T], p1: &[T], src_yz: [u32; 2], labels: bool, out: &mut [T]) {
+    let (sy, sz) = (src_yz[0] as usize, src_yz[1] as usize);
+    let dz = sz.div_ceil(2);
+    out.par_chunks_mut(dz).enumerate().for_each(|(y, dst)| {
+        let (y0, y1) = (2 * y, (2 * y + 1).min(sy - 1));
+        let rows = [
+            &p0[y0 * sz..][..sz],
+            &p1[y0 * sz..][..sz],
+            &p0[y1 * sz..][..sz],
+            &p1[y1 * sz..][..sz],
+        ];
+        for (z, d) in dst.iter_mut().enumerate() {
+            *d = reduce(rows, z, labels);
+        }
+    });
+}
+
 /// Fills planes `x0..x1` of the level below `src` (x slowest, z fastest).
 pub(crate) fn downsample_planes<T: Sample>(
     src: &TypedVolume<'_, T>,
@@ -254,27 +275,120 @@ pub(crate) fn downsample_planes<T: Sample>(
 ) {
     let s = src.dims();
     let plane = dims[1] as usize * dims[2] as usize;
+    let src_plane = s[1] as usize * s[2] as usize;
     slab[..(x1 - x0) as usize * plane]
         .par_chunks_mut(plane)
         .enumerate()
         .for_each(|(i, out)| {
             let x = x0 + i as u32;
-            let xs = [2 * x, (2 * x + 1).min(s[0] - 1)];
-            let n = s[2] as usize;
-            let mut rows = vec![T::from_u16_saturating(0); 4 * n];
-            for y in 0..dims[1] {
-                let ys = [2 * y, (2 * y + 1).min(s[1] - 1)];
-                for (j, chunk) in rows.chunks_mut(n).enumerate() {
-                    src.row_into(xs[j % 2], ys[j / 2], chunk);
-                }
-                let r: Vec<&[T]> = rows.chunks(n).collect();
-                let r = [r[0], r[1], r[2], r[3]];
-                let dst = &mut out[y as usize * dims[2] as usize..][..dims[2] as usize];
-                for (z, d) in dst.iter_mut().enumerate() {
-                    *d = reduce(r, z, labels);
+            let mut planes = vec![T::from_u16_saturating(0); 2 * src_plane];
+            let (p0, p1) = planes.split_at_mut(src_plane);
+            for (p, sx) in [(p0, 2 * x), (p1, (2 * x + 1).min(s[0] - 1))] {
+                for (y, row) in p.chunks_mut(s[2] as usize).enumerate() {
+                    src.row_into(sx, y as u32, row);
                 }
             }
+            let (p0, p1) = planes.split_at(src_plane);
+            reduce_plane_pair(p0, p1, [s[1], s[2]], labels, out);
         });
+}
+
+/// Turns the planes of level 0, as a writer produces them, into the planes of
+/// level 1, sent in order to the level-1 writer ([`PlaneFeed`]): the pyramid's
+/// first level is built in the same pass as level 0, without reading it back.
+pub(crate) struct PlaneTap<T: Sample> {
+    to_level1: Option<mpsc::SyncSender<Vec<T>>>,
+    dims: [u32; 3],
+    labels: bool,
+    /// The next level-0 plane not seen yet (slabs share their first plane).
+    next: u32,
+    /// An even plane waiting for its odd partner.
+    pending: Option<Vec<T>>,
+}
+
+impl<T: Sample> PlaneTap<T> {
+    /// A tap for a level 0 of `dims` sending to `to_level1`.
+    pub(crate) fn new(to_level1: mpsc::SyncSender<Vec<T>>, dims: [u32; 3], labels: bool) -> Self {
+        PlaneTap {
+            to_level1: Some(to_level1),
+            dims,
+            labels,
+            next: 0,
+            pending: None,
+        }
+    }
+
+    /// Takes level-0 planes `x0..x1` (`slab`, x slowest).
+    pub(crate) fn push(&mut self, x0: u32, x1: u32, slab: &[T]) {
+        let plane = (self.dims[1] * self.dims[2]) as usize;
+        for x in self.next.max(x0)..x1 {
+            let p = &slab[(x - x0) as usize * plane..][..plane];
+            match self.pending.take() {
+                None => self.pending = Some(p.to_vec()),
+                Some(even) => self.emit(&even, p),
+            }
+            self.next = x + 1;
+        }
+        if self.next == self.dims[0]
+            && let Some(even) = self.pending.take()
+        {
+            self.emit(&even, &even);
+        }
+    }
+
+    fn emit(&mut self, p0: &[T], p1: &[T]) {
+        let out_len = (self.dims[1].div_ceil(2) * self.dims[2].div_ceil(2)) as usize;
+        let mut out = vec![T::from_u16_saturating(0); out_len];
+        reduce_plane_pair(p0, p1, [self.dims[1], self.dims[2]], self.labels, &mut out);
+        // A level-1 writer that stopped (its error is reported when it is joined)
+        // takes no more planes; level 0 goes on.
+        if let Some(tx) = &self.to_level1
+            && tx.send(out).is_err()
+        {
+            self.to_level1 = None;
+        }
+    }
+}
+
+/// The level-1 side of a [`PlaneTap`]: fills the level-1 writer's slabs from the
+/// planes it receives (re-serving the plane consecutive slabs share).
+pub(crate) struct PlaneFeed<T: Sample> {
+    from_level0: mpsc::Receiver<Vec<T>>,
+    last: Option<(u32, Vec<T>)>,
+}
+
+impl<T: Sample> PlaneFeed<T> {
+    /// A feed of the planes `from_level0` receives.
+    pub(crate) fn new(from_level0: mpsc::Receiver<Vec<T>>) -> Self {
+        PlaneFeed {
+            from_level0,
+            last: None,
+        }
+    }
+
+    /// Fills `slab` with planes `x0..x1`; an error when level 0 stopped first.
+    pub(crate) fn fill(
+        &mut self,
+        x0: u32,
+        x1: u32,
+        slab: &mut [T],
+        path: &Path,
+    ) -> Result<(), VolumeError> {
+        let plane = slab.len() / (x1 - x0) as usize;
+        for x in x0..x1 {
+            let fresh = !matches!(&self.last, Some((lx, _)) if *lx == x);
+            if fresh {
+                let p = self
+                    .from_level0
+                    .recv()
+                    .map_err(|_| VolumeError::new(path, VolumeErrorKind::Cancelled))?;
+                self.last = Some((x, p));
+            }
+            let (_, p) = self.last.as_ref().expect("just set");
+            slab[(x - x0) as usize * plane..][..plane].copy_from_slice(p);
+        }
+        Ok(())
+    }
 }
 
 /// Maps `len` bytes of `file` at `offset` read-only.
@@ -307,14 +421,42 @@ pub(crate) fn write_block<T: Sample>(
 ) -> Result<PyramidLayout, VolumeError> {
     let layout = PyramidLayout::plan(base).at(path)?;
     file.write_all_at(&layout.encode(), block_start).at(path)?;
+    write_levels(
+        file,
+        block_start,
+        base,
+        &layout,
+        1,
+        level0,
+        options,
+        job,
+        path,
+    )?;
+    Ok(layout)
+}
+
+/// Writes levels `from..` of `layout` into the block at `block_start`, level
+/// `from − 1` being `src`; then pads the block to its end.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn write_levels<T: Sample>(
+    file: &File,
+    block_start: u64,
+    base: &Header,
+    layout: &PyramidLayout,
+    from: usize,
+    src: TypedVolume<'_, T>,
+    options: &crate::io::WriteOptions,
+    job: &crate::job::Job,
+    path: &Path,
+) -> Result<(), VolumeError> {
     let labels = base.content == Content::Labels;
     let mut previous: Option<memmap2::Mmap> = None;
-    for k in 1..=layout.levels.len() {
+    for k in from..=layout.levels.len() {
         let e = &layout.levels[k - 1];
         let header = layout.level_header(base, k);
         let ranges = {
             let src = match &previous {
-                None => level0,
+                None => src,
                 Some(map) => {
                     let prev = layout.level_header(base, k - 1);
                     let samples: &[T] = bytemuck::try_cast_slice(&map[..])
@@ -345,7 +487,7 @@ pub(crate) fn write_block<T: Sample>(
     if file.metadata().at(path)?.len() < end {
         file.set_len(end).at(path)?;
     }
-    Ok(layout)
+    Ok(())
 }
 
 /// The head of a pyramid sidecar for a volume file of `file_len` bytes modified at
