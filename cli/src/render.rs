@@ -1,15 +1,16 @@
 //! `raycaster render`: a volume file (or a built-in scene) to a PNG.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use raycaster::render::{
-    Camera, Light, Membership, Mode, Orbit, ParallelOptions, Projection, RenderSettings,
-    RenderVolume, SegmentScene, Shading, TransferFunction, render_parallel, render_sequential,
+    Camera, Light, Membership, Mode, Orbit, PRESETS, ParallelOptions, Projection, RenderSettings,
+    RenderVolume, SegmentScene, Shading, TransferFunction, closest_preset, render_parallel,
+    render_sequential,
 };
 use raycaster::synth::{SceneKind, synthesize, synthesize_labels};
-use raycaster::volume::{Access, OpenOptions, SampleType, Volume};
+use raycaster::volume::{Access, Content, OpenOptions, SampleType, Volume};
 
 use crate::args::{
     parse_color, parse_domain, parse_positive, parse_size, parse_threshold, parse_vec3,
@@ -20,10 +21,11 @@ use crate::stats;
 ///
 /// With no FILE, renders a built-in generated scene (`--scene`), so one command
 /// shows a picture. The camera frames the whole volume from `--azimuth` and
-/// `--elevation` unless `--position` is given. The output file is replaced if it
-/// exists (written to a temporary file and renamed, never left half-written).
+/// `--elevation` unless `--position` is given. The output (PNG only) is checked
+/// before rendering: its folder must exist and an existing file is only replaced
+/// with `--force` (written to a temporary file and renamed, never left half-written).
 #[derive(Args, Debug)]
-#[command(after_help = AFTER_HELP)]
+#[command(after_help = AFTER_HELP, allow_negative_numbers = true)]
 pub struct RenderArgs {
     /// The volume to render (default: a built-in generated scene): a .vol file, or a
     /// NRRD (.nrrd/.nhdr), NIfTI-1 (.nii/.nii.gz) or MetaImage (.mha/.mhd) file or a
@@ -32,9 +34,13 @@ pub struct RenderArgs {
     /// convert with `volgen convert` first).
     file: Option<PathBuf>,
 
-    /// Output PNG.
+    /// Output PNG (the name must end in .png).
     #[arg(short, long, default_value = "render.png", value_name = "PNG")]
     output: PathBuf,
+
+    /// Replace the output image if it exists.
+    #[arg(long)]
+    force: bool,
 
     /// Image size, WxH (or N for a square).
     #[arg(long, default_value = "512x512", value_parser = parse_size, value_name = "WxH")]
@@ -59,7 +65,7 @@ pub struct RenderArgs {
 
     /// Raw sample values the transfer function spans, lo,hi (default: the whole
     /// u8 range; the data's range for u16 volumes).
-    #[arg(long, value_parser = parse_domain, value_name = "LO,HI")]
+    #[arg(long, value_parser = parse_domain, allow_hyphen_values = true, value_name = "LO,HI")]
     domain: Option<[f32; 2]>,
 
     /// Compositing mode.
@@ -91,7 +97,7 @@ pub struct RenderArgs {
     no_shading: bool,
 
     /// Light direction x,y,z (world; the light shines along it). Default: a headlight.
-    #[arg(long, value_parser = parse_vec3, value_name = "X,Y,Z")]
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, value_name = "X,Y,Z")]
     light: Option<[f32; 3]>,
 
     /// Background colour: #rrggbb, r,g,b, black, white or grey.
@@ -128,15 +134,15 @@ pub struct RenderArgs {
     orthographic: bool,
 
     /// Camera position x,y,z in world units (overrides azimuth/elevation/distance).
-    #[arg(long, value_parser = parse_vec3, allow_negative_numbers = true, value_name = "X,Y,Z")]
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, value_name = "X,Y,Z")]
     position: Option<[f32; 3]>,
 
     /// Point the camera looks at (default: the volume's centre).
-    #[arg(long, value_parser = parse_vec3, allow_negative_numbers = true, value_name = "X,Y,Z")]
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, value_name = "X,Y,Z")]
     target: Option<[f32; 3]>,
 
     /// Camera up vector.
-    #[arg(long, default_value = "0,0,1", value_parser = parse_vec3, allow_negative_numbers = true, value_name = "X,Y,Z")]
+    #[arg(long, default_value = "0,0,1", value_parser = parse_vec3, allow_hyphen_values = true, value_name = "X,Y,Z")]
     up: [f32; 3],
 
     /// Render threads of the object-parallel renderer (default: one per core);
@@ -261,14 +267,21 @@ pub fn run(args: RenderArgs) -> Result<()> {
     if !(0.0..=1.0).contains(&args.iso) {
         bail!("--iso {} must lie in [0, 1]", args.iso);
     }
+    check_output(&args.output, args.force)?;
     let volume = open_volume(&args)?;
+    if volume.content() == Content::Labels {
+        bail!(
+            "{}: is a label volume (object ids, not values); render the data volume and give this file with --labels (and a --segments SCENE.toml)",
+            volume.path().display()
+        );
+    }
     let settings = settings(&args, &volume)?;
     let label_volume = match (&settings.segments, &args.labels) {
-        (Some(_), Some(path)) => Some(Volume::open(path)?),
+        (Some(_), Some(path)) => Some(open_labels(path)?),
         (Some(scene), None) => match &scene.membership {
             // A built-in scene brings its own segmentation, when it has one.
             Membership::Labels(_) if args.file.is_none() => Some(built_in_labels(&args)?),
-            Membership::Labels(path) => Some(Volume::open(path)?),
+            Membership::Labels(path) => Some(open_labels(path)?),
             Membership::Layers(_) => None,
         },
         (None, _) => None,
@@ -291,10 +304,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         }
         render_parallel(&prepared, &camera, &settings, &options)?
     };
-    frame
-        .to_image()
-        .save_png(&args.output)
-        .context("cannot write the image")?;
+    frame.to_image().save_png(&args.output)?;
     if args.stats {
         eprint!("{}", stats::table(&frame.stats));
     }
@@ -312,6 +322,47 @@ pub fn run(args: RenderArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// Refuses, before any rendering, an output that could not be written: not a
+/// `.png` name, a missing or unwritable folder, or an existing file without
+/// `--force`.
+fn check_output(output: &Path, force: bool) -> Result<()> {
+    let is_png = output
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"));
+    if !is_png {
+        bail!(
+            "{}: only PNG images are written; name the output with .png",
+            output.display()
+        );
+    }
+    if output.is_dir() {
+        bail!("{}: is a directory; name an image file", output.display());
+    }
+    if output.exists() && !force {
+        bail!(
+            "{}: already exists (pass --force to replace it)",
+            output.display()
+        );
+    }
+    // Creating (and dropping) the temporary file the image will be written to
+    // checks that the folder exists and is writable, before a long render.
+    raycaster::files::temp_file_beside(output)
+        .map_err(|e| anyhow::anyhow!("{}: cannot write there: {e}", output.display()))?;
+    Ok(())
+}
+
+/// Opens a label volume, checking that it holds labels.
+fn open_labels(path: &Path) -> Result<Volume> {
+    let labels = Volume::open(path)?;
+    if labels.content() != Content::Labels {
+        bail!(
+            "{}: holds values, not labels; --labels takes a label volume (e.g. NAME.labels.vol from volgen generate --scene shells)",
+            path.display()
+        );
+    }
+    Ok(labels)
 }
 
 fn open_volume(args: &RenderArgs) -> Result<Volume> {
@@ -368,12 +419,20 @@ fn settings(args: &RenderArgs, volume: &Volume) -> Result<RenderSettings> {
         (None, None) => args.scene.preset().to_string(),
         (None, Some(_)) => "shapes".to_string(),
     };
-    let mut transfer = if std::path::Path::new(&tf_name).is_file() {
-        TransferFunction::load(std::path::Path::new(&tf_name))
-            .with_context(|| format!("transfer function file {tf_name}"))?
+    let tf_path = Path::new(&tf_name);
+    let is_preset = PRESETS.iter().any(|(p, _)| *p == tf_name);
+    let mut transfer = if !is_preset && tf_path.exists() {
+        // A file (or something else there, which load refuses with a reason).
+        TransferFunction::load(tf_path)?
+    } else if !is_preset && (tf_name.contains('/') || tf_path.extension().is_some()) {
+        bail!(
+            "--tf {tf_name}: no such transfer-function file{}",
+            closest_preset(&tf_name)
+                .map(|p| format!(" (did you mean the preset {p}?)"))
+                .unwrap_or_default()
+        );
     } else {
-        TransferFunction::preset(&tf_name)
-            .with_context(|| format!("--tf {tf_name:?} is neither a preset nor a file"))?
+        TransferFunction::preset(&tf_name).context("--tf")?
     };
     if let Some(domain) = args.domain {
         transfer.domain = Some(domain);

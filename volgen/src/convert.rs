@@ -112,7 +112,11 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
         )?,
         None => match import::detect(&a.input) {
             Some(_) => {
-                let imported = import::open(&a.input)?;
+                // A broken spacing is refused unless --spacing replaces it.
+                let imported = match a.spacing {
+                    Some(_) => import::open_unchecked(&a.input)?,
+                    None => import::open(&a.input)?,
+                };
                 if !a.quiet {
                     eprintln!("{}", describe_import(&imported));
                 }
@@ -126,6 +130,12 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
             None => Input::open_vol(&a.input)?,
         },
     };
+    if input.embedded_ranges_intact() == Some(false) && !a.quiet {
+        eprintln!(
+            "warning: {}: the value-range table after the samples is corrupt; the output's table is computed from the samples",
+            a.input.display()
+        );
+    }
     let input_layout = input.header().map(|h| h.layout);
     let layout = match (a.layout, a.brick) {
         (Some(LayoutArg::Linear), Some(_)) => bail!("--brick applies to --layout bricked only"),

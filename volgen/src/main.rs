@@ -34,6 +34,7 @@ enum Command {
 }
 
 fn main() {
+    restore_sigpipe();
     let cli = Cli::parse();
     if let Some(n) = cli.threads {
         if n == 0 {
@@ -45,14 +46,23 @@ fn main() {
             .build_global()
             .expect("the global pool is built once, before any parallel work");
     }
-    progress::install_ctrl_c();
+    progress::install_signal_handler();
     let result = match cli.command {
         Command::Generate(a) => generate::run(a),
         Command::Convert(a) => convert::run(a),
         Command::Info(a) => info::run(a),
     };
     if let Err(e) = result {
-        eprintln!("error: {e:#}");
+        eprintln!("error: {}", raycaster::errors::error_text(e.as_ref()));
         std::process::exit(1);
+    }
+}
+
+/// A closed stdout (`volgen info big.vol | head -3`) ends the process quietly, as
+/// for any Unix tool, instead of a panic in `println!` (Rust ignores SIGPIPE).
+fn restore_sigpipe() {
+    // SAFETY: setting a signal's disposition to the default before any thread starts.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
 }

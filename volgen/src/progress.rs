@@ -8,10 +8,18 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 /// Set by Ctrl-C; long jobs check it between batches and remove their partial output.
 pub static CANCEL: AtomicBool = AtomicBool::new(false);
 
-/// Makes Ctrl-C request a clean cancel instead of killing the process mid-write.
-pub fn install_ctrl_c() {
+/// Makes Ctrl-C, SIGTERM and SIGHUP request a clean cancel instead of killing the
+/// process mid-write: the job stops at its next batch and removes its partial
+/// output. A second signal exits at once (exit status 130); a partial file it
+/// leaves is removed by the next run writing the same file.
+pub fn install_signal_handler() {
     // A second handler cannot be installed; the first one is all we need.
-    let _ = ctrlc::set_handler(|| CANCEL.store(true, Ordering::Relaxed));
+    let _ = ctrlc::set_handler(|| {
+        if CANCEL.swap(true, Ordering::Relaxed) {
+            eprintln!("interrupted again: stopping now");
+            std::process::exit(130);
+        }
+    });
 }
 
 /// A voxel-count progress bar on stderr, hidden when `quiet` or stderr is not a terminal.

@@ -108,8 +108,7 @@ pub struct Imported {
 }
 
 /// An error about one foreign file.
-#[derive(Debug, thiserror::Error)]
-#[error("{}: {kind}", path.display())]
+#[derive(Debug)]
 pub struct ImportError {
     /// The file concerned.
     pub path: PathBuf,
@@ -185,6 +184,18 @@ pub enum ImportErrorKind {
     Volume(#[from] VolumeError),
 }
 
+impl std::fmt::Display for ImportError {
+    /// `path: what`, said once: a volume error already names its own file.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match &self.kind {
+            ImportErrorKind::Volume(v) => write!(f, "{v}"),
+            kind => write!(f, "{}: {kind}", self.path.display()),
+        }
+    }
+}
+
+impl std::error::Error for ImportError {}
+
 impl ImportError {
     /// An error about `path`.
     pub fn new(path: &Path, kind: impl Into<ImportErrorKind>) -> Self {
@@ -248,7 +259,7 @@ pub(crate) fn check_spacing(
 /// found by its parser).
 pub(crate) fn read_text_header(path: &Path, max: usize) -> Result<Vec<u8>, ImportError> {
     let mut bytes = Vec::new();
-    File::open(path)
+    crate::files::open_regular(path)
         .and_then(|f| f.take(max as u64).read_to_end(&mut bytes))
         .map_err(|e| ImportError::new(path, e))?;
     Ok(bytes)
@@ -306,7 +317,8 @@ pub fn detect(path: &Path) -> Option<ImportFormat> {
         return None;
     }
     let mut head = [0u8; 348];
-    let n = File::open(path)
+    // Never File::open here: a named pipe would block; open_regular refuses it.
+    let n = crate::files::open_regular(path)
         .and_then(|f| f.take(348).read(&mut head))
         .unwrap_or(0);
     let head = &head[..n];
@@ -323,8 +335,45 @@ pub fn detect(path: &Path) -> Option<ImportFormat> {
     }
 }
 
+/// The largest ratio between a file's largest and smallest voxel spacing that is
+/// read: beyond it the header is broken (pixdim 1e-45), and rendering at the
+/// smallest spacing's step would take practically forever.
+pub const MAX_SPACING_RATIO: f32 = 1e4;
+
+/// Refuses spacings whose largest is more than [`MAX_SPACING_RATIO`] times the
+/// smallest.
+pub(crate) fn check_spacing_ratio(
+    format: ImportFormat,
+    spacing: [f32; 3],
+) -> Result<(), ImportErrorKind> {
+    let lo = spacing.iter().copied().fold(f32::INFINITY, f32::min);
+    let hi = spacing.iter().copied().fold(0.0, f32::max);
+    // Written so that NaN fails too.
+    if hi / lo <= MAX_SPACING_RATIO {
+        return Ok(());
+    }
+    let [x, y, z] = spacing;
+    Err(header_error(
+        format,
+        format!(
+            "spacing {x} x {y} x {z}: the largest is {:.3e} times the smallest (at most {MAX_SPACING_RATIO:.0e} is read); the header's spacing is broken. Convert with `volgen convert --spacing` to override it",
+            f64::from(hi) / f64::from(lo)
+        ),
+    ))
+}
+
 /// Parses the foreign file at `path` (any supported format).
 pub fn open(path: &Path) -> Result<Imported, ImportError> {
+    open_unchecked(path).and_then(|imported| {
+        check_spacing_ratio(imported.format, imported.spacing)
+            .map_err(|e| ImportError::new(path, e))?;
+        Ok(imported)
+    })
+}
+
+/// Parses `path` without checking the spacing ratio (`volgen convert --spacing`
+/// replaces a broken spacing).
+pub fn open_unchecked(path: &Path) -> Result<Imported, ImportError> {
     match detect(path) {
         Some(ImportFormat::Nrrd) => nrrd::open(path),
         Some(ImportFormat::Nifti) => nifti::open(path),
@@ -372,7 +421,7 @@ impl Imported {
             return Input::from_raw_data(&self.path, data, spec, Some(self.spacing))
                 .map_err(|e| ImportError::new(&self.path, e));
         }
-        let file = File::open(&self.data_path).map_err(|source| {
+        let file = crate::files::open_regular(&self.data_path).map_err(|source| {
             let file = self.data_path.clone();
             ImportError::new(&self.path, ImportErrorKind::DataFile { file, source })
         })?;
@@ -477,19 +526,20 @@ impl Imported {
         }
     }
 
-    /// Concatenates the slices' samples (each checked to be whole).
+    /// Concatenates the slices' samples (each checked to be whole first). Slices
+    /// are opened one at a time as the stream reaches them, and only their pixel
+    /// data's byte range is read: a series of thousands of slices stays under the
+    /// open-file limit.
     fn gather_slices(
         &self,
         scratch_dir: Option<&Path>,
         memory_max: u64,
     ) -> Result<RawData, ImportError> {
-        use std::io::{Seek, SeekFrom};
         let per_slice = self.sample_bytes() / self.slices.len().max(1) as u64;
-        let mut readers: Vec<std::io::Take<File>> = Vec::with_capacity(self.slices.len());
         for (path, offset) in &self.slices {
             let at = |e: std::io::Error| ImportError::new(path, e);
-            let mut f = File::open(path).map_err(at)?;
-            let len = f.metadata().map_err(at)?.len();
+            crate::files::check_regular(path).map_err(at)?;
+            let len = std::fs::metadata(path).map_err(at)?.len();
             if len.saturating_sub(*offset) < per_slice {
                 return Err(ImportError::new(
                     path,
@@ -500,15 +550,15 @@ impl Imported {
                     },
                 ));
             }
-            f.seek(SeekFrom::Start(*offset)).map_err(at)?;
-            readers.push(f.take(per_slice));
         }
-        let mut chained: Box<dyn Read> = Box::new(std::io::empty());
-        for r in readers {
-            chained = Box::new(chained.chain(r));
-        }
+        let mut stream = SliceStream {
+            slices: &self.slices,
+            per_slice,
+            next: 0,
+            current: None,
+        };
         let read_error = |e: std::io::Error| ImportError::new(&self.path, e);
-        let (data, got) = self.collect(&mut chained, scratch_dir, memory_max, &read_error)?;
+        let (data, got) = self.collect(&mut stream, scratch_dir, memory_max, &read_error)?;
         if got != self.sample_bytes() {
             return Err(ImportError::new(
                 &self.path,
@@ -520,6 +570,40 @@ impl Imported {
             ));
         }
         Ok(data)
+    }
+}
+
+/// The pixel data of a series' slices as one stream, holding one slice file open at
+/// a time.
+struct SliceStream<'a> {
+    slices: &'a [(PathBuf, u64)],
+    per_slice: u64,
+    next: usize,
+    current: Option<std::io::Take<File>>,
+}
+
+impl Read for SliceStream<'_> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        use std::io::{Seek, SeekFrom};
+        loop {
+            if let Some(r) = &mut self.current {
+                let n = r.read(buf)?;
+                if n > 0 || buf.is_empty() {
+                    return Ok(n);
+                }
+                self.current = None;
+            }
+            let Some((path, offset)) = self.slices.get(self.next) else {
+                return Ok(0);
+            };
+            self.next += 1;
+            let name = |e: std::io::Error| {
+                std::io::Error::new(e.kind(), format!("{}: {e}", path.display()))
+            };
+            let mut f = crate::files::open_regular(path).map_err(name)?;
+            f.seek(SeekFrom::Start(*offset)).map_err(name)?;
+            self.current = Some(f.take(self.per_slice));
+        }
     }
 }
 

@@ -11,7 +11,9 @@ use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 
-use super::transfer::{ControlPoint, TransferError, TransferFunction};
+use super::transfer::{
+    ControlPoint, TransferError, TransferFunction, check_domain, check_gradient_ramp,
+};
 
 /// How the samples of one segment are combined.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -218,6 +220,12 @@ impl InlineTransfer {
                 })
                 .collect(),
         )?;
+        if let Some(d) = self.domain {
+            check_domain(d).map_err(|what| TransferError::Invalid { line: 0, what })?;
+        }
+        if let Some(g) = self.gradient {
+            check_gradient_ramp(g).map_err(|what| TransferError::Invalid { line: 0, what })?;
+        }
         tf.domain = self.domain;
         tf.gradient_ramp = self.gradient;
         Ok(tf)
@@ -236,9 +244,11 @@ impl SegmentScene {
     /// Reads a scene file; relative paths (labels, transfer-function files) are
     /// relative to the file's directory.
     pub fn load(path: &Path) -> Result<SegmentScene, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
-            path: path.to_path_buf(),
-            source,
+        let text = crate::files::read_text(path, super::transfer::TEXT_MAX).map_err(|source| {
+            SceneError::Io {
+                path: path.to_path_buf(),
+                source,
+            }
         })?;
         SegmentScene::parse(&text, path.parent().unwrap_or(Path::new(".")))
     }
@@ -444,6 +454,12 @@ fn local_mode(o: &ObjectFile) -> Result<LocalMode, String> {
         "importance" => {
             let w = unit("weight", o.weight, 1.0)?;
             let p = o.p.unwrap_or([1.0, 0.3, 0.9]);
+            if let Some(bad) = p.iter().find(|v| !(v.is_finite() && **v >= 0.0)) {
+                return Err(format!(
+                    "p = [{}, {}, {}]: {bad} is not a non-negative finite number",
+                    p[0], p[1], p[2]
+                ));
+            }
             let source = match o.importance.as_deref().unwrap_or("constant") {
                 "constant" => ImportanceSource::Constant(w),
                 "intensity" => ImportanceSource::Intensity(w),

@@ -54,15 +54,9 @@ pub struct Volume {
 
 /// Reads and validates the header of the volume file `path` (without mapping it).
 pub fn read_header(path: &Path) -> Result<(Header, File, u64), VolumeError> {
-    let file = File::open(path).at(path)?;
-    let meta = file.metadata().at(path)?;
-    if meta.is_dir() {
-        return Err(VolumeError::new(
-            path,
-            std::io::Error::new(std::io::ErrorKind::IsADirectory, "is a directory"),
-        ));
-    }
-    let len = meta.len();
+    // Regular files only: a named pipe would block the read below forever.
+    let file = crate::files::open_regular(path).at(path)?;
+    let len = file.metadata().at(path)?.len();
     let mut head = Vec::with_capacity(EXTENDED_HEADER_LEN as usize);
     (&file)
         .take(EXTENDED_HEADER_LEN)
@@ -319,24 +313,10 @@ fn load_ranges(
     Ok(ranges)
 }
 
-/// Creates the temporary file that will become `path`: hidden, beside it (so the final
-/// rename is atomic), named after it with a `.partial` suffix, and with the usual mode
-/// for new files (the umask applies) rather than the 0600 of temporary files.
+/// Creates the temporary file that will become `path`
+/// ([`crate::files::temp_file_beside`]).
 pub(crate) fn temp_file_beside(path: &Path) -> std::io::Result<tempfile::NamedTempFile> {
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    if !dir.is_dir() {
-        let msg = format!("directory {} does not exist", dir.display());
-        return Err(std::io::Error::new(std::io::ErrorKind::NotFound, msg));
-    }
-    let name = path.file_name().unwrap_or_default().to_string_lossy();
-    tempfile::Builder::new()
-        .prefix(&format!(".{name}."))
-        .suffix(".partial")
-        .permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666))
-        .tempfile_in(dir)
+    crate::files::temp_file_beside(path)
 }
 
 /// Writes `bytes` to `path` through a temporary file in the same directory and a
