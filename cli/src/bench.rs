@@ -291,7 +291,7 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
     for case in cases {
         if prepared.as_ref().is_none_or(|(b, _)| *b != case.brick) {
             let p = RenderVolume::new(&volume, case.brick)
-                .with_context(|| format!("brick side {:?}", case.brick))?;
+                .with_context(|| format!("brick side {}", brick_text(case.brick)))?;
             prepared = Some((case.brick, p));
         }
         let (_, shared) = prepared.take().expect("prepared above");
@@ -337,6 +337,11 @@ fn measure(
     })
 }
 
+/// A brick side for people: `16`, or `default` when the renderer chooses.
+fn brick_text(brick: Option<u32>) -> String {
+    brick.map_or_else(|| "default".to_string(), |b| b.to_string())
+}
+
 /// Speedups and the best configuration, on stderr.
 fn summarise(records: &[Record]) {
     let parallel: Vec<&Record> = records
@@ -345,10 +350,10 @@ fn summarise(records: &[Record]) {
         .collect();
     if let Some(best) = parallel.iter().min_by_key(|r| r.frame) {
         eprintln!(
-            "fastest: {} threads, tile {}, brick {:?}, {}: {:.2} ms",
+            "fastest: {} threads, tile {}, brick {}, {}: {:.2} ms",
             best.case.render_threads(),
             best.case.tile,
-            best.case.brick,
+            brick_text(best.case.brick),
             best.case.optimisations,
             best.frame_ms()
         );
@@ -361,10 +366,10 @@ fn summarise(records: &[Record]) {
         });
         if let Some(one) = one.filter(|_| r.case.render_threads() > 1) {
             eprintln!(
-                "speedup {} threads over 1 (tile {}, brick {:?}, {}): {:.2}×",
+                "speedup {} threads over 1 (tile {}, brick {}, {}): {:.2}×",
                 r.case.render_threads(),
                 r.case.tile,
-                r.case.brick,
+                brick_text(r.case.brick),
                 r.case.optimisations,
                 one.frame.as_secs_f64() / r.frame.as_secs_f64()
             );
@@ -376,9 +381,9 @@ fn summarise(records: &[Record]) {
             .filter(|p| p.case.threads == Some(1) && same(&p.case, &s.case))
         {
             eprintln!(
-                "1-thread parallel / sequential (tile {}, brick {:?}, {}): {:.2} (same samples: {})",
+                "1-thread parallel / sequential (tile {}, brick {}, {}): {:.2} (same samples: {})",
                 p.case.tile,
-                p.case.brick,
+                brick_text(p.case.brick),
                 p.case.optimisations,
                 p.frame.as_secs_f64() / s.frame.as_secs_f64(),
                 p.samples == s.samples

@@ -201,8 +201,8 @@ A transfer-function file holds lines `point VALUE R G B ALPHA` (all 0..1), optio
 
 Examples:
   raycaster render -o shapes.png
-  raycaster render head.vol --tf ct-bone --size 800x800 --stats
-  raycaster render head.vol --mode mip --azimuth 0 --elevation 0 -o mip.png
+  raycaster render lung1.vol --tf ct-bone --domain 31768,34768 --size 800x800 --stats
+  raycaster render lung1.vol --mode mip --azimuth 0 --elevation 0 -o mip.png --force
   raycaster render ch2.nii.gz --tf ct-skin -o head.png   # NRRD, NIfTI, MetaImage open directly";
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -427,7 +427,10 @@ fn settings(args: &RenderArgs, volume: &Volume) -> Result<RenderSettings> {
     } else if !is_preset && (tf_name.contains('/') || tf_path.extension().is_some()) {
         bail!(
             "--tf {tf_name}: no such transfer-function file{}",
-            closest_preset(&tf_name)
+            // `tfs/ct-bonee` or `ct-bon.tf`: the name may be a near-miss preset.
+            tf_path
+                .file_stem()
+                .and_then(|stem| closest_preset(&stem.to_string_lossy()))
                 .map(|p| format!(" (did you mean the preset {p}?)"))
                 .unwrap_or_default()
         );

@@ -30,12 +30,17 @@ fn kind_of(meta: &std::fs::Metadata) -> &'static str {
 /// The error for a file that is not a regular file.
 fn not_regular(meta: &std::fs::Metadata) -> std::io::Error {
     let kind = kind_of(meta);
+    let error_kind = if meta.is_dir() {
+        std::io::ErrorKind::IsADirectory
+    } else {
+        std::io::ErrorKind::InvalidInput
+    };
     let msg = if kind == "not a regular file" {
         kind.to_string()
     } else {
         format!("is {kind}, not a regular file")
     };
-    std::io::Error::new(std::io::ErrorKind::InvalidInput, msg)
+    std::io::Error::new(error_kind, msg)
 }
 
 /// Opens `path` for reading if it is a regular file (symbolic links are followed);

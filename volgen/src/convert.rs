@@ -43,6 +43,7 @@ use crate::progress::{CANCEL, voxel_bar};
 ///
 ///   volgen convert shapes.vol --layout linear -o shapes-linear.vol
 #[derive(Args, Debug)]
+#[command(allow_negative_numbers = true)]
 pub struct ConvertArgs {
     /// Input: .vol, .nrrd/.nhdr, .nii/.nii.gz/.hdr, .mha/.mhd, a DICOM series folder
     /// (or .dcm file), or a headerless raw file when --raw is given.
@@ -79,7 +80,7 @@ pub struct ConvertArgs {
     #[arg(long, value_name = "LO:HI", allow_hyphen_values = true, value_parser = parse_window)]
     window: Option<(f32, f32)>,
     /// Output voxel spacing: S or X,Y,Z [default: the input's, or 1].
-    #[arg(long, value_name = "S|X,Y,Z", value_parser = parse_spacing)]
+    #[arg(long, value_name = "S|X,Y,Z", value_parser = parse_spacing, allow_hyphen_values = true)]
     spacing: Option<[f32; 3]>,
     /// Output header format.
     #[arg(long, value_enum, default_value_t = FormatArg::Extended)]
@@ -188,24 +189,40 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// One line on what a foreign file holds.
-fn describe_import(i: &Imported) -> String {
-    let ty = match i.sample {
+/// `u8`, `u16`, `i16` or `f32`.
+pub fn raw_type_name(t: RawType) -> &'static str {
+    match t {
         RawType::U8 => "u8",
         RawType::U16 => "u16",
         RawType::I16 => "i16",
         RawType::F32 => "f32",
-    };
+    }
+}
+
+/// One line on what a foreign file holds.
+fn describe_import(i: &Imported) -> String {
+    let ty = raw_type_name(i.sample);
     let [sx, sy, sz] = i.spacing;
     let mut line = format!(
-        "{}: {} {} {ty}, spacing {sx} x {sy} x {sz}, {:?} data",
+        "{}: {} {} {ty}, spacing {sx} x {sy} x {sz}, {} data",
         i.path.display(),
         i.format.name(),
         describe_size(i.dims),
-        i.encoding,
+        encoding_name(i.encoding),
     );
     if let Some((slope, inter)) = i.scaling {
         line += &format!(" (declares value = {slope} * stored + {inter}; stored values are kept)");
     }
     line
+}
+
+/// How a foreign file's samples are stored, for people.
+pub fn encoding_name(e: raycaster::import::Encoding) -> &'static str {
+    use raycaster::import::Encoding;
+    match e {
+        Encoding::Raw => "raw",
+        Encoding::Gzip => "gzip",
+        Encoding::Zlib => "zlib",
+        Encoding::Slices => "one file per slice",
+    }
 }

@@ -17,7 +17,12 @@ use clap::{Parser, Subcommand};
 /// complete: a failed or interrupted run (Ctrl-C) leaves no partial file, and an
 /// existing file is only replaced with --force.
 #[derive(Parser, Debug)]
-#[command(name = "volgen", version, propagate_version = true)]
+#[command(
+    name = "volgen",
+    version,
+    propagate_version = true,
+    allow_negative_numbers = true
+)]
 struct Cli {
     /// Worker threads (default: one per core).
     #[arg(long, global = true, value_name = "N")]

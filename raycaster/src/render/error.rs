@@ -33,7 +33,8 @@ pub enum RenderError {
     /// A frame would take more samples than any render should: an absurd spacing
     /// ratio or a tiny step. Refused up front instead of rendering "forever".
     #[error(
-        "a ray would take up to {per_ray:.3e} samples and the frame up to {per_frame:.3e} (limits {max_ray:.0e} and {max_frame:.0e}): the spacing {spacing:?} puts {ratio:.3e} of the smallest spacing in the largest, and the step is {step} of the smallest; check the file's spacing or raise the step"
+        "a ray would take up to {per_ray:.3e} samples and the frame up to {per_frame:.3e} (limits {max_ray:.0e} and {max_frame:.0e}): the spacing {} x {} x {} puts {ratio:.3e} of the smallest spacing in the largest, and the step is {step} of the smallest; check the file's spacing or raise the step",
+        spacing[0], spacing[1], spacing[2]
     )]
     SampleBudget {
         /// Samples one ray may take.

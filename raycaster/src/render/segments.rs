@@ -166,8 +166,9 @@ struct SceneFile {
     global: Option<String>,
     #[serde(default)]
     labels: Option<PathBuf>,
+    /// Read as lists of any length, so `[0.1, 0.5, 0.9]` is refused, not cut to two.
     #[serde(default)]
-    layers: Option<Vec<[f32; 2]>>,
+    layers: Option<Vec<Vec<f32>>>,
     #[serde(default, rename = "object")]
     objects: Vec<ObjectFile>,
 }
@@ -274,8 +275,33 @@ impl SegmentScene {
         let file: SceneFile =
             toml::from_str(text).map_err(|e| SceneError::Syntax(e.to_string()))?;
         let membership = match (file.labels, file.layers) {
-            (Some(labels), None) => Membership::Labels(base.join(labels)),
+            (Some(labels), None) => {
+                if labels.as_os_str().is_empty() {
+                    return Err(SceneError::Invalid(
+                        "`labels` is empty; name the label volume file".into(),
+                    ));
+                }
+                Membership::Labels(base.join(labels))
+            }
             (None, Some(layers)) => {
+                if layers.is_empty() {
+                    return Err(SceneError::Invalid(
+                        "`layers` is empty; give at least one [lo, hi] interval".into(),
+                    ));
+                }
+                let mut pairs = Vec::with_capacity(layers.len());
+                for (i, layer) in layers.iter().enumerate() {
+                    match layer[..] {
+                        [lo, hi] => pairs.push([lo, hi]),
+                        _ => {
+                            return Err(SceneError::Invalid(format!(
+                                "layer {i} has {} numbers; a layer is one interval [lo, hi]",
+                                layer.len()
+                            )));
+                        }
+                    }
+                }
+                let layers = pairs;
                 for (i, [lo, hi]) in layers.iter().enumerate() {
                     if !(0.0..=1.0).contains(lo) || !(0.0..=1.0).contains(hi) || lo >= hi {
                         return Err(SceneError::Invalid(format!(
@@ -565,6 +591,48 @@ mod tests {
             (
                 "layers = [[0, 1]]\n[[object]]\nmode = \"first-hit\"\niso = 3",
                 "iso",
+            ),
+            // Hostile values: NaN/Inf/negative parameters, bad domains, bad layers.
+            ("layers = [[0.1, 0.5, 0.9]]", "3 numbers"),
+            ("layers = []", "empty"),
+            ("labels = \"\"", "empty"),
+            ("labels = 5", "invalid type"),
+            ("layers = [[nan, 0.5]]", "increasing"),
+            (
+                "layers = [[0, 1]]\n[[object]]\nmode = \"importance\"\nimportance = \"lighting\"\np = [1.0, nan, 1.0]",
+                "p = ",
+            ),
+            (
+                "layers = [[0, 1]]\n[[object]]\nmode = \"importance\"\nimportance = \"silhouette\"\np = [-1.0, 0.1, 1.0]",
+                "p = ",
+            ),
+            (
+                "layers = [[0, 1]]\n[[object]]\nmode = \"xray\"\ngain = inf",
+                "gain",
+            ),
+            (
+                "layers = [[0, 1]]\n[[object]]\nmode = \"context\"\nkt = -2",
+                "kt",
+            ),
+            (
+                "layers = [[0, 1]]\n[[object]]\nmode = \"importance\"\nweight = nan",
+                "weight",
+            ),
+            (
+                "layers = [[0, 1]]\n[[object]]\ntf = { points = [[0, 1, 1, 1, 1]], domain = [5, 5] }",
+                "domain",
+            ),
+            (
+                "layers = [[0, 1]]\n[[object]]\ntf = { points = [[0, 1, 1, 1, 1]], domain = [9, 1] }",
+                "domain",
+            ),
+            (
+                "layers = [[0, 1]]\n[[object]]\ntf = { points = [[0, 1, 1, 1, 1]], domain = [nan, 1] }",
+                "domain",
+            ),
+            (
+                "layers = [[0, 1]]\n[[object]]\ntf = { points = [[0, 1, 1, 1, 1]], gradient = [0.1, inf] }",
+                "gradient",
             ),
         ];
         for (text, needle) in cases {

@@ -78,7 +78,7 @@ pub fn check_domain([lo, hi]: [f32; 2]) -> Result<(), String> {
         Ok(())
     } else {
         Err(format!(
-            "domain [{lo}, {hi}] must be two finite numbers, lo < hi"
+            "domain [{lo}, {hi}] must be finite and increasing (lo < hi)"
         ))
     }
 }
