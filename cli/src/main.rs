@@ -27,6 +27,7 @@ enum Command {
 
 fn main() {
     restore_sigpipe();
+    raycaster::files::guard_mapped_reads();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(a) => render::run(*a),

@@ -366,6 +366,9 @@ fn open_labels(path: &Path) -> Result<Volume> {
 }
 
 fn open_volume(args: &RenderArgs) -> Result<Volume> {
+    if let Some(path) = &args.file {
+        raycaster::files::guard_mapped_file(path);
+    }
     match &args.file {
         Some(path) if raycaster::import::detect(path).is_some() => {
             let limit = raycaster::import::DEFAULT_IN_MEMORY_LIMIT;

@@ -264,3 +264,36 @@ fn absurd_spacings_are_refused_at_once_not_rendered_forever() {
         "{e}"
     );
 }
+
+#[test]
+fn a_mapped_file_truncated_while_rendering_fails_with_a_message_not_sigbus() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write_vol(&d.join("big.vol"), [128; 3], [1.0; 3], Content::Scalar);
+    // A frame of many seconds: no early termination, no skipping, a fine step.
+    let child = Command::new(env!("CARGO_BIN_EXE_raycaster"))
+        .args([
+            "render", "big.vol", "--size", "1024", "--step", "0.1", "--no-ert", "--no-ess", "--tf",
+            "cloud", "-o", "big.png", "-q",
+        ])
+        .current_dir(d)
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(500));
+    // Another program truncates the file under the mapping.
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(d.join("big.vol"))
+        .unwrap()
+        .set_len(64)
+        .unwrap();
+    let o = child.wait_with_output().unwrap();
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{:?}: {e}", o.status);
+    assert!(
+        e.contains("big.vol: shrank or vanished while it was read"),
+        "{e}"
+    );
+    assert!(!d.join("big.png").exists());
+}

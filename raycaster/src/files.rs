@@ -85,6 +85,52 @@ pub fn read_text(path: &Path, max_bytes: u64) -> std::io::Result<String> {
     Ok(text)
 }
 
+/// The message the SIGBUS guard prints (a leaked buffer, swapped atomically: the
+/// handler may only read it).
+static SIGBUS_MESSAGE: std::sync::atomic::AtomicPtr<Vec<u8>> =
+    std::sync::atomic::AtomicPtr::new(std::ptr::null_mut());
+
+/// Makes a fault on a memory-mapped file (SIGBUS: another program truncated the
+/// file while it was mapped) end the process with an `error:` line naming the file
+/// ([`guard_mapped_file`]) and exit status 1, instead of a crash. Outputs are written
+/// atomically, so none is left half-written.
+///
+/// For programs (the `raycaster` and `volgen` binaries): call once, early.
+pub fn guard_mapped_reads() {
+    set_sigbus_message("a memory-mapped volume file".to_string());
+    extern "C" fn on_sigbus(_: libc::c_int) {
+        // Only async-signal-safe calls: an atomic load, write(2) and _exit(2).
+        let m = SIGBUS_MESSAGE.load(std::sync::atomic::Ordering::Acquire);
+        if !m.is_null() {
+            // SAFETY: the buffer is leaked, never freed; writing it to stderr.
+            unsafe {
+                let m = &*m;
+                libc::write(2, m.as_ptr().cast(), m.len());
+            }
+        }
+        // SAFETY: ends the process at once, as the signal would have.
+        unsafe { libc::_exit(1) };
+    }
+    // SAFETY: installs a handler that only calls async-signal-safe functions.
+    unsafe {
+        libc::signal(libc::SIGBUS, on_sigbus as *const () as libc::sighandler_t);
+    }
+}
+
+/// Names `path` in the message of [`guard_mapped_reads`]: the file being mapped now.
+pub fn guard_mapped_file(path: &Path) {
+    set_sigbus_message(path.display().to_string());
+}
+
+fn set_sigbus_message(what: String) {
+    let message = format!(
+        "error: {what}: shrank or vanished while it was read (another program truncated it?); stopped, nothing was written\n"
+    );
+    // Leaked on purpose: the signal handler may be reading the previous one.
+    let new = Box::into_raw(Box::new(message.into_bytes()));
+    SIGBUS_MESSAGE.store(new, std::sync::atomic::Ordering::Release);
+}
+
 /// Creates the temporary file that will become `path`: hidden, beside it (so the
 /// final rename is atomic), named `.NAME.PID.XXXXXX.partial` after it and the writing
 /// process, with the usual mode for new files (the umask applies) rather than the

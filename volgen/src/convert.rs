@@ -86,6 +86,7 @@ pub struct ConvertArgs {
     #[arg(long, value_enum, default_value_t = FormatArg::Extended)]
     format: FormatArg,
     /// Replace an existing output file.
+    /// A symbolic link is replaced by the new file; the file it points to is kept.
     #[arg(long)]
     force: bool,
     /// Print nothing but errors.

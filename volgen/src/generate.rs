@@ -82,6 +82,7 @@ pub struct GenerateArgs {
     #[arg(long, conflicts_with = "labels")]
     no_labels: bool,
     /// Replace existing output files.
+    /// A symbolic link is replaced by the new file; the file it points to is kept.
     #[arg(long)]
     force: bool,
     /// Print nothing but errors.

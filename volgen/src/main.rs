@@ -40,6 +40,7 @@ enum Command {
 
 fn main() {
     restore_sigpipe();
+    raycaster::files::guard_mapped_reads();
     let cli = Cli::parse();
     if let Some(n) = cli.threads {
         if n == 0 {

@@ -215,3 +215,21 @@ fn negative_numbers_reach_the_value_checks() {
     assert!(!e.contains("-- -1"), "{e}");
     assert!(e.contains("-1"), "{e}");
 }
+
+#[test]
+fn force_onto_a_symbolic_link_replaces_the_link_and_keeps_its_target() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("target.vol"), b"the link's target").unwrap();
+    std::os::unix::fs::symlink("target.vol", d.join("link.vol")).unwrap();
+    let o = volgen(d, &["generate", "--size", "8", "-o", "link.vol"]);
+    assert_eq!(o.status.code(), Some(1), "an existing link needs --force");
+    let o = volgen(d, &["generate", "--size", "8", "-o", "link.vol", "--force"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let meta = std::fs::symlink_metadata(d.join("link.vol")).unwrap();
+    assert!(meta.file_type().is_file(), "the link became the new file");
+    assert_eq!(
+        std::fs::read(d.join("target.vol")).unwrap(),
+        b"the link's target"
+    );
+}
