@@ -1,13 +1,17 @@
 //! `raycaster render`: a volume file (or a built-in scene) to a PNG.
 
+use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use raycaster::render::{
     Camera, Light, Membership, Mode, Orbit, PRESETS, ParallelOptions, Projection, RenderSettings,
-    RenderVolume, SegmentScene, Shading, TransferFunction, closest_preset, render_parallel,
-    render_sequential,
+    RenderVolume, SegmentScene, Shading, TileSink, TransferFunction, closest_preset,
+    render_parallel_into, render_sequential,
 };
 use raycaster::synth::{SceneKind, synthesize, synthesize_labels};
 use raycaster::volume::{Access, Content, OpenOptions, SampleType, Volume};
@@ -193,6 +197,11 @@ pub struct RenderArgs {
     /// No message on success.
     #[arg(short, long)]
     quiet: bool,
+
+    /// Show progress of frames longer than a second even when stderr is not a
+    /// terminal (it shows on a terminal anyway, unless --quiet).
+    #[arg(long)]
+    progress: bool,
 }
 
 const AFTER_HELP: &str = "Transfer-function presets: shapes, ct-bone, ct-skin, shells, cloud, opaque, grayscale, rainbow.
@@ -302,7 +311,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
         if let Some(n) = args.threads {
             options.render_threads = n as usize;
         }
-        render_parallel(&prepared, &camera, &settings, &options)?
+        let show = args.progress || (!args.quiet && std::io::stderr().is_terminal());
+        render_with_progress(&prepared, &camera, &settings, &options, show)?
     };
     frame.to_image().save_png(&args.output)?;
     if args.stats {
@@ -515,4 +525,93 @@ fn camera(args: &RenderArgs, volume: &RenderVolume<'_>) -> Result<Camera> {
         return Camera::look_at(position, target, up, projection, w, h).context("invalid camera");
     }
     orbit.camera(w, h).context("invalid camera")
+}
+
+/// Frames longer than this show progress on a terminal.
+const PROGRESS_AFTER: Duration = Duration::from_secs(1);
+
+/// The frame being filled tile by tile, counting finished pixels.
+struct ProgressSink {
+    frame: Mutex<raycaster::render::Frame>,
+    pixels_done: AtomicU64,
+}
+
+impl TileSink for ProgressSink {
+    fn tile_finished(&self, rect: raycaster::render::PixelRect, rgba: &[[f32; 4]], depth: &[f32]) {
+        let mut frame = self.frame.lock().unwrap_or_else(|e| e.into_inner());
+        let w = (rect.x1 - rect.x0) as usize;
+        for (row, y) in (rect.y0..rect.y1).enumerate() {
+            let start = frame.index(rect.x0, y);
+            frame.rgba[start..start + w].copy_from_slice(&rgba[row * w..(row + 1) * w]);
+            frame.depth[start..start + w].copy_from_slice(&depth[row * w..(row + 1) * w]);
+        }
+        let pixels = u64::from(rect.x1 - rect.x0) * u64::from(rect.y1 - rect.y0);
+        self.pixels_done.fetch_add(pixels, Ordering::Relaxed);
+    }
+}
+
+/// Renders with the parallel renderer; with `show`, a frame that takes longer than
+/// [`PROGRESS_AFTER`] shows the share of its pixels done on stderr.
+fn render_with_progress(
+    volume: &RenderVolume<'_>,
+    camera: &Camera,
+    settings: &RenderSettings,
+    options: &ParallelOptions,
+    show: bool,
+) -> Result<raycaster::render::Frame> {
+    let sink = ProgressSink {
+        frame: Mutex::new(raycaster::render::Frame::empty(
+            camera.width(),
+            camera.height(),
+            settings.background,
+        )),
+        pixels_done: AtomicU64::new(0),
+    };
+    // Tiles cover the pixels the volume projects onto.
+    let (lo, hi) = volume.geometry().world_bounds();
+    let total = camera
+        .project_box(lo, hi)
+        .map_or(1, |r| u64::from(r.x1 - r.x0) * u64::from(r.y1 - r.y0))
+        .max(1);
+    let finished = AtomicBool::new(false);
+    let start = Instant::now();
+    let stats = std::thread::scope(|scope| {
+        if show {
+            scope.spawn(|| {
+                let mut shown = false;
+                while !finished.load(Ordering::Relaxed) {
+                    std::thread::sleep(Duration::from_millis(100));
+                    let elapsed = start.elapsed();
+                    if elapsed < PROGRESS_AFTER || finished.load(Ordering::Relaxed) {
+                        continue;
+                    }
+                    let done = sink.pixels_done.load(Ordering::Relaxed).min(total);
+                    let share = done as f64 / total as f64;
+                    let eta = if share > 0.01 {
+                        let left = elapsed.as_secs_f64() * (1.0 - share) / share;
+                        format!(", about {left:.0} s left")
+                    } else {
+                        String::new()
+                    };
+                    eprint!(
+                        "\rrendering {:>3.0} % ({:.1} s{eta})   ",
+                        100.0 * share,
+                        elapsed.as_secs_f64()
+                    );
+                    shown = true;
+                }
+                if shown {
+                    // Clear the progress line.
+                    eprint!("\r{:60}\r", "");
+                }
+            });
+        }
+        let stats = render_parallel_into(volume, camera, settings, options, &sink, &|| false);
+        finished.store(true, Ordering::Relaxed);
+        stats
+    })?
+    .expect("a frame that cannot be cancelled completes");
+    let mut frame = sink.frame.into_inner().unwrap_or_else(|e| e.into_inner());
+    frame.stats = stats;
+    Ok(frame)
 }

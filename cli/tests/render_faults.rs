@@ -297,3 +297,32 @@ fn a_mapped_file_truncated_while_rendering_fails_with_a_message_not_sigbus() {
     );
     assert!(!d.join("big.png").exists());
 }
+
+#[test]
+fn long_frames_show_progress() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // A frame of a second or two.
+    let slow = [
+        "render",
+        "--scene",
+        "noise",
+        "--scene-size",
+        "96",
+        "--size",
+        "512",
+        "--step",
+        "0.2",
+        "--no-ert",
+        "--no-ess",
+        "-q",
+    ];
+    let o = raycaster(&[&slow[..], &["--progress", "-o", "a.png"]].concat(), d);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(e.contains("rendering") && e.contains(" %"), "{e}");
+    // Quiet without --progress when stderr is not a terminal.
+    let o = raycaster(&[&slow[..], &["-o", "b.png"]].concat(), d);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).is_empty(), "{}", stderr(&o));
+}
