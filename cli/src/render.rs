@@ -198,8 +198,9 @@ pub struct RenderArgs {
     #[arg(short, long)]
     quiet: bool,
 
-    /// Show progress of frames longer than a second even when stderr is not a
-    /// terminal (it shows on a terminal anyway, unless --quiet).
+    /// Show progress on stderr from the start of the frame, even when it is not a
+    /// terminal (on a terminal, frames longer than a second show it anyway, unless
+    /// --quiet).
     #[arg(long)]
     progress: bool,
 }
@@ -311,8 +312,12 @@ pub fn run(args: RenderArgs) -> Result<()> {
         if let Some(n) = args.threads {
             options.render_threads = n as usize;
         }
-        let show = args.progress || (!args.quiet && std::io::stderr().is_terminal());
-        render_with_progress(&prepared, &camera, &settings, &options, show)?
+        let show_after = if args.progress {
+            Some(Duration::ZERO)
+        } else {
+            (!args.quiet && std::io::stderr().is_terminal()).then_some(PROGRESS_AFTER)
+        };
+        render_with_progress(&prepared, &camera, &settings, &options, show_after)?
     };
     frame.to_image().save_png(&args.output)?;
     if args.stats {
@@ -550,14 +555,14 @@ impl TileSink for ProgressSink {
     }
 }
 
-/// Renders with the parallel renderer; with `show`, a frame that takes longer than
-/// [`PROGRESS_AFTER`] shows the share of its pixels done on stderr.
+/// Renders with the parallel renderer; with `show_after`, a frame that takes longer
+/// than that shows the share of its pixels done on stderr.
 fn render_with_progress(
     volume: &RenderVolume<'_>,
     camera: &Camera,
     settings: &RenderSettings,
     options: &ParallelOptions,
-    show: bool,
+    show_after: Option<Duration>,
 ) -> Result<raycaster::render::Frame> {
     let sink = ProgressSink {
         frame: Mutex::new(raycaster::render::Frame::empty(
@@ -576,13 +581,14 @@ fn render_with_progress(
     let finished = AtomicBool::new(false);
     let start = Instant::now();
     let stats = std::thread::scope(|scope| {
-        if show {
-            scope.spawn(|| {
+        if let Some(after) = show_after {
+            let (sink, finished) = (&sink, &finished);
+            scope.spawn(move || {
                 let mut shown = false;
                 while !finished.load(Ordering::Relaxed) {
                     std::thread::sleep(Duration::from_millis(100));
                     let elapsed = start.elapsed();
-                    if elapsed < PROGRESS_AFTER || finished.load(Ordering::Relaxed) {
+                    if elapsed < after || finished.load(Ordering::Relaxed) {
                         continue;
                     }
                     let done = sink.pixels_done.load(Ordering::Relaxed).min(total);
@@ -600,9 +606,11 @@ fn render_with_progress(
                     );
                     shown = true;
                 }
-                if shown {
+                if shown && std::io::stderr().is_terminal() {
                     // Clear the progress line.
                     eprint!("\r{:60}\r", "");
+                } else if shown {
+                    eprintln!();
                 }
             });
         }

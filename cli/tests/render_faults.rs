@@ -302,7 +302,7 @@ fn a_mapped_file_truncated_while_rendering_fails_with_a_message_not_sigbus() {
 fn long_frames_show_progress() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    // A frame of a second or two.
+    // A frame of a second or so.
     let slow = [
         "render",
         "--scene",
@@ -325,4 +325,42 @@ fn long_frames_show_progress() {
     let o = raycaster(&[&slow[..], &["-o", "b.png"]].concat(), d);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).is_empty(), "{}", stderr(&o));
+}
+
+#[test]
+fn bench_reports_median_and_spread_writes_csv_as_it_goes_and_warns_on_one_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let common = [
+        "bench",
+        "--volume-size",
+        "16",
+        "--image",
+        "32x32",
+        "--threads",
+        "1,2",
+        "--tiles",
+        "16",
+        "--bricks",
+        "8",
+        "--cache-dir",
+        "cache",
+        "--csv",
+        "b.csv",
+    ];
+    let o = raycaster(&[&common[..], &["--frames", "3"]].concat(), d);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let csv = std::fs::read_to_string(d.join("b.csv")).unwrap();
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    assert!(
+        header.contains(&"median_ms") && header.contains(&"spread_ms"),
+        "{csv}"
+    );
+    assert_eq!(csv.lines().count(), 3, "{csv}");
+    let table = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(table.contains("median_ms"), "{table}");
+    assert!(!stderr(&o).contains("one frame"), "{}", stderr(&o));
+    let o = raycaster(&[&common[..], &["--frames", "1"]].concat(), d);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("timed on one frame"), "{}", stderr(&o));
 }
