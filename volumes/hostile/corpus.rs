@@ -154,6 +154,23 @@ pub fn write(dir: &Path) -> Vec<Case> {
     // A label volume: `info`/`convert` read it, `render` refuses it as data.
     file("x.labels.vol", &labels, Volume, false);
 
+    // A thesis-format file whose `.ranges` sidecar is a named pipe: never read.
+    {
+        use raycaster::volume::{Content, Format, Header, Layout, SampleType};
+        let h = Header::new(
+            [8; 3],
+            [1.0; 3],
+            Layout::Linear,
+            SampleType::U8,
+            Content::Scalar,
+            Format::Thesis,
+        );
+        let mut thesis = h.encode().unwrap();
+        thesis.extend((0..512).map(|i| (i % 200) as u8));
+        file("thesis.vol", &thesis, Volume, true);
+        mkfifo(&dir.join("thesis.vol.ranges"));
+    }
+
     // --- NRRD
     file("good.nrrd", &nrrd(""), Volume, true);
     file(
@@ -406,6 +423,7 @@ pub fn write(dir: &Path) -> Vec<Case> {
             "three-layer.toml",
             "layers = [[0.1, 0.5, 0.9]]\n".to_string(),
         ),
+        ("fifo-tf.toml", scene("[[object]]\ntf = \"pipe.tf\"\n")),
         ("empty-layers.toml", "layers = []\n".to_string()),
         ("scalar-labels.toml", "labels = 3\n".to_string()),
         ("empty-labels.toml", "labels = \"\"\n".to_string()),

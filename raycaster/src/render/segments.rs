@@ -335,7 +335,8 @@ impl SegmentScene {
             let name = o.name.clone().unwrap_or_else(|| format!("object {id}"));
             let transfer = match &o.tf {
                 Some(TransferSpec::Inline(inline)) => inline.build(),
-                Some(TransferSpec::Named(tf)) if base.join(tf).is_file() => {
+                // Anything at that path is read as a file (a named pipe is refused).
+                Some(TransferSpec::Named(tf)) if base.join(tf).exists() => {
                     TransferFunction::load(&base.join(tf))
                 }
                 Some(TransferSpec::Named(tf)) => TransferFunction::preset(tf),

@@ -296,7 +296,12 @@ fn load_ranges(
     }
     let sidecar = ranges_sidecar_path(path);
     let mtime = file.metadata().and_then(|m| m.modified()).ok();
-    if let (Some(mtime), Ok(bytes)) = (mtime, std::fs::read(&sidecar))
+    // A sidecar that is not a regular file (a named pipe) is ignored, never read.
+    let sidecar_bytes = crate::files::open_regular(&sidecar).and_then(|mut f| {
+        let mut bytes = Vec::new();
+        f.read_to_end(&mut bytes).map(|_| bytes)
+    });
+    if let (Some(mtime), Ok(bytes)) = (mtime, sidecar_bytes)
         && let Some(r) = BrickRanges::decode_sidecar(&bytes, dims, len, mtime)
         && r.grid() == &grid
     {
