@@ -67,8 +67,10 @@ pub struct RenderArgs {
     #[arg(long, value_name = "PRESET|FILE")]
     tf: Option<String>,
 
-    /// Raw sample values the transfer function spans, lo,hi (default: the whole
-    /// u8 range; the data's range for u16 volumes).
+    /// Stored sample values the transfer function spans, lo,hi (default: the whole
+    /// u8 range; the data's range for u16 volumes). CT scans in i16 (Hounsfield
+    /// units) are stored as HU + 32768, opened directly or converted: −1000..2000 HU
+    /// is `--domain 31768,34768`. A domain outside the data's values gets a warning.
     #[arg(long, value_parser = parse_domain, allow_hyphen_values = true, value_name = "LO,HI")]
     domain: Option<[f32; 2]>,
 
@@ -456,6 +458,13 @@ fn settings(args: &RenderArgs, volume: &Volume) -> Result<RenderSettings> {
         TransferFunction::preset(&tf_name).context("--tf")?
     };
     if let Some(domain) = args.domain {
+        if let Some(warning) =
+            domain_warning(domain, volume.ranges().overall(), volume.sample_type())
+        {
+            if !args.quiet {
+                eprintln!("{warning}");
+            }
+        }
         transfer.domain = Some(domain);
     } else if transfer.domain.is_none() && volume.sample_type() == SampleType::U16 {
         let [lo, hi] = volume.ranges().overall();
@@ -484,6 +493,23 @@ fn settings(args: &RenderArgs, volume: &Volume) -> Result<RenderSettings> {
             None => None,
         },
     })
+}
+
+/// A warning when `--domain` misses the data's stored values `lo..=hi` entirely
+/// (the image would be empty or flat), with the CT hint for i16 scans.
+fn domain_warning([a, b]: [f32; 2], [lo, hi]: [u16; 2], sample: SampleType) -> Option<String> {
+    let (lo, hi) = (f32::from(lo), f32::from(hi));
+    if b >= lo && a <= hi {
+        return None;
+    }
+    let hint = if sample == SampleType::U16 && a < 0.0 {
+        " (CT scans store HU + 32768: −1000..2000 HU is 31768,34768)"
+    } else {
+        ""
+    };
+    Some(format!(
+        "warning: --domain {a},{b} lies outside the data's values {lo}..{hi}; the image will be empty or flat{hint}"
+    ))
 }
 
 fn glam_vec(v: [f32; 3]) -> raycaster::render::Vec3 {

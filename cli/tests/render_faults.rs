@@ -364,3 +364,20 @@ fn bench_reports_median_and_spread_writes_csv_as_it_goes_and_warns_on_one_frame(
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("timed on one frame"), "{}", stderr(&o));
 }
+
+#[test]
+fn a_domain_outside_the_data_warns() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // The shapes scene holds u8 values 0..=254.
+    let o = render(d, &["--domain", "300,400", "-o", "a.png"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("warning: --domain 300,400 lies outside the data's values 0..254"),
+        "{}",
+        stderr(&o)
+    );
+    let o = render(d, &["--domain", "10,200", "-o", "b.png"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("warning"), "{}", stderr(&o));
+}

@@ -76,7 +76,8 @@ pub struct ConvertArgs {
     /// Output sample type [default: u8 for u8 input, otherwise u16].
     #[arg(long = "type", value_enum)]
     sample_type: Option<SampleArg>,
-    /// Input values LO..HI map onto the output's full range (clamped outside).
+    /// Input values LO..HI, in the input file's own units (CT: Hounsfield units,
+    /// e.g. -1000:2000), map onto the output's full range (clamped outside).
     #[arg(long, value_name = "LO:HI", allow_hyphen_values = true, value_parser = parse_window)]
     window: Option<(f32, f32)>,
     /// Output voxel spacing: S or X,Y,Z [default: the input's, or 1].
