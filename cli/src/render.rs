@@ -458,12 +458,9 @@ fn settings(args: &RenderArgs, volume: &Volume) -> Result<RenderSettings> {
         TransferFunction::preset(&tf_name).context("--tf")?
     };
     if let Some(domain) = args.domain {
-        if let Some(warning) =
-            domain_warning(domain, volume.ranges().overall(), volume.sample_type())
-        {
-            if !args.quiet {
-                eprintln!("{warning}");
-            }
+        let warning = domain_warning(domain, volume.ranges().overall(), volume.sample_type());
+        if let Some(warning) = warning.filter(|_| !args.quiet) {
+            eprintln!("{warning}");
         }
         transfer.domain = Some(domain);
     } else if transfer.domain.is_none() && volume.sample_type() == SampleType::U16 {
