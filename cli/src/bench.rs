@@ -36,7 +36,7 @@ Examples:
   raycaster bench --quick --plot sweep.png
   raycaster bench --volume-size 512 --sequential --csv sweep.csv --plot sweep.png
   raycaster bench --volume-size 800 --threads 1 --sequential --optimisations none,ert,ess,both
-  raycaster bench head.vol --ram --tiles 16 --bricks 16 --image 700x700 --step 0.2")]
+  raycaster bench volumes/data/lung1.vol --ram --tiles 16 --bricks 16 --image 700x700 --step 0.2")]
 pub struct BenchArgs {
     /// Volume to render (default: a generated `shapes` volume).
     file: Option<PathBuf>,

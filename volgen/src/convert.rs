@@ -35,11 +35,13 @@ use crate::progress::{CANCEL, voxel_bar};
 /// --window (default: the input's own min..max) onto the output's full range.
 /// Examples:
 ///
-///   volgen convert ct.raw --raw 512x512x300 --raw-type i16 --window -1000:2000 -o ct.vol
+///   volgen convert volumes/data/brainsmall.den --raw 128x128x84 --skip 62 -o brainsmall.vol
 ///
-///   volgen convert lung1_image.nrrd -o lung1.vol
+///   volgen convert volumes/data/lung1_image.nrrd --type u8 --window -1000:2000 -o lung1-u8.vol
 ///
-///   volgen convert ch2.nii.gz --layout linear -o ch2.vol
+///   volgen convert volumes/data/lung1_image.nrrd -o lung1.vol
+///
+///   volgen convert volumes/data/ch2.nii.gz --layout linear -o ch2.vol
 ///
 ///   volgen convert shapes.vol --layout linear -o shapes-linear.vol
 #[derive(Args, Debug)]
