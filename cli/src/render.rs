@@ -200,9 +200,9 @@ pub struct RenderArgs {
     #[arg(short, long)]
     quiet: bool,
 
-    /// Show progress on stderr from the start of the frame, even when it is not a
-    /// terminal (on a terminal, frames longer than a second show it anyway, unless
-    /// --quiet).
+    /// Show progress (reading a scan, rendering the frame) on stderr from the start,
+    /// even when it is not a terminal (on a terminal, steps longer than a second
+    /// show it anyway, unless --quiet).
     #[arg(long)]
     progress: bool,
 }
@@ -314,12 +314,13 @@ pub fn run(args: RenderArgs) -> Result<()> {
         if let Some(n) = args.threads {
             options.render_threads = n as usize;
         }
-        let show_after = if args.progress {
-            Some(Duration::ZERO)
-        } else {
-            (!args.quiet && std::io::stderr().is_terminal()).then_some(PROGRESS_AFTER)
-        };
-        render_with_progress(&prepared, &camera, &settings, &options, show_after)?
+        render_with_progress(
+            &prepared,
+            &camera,
+            &settings,
+            &options,
+            progress_after(&args),
+        )?
     };
     frame.to_image().save_png(&args.output)?;
     if args.stats {
@@ -388,8 +389,23 @@ fn open_volume(args: &RenderArgs) -> Result<Volume> {
     }
     match &args.file {
         Some(path) if raycaster::import::detect(path).is_some() => {
+            // Decompressing a large scan takes seconds: progress as for frames.
             let limit = raycaster::import::DEFAULT_IN_MEMORY_LIMIT;
-            Ok(raycaster::import::open_volume_any(path, limit)?)
+            let imported = raycaster::import::open(path)?;
+            let done = AtomicU64::new(0);
+            let on_progress = |n| {
+                done.fetch_add(n, Ordering::Relaxed);
+            };
+            let job = raycaster::job::Job::silent().with_progress(&on_progress);
+            let label = format!("reading {}", path.display());
+            let volume = with_progress_line(
+                &label,
+                imported.sample_bytes(),
+                progress_after(args),
+                &done,
+                || imported.to_volume_with(limit, &job),
+            )?;
+            Ok(volume)
         }
         Some(path) => {
             let access = if args.ram {
@@ -555,6 +571,16 @@ fn camera(args: &RenderArgs, volume: &RenderVolume<'_>) -> Result<Camera> {
     orbit.camera(w, h).context("invalid camera")
 }
 
+/// When progress shows: from the start with --progress, after
+/// [`PROGRESS_AFTER`] on a terminal, never with --quiet or when piped.
+fn progress_after(args: &RenderArgs) -> Option<Duration> {
+    if args.progress {
+        Some(Duration::ZERO)
+    } else {
+        (!args.quiet && std::io::stderr().is_terminal()).then_some(PROGRESS_AFTER)
+    }
+}
+
 /// Frames longer than this show progress on a terminal.
 const PROGRESS_AFTER: Duration = Duration::from_secs(1);
 
@@ -601,48 +627,69 @@ fn render_with_progress(
         .project_box(lo, hi)
         .map_or(1, |r| u64::from(r.x1 - r.x0) * u64::from(r.y1 - r.y0))
         .max(1);
-    let finished = AtomicBool::new(false);
-    let start = Instant::now();
-    let stats = std::thread::scope(|scope| {
-        if let Some(after) = show_after {
-            let (sink, finished) = (&sink, &finished);
-            scope.spawn(move || {
-                let mut shown = false;
-                while !finished.load(Ordering::Relaxed) {
-                    std::thread::sleep(Duration::from_millis(100));
-                    let elapsed = start.elapsed();
-                    if elapsed < after || finished.load(Ordering::Relaxed) {
-                        continue;
-                    }
-                    let done = sink.pixels_done.load(Ordering::Relaxed).min(total);
-                    let share = done as f64 / total as f64;
-                    let eta = if share > 0.01 {
-                        let left = elapsed.as_secs_f64() * (1.0 - share) / share;
-                        format!(", about {left:.0} s left")
-                    } else {
-                        String::new()
-                    };
-                    eprint!(
-                        "\rrendering {:>3.0} % ({:.1} s{eta})   ",
-                        100.0 * share,
-                        elapsed.as_secs_f64()
-                    );
-                    shown = true;
-                }
-                if shown && std::io::stderr().is_terminal() {
-                    // Clear the progress line.
-                    eprint!("\r{:60}\r", "");
-                } else if shown {
-                    eprintln!();
-                }
-            });
-        }
-        let stats = render_parallel_into(volume, camera, settings, options, &sink, &|| false);
-        finished.store(true, Ordering::Relaxed);
-        stats
+    let stats = with_progress_line("rendering", total, show_after, &sink.pixels_done, || {
+        render_parallel_into(volume, camera, settings, options, &sink, &|| false)
     })?
     .expect("a frame that cannot be cancelled completes");
     let mut frame = sink.frame.into_inner().unwrap_or_else(|e| e.into_inner());
     frame.stats = stats;
     Ok(frame)
+}
+
+/// Runs `work`; with `show_after`, once it has run that long, shows on stderr how
+/// much of `total` the counter `done` says is finished (`rendering 42 % (3.1 s,
+/// about 4 s left)`), cleared at the end on a terminal.
+fn with_progress_line<R: Send>(
+    label: &str,
+    total: u64,
+    show_after: Option<Duration>,
+    done: &AtomicU64,
+    work: impl FnOnce() -> R + Send,
+) -> R {
+    let Some(after) = show_after else {
+        return work();
+    };
+    let total = total.max(1);
+    let finished = AtomicBool::new(false);
+    let start = Instant::now();
+    // Asked for from the start: say so before any work, however short.
+    let shown_at_start = after.is_zero();
+    if shown_at_start {
+        eprint!("\r{label}   0 % (0.0 s)   ");
+    }
+    std::thread::scope(|scope| {
+        let finished_ref = &finished;
+        scope.spawn(move || {
+            let mut shown = shown_at_start;
+            while !finished_ref.load(Ordering::Relaxed) {
+                std::thread::sleep(Duration::from_millis(100));
+                let elapsed = start.elapsed();
+                if elapsed < after || finished_ref.load(Ordering::Relaxed) {
+                    continue;
+                }
+                let share = done.load(Ordering::Relaxed).min(total) as f64 / total as f64;
+                let eta = if share > 0.01 {
+                    let left = elapsed.as_secs_f64() * (1.0 - share) / share;
+                    format!(", about {left:.0} s left")
+                } else {
+                    String::new()
+                };
+                eprint!(
+                    "\r{label} {:>3.0} % ({:.1} s{eta})   ",
+                    100.0 * share,
+                    elapsed.as_secs_f64()
+                );
+                shown = true;
+            }
+            if shown && std::io::stderr().is_terminal() {
+                // Clear the progress line.
+                eprint!("\r{:70}\r", "");
+            } else if shown {
+                eprintln!();
+            }
+        });
+        let result = work();
+        finished.store(true, Ordering::Relaxed);
+        result
+    })
 }

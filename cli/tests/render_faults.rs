@@ -381,3 +381,38 @@ fn a_domain_outside_the_data_warns() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(!stderr(&o).contains("warning"), "{}", stderr(&o));
 }
+
+#[test]
+fn reading_a_compressed_scan_shows_progress() {
+    use std::io::Write;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut nrrd =
+        b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 64 64 64\nencoding: gzip\n\n".to_vec();
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    gz.write_all(
+        &(0..64 * 64 * 64)
+            .map(|i| (i % 251) as u8)
+            .collect::<Vec<u8>>(),
+    )
+    .unwrap();
+    nrrd.extend(gz.finish().unwrap());
+    std::fs::write(d.join("s.nrrd"), nrrd).unwrap();
+    let o = raycaster(
+        &[
+            "render",
+            "s.nrrd",
+            "--size",
+            "24",
+            "--progress",
+            "-q",
+            "-o",
+            "a.png",
+        ],
+        d,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(e.contains("reading s.nrrd"), "{e}");
+    assert!(e.contains("rendering"), "{e}");
+}

@@ -130,7 +130,17 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
                     .parent()
                     .filter(|p| !p.as_os_str().is_empty())
                     .unwrap_or(Path::new("."));
-                imported.input(Some(scratch), import::DECOMPRESS_IN_MEMORY_MAX)?
+                // Decompression (or gathering slices) comes first: its own bar, and
+                // Ctrl-C / SIGTERM stop it too.
+                let bar = crate::progress::byte_bar(imported.sample_bytes(), "decompress", a.quiet);
+                let on_progress = |n| bar.inc(n);
+                let job = Job::silent()
+                    .with_progress(&on_progress)
+                    .with_cancel(&CANCEL);
+                let input =
+                    imported.input_with(Some(scratch), import::DECOMPRESS_IN_MEMORY_MAX, &job)?;
+                bar.finish_and_clear();
+                input
             }
             None => Input::open_vol(&a.input)?,
         },

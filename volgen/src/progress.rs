@@ -48,6 +48,29 @@ pub fn voxel_bar(total: u64, message: &str, quiet: bool) -> ProgressBar {
     bar
 }
 
+/// A byte-count progress bar on stderr (decompression), hidden like [`voxel_bar`].
+pub fn byte_bar(total: u64, message: &str, quiet: bool) -> ProgressBar {
+    let target = if quiet || !std::io::stderr().is_terminal() {
+        ProgressDrawTarget::hidden()
+    } else {
+        ProgressDrawTarget::stderr()
+    };
+    let bar = ProgressBar::with_draw_target(Some(total), target);
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{msg:>10} [{bar:40.cyan/blue}] {percent:>3}% {bytes}/{total_bytes}, {binary_bytes_per_sec}, {left}",
+        )
+        .expect("valid template")
+        .with_key("left", |s: &ProgressState, w: &mut dyn std::fmt::Write| {
+            let len = s.len().unwrap_or(0);
+            let _ = w.write_str(&time_left_text(s.pos(), len, s.elapsed().as_secs_f64()));
+        })
+        .progress_chars("=> "),
+    );
+    bar.set_message(message.to_string());
+    bar
+}
+
 /// `61.5 M voxels/s`: the mean rate since the start (steadier than indicatif's
 /// recent-steps estimate, and in units people read).
 pub fn rate_text(done: u64, secs: f64) -> String {

@@ -31,6 +31,19 @@ fn mkfifo(path: &Path) {
     assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o644) }, 0);
 }
 
+/// The output of `child`, failing (and killing it) when it runs longer than `limit`.
+fn wait_at_most(mut child: std::process::Child, limit: Duration) -> Output {
+    let start = Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed() > limit {
+            child.kill().unwrap();
+            panic!("the process hung (over {limit:?})");
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    child.wait_with_output().unwrap()
+}
+
 /// Starts a long `generate`, waits until its partial file exists, sends `signal` and
 /// returns the finished process's output.
 fn interrupt_generate(dir: &Path, signal: i32) -> Output {
@@ -52,7 +65,7 @@ fn interrupt_generate(dir: &Path, signal: i32) -> Output {
         std::thread::sleep(Duration::from_millis(5));
     }
     assert_eq!(unsafe { libc::kill(child.id() as i32, signal) }, 0);
-    child.wait_with_output().unwrap()
+    wait_at_most(child, Duration::from_secs(60))
 }
 
 #[test]
@@ -232,4 +245,38 @@ fn force_onto_a_symbolic_link_replaces_the_link_and_keeps_its_target() {
         std::fs::read(d.join("target.vol")).unwrap(),
         b"the link's target"
     );
+}
+
+#[test]
+fn sigterm_while_converting_a_compressed_scan_cancels_cleanly() {
+    use std::io::Write;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let n = 400usize;
+    let mut nrrd =
+        format!("NRRD0004\ntype: uchar\ndimension: 3\nsizes: {n} {n} {n}\nencoding: gzip\n\n")
+            .into_bytes();
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    let plane: Vec<u8> = (0..n * n).map(|i| (i % 251) as u8).collect();
+    for _ in 0..n {
+        gz.write_all(&plane).unwrap();
+    }
+    nrrd.extend(gz.finish().unwrap());
+    std::fs::write(d.join("s.nrrd"), nrrd).unwrap();
+    let child = Command::new(env!("CARGO_BIN_EXE_volgen"))
+        .current_dir(d)
+        .args(["convert", "s.nrrd", "-o", "s.vol"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Early: while the stream is decompressed (the handler is installed at start).
+    std::thread::sleep(Duration::from_millis(30));
+    assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGTERM) }, 0);
+    let o = wait_at_most(child, Duration::from_secs(30));
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(e.contains("cancelled"), "{e}");
+    assert!(!e.contains("corrupt"), "{e}");
+    assert_eq!(files_in(d), ["s.nrrd"]);
 }

@@ -408,6 +408,17 @@ impl Imported {
     /// is at most `memory_max` bytes, otherwise into an anonymous temporary file in
     /// `scratch_dir` (default: the system's temporary directory).
     pub fn input(&self, scratch_dir: Option<&Path>, memory_max: u64) -> Result<Input, ImportError> {
+        self.input_with(scratch_dir, memory_max, &Job::silent())
+    }
+
+    /// [`Self::input`], reporting decompressed (or gathered) bytes to `job` and
+    /// stopping with an error when it is cancelled.
+    pub fn input_with(
+        &self,
+        scratch_dir: Option<&Path>,
+        memory_max: u64,
+        job: &Job,
+    ) -> Result<Input, ImportError> {
         let spec = RawSpec {
             dims: self.dims,
             sample: self.sample,
@@ -417,7 +428,7 @@ impl Imported {
         };
         let at_data = |e: std::io::Error| ImportError::new(&self.data_path, e);
         if self.encoding == Encoding::Slices {
-            let data = self.gather_slices(scratch_dir, memory_max)?;
+            let data = self.gather_slices(scratch_dir, memory_max, job)?;
             return Input::from_raw_data(&self.path, data, spec, Some(self.spacing))
                 .map_err(|e| ImportError::new(&self.path, e));
         }
@@ -451,7 +462,7 @@ impl Imported {
                 )
                 .map_err(|e| ImportError::new(&self.path, e));
             }
-            _ => self.decompress(file, scratch_dir, memory_max)?,
+            _ => self.decompress(file, scratch_dir, memory_max, job)?,
         };
         Input::from_raw_data(&self.path, data, spec, Some(self.spacing))
             .map_err(|e| ImportError::new(&self.path, e))
@@ -464,6 +475,7 @@ impl Imported {
         mut file: File,
         scratch_dir: Option<&Path>,
         memory_max: u64,
+        job: &Job,
     ) -> Result<RawData, ImportError> {
         use std::io::{Seek, SeekFrom};
         let at_data = |e: std::io::Error| ImportError::new(&self.data_path, e);
@@ -482,7 +494,7 @@ impl Imported {
         )
         .map_err(compressed)?;
         let expected = self.sample_bytes();
-        let (data, got) = self.collect(&mut stream, scratch_dir, memory_max, &compressed)?;
+        let (data, got) = self.collect(&mut stream, scratch_dir, memory_max, job, &compressed)?;
         if skipped < self.skip_after_decode || got != expected {
             return Err(ImportError::new(
                 &self.data_path,
@@ -507,20 +519,32 @@ impl Imported {
         stream: &mut dyn Read,
         scratch_dir: Option<&Path>,
         memory_max: u64,
+        job: &Job,
         read_error: &dyn Fn(std::io::Error) -> ImportError,
     ) -> Result<(RawData, u64), ImportError> {
         let expected = self.sample_bytes();
+        let mut stream = Reported { inner: stream, job };
+        // A cancelled job is said as such, not as corrupt data.
+        let failed = |e: std::io::Error| {
+            if job.is_cancelled() {
+                let cancelled =
+                    VolumeError::new(&self.path, crate::volume::VolumeErrorKind::Cancelled);
+                ImportError::new(&self.path, cancelled)
+            } else {
+                read_error(e)
+            }
+        };
         // One byte more than needed: a longer stream is an error too.
-        let mut limited = stream.take(expected + 1);
+        let mut limited = (&mut stream).take(expected + 1);
         if expected <= memory_max {
             let mut buf = Vec::with_capacity(expected as usize);
-            limited.read_to_end(&mut buf).map_err(read_error)?;
+            limited.read_to_end(&mut buf).map_err(failed)?;
             let got = buf.len() as u64;
             Ok((RawData::Memory(buf), got))
         } else {
             let dir = scratch_dir.map_or_else(std::env::temp_dir, Path::to_path_buf);
             let mut tmp = tempfile::tempfile_in(&dir).map_err(|e| ImportError::new(&dir, e))?;
-            let got = std::io::copy(&mut limited, &mut tmp).map_err(read_error)?;
+            let got = std::io::copy(&mut limited, &mut tmp).map_err(failed)?;
             tmp.flush().map_err(|e| ImportError::new(&dir, e))?;
             Ok((RawData::File(tmp), got))
         }
@@ -534,6 +558,7 @@ impl Imported {
         &self,
         scratch_dir: Option<&Path>,
         memory_max: u64,
+        job: &Job,
     ) -> Result<RawData, ImportError> {
         let per_slice = self.sample_bytes() / self.slices.len().max(1) as u64;
         for (path, offset) in &self.slices {
@@ -558,7 +583,7 @@ impl Imported {
             current: None,
         };
         let read_error = |e: std::io::Error| ImportError::new(&self.path, e);
-        let (data, got) = self.collect(&mut stream, scratch_dir, memory_max, &read_error)?;
+        let (data, got) = self.collect(&mut stream, scratch_dir, memory_max, job, &read_error)?;
         if got != self.sample_bytes() {
             return Err(ImportError::new(
                 &self.path,
@@ -570,6 +595,24 @@ impl Imported {
             ));
         }
         Ok(data)
+    }
+}
+
+/// A stream that reports the bytes read to a job and fails once it is cancelled.
+struct Reported<'a, 'j> {
+    inner: &'a mut dyn Read,
+    job: &'a Job<'j>,
+}
+
+impl Read for Reported<'_, '_> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        if self.job.is_cancelled() {
+            // Not ErrorKind::Interrupted: read_to_end and io::copy retry on that.
+            return Err(std::io::Error::other("cancelled; nothing was written"));
+        }
+        let n = self.inner.read(buf)?;
+        self.job.advance(n as u64);
+        Ok(n)
     }
 }
 
@@ -627,6 +670,13 @@ impl Imported {
     /// Builds the volume in RAM (linear layout), refusing volumes whose stored
     /// samples exceed `limit` bytes.
     pub fn to_volume(&self, limit: u64) -> Result<Volume, ImportError> {
+        self.to_volume_with(limit, &Job::silent())
+    }
+
+    /// [`Self::to_volume`], reporting the bytes decompressed (or gathered from
+    /// slices) to `job`: up to [`Self::sample_bytes`] in all; raw files report
+    /// nothing (they are read in one pass at disk speed).
+    pub fn to_volume_with(&self, limit: u64, job: &Job) -> Result<Volume, ImportError> {
         let sample_type = self.default_sample_type();
         let samples = self.voxels() * sample_type.size();
         if samples > limit {
@@ -647,9 +697,8 @@ impl Imported {
                 },
             ));
         }
-        let input = self.input(None, u64::MAX)?;
-        let job = Job::silent();
-        let (sample_type, values) = plan_values(&input, Some(sample_type), None, &job)
+        let input = self.input_with(None, u64::MAX, job)?;
+        let (sample_type, values) = plan_values(&input, Some(sample_type), None, &Job::silent())
             .map_err(|e| ImportError::new(&self.path, e))?;
         let header = Header::new(
             self.dims,
