@@ -280,3 +280,30 @@ fn sigterm_while_converting_a_compressed_scan_cancels_cleanly() {
     assert!(!e.contains("corrupt"), "{e}");
     assert_eq!(files_in(d), ["s.nrrd"]);
 }
+
+#[test]
+fn info_reads_foreign_files_in_their_own_units() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // An i16 NRRD of CT-like values: -1000 (air) and 40..=1039.
+    let mut nrrd = b"NRRD0004\ntype: short\ndimension: 3\nsizes: 4 4 4\nendian: little\nencoding: raw\nspacings: 0.5 0.5 2\n\n".to_vec();
+    for i in 0..64i16 {
+        let v: i16 = if i < 32 { -1000 } else { 40 + (i - 32) * 32 };
+        nrrd.extend(v.to_le_bytes());
+    }
+    std::fs::write(d.join("ct.nrrd"), nrrd).unwrap();
+    let o = volgen(d, &["info", "ct.nrrd"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout).into_owned();
+    for needle in [
+        "format      NRRD",
+        "4x4x4 (64 voxels)",
+        "spacing     0.5 x 0.5 x 2",
+        "i16, little endian, raw data",
+        "min -1000, max 1032 (the file's units)",
+        "16 bins over min..max",
+    ] {
+        assert!(out.contains(needle), "info lacks `{needle}`:\n{out}");
+    }
+    assert!(!out.contains("Some(") && !out.contains("Raw"), "{out}");
+}
