@@ -16,7 +16,15 @@ use raycaster::render::{
 use raycaster::synth::{SceneKind, synthesize};
 use raycaster::volume::{SampleType, Volume};
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
+fn main() {
+    // Errors as people read them (`main` returning an error would print Debug text).
+    if let Err(e) = run() {
+        eprintln!("error: {}", raycaster::errors::error_text(e.as_ref()));
+        std::process::exit(1);
+    }
+}
+
+fn run() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);
     let input = args.next();
     let output = args.next().unwrap_or_else(|| "example.png".to_string());
