@@ -5,7 +5,7 @@
 #
 #   volumes/fetch.sh            # everything
 #   FETCH_STRICT=0 volumes/fetch.sh   # warn instead of failing when a source is unreachable
-#   VOLGEN=target/release/volgen volumes/fetch.sh   # use a built volgen (default: cargo run)
+#   VOLGEN=target/release/volgen volumes/fetch.sh   # use a built volgen (default: cargo run --release)
 #
 # What each volume is, its licence and dimensions: volumes/README.md.
 set -euo pipefail
@@ -18,7 +18,7 @@ STRICT=${FETCH_STRICT:-1}
 FAILED=()
 
 volgen() {
-    if [[ -n "${VOLGEN:-}" ]]; then "$VOLGEN" "$@"; else cargo run -q -p volgen -- "$@"; fi
+    if [[ -n "${VOLGEN:-}" ]]; then "$VOLGEN" "$@"; else cargo run -q --release -p volgen -- "$@"; fi
 }
 
 check_sha() { # file sha256

@@ -256,8 +256,12 @@ impl BenchCase {
     /// Prepares `volume` (which must be the case's, see [`BenchCase::open_volume`])
     /// for rendering frames of this case.
     pub fn prepare<'v>(&self, volume: &'v Volume) -> Result<PreparedCase<'v>> {
-        let prepared = RenderVolume::new(volume, self.brick)
-            .with_context(|| format!("brick side {:?} of {}", self.brick, self.name()))?;
+        let prepared = RenderVolume::new(volume, self.brick).with_context(|| {
+            let side = self
+                .brick
+                .map_or_else(|| "default".to_string(), |b| b.to_string());
+            format!("brick side {side} of {}", self.name())
+        })?;
         self.prepare_with(prepared)
     }
 

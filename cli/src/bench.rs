@@ -26,7 +26,8 @@ use crate::render::ModeArg;
 /// Renders a view of a volume (FILE, or a generated `shapes` volume of
 /// `--volume-size` voxels, written once to `--cache-dir` and reused) for every
 /// combination of `--threads`, `--tiles`, `--bricks` and `--optimisations`, each
-/// `--frames` times (after `--warm-up` untimed frames), and reports the fastest frame.
+/// `--frames` times (after `--warm-up` untimed frames), and reports the fastest
+/// frame, the median and the spread (slowest − fastest).
 /// Bricks are logical bricks over linear storage (any size, no conversion); a
 /// bricked volume is rendered by its own bricks or sub-bricks that divide them.
 #[derive(Args, Debug)]
@@ -35,7 +36,7 @@ Examples:
   raycaster bench --quick --plot sweep.png
   raycaster bench --volume-size 512 --sequential --csv sweep.csv --plot sweep.png
   raycaster bench --volume-size 800 --threads 1 --sequential --optimisations none,ert,ess,both
-  raycaster bench head.vol --ram --tiles 16 --bricks 16 --image 700x700 --step 0.2")]
+  raycaster bench volumes/data/lung1.vol --ram --tiles 16 --bricks 16 --image 700x700 --step 0.2")]
 pub struct BenchArgs {
     /// Volume to render (default: a generated `shapes` volume).
     file: Option<PathBuf>,
@@ -56,9 +57,10 @@ pub struct BenchArgs {
     #[arg(long)]
     ram: bool,
 
-    /// Where generated volumes are kept between runs.
-    #[arg(long, default_value = "target/bench-volumes", value_name = "DIR")]
-    cache_dir: PathBuf,
+    /// Where generated volumes are kept between runs [default:
+    /// $XDG_CACHE_HOME/raycaster/bench-volumes, else ~/.cache/raycaster/bench-volumes].
+    #[arg(long, value_name = "DIR")]
+    cache_dir: Option<PathBuf>,
 
     /// Image size.
     #[arg(long, default_value = "512x512", value_parser = parse_size, value_name = "WxH")]
@@ -158,13 +160,19 @@ pub struct Record {
     pub case: BenchCase,
     /// Fastest frame.
     pub frame: Duration,
+    /// Median frame.
+    pub median: Duration,
+    /// Slowest minus fastest frame.
+    pub spread: Duration,
+    /// Frames timed.
+    pub frames: u32,
     /// Samples taken per frame.
     pub samples: u64,
 }
 
 impl Record {
     /// The record's fields as text, in CSV column order ([`HEADER`]).
-    fn fields(&self) -> [String; 12] {
+    fn fields(&self) -> [String; 14] {
         let c = &self.case;
         [
             c.renderer().to_string(),
@@ -179,6 +187,8 @@ impl Record {
             format!("{}x{}", c.image[0], c.image[1]),
             c.step.to_string(),
             c.view.name().to_string(),
+            format!("{:.3}", self.median.as_secs_f64() * 1e3),
+            format!("{:.3}", self.spread.as_secs_f64() * 1e3),
         ]
     }
 
@@ -273,7 +283,16 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
             "nothing to measure: give at least one thread count, tile, brick and optimisation set"
         );
     };
-    let volume = first.open_volume(&args.cache_dir)?;
+    let cache_dir = match &args.cache_dir {
+        Some(dir) => dir.clone(),
+        None => default_cache_dir(
+            std::env::var_os("XDG_CACHE_HOME").map(PathBuf::from),
+            std::env::var_os("HOME").map(PathBuf::from),
+        ),
+    };
+    std::fs::create_dir_all(&cache_dir)
+        .with_context(|| format!("cannot create the cache folder {}", cache_dir.display()))?;
+    let volume = first.open_volume(&cache_dir)?;
     let [w, h] = args.image;
     eprintln!(
         "bench: {} ({}×{}×{}, {}), image {w}×{h}, step {}, {} frame(s) per configuration",
@@ -285,13 +304,16 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
         args.step,
         args.frames
     );
+    if let Some(warning) = load_warning(load_average(), available_cores()) {
+        eprintln!("{warning}");
+    }
     let mut records: Vec<Record> = Vec::new();
     println!("{}", table_row(&HEADER.map(String::from)));
     let mut prepared: Option<(Option<u32>, RenderVolume<'_>)> = None;
     for case in cases {
         if prepared.as_ref().is_none_or(|(b, _)| *b != case.brick) {
             let p = RenderVolume::new(&volume, case.brick)
-                .with_context(|| format!("brick side {:?}", case.brick))?;
+                .with_context(|| format!("brick side {}", brick_text(case.brick)))?;
             prepared = Some((case.brick, p));
         }
         let (_, shared) = prepared.take().expect("prepared above");
@@ -300,10 +322,13 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
         prepared = Some((case.brick, ready.volume));
         println!("{}", table_row(&record.fields()));
         records.push(record);
+        // Written as it goes: an interrupted sweep keeps what it measured.
+        if let Some(csv) = &args.csv {
+            write_atomically(csv, csv_text(&records).as_bytes())?;
+        }
     }
     summarise(&records);
     if let Some(csv) = &args.csv {
-        write_atomically(csv, csv_text(&records).as_bytes())?;
         eprintln!("wrote {}", csv.display());
     }
     if let Some(path) = &args.plot {
@@ -313,7 +338,19 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
     Ok(())
 }
 
-/// `warm_up` untimed frames, then the fastest of `frames`.
+/// The folder bench volumes are cached in: under `$XDG_CACHE_HOME` (an absolute
+/// path, as the XDG spec requires), else `~/.cache`, else the temporary folder; never
+/// the working directory.
+fn default_cache_dir(xdg_cache: Option<PathBuf>, home: Option<PathBuf>) -> PathBuf {
+    let base = xdg_cache
+        .filter(|p| p.is_absolute())
+        .or_else(|| home.filter(|p| p.is_absolute()).map(|h| h.join(".cache")))
+        .unwrap_or_else(std::env::temp_dir);
+    base.join("raycaster").join("bench-volumes")
+}
+
+/// `warm_up` untimed frames, then `frames` timed ones: the fastest, the median and
+/// the spread.
 fn measure(
     case: &BenchCase,
     ready: &raycaster_benches::PreparedCase<'_>,
@@ -323,32 +360,73 @@ fn measure(
     for _ in 0..warm_up {
         ready.frame()?;
     }
-    let mut best = Duration::MAX;
+    let mut times = Vec::with_capacity(frames as usize);
     let mut samples = 0;
     for _ in 0..frames {
         let start = Instant::now();
         samples = ready.samples()?;
-        best = best.min(start.elapsed());
+        times.push(start.elapsed());
     }
+    times.sort();
+    let best = times.first().copied().unwrap_or_default();
+    let worst = times.last().copied().unwrap_or_default();
     Ok(Record {
         case: case.clone(),
         frame: best,
+        median: times.get(times.len() / 2).copied().unwrap_or_default(),
+        spread: worst - best,
+        frames,
         samples,
     })
 }
 
+/// The one-minute load average (`/proc/loadavg`), if known.
+fn load_average() -> Option<f64> {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()?
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()
+}
+
+fn available_cores() -> usize {
+    std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
+}
+
+/// A warning when other work loads the machine (load average above half its cores):
+/// timings then measure the neighbours too.
+fn load_warning(load: Option<f64>, cores: usize) -> Option<String> {
+    let load = load?;
+    (load > 0.5 * cores as f64).then(|| {
+        format!(
+            "warning: the machine is loaded (load average {load:.1} on {cores} cores): frame times include other work; rerun on an idle machine"
+        )
+    })
+}
+
+/// A brick side for people: `16`, or `default` when the renderer chooses.
+fn brick_text(brick: Option<u32>) -> String {
+    brick.map_or_else(|| "default".to_string(), |b| b.to_string())
+}
+
 /// Speedups and the best configuration, on stderr.
 fn summarise(records: &[Record]) {
+    if records.iter().any(|r| r.frames == 1) && records.len() > 1 {
+        eprintln!(
+            "warning: each configuration was timed on one frame; speedups resting on one frame are noisy (use --frames 5 or more)"
+        );
+    }
     let parallel: Vec<&Record> = records
         .iter()
         .filter(|r| r.case.threads.is_some())
         .collect();
     if let Some(best) = parallel.iter().min_by_key(|r| r.frame) {
         eprintln!(
-            "fastest: {} threads, tile {}, brick {:?}, {}: {:.2} ms",
+            "fastest: {} threads, tile {}, brick {}, {}: {:.2} ms",
             best.case.render_threads(),
             best.case.tile,
-            best.case.brick,
+            brick_text(best.case.brick),
             best.case.optimisations,
             best.frame_ms()
         );
@@ -361,10 +439,10 @@ fn summarise(records: &[Record]) {
         });
         if let Some(one) = one.filter(|_| r.case.render_threads() > 1) {
             eprintln!(
-                "speedup {} threads over 1 (tile {}, brick {:?}, {}): {:.2}×",
+                "speedup {} threads over 1 (tile {}, brick {}, {}): {:.2}×",
                 r.case.render_threads(),
                 r.case.tile,
-                r.case.brick,
+                brick_text(r.case.brick),
                 r.case.optimisations,
                 one.frame.as_secs_f64() / r.frame.as_secs_f64()
             );
@@ -376,9 +454,9 @@ fn summarise(records: &[Record]) {
             .filter(|p| p.case.threads == Some(1) && same(&p.case, &s.case))
         {
             eprintln!(
-                "1-thread parallel / sequential (tile {}, brick {:?}, {}): {:.2} (same samples: {})",
+                "1-thread parallel / sequential (tile {}, brick {}, {}): {:.2} (same samples: {})",
                 p.case.tile,
-                p.case.brick,
+                brick_text(p.case.brick),
                 p.case.optimisations,
                 p.frame.as_secs_f64() / s.frame.as_secs_f64(),
                 p.samples == s.samples
@@ -388,7 +466,7 @@ fn summarise(records: &[Record]) {
 }
 
 /// Column names (CSV header and table heading).
-const HEADER: [&str; 12] = [
+const HEADER: [&str; 14] = [
     "renderer",
     "threads",
     "tile",
@@ -401,16 +479,21 @@ const HEADER: [&str; 12] = [
     "image",
     "step",
     "view",
+    "median_ms",
+    "spread_ms",
 ];
 
-/// One aligned table row.
-fn table_row(fields: &[String; 12]) -> String {
-    let widths = [10, 7, 5, 5, 13, 10, 12, 22, 0, 0, 0, 0];
-    fields
+/// One aligned table row: the CSV columns with median and spread beside the
+/// fastest frame.
+fn table_row(fields: &[String; 14]) -> String {
+    const ORDER: [usize; 14] = [0, 1, 2, 3, 4, 5, 12, 13, 6, 7, 8, 9, 10, 11];
+    const WIDTHS: [usize; 14] = [10, 7, 5, 5, 13, 10, 10, 10, 12, 22, 0, 0, 0, 0];
+    ORDER
         .iter()
-        .zip(widths)
+        .zip(WIDTHS)
         .enumerate()
-        .map(|(i, (f, w))| {
+        .map(|(i, (&column, w))| {
+            let f = &fields[column];
             if i == 0 || w == 0 {
                 format!("{f:<w$}")
             } else {
@@ -445,4 +528,39 @@ pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
     std::fs::write(&tmp, bytes).with_context(|| format!("cannot write {}", path.display()))?;
     std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bench_volumes_are_cached_under_the_xdg_cache_not_the_working_directory() {
+        let p = |s: &str| Some(PathBuf::from(s));
+        assert_eq!(
+            default_cache_dir(p("/c"), p("/home/u")),
+            Path::new("/c/raycaster/bench-volumes")
+        );
+        assert_eq!(
+            default_cache_dir(None, p("/home/u")),
+            Path::new("/home/u/.cache/raycaster/bench-volumes")
+        );
+        // A relative XDG_CACHE_HOME is ignored (XDG spec).
+        assert_eq!(
+            default_cache_dir(p("rel"), p("/home/u")),
+            Path::new("/home/u/.cache/raycaster/bench-volumes")
+        );
+        assert!(default_cache_dir(None, None).is_absolute());
+    }
+
+    #[test]
+    fn a_loaded_machine_is_warned_about() {
+        assert!(
+            load_warning(Some(3.0), 2)
+                .unwrap()
+                .contains("load average 3.0 on 2")
+        );
+        assert!(load_warning(Some(0.2), 2).is_none());
+        assert!(load_warning(None, 2).is_none());
+    }
 }

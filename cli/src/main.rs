@@ -26,13 +26,25 @@ enum Command {
 }
 
 fn main() {
+    restore_sigpipe();
+    raycaster::files::guard_mapped_reads();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(a) => render::run(*a),
         Command::Bench(a) => bench::run(*a),
     };
     if let Err(e) = result {
-        eprintln!("error: {e:#}");
+        eprintln!("error: {}", raycaster::errors::error_text(e.as_ref()));
         std::process::exit(1);
+    }
+}
+
+/// A closed stdout (`raycaster render --stats-json | head -c 10`) ends the process
+/// quietly, as for any Unix tool, instead of a panic in `println!` (Rust ignores
+/// SIGPIPE).
+fn restore_sigpipe() {
+    // SAFETY: setting a signal's disposition to the default before any thread starts.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
 }

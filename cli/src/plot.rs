@@ -252,6 +252,9 @@ mod tests {
                     ..case.clone()
                 },
                 frame: std::time::Duration::from_secs_f64(ms / 1e3),
+                median: std::time::Duration::from_secs_f64(ms / 1e3),
+                spread: std::time::Duration::ZERO,
+                frames: 1,
                 samples: 1_000_000,
             })
             .collect();

@@ -1,16 +1,20 @@
 //! `raycaster render`: a volume file (or a built-in scene) to a PNG.
 
-use std::path::PathBuf;
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use raycaster::render::{
-    Camera, LevelChoice, Light, Membership, Mode, Orbit, ParallelOptions, Projection,
-    RenderSettings, RenderVolume, SegmentScene, Shading, TransferFunction, render_parallel,
-    render_sequential,
+    Camera, LevelChoice, Light, Membership, Mode, Orbit, PRESETS, ParallelOptions, Projection,
+    RenderSettings, RenderVolume, SegmentScene, Shading, TileSink, TransferFunction,
+    closest_preset, render_parallel_into, render_sequential,
 };
 use raycaster::synth::{SceneKind, synthesize, synthesize_labels};
-use raycaster::volume::{Access, OpenOptions, SampleType, Volume};
+use raycaster::volume::{Access, Content, OpenOptions, SampleType, Volume};
 
 use crate::args::{
     parse_color, parse_domain, parse_positive, parse_size, parse_threshold, parse_vec3,
@@ -21,10 +25,11 @@ use crate::stats;
 ///
 /// With no FILE, renders a built-in generated scene (`--scene`), so one command
 /// shows a picture. The camera frames the whole volume from `--azimuth` and
-/// `--elevation` unless `--position` is given. The output file is replaced if it
-/// exists (written to a temporary file and renamed, never left half-written).
+/// `--elevation` unless `--position` is given. The output (PNG only) is checked
+/// before rendering: its folder must exist and an existing file is only replaced
+/// with `--force` (written to a temporary file and renamed, never left half-written).
 #[derive(Args, Debug)]
-#[command(after_help = AFTER_HELP)]
+#[command(after_help = AFTER_HELP, allow_negative_numbers = true)]
 pub struct RenderArgs {
     /// The volume to render (default: a built-in generated scene): a .vol file, or a
     /// NRRD (.nrrd/.nhdr), NIfTI-1 (.nii/.nii.gz) or MetaImage (.mha/.mhd) file or a
@@ -33,9 +38,13 @@ pub struct RenderArgs {
     /// convert with `volgen convert` first).
     file: Option<PathBuf>,
 
-    /// Output PNG.
+    /// Output PNG (the name must end in .png).
     #[arg(short, long, default_value = "render.png", value_name = "PNG")]
     output: PathBuf,
+
+    /// Replace the output image if it exists.
+    #[arg(long)]
+    force: bool,
 
     /// Image size, WxH (or N for a square).
     #[arg(long, default_value = "512x512", value_parser = parse_size, value_name = "WxH")]
@@ -58,9 +67,11 @@ pub struct RenderArgs {
     #[arg(long, value_name = "PRESET|FILE")]
     tf: Option<String>,
 
-    /// Raw sample values the transfer function spans, lo,hi (default: the whole
-    /// u8 range; the data's range for u16 volumes).
-    #[arg(long, value_parser = parse_domain, value_name = "LO,HI")]
+    /// Stored sample values the transfer function spans, lo,hi (default: the whole
+    /// u8 range; the data's range for u16 volumes). CT scans in i16 (Hounsfield
+    /// units) are stored as HU + 32768, opened directly or converted: −1000..2000 HU
+    /// is `--domain 31768,34768`. A domain outside the data's values gets a warning.
+    #[arg(long, value_parser = parse_domain, allow_hyphen_values = true, value_name = "LO,HI")]
     domain: Option<[f32; 2]>,
 
     /// Compositing mode.
@@ -92,7 +103,7 @@ pub struct RenderArgs {
     no_shading: bool,
 
     /// Light direction x,y,z (world; the light shines along it). Default: a headlight.
-    #[arg(long, value_parser = parse_vec3, value_name = "X,Y,Z")]
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, value_name = "X,Y,Z")]
     light: Option<[f32; 3]>,
 
     /// Background colour: #rrggbb, r,g,b, black, white or grey.
@@ -129,15 +140,15 @@ pub struct RenderArgs {
     orthographic: bool,
 
     /// Camera position x,y,z in world units (overrides azimuth/elevation/distance).
-    #[arg(long, value_parser = parse_vec3, allow_negative_numbers = true, value_name = "X,Y,Z")]
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, value_name = "X,Y,Z")]
     position: Option<[f32; 3]>,
 
     /// Point the camera looks at (default: the volume's centre).
-    #[arg(long, value_parser = parse_vec3, allow_negative_numbers = true, value_name = "X,Y,Z")]
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, value_name = "X,Y,Z")]
     target: Option<[f32; 3]>,
 
     /// Camera up vector.
-    #[arg(long, default_value = "0,0,1", value_parser = parse_vec3, allow_negative_numbers = true, value_name = "X,Y,Z")]
+    #[arg(long, default_value = "0,0,1", value_parser = parse_vec3, allow_hyphen_values = true, value_name = "X,Y,Z")]
     up: [f32; 3],
 
     /// Render threads of the object-parallel renderer (default: one per core);
@@ -205,6 +216,12 @@ pub struct RenderArgs {
     /// No message on success.
     #[arg(short, long)]
     quiet: bool,
+
+    /// Show progress (reading a scan, rendering the frame) on stderr from the start,
+    /// even when it is not a terminal (on a terminal, steps longer than a second
+    /// show it anyway, unless --quiet).
+    #[arg(long)]
+    progress: bool,
 }
 
 const AFTER_HELP: &str = "Transfer-function presets: shapes, ct-bone, ct-skin, shells, cloud, opaque, grayscale, rainbow.
@@ -213,8 +230,8 @@ A transfer-function file holds lines `point VALUE R G B ALPHA` (all 0..1), optio
 
 Examples:
   raycaster render -o shapes.png
-  raycaster render head.vol --tf ct-bone --size 800x800 --stats
-  raycaster render head.vol --mode mip --azimuth 0 --elevation 0 -o mip.png
+  raycaster render lung1.vol --tf ct-bone --domain 31768,34768 --size 800x800 --stats
+  raycaster render lung1.vol --mode mip --azimuth 0 --elevation 0 -o mip.png --force
   raycaster render ch2.nii.gz --tf ct-skin -o head.png   # NRRD, NIfTI, MetaImage open directly";
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -279,15 +296,22 @@ pub fn run(args: RenderArgs) -> Result<()> {
     if !(0.0..=1.0).contains(&args.iso) {
         bail!("--iso {} must lie in [0, 1]", args.iso);
     }
+    check_output(&args.output, args.force)?;
     let read_before = stats::bytes_read();
     let volume = open_volume(&args)?;
+    if volume.content() == Content::Labels {
+        bail!(
+            "{}: is a label volume (object ids, not values); render the data volume and give this file with --labels (and a --segments SCENE.toml)",
+            volume.path().display()
+        );
+    }
     let settings = settings(&args, &volume)?;
     let label_volume = match (&settings.segments, &args.labels) {
-        (Some(_), Some(path)) => Some(Volume::open(path)?),
+        (Some(_), Some(path)) => Some(open_labels(path)?),
         (Some(scene), None) => match &scene.membership {
             // A built-in scene brings its own segmentation, when it has one.
             Membership::Labels(_) if args.file.is_none() => Some(built_in_labels(&args)?),
-            Membership::Labels(path) => Some(Volume::open(path)?),
+            Membership::Labels(path) => Some(open_labels(path)?),
             Membership::Layers(_) => None,
         },
         (None, _) => None,
@@ -321,12 +345,15 @@ pub fn run(args: RenderArgs) -> Result<()> {
         if let Some(n) = args.threads {
             options.render_threads = n as usize;
         }
-        render_parallel(&prepared, &camera, &settings, &options)?
+        render_with_progress(
+            &prepared,
+            &camera,
+            &settings,
+            &options,
+            progress_after(&args),
+        )?
     };
-    frame
-        .to_image()
-        .save_png(&args.output)
-        .context("cannot write the image")?;
+    frame.to_image().save_png(&args.output)?;
     let bytes_read = stats::bytes_read().saturating_sub(read_before);
     if args.stats {
         eprint!("{}", stats::table(&frame.stats));
@@ -351,11 +378,70 @@ pub fn run(args: RenderArgs) -> Result<()> {
     Ok(())
 }
 
+/// Refuses, before any rendering, an output that could not be written: not a
+/// `.png` name, a missing or unwritable folder, or an existing file without
+/// `--force`.
+fn check_output(output: &Path, force: bool) -> Result<()> {
+    let is_png = output
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"));
+    if !is_png {
+        bail!(
+            "{}: only PNG images are written; name the output with .png",
+            output.display()
+        );
+    }
+    if output.is_dir() {
+        bail!("{}: is a directory; name an image file", output.display());
+    }
+    if output.exists() && !force {
+        bail!(
+            "{}: already exists (pass --force to replace it)",
+            output.display()
+        );
+    }
+    // Creating (and dropping) the temporary file the image will be written to
+    // checks that the folder exists and is writable, before a long render.
+    raycaster::files::temp_file_beside(output)
+        .map_err(|e| anyhow::anyhow!("{}: cannot write there: {e}", output.display()))?;
+    Ok(())
+}
+
+/// Opens a label volume, checking that it holds labels.
+fn open_labels(path: &Path) -> Result<Volume> {
+    let labels = Volume::open(path)?;
+    if labels.content() != Content::Labels {
+        bail!(
+            "{}: holds values, not labels; --labels takes a label volume (e.g. NAME.labels.vol from volgen generate --scene shells)",
+            path.display()
+        );
+    }
+    Ok(labels)
+}
+
 fn open_volume(args: &RenderArgs) -> Result<Volume> {
+    if let Some(path) = &args.file {
+        raycaster::files::guard_mapped_file(path);
+    }
     match &args.file {
         Some(path) if raycaster::import::detect(path).is_some() => {
+            // Decompressing a large scan takes seconds: progress as for frames.
             let limit = raycaster::import::DEFAULT_IN_MEMORY_LIMIT;
-            Ok(raycaster::import::open_volume_any(path, limit)?)
+            let imported = raycaster::import::open(path)?;
+            let done = AtomicU64::new(0);
+            let on_progress = |n| {
+                done.fetch_add(n, Ordering::Relaxed);
+            };
+            let job = raycaster::job::Job::silent().with_progress(&on_progress);
+            let label = format!("reading {}", path.display());
+            let volume = with_progress_line(
+                &label,
+                imported.sample_bytes(),
+                progress_after(args),
+                &done,
+                || imported.to_volume_with(limit, &job),
+            )?;
+            Ok(volume)
         }
         Some(path) => {
             let access = if args.ram {
@@ -405,14 +491,29 @@ fn settings(args: &RenderArgs, volume: &Volume) -> Result<RenderSettings> {
         (None, None) => args.scene.preset().to_string(),
         (None, Some(_)) => "shapes".to_string(),
     };
-    let mut transfer = if std::path::Path::new(&tf_name).is_file() {
-        TransferFunction::load(std::path::Path::new(&tf_name))
-            .with_context(|| format!("transfer function file {tf_name}"))?
+    let tf_path = Path::new(&tf_name);
+    let is_preset = PRESETS.iter().any(|(p, _)| *p == tf_name);
+    let mut transfer = if !is_preset && tf_path.exists() {
+        // A file (or something else there, which load refuses with a reason).
+        TransferFunction::load(tf_path)?
+    } else if !is_preset && (tf_name.contains('/') || tf_path.extension().is_some()) {
+        bail!(
+            "--tf {tf_name}: no such transfer-function file{}",
+            // `tfs/ct-bonee` or `ct-bon.tf`: the name may be a near-miss preset.
+            tf_path
+                .file_stem()
+                .and_then(|stem| closest_preset(&stem.to_string_lossy()))
+                .map(|p| format!(" (did you mean the preset {p}?)"))
+                .unwrap_or_default()
+        );
     } else {
-        TransferFunction::preset(&tf_name)
-            .with_context(|| format!("--tf {tf_name:?} is neither a preset nor a file"))?
+        TransferFunction::preset(&tf_name).context("--tf")?
     };
     if let Some(domain) = args.domain {
+        let warning = domain_warning(domain, volume.ranges().overall(), volume.sample_type());
+        if let Some(warning) = warning.filter(|_| !args.quiet) {
+            eprintln!("{warning}");
+        }
         transfer.domain = Some(domain);
     } else if transfer.domain.is_none() && volume.sample_type() == SampleType::U16 {
         let [lo, hi] = volume.ranges().overall();
@@ -441,6 +542,23 @@ fn settings(args: &RenderArgs, volume: &Volume) -> Result<RenderSettings> {
             None => None,
         },
     })
+}
+
+/// A warning when `--domain` misses the data's stored values `lo..=hi` entirely
+/// (the image would be empty or flat), with the CT hint for i16 scans.
+fn domain_warning([a, b]: [f32; 2], [lo, hi]: [u16; 2], sample: SampleType) -> Option<String> {
+    let (lo, hi) = (f32::from(lo), f32::from(hi));
+    if b >= lo && a <= hi {
+        return None;
+    }
+    let hint = if sample == SampleType::U16 && a < 0.0 {
+        " (CT scans store HU + 32768: −1000..2000 HU is 31768,34768)"
+    } else {
+        ""
+    };
+    Some(format!(
+        "warning: --domain {a},{b} lies outside the data's values {lo}..{hi}; the image will be empty or flat{hint}"
+    ))
 }
 
 fn glam_vec(v: [f32; 3]) -> raycaster::render::Vec3 {
@@ -499,4 +617,127 @@ fn camera(
         return Camera::look_at(position, target, up, projection, w, h).context("invalid camera");
     }
     orbit.camera(w, h).context("invalid camera")
+}
+
+/// When progress shows: from the start with --progress, after
+/// [`PROGRESS_AFTER`] on a terminal, never with --quiet or when piped.
+fn progress_after(args: &RenderArgs) -> Option<Duration> {
+    if args.progress {
+        Some(Duration::ZERO)
+    } else {
+        (!args.quiet && std::io::stderr().is_terminal()).then_some(PROGRESS_AFTER)
+    }
+}
+
+/// Frames longer than this show progress on a terminal.
+const PROGRESS_AFTER: Duration = Duration::from_secs(1);
+
+/// The frame being filled tile by tile, counting finished pixels.
+struct ProgressSink {
+    frame: Mutex<raycaster::render::Frame>,
+    pixels_done: AtomicU64,
+}
+
+impl TileSink for ProgressSink {
+    fn tile_finished(&self, rect: raycaster::render::PixelRect, rgba: &[[f32; 4]], depth: &[f32]) {
+        let mut frame = self.frame.lock().unwrap_or_else(|e| e.into_inner());
+        let w = (rect.x1 - rect.x0) as usize;
+        for (row, y) in (rect.y0..rect.y1).enumerate() {
+            let start = frame.index(rect.x0, y);
+            frame.rgba[start..start + w].copy_from_slice(&rgba[row * w..(row + 1) * w]);
+            frame.depth[start..start + w].copy_from_slice(&depth[row * w..(row + 1) * w]);
+        }
+        let pixels = u64::from(rect.x1 - rect.x0) * u64::from(rect.y1 - rect.y0);
+        self.pixels_done.fetch_add(pixels, Ordering::Relaxed);
+    }
+}
+
+/// Renders with the parallel renderer; with `show_after`, a frame that takes longer
+/// than that shows the share of its pixels done on stderr.
+fn render_with_progress(
+    volume: &RenderVolume<'_>,
+    camera: &Camera,
+    settings: &RenderSettings,
+    options: &ParallelOptions,
+    show_after: Option<Duration>,
+) -> Result<raycaster::render::Frame> {
+    let sink = ProgressSink {
+        frame: Mutex::new(raycaster::render::Frame::empty(
+            camera.width(),
+            camera.height(),
+            settings.background,
+        )),
+        pixels_done: AtomicU64::new(0),
+    };
+    // Tiles cover the pixels the volume projects onto.
+    let (lo, hi) = volume.geometry().world_bounds();
+    let total = camera
+        .project_box(lo, hi)
+        .map_or(1, |r| u64::from(r.x1 - r.x0) * u64::from(r.y1 - r.y0))
+        .max(1);
+    let stats = with_progress_line("rendering", total, show_after, &sink.pixels_done, || {
+        render_parallel_into(volume, camera, settings, options, &sink, &|| false)
+    })?
+    .expect("a frame that cannot be cancelled completes");
+    let mut frame = sink.frame.into_inner().unwrap_or_else(|e| e.into_inner());
+    frame.stats = stats;
+    Ok(frame)
+}
+
+/// Runs `work`; with `show_after`, once it has run that long, shows on stderr how
+/// much of `total` the counter `done` says is finished (`rendering 42 % (3.1 s,
+/// about 4 s left)`), cleared at the end on a terminal.
+fn with_progress_line<R: Send>(
+    label: &str,
+    total: u64,
+    show_after: Option<Duration>,
+    done: &AtomicU64,
+    work: impl FnOnce() -> R + Send,
+) -> R {
+    let Some(after) = show_after else {
+        return work();
+    };
+    let total = total.max(1);
+    let finished = AtomicBool::new(false);
+    let start = Instant::now();
+    // Asked for from the start: say so before any work, however short.
+    let shown_at_start = after.is_zero();
+    if shown_at_start {
+        eprint!("\r{label}   0 % (0.0 s)   ");
+    }
+    std::thread::scope(|scope| {
+        let finished_ref = &finished;
+        scope.spawn(move || {
+            let mut shown = shown_at_start;
+            while !finished_ref.load(Ordering::Relaxed) {
+                std::thread::sleep(Duration::from_millis(100));
+                let elapsed = start.elapsed();
+                if elapsed < after || finished_ref.load(Ordering::Relaxed) {
+                    continue;
+                }
+                let share = done.load(Ordering::Relaxed).min(total) as f64 / total as f64;
+                let eta = if share > 0.01 {
+                    let left = elapsed.as_secs_f64() * (1.0 - share) / share;
+                    format!(", about {left:.0} s left")
+                } else {
+                    String::new()
+                };
+                eprint!(
+                    "\r{label} {:>3.0} % ({:.1} s{eta})   ",
+                    100.0 * share,
+                    elapsed.as_secs_f64()
+                );
+                shown = true;
+            }
+            if shown && std::io::stderr().is_terminal() {
+                // Clear the progress line.
+                eprint!("\r{:70}\r", "");
+            } else if shown {
+                eprintln!();
+            }
+        });
+        let result = work();
+        finished.store(true, Ordering::Relaxed);
+        result
+    })
 }

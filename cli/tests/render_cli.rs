@@ -65,6 +65,7 @@ fn renders_a_file_and_reports_stats_as_json() {
             "shells",
             "--stats-json",
             "-q",
+            "--force",
         ];
         args.extend_from_slice(extra);
         let out = raycaster(&args, dir.path());
@@ -155,7 +156,10 @@ fn bad_inputs_fail_with_a_clear_message_and_no_output() {
         (&["render", "missing.vol"], "missing.vol"),
         (&["render", "short.vol"], "short.vol"),
         (&["render", "--size", "0x10"], "image size"),
-        (&["render", "--tf", "nope"], "neither a preset nor a file"),
+        (
+            &["render", "--tf", "nope"],
+            "unknown transfer function preset \"nope\"",
+        ),
         (&["render", "--tf", "bad.tf"], "line 2"),
         (&["render", "--step", "0"], "positive"),
         (&["render", "--ert-threshold", "1.5"], "(0, 1]"),
@@ -231,7 +235,7 @@ fn bench_quick_writes_a_table_csv_and_plot() {
     assert!(drawn > 10_000, "{drawn} drawn pixels");
     // The CSV names the volume, image and step of every row.
     assert!(
-        rows[1].ends_with(",shapes-32-u8-linear-mapped,128x128,0.5,default"),
+        rows[1].contains(",shapes-32-u8-linear-mapped,128x128,0.5,default,"),
         "{}",
         rows[1]
     );
@@ -319,13 +323,13 @@ fn every_ready_made_segment_scene_renders_on_its_built_in_volume() {
         let volume = stem.split('-').next().unwrap().to_owned();
         let common = ["--scene", &volume, "--scene-size", "40", "--size", "40"];
         let plain = raycaster(
-            &[&["render", "-o", "plain.png", "-q"][..], &common].concat(),
+            &[&["render", "-o", "plain.png", "-q", "--force"][..], &common].concat(),
             dir.path(),
         );
         assert!(plain.status.success(), "{}", stderr(&plain));
         let out = raycaster(
             &[
-                &["render", "-o", "two.png", "-q", "--segments"][..],
+                &["render", "-o", "two.png", "-q", "--force", "--segments"][..],
                 &[path.to_str().unwrap()],
                 &common,
             ]

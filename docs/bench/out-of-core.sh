@@ -33,7 +33,7 @@ measure() {
 run() {
     local name=$1; shift
     echo "== $name: raycaster render $file $*"
-    measure "$raycaster" render "$file" -o /tmp/out-of-core.png -q --stats "$@" 2>&1 \
+    measure "$raycaster" render "$file" -o /tmp/out-of-core.png --force -q --stats "$@" 2>&1 \
         | grep -E 'level|read from disk|bricks|time|samples taken|wall' || true
 }
 

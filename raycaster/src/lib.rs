@@ -8,6 +8,8 @@
 //! - [`generate`] and [`convert`]: the generation and conversion jobs;
 //! - [`import`]: readers for NRRD, NIfTI-1, MetaImage files and DICOM series;
 //! - [`job`]: progress reporting and cancellation;
+//! - [`files`]: opening user-named files (regular files only, never blocking);
+//! - [`errors`]: error text for people, each cause said once;
 //! - [`render`]: cameras, transfer functions and the ray casters.
 
 #[cfg(target_endian = "big")]
@@ -16,6 +18,8 @@ compile_error!(
 );
 
 pub mod convert;
+pub mod errors;
+pub mod files;
 pub mod generate;
 pub mod histogram;
 pub mod import;

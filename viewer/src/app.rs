@@ -421,7 +421,7 @@ impl Controller {
         let tx = self.installs.0.clone();
         std::thread::spawn(move || {
             let result = job(wake.clone());
-            let _ = tx.send(result.map_err(|e| format!("{e:#}")));
+            let _ = tx.send(result.map_err(|e| raycaster::errors::error_text(e.as_ref())));
             wake();
         });
     }

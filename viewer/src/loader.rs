@@ -92,7 +92,7 @@ fn finish(
     };
     let histogram = histogram(&volume, domain);
     let description = format!(
-        "{name}: {x}×{y}×{z} {}, {:?}",
+        "{name}: {x}×{y}×{z} {}, {}",
         match volume.sample_type() {
             SampleType::U8 => "u8",
             SampleType::U16 => "u16",

@@ -35,14 +35,17 @@ use crate::progress::{CANCEL, voxel_bar};
 /// --window (default: the input's own min..max) onto the output's full range.
 /// Examples:
 ///
-///   volgen convert ct.raw --raw 512x512x300 --raw-type i16 --window -1000:2000 -o ct.vol
+///   volgen convert volumes/data/brainsmall.den --raw 128x128x84 --skip 62 -o brainsmall.vol
 ///
-///   volgen convert lung1_image.nrrd -o lung1.vol
+///   volgen convert volumes/data/lung1_image.nrrd --type u8 --window -1000:2000 -o lung1-u8.vol
 ///
-///   volgen convert ch2.nii.gz --layout linear -o ch2.vol
+///   volgen convert volumes/data/lung1_image.nrrd -o lung1.vol
+///
+///   volgen convert volumes/data/ch2.nii.gz --layout linear -o ch2.vol
 ///
 ///   volgen convert shapes.vol --layout linear -o shapes-linear.vol
 #[derive(Args, Debug)]
+#[command(allow_negative_numbers = true)]
 pub struct ConvertArgs {
     /// Input: .vol, .nrrd/.nhdr, .nii/.nii.gz/.hdr, .mha/.mhd, a DICOM series folder
     /// (or .dcm file), or a headerless raw file when --raw is given.
@@ -75,16 +78,18 @@ pub struct ConvertArgs {
     /// Output sample type [default: u8 for u8 input, otherwise u16].
     #[arg(long = "type", value_enum)]
     sample_type: Option<SampleArg>,
-    /// Input values LO..HI map onto the output's full range (clamped outside).
+    /// Input values LO..HI, in the input file's own units (CT: Hounsfield units,
+    /// e.g. -1000:2000), map onto the output's full range (clamped outside).
     #[arg(long, value_name = "LO:HI", allow_hyphen_values = true, value_parser = parse_window)]
     window: Option<(f32, f32)>,
     /// Output voxel spacing: S or X,Y,Z [default: the input's, or 1].
-    #[arg(long, value_name = "S|X,Y,Z", value_parser = parse_spacing)]
+    #[arg(long, value_name = "S|X,Y,Z", value_parser = parse_spacing, allow_hyphen_values = true)]
     spacing: Option<[f32; 3]>,
     /// Output header format.
     #[arg(long, value_enum, default_value_t = FormatArg::Extended)]
     format: FormatArg,
     /// Replace an existing output file.
+    /// A symbolic link is replaced by the new file; the file it points to is kept.
     #[arg(long)]
     force: bool,
     /// Do not write the resolution pyramid (levels of half resolution on every
@@ -117,7 +122,11 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
         )?,
         None => match import::detect(&a.input) {
             Some(_) => {
-                let imported = import::open(&a.input)?;
+                // A broken spacing is refused unless --spacing replaces it.
+                let imported = match a.spacing {
+                    Some(_) => import::open_unchecked(&a.input)?,
+                    None => import::open(&a.input)?,
+                };
                 if !a.quiet {
                     eprintln!("{}", describe_import(&imported));
                 }
@@ -126,11 +135,27 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
                     .parent()
                     .filter(|p| !p.as_os_str().is_empty())
                     .unwrap_or(Path::new("."));
-                imported.input(Some(scratch), import::DECOMPRESS_IN_MEMORY_MAX)?
+                // Decompression (or gathering slices) comes first: its own bar, and
+                // Ctrl-C / SIGTERM stop it too.
+                let bar = crate::progress::byte_bar(imported.sample_bytes(), "decompress", a.quiet);
+                let on_progress = |n| bar.inc(n);
+                let job = Job::silent()
+                    .with_progress(&on_progress)
+                    .with_cancel(&CANCEL);
+                let input =
+                    imported.input_with(Some(scratch), import::DECOMPRESS_IN_MEMORY_MAX, &job)?;
+                bar.finish_and_clear();
+                input
             }
             None => Input::open_vol(&a.input)?,
         },
     };
+    if input.embedded_ranges_intact() == Some(false) && !a.quiet {
+        eprintln!(
+            "warning: {}: the value-range table after the samples is corrupt; the output's table is computed from the samples",
+            a.input.display()
+        );
+    }
     let input_layout = input.header().map(|h| h.layout);
     let layout = match (a.layout, a.brick) {
         (Some(LayoutArg::Linear), Some(_)) => bail!("--brick applies to --layout bricked only"),
@@ -190,24 +215,40 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// One line on what a foreign file holds.
-fn describe_import(i: &Imported) -> String {
-    let ty = match i.sample {
+/// `u8`, `u16`, `i16` or `f32`.
+pub fn raw_type_name(t: RawType) -> &'static str {
+    match t {
         RawType::U8 => "u8",
         RawType::U16 => "u16",
         RawType::I16 => "i16",
         RawType::F32 => "f32",
-    };
+    }
+}
+
+/// One line on what a foreign file holds.
+fn describe_import(i: &Imported) -> String {
+    let ty = raw_type_name(i.sample);
     let [sx, sy, sz] = i.spacing;
     let mut line = format!(
-        "{}: {} {} {ty}, spacing {sx} x {sy} x {sz}, {:?} data",
+        "{}: {} {} {ty}, spacing {sx} x {sy} x {sz}, {} data",
         i.path.display(),
         i.format.name(),
         describe_size(i.dims),
-        i.encoding,
+        encoding_name(i.encoding),
     );
     if let Some((slope, inter)) = i.scaling {
         line += &format!(" (declares value = {slope} * stored + {inter}; stored values are kept)");
     }
     line
+}
+
+/// How a foreign file's samples are stored, for people.
+pub fn encoding_name(e: raycaster::import::Encoding) -> &'static str {
+    use raycaster::import::Encoding;
+    match e {
+        Encoding::Raw => "raw",
+        Encoding::Gzip => "gzip",
+        Encoding::Zlib => "zlib",
+        Encoding::Slices => "one file per slice",
+    }
 }

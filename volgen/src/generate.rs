@@ -45,6 +45,7 @@ impl From<SceneArg> for SceneKind {
 ///
 ///   volgen generate --scene shapes --size 256 --layout bricked --brick 16 -o shapes.vol
 #[derive(Args, Debug)]
+#[command(allow_negative_numbers = true)]
 pub struct GenerateArgs {
     /// Output .vol file.
     #[arg(short, long, value_name = "FILE")]
@@ -56,7 +57,7 @@ pub struct GenerateArgs {
     #[arg(long, value_name = "N|XxYxZ", default_value = "256", value_parser = parse_dims)]
     size: [u32; 3],
     /// Voxel spacing: S or X,Y,Z.
-    #[arg(long, value_name = "S|X,Y,Z", default_value = "1", value_parser = parse_spacing)]
+    #[arg(long, value_name = "S|X,Y,Z", default_value = "1", value_parser = parse_spacing, allow_hyphen_values = true)]
     spacing: [f32; 3],
     /// Sample order in the file.
     #[arg(long, value_enum, default_value_t = LayoutArg::Bricked)]
@@ -81,6 +82,7 @@ pub struct GenerateArgs {
     #[arg(long, conflicts_with = "labels")]
     no_labels: bool,
     /// Replace existing output files.
+    /// A symbolic link is replaced by the new file; the file it points to is kept.
     #[arg(long)]
     force: bool,
     /// Do not write the resolution pyramid (levels of half resolution on every
@@ -212,10 +214,7 @@ pub fn describe_layout(h: &Header) -> String {
         (SampleType::U8, _) => "u8",
         (SampleType::U16, _) => "u16",
     };
-    let layout = match h.layout {
-        Layout::Linear => "linear".to_string(),
-        Layout::Bricked { side } => format!("bricked (side {side})"),
-    };
+    let layout = h.layout;
     let format = match h.format {
         Format::Thesis => "thesis header",
         Format::Extended => "extended header",

@@ -10,15 +10,19 @@ use raycaster::volume::{Format, Layout, OpenOptions, Volume};
 use crate::generate::{describe_layout, describe_size};
 use crate::progress::{CANCEL, voxel_bar};
 
-/// Show a .vol file's header, layout, value histogram and brick statistics.
+/// Show a volume file's header, layout, value histogram and brick statistics.
 ///
-/// The histogram needs one streaming pass over the samples (bounded memory);
-/// --no-histogram skips it for a quick look at a huge file. Example:
+/// Reads .vol files and every importable format (NRRD, NIfTI-1, MetaImage, a DICOM
+/// series folder); values of foreign files are shown in the file's own units (CT:
+/// the stored Hounsfield values) over their data range. The histogram needs a
+/// streaming pass over the samples (bounded memory); --no-histogram skips it for a
+/// quick look at a huge file. Example:
 ///
 ///   volgen info shapes.vol
 #[derive(Args, Debug)]
+#[command(allow_negative_numbers = true)]
 pub struct InfoArgs {
-    /// The .vol file.
+    /// The .vol file, or a NRRD, NIfTI-1, MetaImage file or DICOM series folder.
     #[arg(value_name = "FILE")]
     file: PathBuf,
     /// Skip the value histogram (no pass over the samples).
@@ -30,6 +34,9 @@ pub struct InfoArgs {
 }
 
 pub fn run(a: InfoArgs) -> anyhow::Result<()> {
+    if raycaster::import::detect(&a.file).is_some() {
+        return run_foreign(&a);
+    }
     let volume = Volume::open_with(&a.file, OpenOptions::default())?;
     let h = volume.header();
     let file_bytes = std::fs::metadata(&a.file)?.len();
@@ -117,6 +124,93 @@ pub fn run(a: InfoArgs) -> anyhow::Result<()> {
         let hist = raycaster::histogram::Histogram::of_input(&input, &job)?;
         bar.finish_and_clear();
         print!("{}", hist.summary(h.sample_type.max_value()));
+    }
+    Ok(())
+}
+
+/// `volgen info` on a foreign file: its header as read, and its values in the file's
+/// own units (min, max and a histogram over that range, two streaming passes).
+fn run_foreign(a: &InfoArgs) -> anyhow::Result<()> {
+    use raycaster::import;
+    let imported = import::open(&a.file)?;
+    let [sx, sy, sz] = imported.spacing;
+    println!("file        {}", a.file.display());
+    println!("format      {}", imported.format.name());
+    println!(
+        "size        {} ({} voxels)",
+        describe_size(imported.dims),
+        imported.voxels()
+    );
+    println!("spacing     {sx} x {sy} x {sz}");
+    println!(
+        "samples     {}, {} endian, {} data",
+        crate::convert::raw_type_name(imported.sample),
+        match imported.endian {
+            raycaster::io::Endian::Little => "little",
+            raycaster::io::Endian::Big => "big",
+        },
+        crate::convert::encoding_name(imported.encoding)
+    );
+    if let Some((slope, inter)) = imported.scaling {
+        println!(
+            "scaling     value = {slope} * stored + {inter} (declared; values below are stored)"
+        );
+    }
+    if a.no_histogram {
+        return Ok(());
+    }
+    let scratch = std::env::temp_dir();
+    let input = imported.input(Some(&scratch), import::DECOMPRESS_IN_MEMORY_MAX)?;
+    let voxels = imported.voxels();
+    let bar = voxel_bar(2 * voxels, "histogram", a.quiet);
+    let on_progress = |n| bar.inc(n);
+    let job = Job::silent()
+        .with_progress(&on_progress)
+        .with_cancel(&CANCEL);
+    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+    input.for_each_slab(8 << 20, &|v| v, &job, |slab| {
+        for &v in slab {
+            if v.is_finite() {
+                lo = lo.min(v);
+                hi = hi.max(v);
+            }
+        }
+    })?;
+    if lo > hi {
+        bar.finish_and_clear();
+        println!("values      no finite values");
+        return Ok(());
+    }
+    const BINS: usize = 16;
+    let mut counts = [0u64; BINS];
+    let width = f64::from(hi - lo) / BINS as f64;
+    input.for_each_slab(8 << 20, &|v| v, &job, |slab| {
+        for &v in slab {
+            if v.is_finite() {
+                let i = if width > 0.0 {
+                    ((f64::from(v - lo) / width) as usize).min(BINS - 1)
+                } else {
+                    0
+                };
+                counts[i] += 1;
+            }
+        }
+    })?;
+    bar.finish_and_clear();
+    println!("values      min {lo}, max {hi} (the file's units)");
+    println!("histogram   {BINS} bins over min..max");
+    let peak = counts.iter().copied().max().unwrap_or(1).max(1) as f64;
+    for (i, &c) in counts.iter().enumerate() {
+        let from = f64::from(lo) + width * i as f64;
+        let bar = ((c as f64).ln_1p() / peak.ln_1p() * 40.0).round() as usize;
+        println!(
+            "  {:>12} {:>12} {}",
+            format!("{from:.6}")
+                .trim_end_matches('0')
+                .trim_end_matches('.'),
+            c,
+            "#".repeat(bar)
+        );
     }
     Ok(())
 }

@@ -18,7 +18,12 @@ use clap::{Parser, Subcommand};
 /// complete: a failed or interrupted run (Ctrl-C) leaves no partial file, and an
 /// existing file is only replaced with --force.
 #[derive(Parser, Debug)]
-#[command(name = "volgen", version, propagate_version = true)]
+#[command(
+    name = "volgen",
+    version,
+    propagate_version = true,
+    allow_negative_numbers = true
+)]
 struct Cli {
     /// Worker threads (default: one per core).
     #[arg(long, global = true, value_name = "N")]
@@ -36,6 +41,8 @@ enum Command {
 }
 
 fn main() {
+    restore_sigpipe();
+    raycaster::files::guard_mapped_reads();
     let cli = Cli::parse();
     if let Some(n) = cli.threads {
         if n == 0 {
@@ -47,7 +54,7 @@ fn main() {
             .build_global()
             .expect("the global pool is built once, before any parallel work");
     }
-    progress::install_ctrl_c();
+    progress::install_signal_handler();
     let result = match cli.command {
         Command::Generate(a) => generate::run(a),
         Command::Convert(a) => convert::run(a),
@@ -55,7 +62,16 @@ fn main() {
         Command::Pyramid(a) => pyramid::run(a),
     };
     if let Err(e) = result {
-        eprintln!("error: {e:#}");
+        eprintln!("error: {}", raycaster::errors::error_text(e.as_ref()));
         std::process::exit(1);
+    }
+}
+
+/// A closed stdout (`volgen info big.vol | head -3`) ends the process quietly, as
+/// for any Unix tool, instead of a panic in `println!` (Rust ignores SIGPIPE).
+fn restore_sigpipe() {
+    // SAFETY: setting a signal's disposition to the default before any thread starts.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
 }

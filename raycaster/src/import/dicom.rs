@@ -51,7 +51,7 @@ struct Slice {
 fn has_dicm_marker(path: &Path) -> bool {
     use std::io::Read;
     let mut head = [0u8; 132];
-    std::fs::File::open(path)
+    crate::files::open_regular(path)
         .and_then(|mut f| f.read_exact(&mut head))
         .is_ok_and(|_| &head[128..132] == b"DICM")
 }
@@ -173,10 +173,17 @@ fn read_slice(path: &Path) -> Result<Slice, ImportErrorKind> {
     })
 }
 
+/// Bytes of a slice file scanned per read when looking for its pixel data.
+const SCAN_CHUNK: usize = 1 << 20;
+
 /// The byte offset of the value of the first top-level-looking Pixel Data element
 /// whose length is `expected` (explicit VR `OB`/`OW` or implicit VR encoding).
+///
+/// The file is scanned in chunks and the scan stops at the element: only the bytes
+/// before the pixel data are read, whatever follows it (memory stays bounded for a
+/// slice with gigabytes of trailing bytes).
 fn find_pixel_data(path: &Path, expected: u64, endian: Endian) -> std::io::Result<Option<u64>> {
-    let bytes = std::fs::read(path)?;
+    use std::os::unix::fs::FileExt;
     let (tag, len_bytes): ([u8; 4], [u8; 4]) = match endian {
         Endian::Little => ([0xe0, 0x7f, 0x10, 0x00], (expected as u32).to_le_bytes()),
         Endian::Big => ([0x7f, 0xe0, 0x00, 0x10], (expected as u32).to_be_bytes()),
@@ -184,21 +191,42 @@ fn find_pixel_data(path: &Path, expected: u64, endian: Endian) -> std::io::Resul
     if expected > u64::from(u32::MAX) {
         return Ok(None);
     }
-    let mut from = 132.min(bytes.len());
-    while let Some(i) = bytes[from..].windows(4).position(|w| w == tag) {
-        let at = from + i;
-        let rest = &bytes[at + 4..];
-        let explicit = rest.len() >= 8
-            && (rest[..2] == *b"OW" || rest[..2] == *b"OB")
-            && rest[2..4] == [0, 0]
-            && rest[4..8] == len_bytes;
-        if explicit {
-            return Ok(Some((at + 12) as u64));
+    let file = crate::files::open_regular(path)?;
+    let len = file.metadata()?.len();
+    // A window of the file from `base`; consecutive windows overlap by the 12 bytes an
+    // element header takes, so no header is split between two of them.
+    const OVERLAP: u64 = 12;
+    let mut buf = vec![0u8; SCAN_CHUNK];
+    let mut base = 132.min(len);
+    while base < len {
+        let n = ((len - base) as usize).min(SCAN_CHUNK);
+        file.read_exact_at(&mut buf[..n], base)?;
+        let bytes = &buf[..n];
+        let last_window = base + n as u64 >= len;
+        let mut from = 0;
+        while let Some(i) = bytes[from..].windows(4).position(|w| w == tag) {
+            let at = from + i;
+            let rest = &bytes[at + 4..];
+            // Near the window's end the element header may continue in the next one.
+            if rest.len() < 8 && !last_window {
+                break;
+            }
+            let explicit = rest.len() >= 8
+                && (rest[..2] == *b"OW" || rest[..2] == *b"OB")
+                && rest[2..4] == [0, 0]
+                && rest[4..8] == len_bytes;
+            if explicit {
+                return Ok(Some(base + at as u64 + 12));
+            }
+            if rest.len() >= 4 && rest[..4] == len_bytes {
+                return Ok(Some(base + at as u64 + 8));
+            }
+            from = at + 1;
         }
-        if rest.len() >= 4 && rest[..4] == len_bytes {
-            return Ok(Some((at + 8) as u64));
+        if last_window {
+            break;
         }
-        from = at + 1;
+        base += n as u64 - OVERLAP;
     }
     Ok(None)
 }

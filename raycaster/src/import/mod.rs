@@ -108,8 +108,7 @@ pub struct Imported {
 }
 
 /// An error about one foreign file.
-#[derive(Debug, thiserror::Error)]
-#[error("{}: {kind}", path.display())]
+#[derive(Debug)]
 pub struct ImportError {
     /// The file concerned.
     pub path: PathBuf,
@@ -185,6 +184,18 @@ pub enum ImportErrorKind {
     Volume(#[from] VolumeError),
 }
 
+impl std::fmt::Display for ImportError {
+    /// `path: what`, said once: a volume error already names its own file.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match &self.kind {
+            ImportErrorKind::Volume(v) => write!(f, "{v}"),
+            kind => write!(f, "{}: {kind}", self.path.display()),
+        }
+    }
+}
+
+impl std::error::Error for ImportError {}
+
 impl ImportError {
     /// An error about `path`.
     pub fn new(path: &Path, kind: impl Into<ImportErrorKind>) -> Self {
@@ -248,7 +259,7 @@ pub(crate) fn check_spacing(
 /// found by its parser).
 pub(crate) fn read_text_header(path: &Path, max: usize) -> Result<Vec<u8>, ImportError> {
     let mut bytes = Vec::new();
-    File::open(path)
+    crate::files::open_regular(path)
         .and_then(|f| f.take(max as u64).read_to_end(&mut bytes))
         .map_err(|e| ImportError::new(path, e))?;
     Ok(bytes)
@@ -306,7 +317,8 @@ pub fn detect(path: &Path) -> Option<ImportFormat> {
         return None;
     }
     let mut head = [0u8; 348];
-    let n = File::open(path)
+    // Never File::open here: a named pipe would block; open_regular refuses it.
+    let n = crate::files::open_regular(path)
         .and_then(|f| f.take(348).read(&mut head))
         .unwrap_or(0);
     let head = &head[..n];
@@ -323,8 +335,45 @@ pub fn detect(path: &Path) -> Option<ImportFormat> {
     }
 }
 
+/// The largest ratio between a file's largest and smallest voxel spacing that is
+/// read: beyond it the header is broken (pixdim 1e-45), and rendering at the
+/// smallest spacing's step would take practically forever.
+pub const MAX_SPACING_RATIO: f32 = 1e4;
+
+/// Refuses spacings whose largest is more than [`MAX_SPACING_RATIO`] times the
+/// smallest.
+pub(crate) fn check_spacing_ratio(
+    format: ImportFormat,
+    spacing: [f32; 3],
+) -> Result<(), ImportErrorKind> {
+    let lo = spacing.iter().copied().fold(f32::INFINITY, f32::min);
+    let hi = spacing.iter().copied().fold(0.0, f32::max);
+    // Written so that NaN fails too.
+    if hi / lo <= MAX_SPACING_RATIO {
+        return Ok(());
+    }
+    let [x, y, z] = spacing;
+    Err(header_error(
+        format,
+        format!(
+            "spacing {x} x {y} x {z}: the largest is {:.3e} times the smallest (at most {MAX_SPACING_RATIO:.0e} is read); the header's spacing is broken. Convert with `volgen convert --spacing` to override it",
+            f64::from(hi) / f64::from(lo)
+        ),
+    ))
+}
+
 /// Parses the foreign file at `path` (any supported format).
 pub fn open(path: &Path) -> Result<Imported, ImportError> {
+    open_unchecked(path).and_then(|imported| {
+        check_spacing_ratio(imported.format, imported.spacing)
+            .map_err(|e| ImportError::new(path, e))?;
+        Ok(imported)
+    })
+}
+
+/// Parses `path` without checking the spacing ratio (`volgen convert --spacing`
+/// replaces a broken spacing).
+pub fn open_unchecked(path: &Path) -> Result<Imported, ImportError> {
     match detect(path) {
         Some(ImportFormat::Nrrd) => nrrd::open(path),
         Some(ImportFormat::Nifti) => nifti::open(path),
@@ -359,6 +408,17 @@ impl Imported {
     /// is at most `memory_max` bytes, otherwise into an anonymous temporary file in
     /// `scratch_dir` (default: the system's temporary directory).
     pub fn input(&self, scratch_dir: Option<&Path>, memory_max: u64) -> Result<Input, ImportError> {
+        self.input_with(scratch_dir, memory_max, &Job::silent())
+    }
+
+    /// [`Self::input`], reporting decompressed (or gathered) bytes to `job` and
+    /// stopping with an error when it is cancelled.
+    pub fn input_with(
+        &self,
+        scratch_dir: Option<&Path>,
+        memory_max: u64,
+        job: &Job,
+    ) -> Result<Input, ImportError> {
         let spec = RawSpec {
             dims: self.dims,
             sample: self.sample,
@@ -368,11 +428,11 @@ impl Imported {
         };
         let at_data = |e: std::io::Error| ImportError::new(&self.data_path, e);
         if self.encoding == Encoding::Slices {
-            let data = self.gather_slices(scratch_dir, memory_max)?;
+            let data = self.gather_slices(scratch_dir, memory_max, job)?;
             return Input::from_raw_data(&self.path, data, spec, Some(self.spacing))
                 .map_err(|e| ImportError::new(&self.path, e));
         }
-        let file = File::open(&self.data_path).map_err(|source| {
+        let file = crate::files::open_regular(&self.data_path).map_err(|source| {
             let file = self.data_path.clone();
             ImportError::new(&self.path, ImportErrorKind::DataFile { file, source })
         })?;
@@ -402,7 +462,7 @@ impl Imported {
                 )
                 .map_err(|e| ImportError::new(&self.path, e));
             }
-            _ => self.decompress(file, scratch_dir, memory_max)?,
+            _ => self.decompress(file, scratch_dir, memory_max, job)?,
         };
         Input::from_raw_data(&self.path, data, spec, Some(self.spacing))
             .map_err(|e| ImportError::new(&self.path, e))
@@ -415,6 +475,7 @@ impl Imported {
         mut file: File,
         scratch_dir: Option<&Path>,
         memory_max: u64,
+        job: &Job,
     ) -> Result<RawData, ImportError> {
         use std::io::{Seek, SeekFrom};
         let at_data = |e: std::io::Error| ImportError::new(&self.data_path, e);
@@ -433,7 +494,7 @@ impl Imported {
         )
         .map_err(compressed)?;
         let expected = self.sample_bytes();
-        let (data, got) = self.collect(&mut stream, scratch_dir, memory_max, &compressed)?;
+        let (data, got) = self.collect(&mut stream, scratch_dir, memory_max, job, &compressed)?;
         if skipped < self.skip_after_decode || got != expected {
             return Err(ImportError::new(
                 &self.data_path,
@@ -458,38 +519,52 @@ impl Imported {
         stream: &mut dyn Read,
         scratch_dir: Option<&Path>,
         memory_max: u64,
+        job: &Job,
         read_error: &dyn Fn(std::io::Error) -> ImportError,
     ) -> Result<(RawData, u64), ImportError> {
         let expected = self.sample_bytes();
+        let mut stream = Reported { inner: stream, job };
+        // A cancelled job is said as such, not as corrupt data.
+        let failed = |e: std::io::Error| {
+            if job.is_cancelled() {
+                let cancelled =
+                    VolumeError::new(&self.path, crate::volume::VolumeErrorKind::Cancelled);
+                ImportError::new(&self.path, cancelled)
+            } else {
+                read_error(e)
+            }
+        };
         // One byte more than needed: a longer stream is an error too.
-        let mut limited = stream.take(expected + 1);
+        let mut limited = (&mut stream).take(expected + 1);
         if expected <= memory_max {
             let mut buf = Vec::with_capacity(expected as usize);
-            limited.read_to_end(&mut buf).map_err(read_error)?;
+            limited.read_to_end(&mut buf).map_err(failed)?;
             let got = buf.len() as u64;
             Ok((RawData::Memory(buf), got))
         } else {
             let dir = scratch_dir.map_or_else(std::env::temp_dir, Path::to_path_buf);
             let mut tmp = tempfile::tempfile_in(&dir).map_err(|e| ImportError::new(&dir, e))?;
-            let got = std::io::copy(&mut limited, &mut tmp).map_err(read_error)?;
+            let got = std::io::copy(&mut limited, &mut tmp).map_err(failed)?;
             tmp.flush().map_err(|e| ImportError::new(&dir, e))?;
             Ok((RawData::File(tmp), got))
         }
     }
 
-    /// Concatenates the slices' samples (each checked to be whole).
+    /// Concatenates the slices' samples (each checked to be whole first). Slices
+    /// are opened one at a time as the stream reaches them, and only their pixel
+    /// data's byte range is read: a series of thousands of slices stays under the
+    /// open-file limit.
     fn gather_slices(
         &self,
         scratch_dir: Option<&Path>,
         memory_max: u64,
+        job: &Job,
     ) -> Result<RawData, ImportError> {
-        use std::io::{Seek, SeekFrom};
         let per_slice = self.sample_bytes() / self.slices.len().max(1) as u64;
-        let mut readers: Vec<std::io::Take<File>> = Vec::with_capacity(self.slices.len());
         for (path, offset) in &self.slices {
             let at = |e: std::io::Error| ImportError::new(path, e);
-            let mut f = File::open(path).map_err(at)?;
-            let len = f.metadata().map_err(at)?.len();
+            crate::files::check_regular(path).map_err(at)?;
+            let len = std::fs::metadata(path).map_err(at)?.len();
             if len.saturating_sub(*offset) < per_slice {
                 return Err(ImportError::new(
                     path,
@@ -500,15 +575,15 @@ impl Imported {
                     },
                 ));
             }
-            f.seek(SeekFrom::Start(*offset)).map_err(at)?;
-            readers.push(f.take(per_slice));
         }
-        let mut chained: Box<dyn Read> = Box::new(std::io::empty());
-        for r in readers {
-            chained = Box::new(chained.chain(r));
-        }
+        let mut stream = SliceStream {
+            slices: &self.slices,
+            per_slice,
+            next: 0,
+            current: None,
+        };
         let read_error = |e: std::io::Error| ImportError::new(&self.path, e);
-        let (data, got) = self.collect(&mut chained, scratch_dir, memory_max, &read_error)?;
+        let (data, got) = self.collect(&mut stream, scratch_dir, memory_max, job, &read_error)?;
         if got != self.sample_bytes() {
             return Err(ImportError::new(
                 &self.path,
@@ -520,6 +595,58 @@ impl Imported {
             ));
         }
         Ok(data)
+    }
+}
+
+/// A stream that reports the bytes read to a job and fails once it is cancelled.
+struct Reported<'a, 'j> {
+    inner: &'a mut dyn Read,
+    job: &'a Job<'j>,
+}
+
+impl Read for Reported<'_, '_> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        if self.job.is_cancelled() {
+            // Not ErrorKind::Interrupted: read_to_end and io::copy retry on that.
+            return Err(std::io::Error::other("cancelled; nothing was written"));
+        }
+        let n = self.inner.read(buf)?;
+        self.job.advance(n as u64);
+        Ok(n)
+    }
+}
+
+/// The pixel data of a series' slices as one stream, holding one slice file open at
+/// a time.
+struct SliceStream<'a> {
+    slices: &'a [(PathBuf, u64)],
+    per_slice: u64,
+    next: usize,
+    current: Option<std::io::Take<File>>,
+}
+
+impl Read for SliceStream<'_> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        use std::io::{Seek, SeekFrom};
+        loop {
+            if let Some(r) = &mut self.current {
+                let n = r.read(buf)?;
+                if n > 0 || buf.is_empty() {
+                    return Ok(n);
+                }
+                self.current = None;
+            }
+            let Some((path, offset)) = self.slices.get(self.next) else {
+                return Ok(0);
+            };
+            self.next += 1;
+            let name = |e: std::io::Error| {
+                std::io::Error::new(e.kind(), format!("{}: {e}", path.display()))
+            };
+            let mut f = crate::files::open_regular(path).map_err(name)?;
+            f.seek(SeekFrom::Start(*offset)).map_err(name)?;
+            self.current = Some(f.take(self.per_slice));
+        }
     }
 }
 
@@ -543,6 +670,13 @@ impl Imported {
     /// Builds the volume in RAM (linear layout), refusing volumes whose stored
     /// samples exceed `limit` bytes.
     pub fn to_volume(&self, limit: u64) -> Result<Volume, ImportError> {
+        self.to_volume_with(limit, &Job::silent())
+    }
+
+    /// [`Self::to_volume`], reporting the bytes decompressed (or gathered from
+    /// slices) to `job`: up to [`Self::sample_bytes`] in all; raw files report
+    /// nothing (they are read in one pass at disk speed).
+    pub fn to_volume_with(&self, limit: u64, job: &Job) -> Result<Volume, ImportError> {
         let sample_type = self.default_sample_type();
         let samples = self.voxels() * sample_type.size();
         if samples > limit {
@@ -563,9 +697,8 @@ impl Imported {
                 },
             ));
         }
-        let input = self.input(None, u64::MAX)?;
-        let job = Job::silent();
-        let (sample_type, values) = plan_values(&input, Some(sample_type), None, &job)
+        let input = self.input_with(None, u64::MAX, job)?;
+        let (sample_type, values) = plan_values(&input, Some(sample_type), None, &Job::silent())
             .map_err(|e| ImportError::new(&self.path, e))?;
         let header = Header::new(
             self.dims,

@@ -201,7 +201,7 @@ pub fn parse_header(bytes: &[u8]) -> Result<NiftiHeader, ImportErrorKind> {
 /// Whether `path` names a gzip-compressed file (by its first two bytes).
 fn is_gzip(path: &Path) -> std::io::Result<bool> {
     let mut magic = [0u8; 2];
-    let n = std::fs::File::open(path)?.take(2).read(&mut magic)?;
+    let n = crate::files::open_regular(path)?.take(2).read(&mut magic)?;
     Ok(n == 2 && magic == [0x1f, 0x8b])
 }
 
@@ -209,7 +209,7 @@ fn is_gzip(path: &Path) -> std::io::Result<bool> {
 pub fn open(path: &Path) -> Result<Imported, ImportError> {
     let at = |e: ImportErrorKind| ImportError::new(path, e);
     let gz = is_gzip(path).map_err(|e| at(e.into()))?;
-    let file = std::fs::File::open(path).map_err(|e| at(e.into()))?;
+    let file = crate::files::open_regular(path).map_err(|e| at(e.into()))?;
     let mut head = Vec::with_capacity(HEADER_LEN);
     let read = if gz {
         flate2::read::MultiGzDecoder::new(file)

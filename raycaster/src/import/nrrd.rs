@@ -222,8 +222,15 @@ pub fn parse_header(bytes: &[u8]) -> Result<NrrdHeader, ImportErrorKind> {
             ));
         }
         for (axis, v) in values.iter().enumerate() {
-            if *v == "nan" || *v == "NaN" {
-                continue; // NRRD's "no spacing on this axis"
+            if v.eq_ignore_ascii_case("nan") {
+                // NRRD's "no spacing on this axis": a volume renders with its spacing,
+                // so guessing 1 would silently distort it.
+                return Err(header_error(
+                    F,
+                    format!(
+                        "spacing on axis {axis} is NaN (unknown); write the spacing, or drop `spacings` for 1 on every axis"
+                    ),
+                ));
             }
             let v = v
                 .parse::<f64>()
@@ -318,7 +325,16 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
     let sample_bytes =
         h.dims.iter().map(|&d| u64::from(d)).product::<u64>() * h.sample.size() as u64;
     let (data_offset, skip_after_decode) = match (h.encoding, h.byte_skip) {
-        (Encoding::Raw, Some(skip)) => (offset + skip, 0),
+        (Encoding::Raw, Some(skip)) => {
+            // A skip near 2^64 must not wrap around onto the header text.
+            let start = offset.checked_add(skip).ok_or_else(|| {
+                ImportError::new(
+                    path,
+                    header_error(F, format!("byte skip {skip} runs past any file's end")),
+                )
+            })?;
+            (start, 0)
+        }
         (Encoding::Raw, None) => (data_at_end(&data_path, sample_bytes, offset)?, 0),
         (_, skip) => (offset, skip.unwrap_or(0)),
     };
@@ -341,7 +357,7 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
 /// Bytes taken by the first `lines` lines of `path` after `offset`.
 fn skip_lines(path: &Path, offset: u64, lines: u64) -> std::io::Result<u64> {
     use std::io::{BufRead, Seek, SeekFrom};
-    let mut f = std::fs::File::open(path)?;
+    let mut f = crate::files::open_regular(path)?;
     f.seek(SeekFrom::Start(offset))?;
     let mut r = std::io::BufReader::new(f);
     let mut total = 0;
@@ -403,6 +419,10 @@ mod tests {
             (
                 base.replace("sizes: 2 2 2", "sizes: 2 2 2\nspacings: 1 0 1"),
                 "spacing 0",
+            ),
+            (
+                base.replace("sizes: 2 2 2", "sizes: 2 2 2\nspacings: 1 NaN 1"),
+                "NaN",
             ),
             ("PNG".to_string(), "magic"),
         ] {

@@ -113,7 +113,7 @@ pub struct Input {
 impl Input {
     /// Opens a headerless raw file described by `spec`; its size must match exactly.
     pub fn open_raw(path: &Path, spec: RawSpec) -> Result<Input, VolumeError> {
-        let file = File::open(path).at(path)?;
+        let file = crate::files::open_regular(path).at(path)?;
         Self::from_raw_data(path, RawData::File(file), spec, None)
     }
 
@@ -169,6 +169,29 @@ impl Input {
             source: Source::Vol(header),
             spacing: None,
         })
+    }
+
+    /// For a `.vol` input with an embedded value-range table: whether that table is
+    /// consistent (`Some(false)`: corrupt, so a conversion recomputes the ranges from
+    /// the samples, which it always does). `None` for other inputs.
+    pub fn embedded_ranges_intact(&self) -> Option<bool> {
+        let (Source::Vol(header), RawData::File(file)) = (&self.source, &self.file) else {
+            return None;
+        };
+        let offset = header.ranges_offset?;
+        let grid = header.block_grid(crate::volume::LINEAR_RANGE_SIDE);
+        // The table: a small head and four bytes per brick (bounded by the grid).
+        let max = 64 + grid.block_count().saturating_mul(4);
+        let len = file.metadata().map(|m| m.len()).unwrap_or(0);
+        let n = len.saturating_sub(offset).min(max) as usize;
+        let mut table = vec![0u8; n];
+        if file.read_exact_at(&mut table, offset).is_err() {
+            return Some(false);
+        }
+        Some(
+            crate::volume::BrickRanges::decode(&table, header.dims)
+                .is_some_and(|r| r.grid() == &grid),
+        )
     }
 
     /// The file being read.

@@ -80,6 +80,7 @@ pub fn write_volume<T: Sample>(
     if !options.overwrite && path.exists() {
         return Err(VolumeError::new(path, VolumeErrorKind::Exists));
     }
+    check_resources::<T>(path, &header)?;
     let tmp = crate::volume::temp_file_beside(path).at(path)?;
     let file = tmp.as_file();
     file.write_all_at(&head_bytes, 0).at(path)?;
@@ -255,6 +256,50 @@ pub(crate) fn stream_samples<T: Sample>(
         produced
     })?;
     Ok(BrickRanges::from_parts(grid, ranges))
+}
+
+/// Refuses, before anything is written, a volume whose file does not fit in the free
+/// disk space or whose smallest slab (one brick's depth of whole x-planes) does not
+/// fit in half the machine's memory: such a job could only fail later, or abort on
+/// a failed allocation.
+fn check_resources<T: Sample>(path: &Path, header: &Header) -> Result<(), VolumeError> {
+    let data_end = header.data_end().at(path)?;
+    let grid = header.block_grid(LINEAR_RANGE_SIDE);
+    let table = grid.block_count().saturating_mul(4).saturating_add(64);
+    crate::files::check_free_space(path, data_end.saturating_add(table)).at(path)?;
+    let [_, dy, dz] = header.dims;
+    let slab = (u64::from(grid.step()) + 1)
+        .saturating_mul(u64::from(dy) * u64::from(dz))
+        .saturating_mul(size_of::<T>() as u64);
+    let memory = physical_memory();
+    if memory > 0 && slab > memory / 2 {
+        let msg = format!(
+            "writing it needs {} of memory for one slab of x-planes but the machine has {}",
+            crate::files::human_bytes(slab),
+            crate::files::human_bytes(memory)
+        );
+        return Err(VolumeError::new(
+            path,
+            std::io::Error::new(std::io::ErrorKind::OutOfMemory, msg),
+        ));
+    }
+    Ok(())
+}
+
+/// The machine's physical memory in bytes (0 when unknown).
+fn physical_memory() -> u64 {
+    // SAFETY: sysconf only reads system configuration.
+    let (pages, page) = unsafe {
+        (
+            libc::sysconf(libc::_SC_PHYS_PAGES),
+            libc::sysconf(libc::_SC_PAGESIZE),
+        )
+    };
+    if pages > 0 && page > 0 {
+        (pages as u64).saturating_mul(page as u64)
+    } else {
+        0
+    }
 }
 
 /// The slab loop of [`write_volume`]: fills each slab, computes its brick ranges and

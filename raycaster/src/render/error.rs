@@ -30,6 +30,28 @@ pub enum RenderError {
     /// A label scene without a label volume, or a label volume that does not fit.
     #[error("labels: {0}")]
     Labels(String),
+    /// A frame would take more samples than any render should: an absurd spacing
+    /// ratio or a tiny step. Refused up front instead of rendering "forever".
+    #[error(
+        "a ray would take up to {per_ray:.3e} samples and the frame up to {per_frame:.3e} (limits {max_ray:.0e} and {max_frame:.0e}): the spacing {} x {} x {} puts {ratio:.3e} of the smallest spacing in the largest, and the step is {step} of the smallest; check the file's spacing or raise the step",
+        spacing[0], spacing[1], spacing[2]
+    )]
+    SampleBudget {
+        /// Samples one ray may take.
+        per_ray: f64,
+        /// Samples the whole frame may take.
+        per_frame: f64,
+        /// Limit per ray.
+        max_ray: f64,
+        /// Limit per frame.
+        max_frame: f64,
+        /// The volume's spacing.
+        spacing: [f32; 3],
+        /// Largest over smallest spacing.
+        ratio: f64,
+        /// The step, in units of the smallest spacing.
+        step: f32,
+    },
     /// The camera is invalid.
     #[error(transparent)]
     Camera(#[from] CameraError),

@@ -7,7 +7,47 @@
 
 use glam::Vec3;
 
+use super::camera::Camera;
+use super::error::RenderError;
 use crate::volume::BlockGrid;
+
+/// The most samples one ray may take: 2^22 (a 16384³ volume's diagonal at step 0.007).
+pub const MAX_SAMPLES_PER_RAY: f64 = (1u64 << 22) as f64;
+
+/// The most samples one frame may take (before early termination and empty-space
+/// skipping): 2^42, hours of work on any machine.
+pub const MAX_SAMPLES_PER_FRAME: f64 = (1u64 << 42) as f64;
+
+/// Refuses a frame whose rays could take more samples than [`MAX_SAMPLES_PER_RAY`]
+/// each or [`MAX_SAMPLES_PER_FRAME`] together, at `step` (in units of the smallest
+/// spacing) over the pixels `camera` sees the volume in. Such a frame comes from an
+/// absurd spacing (a header with pixdim 1e-45) or step, and would render "forever".
+pub fn check_sample_budget(
+    geometry: &VolumeGeometry,
+    step: f32,
+    camera: &Camera,
+) -> Result<(), RenderError> {
+    let per_ray = geometry.max_samples_per_ray(step);
+    let (lo, hi) = geometry.world_bounds();
+    let pixels = camera
+        .project_box(lo, hi)
+        .map_or(0, |r| u64::from(r.x1 - r.x0) * u64::from(r.y1 - r.y0));
+    let per_frame = per_ray * pixels as f64;
+    // NaN compares false: written so that NaN counts as over the limit.
+    if per_ray <= MAX_SAMPLES_PER_RAY && per_frame <= MAX_SAMPLES_PER_FRAME {
+        return Ok(());
+    }
+    let s = geometry.spacing();
+    Err(RenderError::SampleBudget {
+        per_ray,
+        per_frame,
+        max_ray: MAX_SAMPLES_PER_RAY,
+        max_frame: MAX_SAMPLES_PER_FRAME,
+        spacing: s.to_array(),
+        ratio: f64::from(s.max_element()) / f64::from(s.min_element()),
+        step,
+    })
+}
 
 /// A volume's placement and its rendering brick grid.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -66,6 +106,16 @@ impl VolumeGeometry {
     /// The volume's world box.
     pub fn world_bounds(&self) -> (Vec3, Vec3) {
         (self.origin, self.origin + self.last * self.spacing)
+    }
+
+    /// The most samples one ray can take through the volume at `step` (in units of
+    /// the smallest spacing): the world diagonal over the world step, rounded up.
+    /// Infinite or huge for absurd spacings (one axis 1e-45 of another).
+    pub fn max_samples_per_ray(&self, step: f32) -> f64 {
+        let (lo, hi) = self.world_bounds();
+        let diagonal = f64::from((hi - lo).length());
+        let dt = f64::from(step) * f64::from(self.min_spacing());
+        (diagonal / dt).ceil() + 1.0
     }
 
     /// The cells brick `b` owns, in voxel coordinates.

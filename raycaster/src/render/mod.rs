@@ -40,7 +40,9 @@ pub use counters::{Counters, FrameStats};
 pub use error::RenderError;
 pub use frame::Frame;
 pub use front::{FrameBuffer, FrameEvent, FrameRequest, Notify, RenderFront};
-pub use geometry::VolumeGeometry;
+pub use geometry::{
+    MAX_SAMPLES_PER_FRAME, MAX_SAMPLES_PER_RAY, VolumeGeometry, check_sample_budget,
+};
 pub use glam::Vec3;
 pub use image::{ImageError, RgbImage};
 pub use level::LevelChoice;
@@ -61,6 +63,7 @@ pub use settings::{DEFAULT_ERT_THRESHOLD, Mode, RenderSettings};
 pub use shading::{Light, Shading};
 pub use tile::Tile;
 pub use transfer::{
-    ControlPoint, PRESETS, TransferError, TransferFunction, TransferTable, corrected_alpha,
+    ControlPoint, PRESETS, TEXT_MAX, TransferError, TransferFunction, TransferTable, check_domain,
+    check_gradient_ramp, closest_preset, corrected_alpha,
 };
 pub use two_level::{NO_OBJECT, SegmentState, importance_composite};

@@ -107,6 +107,7 @@ pub fn render_parallel_into(
 ) -> Result<Option<FrameStats>, RenderError> {
     let start = Instant::now();
     let plan = FramePlan::new(volume, settings)?;
+    super::geometry::check_sample_budget(volume.geometry(), settings.step, camera)?;
     let schedule = FrameSchedule::new(volume, &plan, camera, options.tile_size);
     let frame = FrameJob {
         volume,

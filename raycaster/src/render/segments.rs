@@ -11,7 +11,9 @@ use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 
-use super::transfer::{ControlPoint, TransferError, TransferFunction};
+use super::transfer::{
+    ControlPoint, TransferError, TransferFunction, check_domain, check_gradient_ramp,
+};
 
 /// How the samples of one segment are combined.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -164,8 +166,9 @@ struct SceneFile {
     global: Option<String>,
     #[serde(default)]
     labels: Option<PathBuf>,
+    /// Read as lists of any length, so `[0.1, 0.5, 0.9]` is refused, not cut to two.
     #[serde(default)]
-    layers: Option<Vec<[f32; 2]>>,
+    layers: Option<Vec<Vec<f32>>>,
     #[serde(default, rename = "object")]
     objects: Vec<ObjectFile>,
 }
@@ -218,6 +221,12 @@ impl InlineTransfer {
                 })
                 .collect(),
         )?;
+        if let Some(d) = self.domain {
+            check_domain(d).map_err(|what| TransferError::Invalid { line: 0, what })?;
+        }
+        if let Some(g) = self.gradient {
+            check_gradient_ramp(g).map_err(|what| TransferError::Invalid { line: 0, what })?;
+        }
         tf.domain = self.domain;
         tf.gradient_ramp = self.gradient;
         Ok(tf)
@@ -236,9 +245,11 @@ impl SegmentScene {
     /// Reads a scene file; relative paths (labels, transfer-function files) are
     /// relative to the file's directory.
     pub fn load(path: &Path) -> Result<SegmentScene, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
-            path: path.to_path_buf(),
-            source,
+        let text = crate::files::read_text(path, super::transfer::TEXT_MAX).map_err(|source| {
+            SceneError::Io {
+                path: path.to_path_buf(),
+                source,
+            }
         })?;
         SegmentScene::parse(&text, path.parent().unwrap_or(Path::new(".")))
     }
@@ -264,8 +275,33 @@ impl SegmentScene {
         let file: SceneFile =
             toml::from_str(text).map_err(|e| SceneError::Syntax(e.to_string()))?;
         let membership = match (file.labels, file.layers) {
-            (Some(labels), None) => Membership::Labels(base.join(labels)),
+            (Some(labels), None) => {
+                if labels.as_os_str().is_empty() {
+                    return Err(SceneError::Invalid(
+                        "`labels` is empty; name the label volume file".into(),
+                    ));
+                }
+                Membership::Labels(base.join(labels))
+            }
             (None, Some(layers)) => {
+                if layers.is_empty() {
+                    return Err(SceneError::Invalid(
+                        "`layers` is empty; give at least one [lo, hi] interval".into(),
+                    ));
+                }
+                let mut pairs = Vec::with_capacity(layers.len());
+                for (i, layer) in layers.iter().enumerate() {
+                    match layer[..] {
+                        [lo, hi] => pairs.push([lo, hi]),
+                        _ => {
+                            return Err(SceneError::Invalid(format!(
+                                "layer {i} has {} numbers; a layer is one interval [lo, hi]",
+                                layer.len()
+                            )));
+                        }
+                    }
+                }
+                let layers = pairs;
                 for (i, [lo, hi]) in layers.iter().enumerate() {
                     if !(0.0..=1.0).contains(lo) || !(0.0..=1.0).contains(hi) || lo >= hi {
                         return Err(SceneError::Invalid(format!(
@@ -299,7 +335,8 @@ impl SegmentScene {
             let name = o.name.clone().unwrap_or_else(|| format!("object {id}"));
             let transfer = match &o.tf {
                 Some(TransferSpec::Inline(inline)) => inline.build(),
-                Some(TransferSpec::Named(tf)) if base.join(tf).is_file() => {
+                // Anything at that path is read as a file (a named pipe is refused).
+                Some(TransferSpec::Named(tf)) if base.join(tf).exists() => {
                     TransferFunction::load(&base.join(tf))
                 }
                 Some(TransferSpec::Named(tf)) => TransferFunction::preset(tf),
@@ -444,6 +481,12 @@ fn local_mode(o: &ObjectFile) -> Result<LocalMode, String> {
         "importance" => {
             let w = unit("weight", o.weight, 1.0)?;
             let p = o.p.unwrap_or([1.0, 0.3, 0.9]);
+            if let Some(bad) = p.iter().find(|v| !(v.is_finite() && **v >= 0.0)) {
+                return Err(format!(
+                    "p = [{}, {}, {}]: {bad} is not a non-negative finite number",
+                    p[0], p[1], p[2]
+                ));
+            }
             let source = match o.importance.as_deref().unwrap_or("constant") {
                 "constant" => ImportanceSource::Constant(w),
                 "intensity" => ImportanceSource::Intensity(w),
@@ -549,6 +592,48 @@ mod tests {
             (
                 "layers = [[0, 1]]\n[[object]]\nmode = \"first-hit\"\niso = 3",
                 "iso",
+            ),
+            // Hostile values: NaN/Inf/negative parameters, bad domains, bad layers.
+            ("layers = [[0.1, 0.5, 0.9]]", "3 numbers"),
+            ("layers = []", "empty"),
+            ("labels = \"\"", "empty"),
+            ("labels = 5", "invalid type"),
+            ("layers = [[nan, 0.5]]", "increasing"),
+            (
+                "layers = [[0, 1]]\n[[object]]\nmode = \"importance\"\nimportance = \"lighting\"\np = [1.0, nan, 1.0]",
+                "p = ",
+            ),
+            (
+                "layers = [[0, 1]]\n[[object]]\nmode = \"importance\"\nimportance = \"silhouette\"\np = [-1.0, 0.1, 1.0]",
+                "p = ",
+            ),
+            (
+                "layers = [[0, 1]]\n[[object]]\nmode = \"xray\"\ngain = inf",
+                "gain",
+            ),
+            (
+                "layers = [[0, 1]]\n[[object]]\nmode = \"context\"\nkt = -2",
+                "kt",
+            ),
+            (
+                "layers = [[0, 1]]\n[[object]]\nmode = \"importance\"\nweight = nan",
+                "weight",
+            ),
+            (
+                "layers = [[0, 1]]\n[[object]]\ntf = { points = [[0, 1, 1, 1, 1]], domain = [5, 5] }",
+                "domain",
+            ),
+            (
+                "layers = [[0, 1]]\n[[object]]\ntf = { points = [[0, 1, 1, 1, 1]], domain = [9, 1] }",
+                "domain",
+            ),
+            (
+                "layers = [[0, 1]]\n[[object]]\ntf = { points = [[0, 1, 1, 1, 1]], domain = [nan, 1] }",
+                "domain",
+            ),
+            (
+                "layers = [[0, 1]]\n[[object]]\ntf = { points = [[0, 1, 1, 1, 1]], gradient = [0.1, inf] }",
+                "gradient",
             ),
         ];
         for (text, needle) in cases {

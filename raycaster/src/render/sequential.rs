@@ -27,6 +27,7 @@ pub fn render_sequential(
 ) -> Result<Frame, RenderError> {
     let start = Instant::now();
     let plan = FramePlan::new(volume, settings)?;
+    super::geometry::check_sample_budget(volume.geometry(), settings.step, camera)?;
     let mut frame = Frame::empty(camera.width(), camera.height(), settings.background);
     let counters = match volume.volume().data() {
         VolumeData::U8(v) => render_pixels(volume, &v, camera, &plan, &mut frame),

@@ -49,7 +49,7 @@ pub enum TransferError {
     #[error("a transfer function needs at least one control point")]
     NoPoints,
     /// A number is out of range or not finite.
-    #[error("line {line}: {what}")]
+    #[error("{}{what}", line_prefix(*line))]
     Invalid {
         /// 1-based line number (0 for points given in code).
         line: usize,
@@ -57,7 +57,7 @@ pub enum TransferError {
         what: String,
     },
     /// No preset has this name.
-    #[error("unknown transfer function preset {0:?} (known: {known})", known = preset_names())]
+    #[error("unknown transfer function preset {0:?} ({hint}known: {known})", hint = did_you_mean(.0), known = preset_names())]
     UnknownPreset(String),
     /// The file cannot be read.
     #[error("cannot read transfer function file {path}: {source}")]
@@ -67,6 +67,31 @@ pub enum TransferError {
         /// The error.
         source: std::io::Error,
     },
+}
+
+/// The largest transfer-function or scene file read, in bytes (1 MiB).
+pub const TEXT_MAX: u64 = 1 << 20;
+
+/// Checks a raw value domain: finite and strictly increasing.
+pub fn check_domain([lo, hi]: [f32; 2]) -> Result<(), String> {
+    if lo.is_finite() && hi.is_finite() && lo < hi {
+        Ok(())
+    } else {
+        Err(format!(
+            "domain [{lo}, {hi}] must be finite and increasing (lo < hi)"
+        ))
+    }
+}
+
+/// Checks a gradient ramp: finite, 0 ≤ g0 < g1.
+pub fn check_gradient_ramp([g0, g1]: [f32; 2]) -> Result<(), String> {
+    if g0.is_finite() && g1.is_finite() && g0 >= 0.0 && g0 < g1 {
+        Ok(())
+    } else {
+        Err(format!(
+            "gradient ramp [{g0}, {g1}] needs finite numbers with 0 ≤ g0 < g1"
+        ))
+    }
 }
 
 /// The named presets: (name, what it suits).
@@ -92,6 +117,40 @@ pub const PRESETS: [(&str, &str); 8] = [
 
 fn preset_names() -> String {
     PRESETS.map(|(n, _)| n).join(", ")
+}
+
+/// `did you mean ct-bone? ` for a near miss of a preset name, else nothing.
+fn did_you_mean(name: &str) -> String {
+    closest_preset(name).map_or_else(String::new, |p| format!("did you mean {p}? "))
+}
+
+/// The preset whose name is closest to `name` when it is a near miss: at most two
+/// edits away (ignoring case), or a name that starts with it.
+pub fn closest_preset(name: &str) -> Option<&'static str> {
+    let lower = name.to_ascii_lowercase();
+    PRESETS
+        .iter()
+        .map(|(p, _)| (edit_distance(&lower, p), *p))
+        .filter(|&(d, p)| d <= 2 || (lower.len() >= 2 && p.starts_with(lower.as_str())))
+        .min_by_key(|&(d, _)| d)
+        .map(|(_, p)| p)
+}
+
+/// Levenshtein distance between two short strings.
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut prev = row[0];
+        row[0] = i + 1;
+        for (j, &cb) in b.iter().enumerate() {
+            let cost = usize::from(ca != cb);
+            let next = (row[j + 1] + 1).min(row[j] + 1).min(prev + cost);
+            prev = row[j + 1];
+            row[j + 1] = next;
+        }
+    }
+    row[b.len()]
 }
 
 fn p(value: f32, color: [f32; 3], alpha: f32) -> ControlPoint {
@@ -245,16 +304,12 @@ impl TransferFunction {
                 }
                 "domain" => {
                     expect(2)?;
-                    if numbers[1] <= numbers[0] {
-                        return Err(invalid(line, "domain must be increasing".into()));
-                    }
+                    check_domain([numbers[0], numbers[1]]).map_err(|e| invalid(line, e))?;
                     domain = Some([numbers[0], numbers[1]]);
                 }
                 "gradient" => {
                     expect(2)?;
-                    if numbers[0] < 0.0 || numbers[1] <= numbers[0] {
-                        return Err(invalid(line, "gradient ramp needs 0 ≤ g0 < g1".into()));
-                    }
+                    check_gradient_ramp([numbers[0], numbers[1]]).map_err(|e| invalid(line, e))?;
                     gradient_ramp = Some([numbers[0], numbers[1]]);
                 }
                 other => {
@@ -273,7 +328,7 @@ impl TransferFunction {
 
     /// Reads and parses a transfer-function file (format of [`Self::parse`]).
     pub fn load(path: &Path) -> Result<TransferFunction, TransferError> {
-        let text = std::fs::read_to_string(path).map_err(|source| TransferError::Io {
+        let text = crate::files::read_text(path, TEXT_MAX).map_err(|source| TransferError::Io {
             path: path.to_path_buf(),
             source,
         })?;
@@ -323,6 +378,15 @@ impl TransferFunction {
             }
         }
         rgba(pts.last().expect("at least one point"))
+    }
+}
+
+/// `line N: ` for errors of a file line, nothing for values given in code (line 0).
+fn line_prefix(line: usize) -> String {
+    if line > 0 {
+        format!("line {line}: ")
+    } else {
+        String::new()
     }
 }
 
@@ -489,6 +553,22 @@ fn smoothstep(e0: f32, e1: f32, x: f32) -> f32 {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn near_miss_presets_get_a_suggestion_and_bad_domains_are_refused() {
+        let e = TransferFunction::preset("ct-bon").unwrap_err().to_string();
+        assert!(e.contains("did you mean ct-bone?"), "{e}");
+        let e = TransferFunction::preset("CT_SKIN").unwrap_err().to_string();
+        assert!(e.contains("did you mean ct-skin?"), "{e}");
+        let e = TransferFunction::preset("zzzzzz").unwrap_err().to_string();
+        assert!(!e.contains("did you mean"), "{e}");
+        for bad in ["domain 5 5", "domain 9 1", "domain nan 1", "domain 0 inf"] {
+            let text = format!("{bad}\npoint 0 1 1 1 1\n");
+            assert!(TransferFunction::parse(&text).is_err(), "{bad}");
+        }
+        assert!(check_domain([0.0, 1.0]).is_ok());
+        assert!(check_gradient_ramp([0.1, f32::NAN]).is_err());
+    }
+
     use super::*;
 
     #[test]

@@ -62,15 +62,9 @@ pub struct Volume {
 
 /// Reads and validates the header of the volume file `path` (without mapping it).
 pub fn read_header(path: &Path) -> Result<(Header, File, u64), VolumeError> {
-    let file = File::open(path).at(path)?;
-    let meta = file.metadata().at(path)?;
-    if meta.is_dir() {
-        return Err(VolumeError::new(
-            path,
-            std::io::Error::new(std::io::ErrorKind::IsADirectory, "is a directory"),
-        ));
-    }
-    let len = meta.len();
+    // Regular files only: a named pipe would block the read below forever.
+    let file = crate::files::open_regular(path).at(path)?;
+    let len = file.metadata().at(path)?.len();
     let mut head = Vec::with_capacity(EXTENDED_HEADER_LEN as usize);
     (&file)
         .take(EXTENDED_HEADER_LEN)
@@ -382,7 +376,12 @@ fn load_ranges(
     }
     let sidecar = ranges_sidecar_path(path);
     let mtime = file.metadata().and_then(|m| m.modified()).ok();
-    if let (Some(mtime), Ok(bytes)) = (mtime, std::fs::read(&sidecar))
+    // A sidecar that is not a regular file (a named pipe) is ignored, never read.
+    let sidecar_bytes = crate::files::open_regular(&sidecar).and_then(|mut f| {
+        let mut bytes = Vec::new();
+        f.read_to_end(&mut bytes).map(|_| bytes)
+    });
+    if let (Some(mtime), Ok(bytes)) = (mtime, sidecar_bytes)
         && let Some(r) = BrickRanges::decode_sidecar(&bytes, dims, len, mtime)
         && r.grid() == &grid
     {
@@ -413,7 +412,8 @@ fn load_pyramid(
         return read_levels(path, header, file, start, len, access);
     }
     let sidecar = pyramid_sidecar_path(path);
-    let Ok(side) = File::open(&sidecar) else {
+    // Never block on a FIFO or read a directory posing as the sidecar.
+    let Ok(side) = crate::files::open_regular(&sidecar) else {
         return Ok(Vec::new());
     };
     let mtime = file.metadata().and_then(|m| m.modified());
@@ -512,24 +512,10 @@ pub fn write_pyramid_sidecar(
     Ok(layout.levels.len())
 }
 
-/// Creates the temporary file that will become `path`: hidden, beside it (so the final
-/// rename is atomic), named after it with a `.partial` suffix, and with the usual mode
-/// for new files (the umask applies) rather than the 0600 of temporary files.
+/// Creates the temporary file that will become `path`
+/// ([`crate::files::temp_file_beside`]).
 pub(crate) fn temp_file_beside(path: &Path) -> std::io::Result<tempfile::NamedTempFile> {
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    if !dir.is_dir() {
-        let msg = format!("directory {} does not exist", dir.display());
-        return Err(std::io::Error::new(std::io::ErrorKind::NotFound, msg));
-    }
-    let name = path.file_name().unwrap_or_default().to_string_lossy();
-    tempfile::Builder::new()
-        .prefix(&format!(".{name}."))
-        .suffix(".partial")
-        .permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666))
-        .tempfile_in(dir)
+    crate::files::temp_file_beside(path)
 }
 
 /// Writes `bytes` to `path` through a temporary file in the same directory and a

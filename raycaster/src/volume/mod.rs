@@ -34,3 +34,14 @@ pub use view::{BrickView, TypedVolume};
 pub(crate) use error::AtPath;
 pub(crate) use file::temp_file_beside;
 pub use file::write_file_atomically;
+
+/// `linear` or `bricked (side 16)`: the layout as people read it (no Rust debug text
+/// in messages).
+impl std::fmt::Display for Layout {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Layout::Linear => write!(f, "linear"),
+            Layout::Bricked { side } => write!(f, "bricked (side {side})"),
+        }
+    }
+}

@@ -1,0 +1,418 @@
+//! `raycaster render` on user mistakes and faults: the output checked before
+//! rendering, no overwrite without --force, PNG only, a label volume given as data,
+//! near-miss presets, negative values, a closed stdout, absurd spacings.
+
+use std::path::Path;
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+use raycaster::volume::{Content, Format, Header, Layout, SampleType};
+
+fn raycaster(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_raycaster"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("the binary runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+const SMALL: [&str; 4] = ["--scene-size", "16", "--size", "24"];
+
+fn render(dir: &Path, extra: &[&str]) -> Output {
+    let mut args = vec!["render"];
+    args.extend(SMALL);
+    args.extend(extra);
+    raycaster(&args, dir)
+}
+
+/// Writes a `.vol` of `dims` u8 samples (`value(i)`) with `spacing` and `content`.
+fn write_vol(path: &Path, dims: [u32; 3], spacing: [f32; 3], content: Content) {
+    let h = Header::new(
+        dims,
+        spacing,
+        Layout::Linear,
+        SampleType::U8,
+        content,
+        Format::Extended,
+    );
+    let mut bytes = h.encode().unwrap();
+    let n = dims.iter().product::<u32>() as usize;
+    bytes.extend((0..n).map(|i| (i % 5) as u8 * 50));
+    std::fs::write(path, bytes).unwrap();
+}
+
+#[test]
+fn the_output_is_checked_before_rendering_and_kept_without_force() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // A missing folder: refused at once, said once.
+    let o = render(d, &["-o", "nodir/a.png"]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(
+        e.contains("nodir/a.png") && e.contains("does not exist"),
+        "{e}"
+    );
+    assert_eq!(e.lines().count(), 1, "{e}");
+    assert_eq!(e.matches("does not exist").count(), 1, "{e}");
+    // Another format's name.
+    let o = render(d, &["-o", "a.jpg"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("a.jpg: only PNG"), "{}", stderr(&o));
+    assert!(!d.join("a.jpg").exists());
+    // An existing image is replaced only with --force.
+    std::fs::write(d.join("a.png"), b"keep me").unwrap();
+    let o = render(d, &["-o", "a.png"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("a.png: already exists (pass --force"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(std::fs::read(d.join("a.png")).unwrap(), b"keep me");
+    let o = render(d, &["-o", "a.png", "--force", "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_ne!(std::fs::read(d.join("a.png")).unwrap(), b"keep me");
+}
+
+#[test]
+fn a_label_volume_given_as_data_points_at_labels_and_segments() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write_vol(&d.join("x.labels.vol"), [8; 3], [1.0; 3], Content::Labels);
+    write_vol(&d.join("x.vol"), [8; 3], [1.0; 3], Content::Scalar);
+    let o = raycaster(&["render", "x.labels.vol", "-o", "a.png"], d);
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(
+        e.contains("x.labels.vol: is a label volume")
+            && e.contains("--labels")
+            && e.contains("--segments"),
+        "{e}"
+    );
+    assert!(!d.join("a.png").exists());
+    // And values given as labels.
+    let scene = d.join("s.toml");
+    std::fs::write(&scene, "labels = \"x.vol\"\n[[object]]\nmode = \"dvr\"\n").unwrap();
+    let o = raycaster(
+        &[
+            "render",
+            "x.vol",
+            "--segments",
+            "s.toml",
+            "--labels",
+            "x.vol",
+            "-o",
+            "b.png",
+        ],
+        d,
+    );
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("not labels"), "{}", stderr(&o));
+}
+
+#[test]
+fn near_miss_presets_get_a_suggestion_and_a_missing_file_is_not_a_preset() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let o = render(d, &["--tf", "ct-bon"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("did you mean ct-bone?"),
+        "{}",
+        stderr(&o)
+    );
+    let o = render(d, &["--tf", "ramp.tf"]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(e.contains("ramp.tf: no such transfer-function file"), "{e}");
+    assert!(!e.contains("unknown"), "{e}");
+    let o = render(d, &["--tf", "tfs/ct-bonee"]);
+    assert!(
+        stderr(&o).contains("did you mean the preset ct-bone?"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!d.join("render.png").exists());
+}
+
+#[test]
+fn negative_numbers_are_values() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let o = render(d, &["--step", "-1"]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = stderr(&o);
+    assert!(e.contains("must be a positive number"), "{e}");
+    assert!(!e.contains("-- -1"), "{e}");
+    let o = render(
+        d,
+        &[
+            "--azimuth",
+            "-30",
+            "--elevation",
+            "-10",
+            "--domain",
+            "-10,200",
+            "--light",
+            "-1,0,-1",
+            "-q",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = render(
+        d,
+        &[
+            "--position",
+            "-40,-30,20",
+            "--up",
+            "0,0,-1",
+            "-o",
+            "p.png",
+            "-q",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+#[test]
+fn a_closed_stdout_is_a_quiet_exit_not_a_panic() {
+    use std::os::unix::process::ExitStatusExt;
+    let dir = tempfile::tempdir().unwrap();
+    let (reader, writer) = std::io::pipe().unwrap();
+    drop(reader);
+    let mut args = vec!["render", "--stats-json", "-q"];
+    args.extend(SMALL);
+    let o = Command::new(env!("CARGO_BIN_EXE_raycaster"))
+        .args(&args)
+        .current_dir(dir.path())
+        .stdout(writer)
+        .stderr(Stdio::piped())
+        .output()
+        .unwrap();
+    let e = stderr(&o);
+    assert!(!e.contains("panicked"), "{e}");
+    assert_ne!(o.status.code(), Some(101), "{e}");
+    assert_eq!(
+        o.status.signal(),
+        Some(libc::SIGPIPE),
+        "{:?}: {e}",
+        o.status
+    );
+}
+
+#[test]
+fn absurd_spacings_are_refused_at_once_not_rendered_forever() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // A .vol whose spacing is fine for its header but whose rays would take
+    // billions of samples at this step.
+    write_vol(
+        &d.join("thin.vol"),
+        [32; 3],
+        [1e-4, 1.0, 1.0],
+        Content::Scalar,
+    );
+    let start = Instant::now();
+    let o = raycaster(
+        &[
+            "render", "thin.vol", "--step", "0.001", "--size", "64", "-o", "t.png",
+        ],
+        d,
+    );
+    assert!(start.elapsed() < Duration::from_secs(20));
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(
+        e.contains("a ray would take up to") && e.contains("spacing"),
+        "{e}"
+    );
+    assert!(!d.join("t.png").exists());
+    // The same volume at the default step renders.
+    let o = raycaster(
+        &["render", "thin.vol", "--size", "32", "-o", "u.png", "-q"],
+        d,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+
+    // A NIfTI header with pixdim (1e-45, 1, 1).
+    let mut nii = vec![0u8; 352];
+    nii[0..4].copy_from_slice(&348i32.to_le_bytes());
+    for (i, v) in [3i16, 8, 8, 8, 1, 1, 1, 1].iter().enumerate() {
+        nii[40 + 2 * i..42 + 2 * i].copy_from_slice(&v.to_le_bytes());
+    }
+    nii[70..72].copy_from_slice(&2i16.to_le_bytes());
+    nii[72..74].copy_from_slice(&8i16.to_le_bytes());
+    for (i, p) in [1.0f32, 1e-45, 1.0, 1.0].iter().enumerate() {
+        nii[76 + 4 * i..80 + 4 * i].copy_from_slice(&p.to_le_bytes());
+    }
+    nii[108..112].copy_from_slice(&352f32.to_le_bytes());
+    nii[344..348].copy_from_slice(b"n+1\0");
+    nii.extend(vec![7u8; 512]);
+    std::fs::write(d.join("thin.nii"), nii).unwrap();
+    let start = Instant::now();
+    let o = raycaster(&["render", "thin.nii", "-o", "n.png"], d);
+    assert!(start.elapsed() < Duration::from_secs(20));
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(
+        e.contains("thin.nii") && e.contains("times the smallest"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_mapped_file_truncated_while_rendering_fails_with_a_message_not_sigbus() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write_vol(&d.join("big.vol"), [128; 3], [1.0; 3], Content::Scalar);
+    // A frame of many seconds: no early termination, no skipping, a fine step.
+    let child = Command::new(env!("CARGO_BIN_EXE_raycaster"))
+        .args([
+            "render", "big.vol", "--size", "1024", "--step", "0.1", "--no-ert", "--no-ess", "--tf",
+            "cloud", "-o", "big.png", "-q",
+        ])
+        .current_dir(d)
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(500));
+    // Another program truncates the file under the mapping.
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(d.join("big.vol"))
+        .unwrap()
+        .set_len(64)
+        .unwrap();
+    let o = child.wait_with_output().unwrap();
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{:?}: {e}", o.status);
+    assert!(
+        e.contains("big.vol: shrank or vanished while it was read"),
+        "{e}"
+    );
+    assert!(!d.join("big.png").exists());
+}
+
+#[test]
+fn long_frames_show_progress() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // A frame of a second or so.
+    let slow = [
+        "render",
+        "--scene",
+        "noise",
+        "--scene-size",
+        "96",
+        "--size",
+        "512",
+        "--step",
+        "0.2",
+        "--no-ert",
+        "--no-ess",
+        "-q",
+    ];
+    let o = raycaster(&[&slow[..], &["--progress", "-o", "a.png"]].concat(), d);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(e.contains("rendering") && e.contains(" %"), "{e}");
+    // Quiet without --progress when stderr is not a terminal.
+    let o = raycaster(&[&slow[..], &["-o", "b.png"]].concat(), d);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).is_empty(), "{}", stderr(&o));
+}
+
+#[test]
+fn bench_reports_median_and_spread_writes_csv_as_it_goes_and_warns_on_one_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let common = [
+        "bench",
+        "--volume-size",
+        "16",
+        "--image",
+        "32x32",
+        "--threads",
+        "1,2",
+        "--tiles",
+        "16",
+        "--bricks",
+        "8",
+        "--cache-dir",
+        "cache",
+        "--csv",
+        "b.csv",
+    ];
+    let o = raycaster(&[&common[..], &["--frames", "3"]].concat(), d);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let csv = std::fs::read_to_string(d.join("b.csv")).unwrap();
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    assert!(
+        header.contains(&"median_ms") && header.contains(&"spread_ms"),
+        "{csv}"
+    );
+    assert_eq!(csv.lines().count(), 3, "{csv}");
+    let table = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(table.contains("median_ms"), "{table}");
+    assert!(!stderr(&o).contains("one frame"), "{}", stderr(&o));
+    let o = raycaster(&[&common[..], &["--frames", "1"]].concat(), d);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("timed on one frame"), "{}", stderr(&o));
+}
+
+#[test]
+fn a_domain_outside_the_data_warns() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // The shapes scene holds u8 values 0..=254.
+    let o = render(d, &["--domain", "300,400", "-o", "a.png"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("warning: --domain 300,400 lies outside the data's values 0..254"),
+        "{}",
+        stderr(&o)
+    );
+    let o = render(d, &["--domain", "10,200", "-o", "b.png"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("warning"), "{}", stderr(&o));
+}
+
+#[test]
+fn reading_a_compressed_scan_shows_progress() {
+    use std::io::Write;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut nrrd =
+        b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 64 64 64\nencoding: gzip\n\n".to_vec();
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    gz.write_all(
+        &(0..64 * 64 * 64)
+            .map(|i| (i % 251) as u8)
+            .collect::<Vec<u8>>(),
+    )
+    .unwrap();
+    nrrd.extend(gz.finish().unwrap());
+    std::fs::write(d.join("s.nrrd"), nrrd).unwrap();
+    let o = raycaster(
+        &[
+            "render",
+            "s.nrrd",
+            "--size",
+            "24",
+            "--progress",
+            "-q",
+            "-o",
+            "a.png",
+        ],
+        d,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(e.contains("reading s.nrrd"), "{e}");
+    assert!(e.contains("rendering"), "{e}");
+}

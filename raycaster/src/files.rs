@@ -1,0 +1,328 @@
+//! Opening input files safely: only regular files are read.
+//!
+//! A named pipe (FIFO) given as a volume would block a reader forever, and a device
+//! or socket is never a volume. Every reader of user-named files (volumes, foreign
+//! scans, transfer functions, scene files) opens them through [`open_regular`], which
+//! opens without blocking and refuses anything that is not a regular file with a
+//! clear [`std::io::Error`] (kind [`std::io::ErrorKind::InvalidInput`]).
+
+use std::fs::File;
+use std::io::Read;
+use std::os::unix::fs::{FileTypeExt, OpenOptionsExt};
+use std::path::Path;
+
+/// What kind of non-regular file `meta` describes, for messages.
+fn kind_of(meta: &std::fs::Metadata) -> &'static str {
+    let t = meta.file_type();
+    if t.is_dir() {
+        "a directory"
+    } else if t.is_fifo() {
+        "a named pipe (FIFO)"
+    } else if t.is_socket() {
+        "a socket"
+    } else if t.is_block_device() || t.is_char_device() {
+        "a device"
+    } else {
+        "not a regular file"
+    }
+}
+
+/// The error for a file that is not a regular file.
+fn not_regular(meta: &std::fs::Metadata) -> std::io::Error {
+    let kind = kind_of(meta);
+    let error_kind = if meta.is_dir() {
+        std::io::ErrorKind::IsADirectory
+    } else {
+        std::io::ErrorKind::InvalidInput
+    };
+    let msg = if kind == "not a regular file" {
+        kind.to_string()
+    } else {
+        format!("is {kind}, not a regular file")
+    };
+    std::io::Error::new(error_kind, msg)
+}
+
+/// Opens `path` for reading if it is a regular file (symbolic links are followed);
+/// a directory, named pipe, socket or device is refused at once, without blocking.
+pub fn open_regular(path: &Path) -> std::io::Result<File> {
+    // O_NONBLOCK: opening a FIFO for reading would otherwise wait for a writer. It has
+    // no effect on regular files.
+    let file = std::fs::OpenOptions::new()
+        .read(true)
+        .custom_flags(libc::O_NONBLOCK)
+        .open(path)?;
+    let meta = file.metadata()?;
+    if !meta.is_file() {
+        return Err(not_regular(&meta));
+    }
+    Ok(file)
+}
+
+/// Checks, without opening it, that `path` is a regular file (links followed).
+pub fn check_regular(path: &Path) -> std::io::Result<()> {
+    let meta = std::fs::metadata(path)?;
+    if meta.is_file() {
+        Ok(())
+    } else {
+        Err(not_regular(&meta))
+    }
+}
+
+/// Reads the regular file `path` as UTF-8 text, refusing files over `max_bytes`
+/// (a text file of settings is small; a huge one is a mistake, not a setting).
+pub fn read_text(path: &Path, max_bytes: u64) -> std::io::Result<String> {
+    let file = open_regular(path)?;
+    let len = file.metadata()?.len();
+    if len > max_bytes {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!("is {len} bytes; a text file of settings holds at most {max_bytes}"),
+        ));
+    }
+    let mut text = String::new();
+    file.take(max_bytes).read_to_string(&mut text)?;
+    Ok(text)
+}
+
+/// The message the SIGBUS guard prints (a leaked buffer, swapped atomically: the
+/// handler may only read it).
+static SIGBUS_MESSAGE: std::sync::atomic::AtomicPtr<Vec<u8>> =
+    std::sync::atomic::AtomicPtr::new(std::ptr::null_mut());
+
+/// Makes a fault on a memory-mapped file (SIGBUS: another program truncated the
+/// file while it was mapped) end the process with an `error:` line naming the file
+/// ([`guard_mapped_file`]) and exit status 1, instead of a crash. Outputs are written
+/// atomically, so none is left half-written.
+///
+/// For programs (the `raycaster` and `volgen` binaries): call once, early.
+pub fn guard_mapped_reads() {
+    set_sigbus_message("a memory-mapped volume file".to_string());
+    extern "C" fn on_sigbus(_: libc::c_int) {
+        // Only async-signal-safe calls: an atomic load, write(2) and _exit(2).
+        let m = SIGBUS_MESSAGE.load(std::sync::atomic::Ordering::Acquire);
+        if !m.is_null() {
+            // SAFETY: the buffer is leaked, never freed; writing it to stderr.
+            unsafe {
+                let m = &*m;
+                libc::write(2, m.as_ptr().cast(), m.len());
+            }
+        }
+        // SAFETY: ends the process at once, as the signal would have.
+        unsafe { libc::_exit(1) };
+    }
+    // SAFETY: installs a handler that only calls async-signal-safe functions.
+    unsafe {
+        libc::signal(libc::SIGBUS, on_sigbus as *const () as libc::sighandler_t);
+    }
+}
+
+/// Names `path` in the message of [`guard_mapped_reads`]: the file being mapped now.
+pub fn guard_mapped_file(path: &Path) {
+    set_sigbus_message(path.display().to_string());
+}
+
+fn set_sigbus_message(what: String) {
+    let message = format!(
+        "error: {what}: shrank or vanished while it was read (another program truncated it?); stopped, nothing was written\n"
+    );
+    // Leaked on purpose: the signal handler may be reading the previous one.
+    let new = Box::into_raw(Box::new(message.into_bytes()));
+    SIGBUS_MESSAGE.store(new, std::sync::atomic::Ordering::Release);
+}
+
+/// Creates the temporary file that will become `path`: hidden, beside it (so the
+/// final rename is atomic), named `.NAME.PID.XXXXXX.partial` after it and the writing
+/// process, with the usual mode for new files (the umask applies) rather than the
+/// 0600 of temporary files.
+///
+/// Partial files of the same target left by a process of ours that no longer runs
+/// (killed with SIGKILL, or a power cut) are removed first; errors name the target,
+/// never the temporary file.
+pub fn temp_file_beside(path: &Path) -> std::io::Result<tempfile::NamedTempFile> {
+    let dir = parent_dir(path);
+    if !dir.is_dir() {
+        let msg = format!("directory {} does not exist", dir.display());
+        return Err(std::io::Error::new(std::io::ErrorKind::NotFound, msg));
+    }
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    remove_stale_partials(dir, &name);
+    tempfile::Builder::new()
+        .prefix(&format!(".{name}.{}.", std::process::id()))
+        .suffix(".partial")
+        .permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666))
+        .tempfile_in(dir)
+        .map_err(without_temp_path)
+}
+
+/// The folder `path` is in (`.` for a bare name).
+pub fn parent_dir(path: &Path) -> &Path {
+    path.parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."))
+}
+
+/// The error without the temporary file's name `tempfile` adds ("… at path
+/// .a.vol.1234.Xy7.partial"): users know the target, not our scratch names.
+fn without_temp_path(e: std::io::Error) -> std::io::Error {
+    match e.get_ref().and_then(|inner| inner.source()) {
+        Some(cause) => std::io::Error::new(e.kind(), cause.to_string()),
+        None => e,
+    }
+}
+
+/// Removes `.NAME.PID.XXXXXX.partial` files in `dir` whose process is gone. Best
+/// effort: a file that cannot be removed stays.
+fn remove_stale_partials(dir: &Path, name: &str) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    let prefix = format!(".{name}.");
+    for entry in entries.flatten() {
+        let file_name = entry.file_name();
+        let Some(rest) = file_name
+            .to_str()
+            .and_then(|n| n.strip_prefix(&prefix))
+            .and_then(|n| n.strip_suffix(".partial"))
+        else {
+            continue;
+        };
+        // PID.XXXXXX: the random part has no dot.
+        let Some((pid, random)) = rest.split_once('.') else {
+            continue;
+        };
+        let Ok(pid) = pid.parse::<i32>() else {
+            continue;
+        };
+        if random.contains('.') || pid <= 0 || process_alive(pid) {
+            continue;
+        }
+        if entry.file_type().is_ok_and(|t| t.is_file()) {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
+}
+
+/// Whether process `pid` exists (it may belong to another user).
+fn process_alive(pid: i32) -> bool {
+    // SAFETY: kill with signal 0 only checks for the process; it sends nothing.
+    let r = unsafe { libc::kill(pid, 0) };
+    r == 0 || std::io::Error::last_os_error().raw_os_error() == Some(libc::EPERM)
+}
+
+/// Bytes free for an unprivileged user on the file system holding `dir`.
+pub fn free_space(dir: &Path) -> std::io::Result<u64> {
+    use std::os::unix::ffi::OsStrExt;
+    let c = std::ffi::CString::new(dir.as_os_str().as_bytes())
+        .map_err(|_| std::io::Error::from(std::io::ErrorKind::InvalidInput))?;
+    // SAFETY: a zeroed statvfs is a valid value; statvfs fills it for a valid path.
+    let mut st: libc::statvfs = unsafe { std::mem::zeroed() };
+    if unsafe { libc::statvfs(c.as_ptr(), &mut st) } != 0 {
+        return Err(std::io::Error::last_os_error());
+    }
+    // u64 on 64-bit Linux, narrower types elsewhere.
+    #[allow(clippy::useless_conversion)]
+    let (blocks, size) = (u64::from(st.f_bavail), u64::from(st.f_frsize));
+    Ok(blocks.saturating_mul(size))
+}
+
+/// Refuses to start writing `bytes` into a new file beside `path` when its file
+/// system has less free space (checked up front, so a doomed job fails at once).
+pub fn check_free_space(path: &Path, bytes: u64) -> std::io::Result<()> {
+    let dir = parent_dir(path);
+    let free = free_space(dir)?;
+    if bytes > free {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::StorageFull,
+            format!(
+                "needs {} but {} has only {} free",
+                human_bytes(bytes),
+                dir.display(),
+                human_bytes(free)
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// `1.5 GB`-style sizes for messages (decimal units, as `df -H`).
+pub fn human_bytes(n: u64) -> String {
+    let units = ["bytes", "kB", "MB", "GB", "TB", "PB", "EB"];
+    let mut v = n as f64;
+    let mut u = 0;
+    while v >= 1000.0 && u + 1 < units.len() {
+        v /= 1000.0;
+        u += 1;
+    }
+    if u == 0 {
+        format!("{n} bytes")
+    } else {
+        format!("{v:.1} {}", units[u])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stale_partials_of_dead_processes_are_removed_live_ones_kept() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("a.vol");
+        // A pid that cannot exist (above the kernel's pid_max limit of 2^22).
+        let dead = dir.path().join(".a.vol.99999999.AbC123.partial");
+        let live = dir
+            .path()
+            .join(format!(".a.vol.{}.XyZ789.partial", std::process::id()));
+        let other = dir.path().join(".b.vol.99999999.AbC123.partial");
+        for p in [&dead, &live, &other] {
+            std::fs::write(p, b"x").unwrap();
+        }
+        let tmp = temp_file_beside(&target).unwrap();
+        let name = tmp
+            .path()
+            .file_name()
+            .unwrap()
+            .to_string_lossy()
+            .into_owned();
+        assert!(
+            name.starts_with(&format!(".a.vol.{}.", std::process::id())),
+            "{name}"
+        );
+        assert!(!dead.exists());
+        assert!(live.exists());
+        assert!(other.exists());
+        let e = temp_file_beside(&dir.path().join("nodir/a.vol")).unwrap_err();
+        assert!(e.to_string().contains("nodir"), "{e}");
+    }
+
+    #[test]
+    fn free_space_is_checked_up_front() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("a.vol");
+        assert!(check_free_space(&target, 1).is_ok());
+        let e = check_free_space(&target, u64::MAX / 2).unwrap_err();
+        assert!(e.to_string().contains("free"), "{e}");
+        assert_eq!(human_bytes(999), "999 bytes");
+        assert_eq!(human_bytes(1_500_000_000), "1.5 GB");
+    }
+
+    #[test]
+    fn fifos_directories_and_devices_are_refused_without_blocking() {
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("pipe.vol");
+        let c = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
+        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o644) }, 0);
+        let e = open_regular(&fifo).unwrap_err();
+        assert!(e.to_string().contains("named pipe"), "{e}");
+        assert!(check_regular(&fifo).is_err());
+        let e = open_regular(dir.path()).unwrap_err();
+        assert!(e.to_string().contains("directory"), "{e}");
+        let e = open_regular(Path::new("/dev/null")).unwrap_err();
+        assert!(e.to_string().contains("device"), "{e}");
+        let file = dir.path().join("a.txt");
+        std::fs::write(&file, "hello").unwrap();
+        assert_eq!(read_text(&file, 100).unwrap(), "hello");
+        assert!(read_text(&file, 3).is_err());
+    }
+}

@@ -1,0 +1,309 @@
+//! `volgen` under faults: signals, impossible sizes, stale partial files of a killed
+//! run, a closed stdout, named pipes and corrupt range tables.
+
+use std::path::Path;
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+fn volgen(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_volgen"))
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .expect("volgen runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn files_in(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+fn mkfifo(path: &Path) {
+    let c = std::ffi::CString::new(path.to_str().unwrap()).unwrap();
+    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o644) }, 0);
+}
+
+/// The output of `child`, failing (and killing it) when it runs longer than `limit`.
+fn wait_at_most(mut child: std::process::Child, limit: Duration) -> Output {
+    let start = Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed() > limit {
+            child.kill().unwrap();
+            panic!("the process hung (over {limit:?})");
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    child.wait_with_output().unwrap()
+}
+
+/// Starts a long `generate`, waits until its partial file exists, sends `signal` and
+/// returns the finished process's output.
+fn interrupt_generate(dir: &Path, signal: i32) -> Output {
+    let child = Command::new(env!("CARGO_BIN_EXE_volgen"))
+        .current_dir(dir)
+        .args([
+            "generate", "--scene", "noise", "--size", "600", "-o", "big.vol",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    while !files_in(dir).iter().any(|n| n.ends_with(".partial")) {
+        assert!(
+            start.elapsed() < Duration::from_secs(30),
+            "no partial file appeared"
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    assert_eq!(unsafe { libc::kill(child.id() as i32, signal) }, 0);
+    wait_at_most(child, Duration::from_secs(60))
+}
+
+#[test]
+fn sigterm_and_sighup_cancel_like_ctrl_c_and_leave_no_partial_file() {
+    for signal in [libc::SIGTERM, libc::SIGHUP, libc::SIGINT] {
+        let dir = tempfile::tempdir().unwrap();
+        let o = interrupt_generate(dir.path(), signal);
+        assert_eq!(o.status.code(), Some(1), "signal {signal}: {}", stderr(&o));
+        assert!(stderr(&o).contains("cancelled"), "{}", stderr(&o));
+        assert!(
+            files_in(dir.path()).is_empty(),
+            "signal {signal} left {:?}",
+            files_in(dir.path())
+        );
+    }
+}
+
+#[test]
+fn an_impossible_size_is_refused_up_front() {
+    let dir = tempfile::tempdir().unwrap();
+    let start = Instant::now();
+    let o = volgen(dir.path(), &["generate", "--size", "100000", "-o", "x.vol"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(e.contains("x.vol: needs ") && e.contains("free"), "{e}");
+    assert_eq!(e.lines().count(), 1, "{e}");
+    assert!(start.elapsed() < Duration::from_secs(10));
+    assert!(
+        files_in(dir.path()).is_empty(),
+        "{:?}",
+        files_in(dir.path())
+    );
+}
+
+#[test]
+fn stale_partial_files_of_a_killed_run_are_removed_by_the_next_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // What SIGKILL leaves: the partial file of a process that is gone.
+    let child = Command::new(env!("CARGO_BIN_EXE_volgen"))
+        .current_dir(d)
+        .args([
+            "generate", "--scene", "noise", "--size", "600", "-o", "a.vol",
+        ])
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    while !files_in(d).iter().any(|n| n.ends_with(".partial")) {
+        assert!(start.elapsed() < Duration::from_secs(30));
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let mut child = child;
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let left = files_in(d);
+    assert!(
+        left.iter()
+            .any(|n| n.starts_with(".a.vol.") && n.ends_with(".partial")),
+        "{left:?}"
+    );
+    // Someone else's file of a similar name stays.
+    std::fs::write(d.join(".a.vol.notes.partial"), b"not ours").unwrap();
+    let o = volgen(d, &["generate", "--size", "8", "-o", "a.vol"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(files_in(d), [".a.vol.notes.partial", "a.vol"]);
+}
+
+#[test]
+fn a_closed_stdout_is_a_quiet_exit_not_a_panic() {
+    use std::os::unix::process::ExitStatusExt;
+    let dir = tempfile::tempdir().unwrap();
+    let o = volgen(
+        dir.path(),
+        &["generate", "--size", "20", "-o", "a.vol", "-q"],
+    );
+    assert!(o.status.success());
+    // `volgen info a.vol | head -0`: the reader is gone before anything is written.
+    let (reader, writer) = std::io::pipe().unwrap();
+    drop(reader);
+    let o = Command::new(env!("CARGO_BIN_EXE_volgen"))
+        .current_dir(dir.path())
+        .args(["info", "a.vol"])
+        .stdout(writer)
+        .stderr(Stdio::piped())
+        .output()
+        .unwrap();
+    let e = stderr(&o);
+    assert!(!e.contains("panicked"), "{e}");
+    assert_ne!(o.status.code(), Some(101), "{e}");
+    assert!(
+        o.status.signal() == Some(libc::SIGPIPE) || o.status.success(),
+        "{:?}: {e}",
+        o.status
+    );
+}
+
+#[test]
+fn named_pipes_and_devices_are_refused_without_blocking() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    mkfifo(&d.join("p.vol"));
+    mkfifo(&d.join("p.nrrd"));
+    mkfifo(&d.join("plain"));
+    for args in [
+        &["info", "p.vol"][..],
+        &["convert", "p.vol", "-o", "o.vol"],
+        &["convert", "p.nrrd", "-o", "o.vol"],
+        &["convert", "plain", "-o", "o.vol"],
+        &["convert", "plain", "--raw", "4", "-o", "o.vol"],
+        &["info", "/dev/zero"],
+    ] {
+        let start = Instant::now();
+        let o = volgen(d, args);
+        assert!(start.elapsed() < Duration::from_secs(10), "{args:?} hung");
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {}", stderr(&o));
+        let e = stderr(&o);
+        assert!(
+            e.contains("named pipe") || e.contains("is a device"),
+            "{args:?}: {e}"
+        );
+    }
+    assert!(!d.join("o.vol").exists());
+}
+
+#[test]
+fn a_corrupt_range_table_is_reported_by_convert() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let o = volgen(d, &["generate", "--size", "20", "-o", "a.vol", "-q"]);
+    assert!(o.status.success());
+    // The table ends the file: scribble over its magic.
+    let mut bytes = std::fs::read(d.join("a.vol")).unwrap();
+    let table = bytes
+        .windows(4)
+        .rposition(|w| w == b"RCRG")
+        .expect("the range table's magic");
+    bytes[table..table + 4].copy_from_slice(b"JUNK");
+    std::fs::write(d.join("a.vol"), &bytes).unwrap();
+    let o = volgen(d, &["convert", "a.vol", "-o", "b.vol"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("a.vol: the value-range table after the samples is corrupt"),
+        "{}",
+        stderr(&o)
+    );
+    // The copy has a good table again.
+    let o = volgen(d, &["info", "b.vol", "--no-histogram"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = volgen(d, &["info", "a.vol", "--no-histogram"]);
+    assert!(stderr(&o).contains("corrupt"), "{}", stderr(&o));
+}
+
+#[test]
+fn negative_numbers_reach_the_value_checks() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = volgen(dir.path(), &["generate", "--spacing", "-1", "-o", "a.vol"]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = stderr(&o);
+    assert!(!e.contains("-- -1"), "{e}");
+    assert!(e.contains("-1"), "{e}");
+}
+
+#[test]
+fn force_onto_a_symbolic_link_replaces_the_link_and_keeps_its_target() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("target.vol"), b"the link's target").unwrap();
+    std::os::unix::fs::symlink("target.vol", d.join("link.vol")).unwrap();
+    let o = volgen(d, &["generate", "--size", "8", "-o", "link.vol"]);
+    assert_eq!(o.status.code(), Some(1), "an existing link needs --force");
+    let o = volgen(d, &["generate", "--size", "8", "-o", "link.vol", "--force"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let meta = std::fs::symlink_metadata(d.join("link.vol")).unwrap();
+    assert!(meta.file_type().is_file(), "the link became the new file");
+    assert_eq!(
+        std::fs::read(d.join("target.vol")).unwrap(),
+        b"the link's target"
+    );
+}
+
+#[test]
+fn sigterm_while_converting_a_compressed_scan_cancels_cleanly() {
+    use std::io::Write;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let n = 400usize;
+    let mut nrrd =
+        format!("NRRD0004\ntype: uchar\ndimension: 3\nsizes: {n} {n} {n}\nencoding: gzip\n\n")
+            .into_bytes();
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    let plane: Vec<u8> = (0..n * n).map(|i| (i % 251) as u8).collect();
+    for _ in 0..n {
+        gz.write_all(&plane).unwrap();
+    }
+    nrrd.extend(gz.finish().unwrap());
+    std::fs::write(d.join("s.nrrd"), nrrd).unwrap();
+    let child = Command::new(env!("CARGO_BIN_EXE_volgen"))
+        .current_dir(d)
+        .args(["convert", "s.nrrd", "-o", "s.vol"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Early: while the stream is decompressed (the handler is installed at start).
+    std::thread::sleep(Duration::from_millis(30));
+    assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGTERM) }, 0);
+    let o = wait_at_most(child, Duration::from_secs(30));
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(e.contains("cancelled"), "{e}");
+    assert!(!e.contains("corrupt"), "{e}");
+    assert_eq!(files_in(d), ["s.nrrd"]);
+}
+
+#[test]
+fn info_reads_foreign_files_in_their_own_units() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // An i16 NRRD of CT-like values: -1000 (air) and 40..=1039.
+    let mut nrrd = b"NRRD0004\ntype: short\ndimension: 3\nsizes: 4 4 4\nendian: little\nencoding: raw\nspacings: 0.5 0.5 2\n\n".to_vec();
+    for i in 0..64i16 {
+        let v: i16 = if i < 32 { -1000 } else { 40 + (i - 32) * 32 };
+        nrrd.extend(v.to_le_bytes());
+    }
+    std::fs::write(d.join("ct.nrrd"), nrrd).unwrap();
+    let o = volgen(d, &["info", "ct.nrrd"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout).into_owned();
+    for needle in [
+        "format      NRRD",
+        "4x4x4 (64 voxels)",
+        "spacing     0.5 x 0.5 x 2",
+        "i16, little endian, raw data",
+        "min -1000, max 1032 (the file's units)",
+        "16 bins over min..max",
+    ] {
+        assert!(out.contains(needle), "info lacks `{needle}`:\n{out}");
+    }
+    assert!(!out.contains("Some(") && !out.contains("Raw"), "{out}");
+}
