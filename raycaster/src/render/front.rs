@@ -23,7 +23,8 @@ use super::error::RenderError;
 use super::level::LevelChoice;
 use super::parallel::{ParallelOptions, TileSink, render_parallel_into};
 use super::pixel::over_background;
-use super::prepared::RenderVolume;
+use super::prepared::{FramePlan, RenderVolume};
+use super::schedule::FrameSchedule;
 use super::settings::RenderSettings;
 use crate::volume::Volume;
 
@@ -261,9 +262,18 @@ impl Worker {
                 self.emit(FrameEvent::Superseded { id });
                 continue;
             }
-            let level = request.level.resolve(volume, &request.camera);
-            let event = self.render(&levels[level.min(levels.len() - 1)], id, &request);
+            let level = request
+                .level
+                .resolve(volume, &request.camera)
+                .min(levels.len() - 1);
+            let event = self.render(&levels[level], id, &request);
+            let done = matches!(event, FrameEvent::Done { .. });
             self.emit(event);
+            // Idle after a coarse frame: have the OS read the next finer level's
+            // bricks of this view, so refining or zooming in finds them cached.
+            if done && level > 0 && commands.is_empty() {
+                prefetch_view(&levels[level - 1], &request, || !commands.is_empty());
+            }
         }
     }
 
@@ -303,6 +313,25 @@ impl Worker {
                 error: e.to_string(),
             },
         }
+    }
+}
+
+/// Asks the OS to read the bricks `request`'s view needs from `volume` (in the
+/// frame's visibility order), until `interrupted` holds.
+fn prefetch_view(
+    volume: &RenderVolume<'_>,
+    request: &FrameRequest,
+    interrupted: impl Fn() -> bool,
+) {
+    let Ok(plan) = FramePlan::new(volume, &request.settings) else {
+        return;
+    };
+    let schedule = FrameSchedule::new(volume, &plan, &request.camera, request.options.tile_size);
+    for (i, brick) in schedule.bricks.iter().enumerate() {
+        if i % 256 == 0 && interrupted() {
+            return;
+        }
+        volume.prefetch_brick(brick.coords);
     }
 }
 
