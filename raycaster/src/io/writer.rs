@@ -80,7 +80,7 @@ pub fn write_volume<T: Sample>(
     if !options.overwrite && path.exists() {
         return Err(VolumeError::new(path, VolumeErrorKind::Exists));
     }
-    check_resources::<T>(path, &header)?;
+    check_resources::<T>(path, &header, options.pyramid)?;
     let tmp = crate::volume::temp_file_beside(path).at(path)?;
     let file = tmp.as_file();
     file.write_all_at(&head_bytes, 0).at(path)?;
@@ -258,15 +258,25 @@ pub(crate) fn stream_samples<T: Sample>(
     Ok(BrickRanges::from_parts(grid, ranges))
 }
 
-/// Refuses, before anything is written, a volume whose file does not fit in the free
-/// disk space or whose smallest slab (one brick's depth of whole x-planes) does not
+/// Refuses, before anything is written, a volume whose file (with its pyramid, when
+/// one is written) does not fit in the free disk space or whose smallest slab (one brick's depth of whole x-planes) does not
 /// fit in half the machine's memory: such a job could only fail later, or abort on
 /// a failed allocation.
-fn check_resources<T: Sample>(path: &Path, header: &Header) -> Result<(), VolumeError> {
+fn check_resources<T: Sample>(
+    path: &Path,
+    header: &Header,
+    pyramid: bool,
+) -> Result<(), VolumeError> {
     let data_end = header.data_end().at(path)?;
     let grid = header.block_grid(LINEAR_RANGE_SIDE);
     let table = grid.block_count().saturating_mul(4).saturating_add(64);
-    crate::files::check_free_space(path, data_end.saturating_add(table)).at(path)?;
+    let levels = if pyramid && !level_dims(header.dims).is_empty() {
+        PyramidLayout::plan(header).at(path)?.block_len() + 64
+    } else {
+        0
+    };
+    let needed = data_end.saturating_add(table).saturating_add(levels);
+    crate::files::check_free_space(path, needed).at(path)?;
     let [_, dy, dz] = header.dims;
     let slab = (u64::from(grid.step()) + 1)
         .saturating_mul(u64::from(dy) * u64::from(dz))
