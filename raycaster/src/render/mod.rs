@@ -1,22 +1,26 @@
-//! Ray casting: cameras, transfer functions, shading, the marching kernel and the
-//! sequential reference renderer.
+//! Ray casting: cameras, transfer functions, shading, the compositors, the marching
+//! loop and the renderers.
 //!
 //! The renderer sees volumes only through [`RenderVolume`] (brick grid + value
 //! ranges) and the sampler, never whether they are mapped or in RAM. Every renderer
-//! marches rays through bricks with one kernel ([`kernel::march_brick`]); samples
+//! marches rays through bricks with one generic loop (`march::march_brick`) over
+//! one compositor interface (`compositor::Compositor`); samples
 //! are placed globally along each ray so that the way the volume is cut cannot
 //! change the image.
 
 mod camera;
 mod cells;
+mod compositor;
 mod counters;
 mod error;
 mod frame;
 mod front;
 mod geometry;
 mod image;
-pub mod kernel;
 mod level;
+mod local;
+mod march;
+mod optics;
 mod orbit;
 mod parallel;
 mod pixel;
@@ -46,19 +50,15 @@ pub use orbit::Orbit;
 pub use parallel::{
     DEFAULT_TILE_SIZE, ParallelOptions, TileSink, render_parallel, render_parallel_into,
 };
-pub use pixel::{PixelRay, PixelState, over_background};
-pub use prepared::{FramePlan, LARGE_LINEAR_BRICKS, RenderVolume, default_linear_brick_side};
+pub use optics::{corrected_alpha, importance_composite};
+pub use pixel::{PixelRay, over_background};
+pub use prepared::{LARGE_LINEAR_BRICKS, RenderVolume, default_linear_brick_side};
 pub use ray::Ray;
 pub use sampler::{BrickSampler, VolumeSampler};
-pub use schedule::{FrameSchedule, ScheduledBrick, TileQueue};
 pub use segments::{
     GlobalMode, ImportanceSource, LocalMode, Membership, ObjectStyle, SceneError, SegmentScene,
 };
 pub use sequential::render_sequential;
-pub use settings::{DEFAULT_ERT_THRESHOLD, Mode, RenderSettings};
+pub use settings::{DEFAULT_ERT_THRESHOLD, Mode, ModeParameters, RenderSettings};
 pub use shading::{Light, Shading};
-pub use tile::Tile;
-pub use transfer::{
-    ControlPoint, PRESETS, TransferError, TransferFunction, TransferTable, corrected_alpha,
-};
-pub use two_level::{NO_OBJECT, SegmentState, importance_composite};
+pub use transfer::{ControlPoint, PRESETS, TransferError, TransferFunction, TransferTable};

@@ -21,7 +21,8 @@ use super::camera::{Camera, PixelRect};
 use super::counters::{Counters, FrameStats};
 use super::error::RenderError;
 use super::frame::Frame;
-use super::kernel::{BrickContext, march_brick, owned_samples};
+use super::compositor::{Compositor, CompositorJob};
+use super::march::{BrickContext, march_brick, owned_samples};
 use super::prepared::{FramePlan, RenderVolume};
 use super::sampler::VolumeSampler;
 use super::schedule::FrameSchedule;
@@ -117,8 +118,16 @@ pub fn render_parallel_into(
         cancelled,
     };
     let counters = match volume.volume().data() {
-        VolumeData::U8(data) => frame.run(&data, options),
-        VolumeData::U16(data) => frame.run(&data, options),
+        VolumeData::U8(data) => plan.compositor.run(ParallelPass {
+            job: &frame,
+            data: &data,
+            options,
+        }),
+        VolumeData::U16(data) => plan.compositor.run(ParallelPass {
+            job: &frame,
+            data: &data,
+            options,
+        }),
     };
     Ok(counters.map(|counters| FrameStats {
         width: camera.width(),
@@ -133,8 +142,8 @@ pub fn render_parallel_into(
 }
 
 /// A (tile, brick) task: the tile travels with it.
-struct Task {
-    tile: Tile,
+struct Task<S> {
+    tile: Tile<S>,
     brick: u32,
 }
 
@@ -148,16 +157,32 @@ struct FrameJob<'f> {
     cancelled: &'f (dyn Fn() -> bool + Sync),
 }
 
+/// A frame's threads with the frame's compositor (chosen once per frame).
+struct ParallelPass<'p, 'f, 'd, T: Sample> {
+    job: &'p FrameJob<'f>,
+    data: &'p TypedVolume<'d, T>,
+    options: &'p ParallelOptions,
+}
+
+impl<T: Sample> CompositorJob for ParallelPass<'_, '_, '_, T> {
+    type Output = Option<Counters>;
+    fn run<C: Compositor>(self, c: &C) -> Option<Counters> {
+        self.job.run(c, self.data, self.options)
+    }
+}
+
 impl FrameJob<'_> {
     /// Runs the frame's threads; the summed counters, or `None` if cancelled.
-    fn run<T: Sample>(
+    fn run<T: Sample, C: Compositor>(
         &self,
+        c: &C,
         data: &TypedVolume<'_, T>,
         options: &ParallelOptions,
     ) -> Option<Counters> {
         let compositors = options.compositing_threads.max(1);
-        let (task_tx, task_rx) = crossbeam_channel::unbounded::<Task>();
-        let (result_txs, result_rxs): (Vec<Sender<Tile>>, Vec<Receiver<Tile>>) = (0..compositors)
+        let (task_tx, task_rx) = crossbeam_channel::unbounded::<Task<C::State>>();
+        type Channel<S> = (Vec<Sender<Tile<S>>>, Vec<Receiver<Tile<S>>>);
+        let (result_txs, result_rxs): Channel<C::State> = (0..compositors)
             .map(|_| crossbeam_channel::unbounded())
             .unzip();
         std::thread::scope(|scope| {
@@ -165,7 +190,7 @@ impl FrameJob<'_> {
             for _ in 0..options.render_threads.max(1) {
                 let task_rx = task_rx.clone();
                 let result_txs = result_txs.clone();
-                scope.spawn(move || self.render_tasks(data, &task_rx, &result_txs));
+                scope.spawn(move || self.render_tasks(c, data, &task_rx, &result_txs));
             }
             drop(result_txs);
             let handles: Vec<_> = result_rxs
@@ -174,7 +199,7 @@ impl FrameJob<'_> {
                 .map(|(k, results)| {
                     let task_tx = task_tx.clone();
                     scope.spawn(move || {
-                        self.composite(k as u32, compositors as u32, &task_tx, &results)
+                        self.composite(c, k as u32, compositors as u32, &task_tx, &results)
                     })
                 })
                 .collect();
@@ -204,11 +229,12 @@ impl FrameJob<'_> {
     }
 
     /// A render thread: march each task's tile through its brick, send it back.
-    fn render_tasks<T: Sample>(
+    fn render_tasks<T: Sample, C: Compositor>(
         &self,
+        c: &C,
         data: &TypedVolume<'_, T>,
-        tasks: &Receiver<Task>,
-        results: &[Sender<Tile>],
+        tasks: &Receiver<Task<C::State>>,
+        results: &[Sender<Tile<C::State>>],
     ) {
         let geometry = self.volume.geometry();
         let sampler = VolumeSampler::new(*data);
@@ -240,6 +266,7 @@ impl FrameJob<'_> {
                             {
                                 let first = first.max(state.next_sample);
                                 march_brick(
+                                    c,
                                     self.plan,
                                     &sampler,
                                     &context,
@@ -262,12 +289,13 @@ impl FrameJob<'_> {
 
     /// A compositing thread: owns tiles `k, k + n, k + 2n, …`; returns their summed
     /// counters, or `None` if the frame was cancelled.
-    fn composite(
+    fn composite<C: Compositor>(
         &self,
+        c: &C,
         k: u32,
         n: u32,
-        tasks: &Sender<Task>,
-        results: &Receiver<Tile>,
+        tasks: &Sender<Task<C::State>>,
+        results: &Receiver<Tile<C::State>>,
     ) -> Option<Counters> {
         let mut counters = Counters::default();
         let mut in_flight = 0usize;
@@ -279,8 +307,8 @@ impl FrameJob<'_> {
             .skip(k as usize)
             .step_by(n as usize)
         {
-            let tile = Tile::new(index as u32, k, queue.rect, self.plan.mode);
-            if let Some(task) = self.next_task(tile, &mut counters) {
+            let tile = Tile::new(index as u32, k, queue.rect, c.start());
+            if let Some(task) = self.next_task(c, tile, &mut counters) {
                 in_flight += 1;
                 tasks
                     .send(task)
@@ -296,7 +324,7 @@ impl FrameJob<'_> {
                 continue;
             }
             tile.next += 1;
-            if let Some(task) = self.next_task(tile, &mut counters) {
+            if let Some(task) = self.next_task(c, tile, &mut counters) {
                 in_flight += 1;
                 tasks
                     .send(task)
@@ -308,7 +336,12 @@ impl FrameJob<'_> {
 
     /// The tile's next task, skipping bricks whose covered pixels have all
     /// terminated; or `None` after resolving a finished tile into the sink.
-    fn next_task(&self, mut tile: Tile, counters: &mut Counters) -> Option<Task> {
+    fn next_task<C: Compositor>(
+        &self,
+        c: &C,
+        mut tile: Tile<C::State>,
+        counters: &mut Counters,
+    ) -> Option<Task<C::State>> {
         let queue = &self.schedule.tiles[tile.index as usize].bricks;
         while let Some(&brick) = queue.get(tile.next) {
             if !tile.finished_within(&self.schedule.bricks[brick as usize].rect) {
@@ -317,19 +350,15 @@ impl FrameJob<'_> {
             tile.counters.tasks_skipped_occluded += 1;
             tile.next += 1;
         }
-        self.finish(&tile);
+        self.finish(c, &tile);
         *counters += tile.counters;
         None
     }
 
     /// Resolves a finished tile's pixels and hands them to the sink.
-    fn finish(&self, tile: &Tile) {
-        let rgba: Vec<[f32; 4]> = tile
-            .states
-            .iter()
-            .map(|s| s.resolve(self.plan.mode, &self.plan.table))
-            .collect();
-        let depth: Vec<f32> = tile.states.iter().map(|s| s.depth).collect();
+    fn finish<C: Compositor>(&self, c: &C, tile: &Tile<C::State>) {
+        let rgba: Vec<[f32; 4]> = tile.states.iter().map(|s| c.resolve(&s.acc)).collect();
+        let depth: Vec<f32> = tile.states.iter().map(|s| c.depth(&s.acc)).collect();
         self.sink.tile_finished(tile.rect, &rgba, &depth);
     }
 }
