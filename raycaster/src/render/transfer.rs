@@ -567,7 +567,7 @@ mod tests {
         tf.gradient_ramp = Some([0.1, 0.2]);
         let table = TransferTable::new(&tf, 255, 1.0);
         assert!(table.is_2d());
-        assert_eq!(table.lookup_2d(200.0, 0.0, 1.0)[3], 0.0);
-        assert_eq!(table.lookup_2d(200.0, 0.3, 1.0)[3], 1.0);
+        assert_eq!(table.lookup_2d(200.0, 0.0)[3], 0.0);
+        assert_eq!(table.lookup_2d(200.0, 0.3)[3], 1.0);
     }
 }
