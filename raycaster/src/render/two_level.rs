@@ -200,14 +200,16 @@ impl Compositor for TwoLevel {
         }
     }
 
-    /// The global opacity; with global DVR, the open segment's opacity counts too.
+    /// The global opacity, counting the open segment's as if it closed now.
     #[inline]
     fn opacity(&self, st: &SegmentedState) -> f32 {
-        match (self.global, self.object(st.object)) {
-            (GlobalMode::Dvr, Some(object)) => {
-                st.alpha + (1.0 - st.alpha) * object.opacity(&st.segment)
-            }
-            _ => st.alpha,
+        let Some(object) = self.object(st.object) else {
+            return st.alpha;
+        };
+        let open = object.opacity(&st.segment);
+        match self.global {
+            GlobalMode::Dvr => st.alpha + (1.0 - st.alpha) * open,
+            GlobalMode::Mip => st.alpha.max(open),
         }
     }
 
