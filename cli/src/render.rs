@@ -5,9 +5,9 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use raycaster::render::{
-    Camera, LevelChoice, Light, Membership, Mode, Orbit, ParallelOptions, Projection,
-    RenderSettings, RenderVolume, SegmentScene, Shading, TransferFunction, render_parallel,
-    render_sequential,
+    Camera, LevelChoice, Light, Membership, Mode, ModeParameters, Orbit, ParallelOptions,
+    Projection, RenderSettings, RenderVolume, SegmentScene, Shading, TransferFunction,
+    render_parallel, render_sequential,
 };
 use raycaster::synth::{SceneKind, synthesize, synthesize_labels};
 use raycaster::volume::{Access, OpenOptions, SampleType, Volume};
@@ -70,6 +70,10 @@ pub struct RenderArgs {
     /// Iso-value for first-hit mode, 0..1 over the transfer function's domain.
     #[arg(long, default_value_t = 0.5, value_name = "V")]
     iso: f32,
+
+    /// Gain of xray mode: opacity 1 − exp(−gain·Σ normalised value × step).
+    #[arg(long, default_value_t = 1.0, value_parser = parse_positive, value_name = "G")]
+    xray_gain: f32,
 
     /// Sample distance along rays, in voxels.
     #[arg(long, default_value_t = 0.5, value_parser = parse_positive, value_name = "VOXELS")]
@@ -253,8 +257,16 @@ pub(crate) enum ModeArg {
     Mip,
     /// Average intensity projection.
     Average,
-    /// First hit of the iso-value, shaded.
+    /// First hit of the iso-value, refined between samples, shaded.
     FirstHit,
+    /// X-ray: the sum of values along the ray (`--xray-gain`).
+    Xray,
+    /// Importance-aware compositing (constant importance).
+    Importance,
+    /// Context-preserving rendering (κt 1.5, κs 0.4).
+    Context,
+    /// Tone shading and silhouette darkening.
+    Silhouette,
 }
 
 impl From<ModeArg> for Mode {
@@ -264,6 +276,10 @@ impl From<ModeArg> for Mode {
             ModeArg::Mip => Mode::Mip,
             ModeArg::Average => Mode::Average,
             ModeArg::FirstHit => Mode::FirstHit,
+            ModeArg::Xray => Mode::XRay,
+            ModeArg::Importance => Mode::Importance,
+            ModeArg::Context => Mode::ContextPreserving,
+            ModeArg::Silhouette => Mode::Silhouette,
         }
     }
 }
@@ -429,6 +445,10 @@ fn settings(args: &RenderArgs, volume: &Volume) -> Result<RenderSettings> {
     });
     Ok(RenderSettings {
         mode: args.mode.into(),
+        mode_parameters: ModeParameters {
+            xray_gain: args.xray_gain,
+            ..ModeParameters::default()
+        },
         step: args.step,
         early_termination: (!args.no_ert).then_some(args.ert_threshold),
         empty_space_skipping: !args.no_ess,

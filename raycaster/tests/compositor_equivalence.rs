@@ -140,7 +140,8 @@ fn one_object_covering_every_value_renders_the_plain_mode() {
                         let black = RgbImage::new(SIZE, SIZE, vec![0; expected.data().len()]);
                         assert!(
                             expected.max_difference(&black).unwrap() > 8,
-                            "{name}: the plain image is (nearly) empty: {:?}", expected.max_difference(&black)
+                            "{name}: the plain image is (nearly) empty: {:?}",
+                            expected.max_difference(&black)
                         );
                         assert_images_match(&name, &actual, &expected, tolerance);
                         checked += 1;

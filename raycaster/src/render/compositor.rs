@@ -7,9 +7,7 @@
 
 use glam::Vec3;
 
-use super::local::{
-    Average, ContextPreserving, Dvr, FirstHit, Importance, Mip, Silhouette, XRay,
-};
+use super::local::{Average, ContextPreserving, Dvr, FirstHit, Importance, Mip, Silhouette, XRay};
 use super::march::BrickContext;
 use super::pixel::PixelRay;
 use super::sampler::VolumeSampler;

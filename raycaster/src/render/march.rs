@@ -8,13 +8,13 @@
 
 use glam::Vec3;
 
+use super::compositor::{Compositor, SamplePoint};
 use super::counters::Counters;
 use super::geometry::VolumeGeometry;
 use super::pixel::{PixelRay, PixelState};
 use super::prepared::{FramePlan, RenderVolume};
 use super::ray::Ray;
 use super::sampler::{BrickSampler, VolumeSampler};
-use super::compositor::{Compositor, SamplePoint};
 use crate::volume::{BrickView, Sample, TypedVolume, VolumeData};
 
 /// Slack around a brick's box when estimating its samples: ownership, not this
@@ -133,7 +133,11 @@ impl<'a, T: Sample> BrickContext<'a, T> {
 }
 
 /// The first and last sample index of `ray` that brick `b` owns, if any.
-pub(crate) fn owned_samples(ray: &PixelRay, geometry: &VolumeGeometry, b: [u32; 3]) -> Option<(u32, u32)> {
+pub(crate) fn owned_samples(
+    ray: &PixelRay,
+    geometry: &VolumeGeometry,
+    b: [u32; 3],
+) -> Option<(u32, u32)> {
     let (lo, hi) = geometry.brick_voxel_box(b);
     let slack = Vec3::splat(BOX_SLACK);
     let voxel_ray = Ray {

@@ -46,11 +46,11 @@ pub use geometry::VolumeGeometry;
 pub use glam::Vec3;
 pub use image::{ImageError, RgbImage};
 pub use level::LevelChoice;
+pub use optics::{corrected_alpha, importance_composite};
 pub use orbit::Orbit;
 pub use parallel::{
     DEFAULT_TILE_SIZE, ParallelOptions, TileSink, render_parallel, render_parallel_into,
 };
-pub use optics::{corrected_alpha, importance_composite};
 pub use pixel::{PixelRay, over_background};
 pub use prepared::{LARGE_LINEAR_BRICKS, RenderVolume, default_linear_brick_side};
 pub use ray::Ray;

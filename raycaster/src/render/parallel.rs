@@ -18,10 +18,10 @@ use crossbeam_channel::{Receiver, Sender};
 use parking_lot::Mutex;
 
 use super::camera::{Camera, PixelRect};
+use super::compositor::{Compositor, CompositorJob};
 use super::counters::{Counters, FrameStats};
 use super::error::RenderError;
 use super::frame::Frame;
-use super::compositor::{Compositor, CompositorJob};
 use super::march::{BrickContext, march_brick, owned_samples};
 use super::prepared::{FramePlan, RenderVolume};
 use super::sampler::VolumeSampler;

@@ -8,9 +8,9 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::cells::CellRanges;
+use super::compositor::FrameCompositor;
 use super::error::RenderError;
 use super::geometry::VolumeGeometry;
-use super::compositor::FrameCompositor;
 use super::local::LocalCompositor;
 use super::segments::Membership;
 use super::settings::RenderSettings;

@@ -9,10 +9,10 @@
 use std::time::Instant;
 
 use super::camera::Camera;
+use super::compositor::{Compositor, CompositorJob};
 use super::counters::Counters;
 use super::error::RenderError;
 use super::frame::Frame;
-use super::compositor::{Compositor, CompositorJob};
 use super::march::{BrickContext, march_brick, owned_samples};
 use super::pixel::{PixelRay, PixelState};
 use super::prepared::{FramePlan, RenderVolume};
