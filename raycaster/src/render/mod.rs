@@ -26,6 +26,7 @@ mod parallel;
 mod pixel;
 mod prepared;
 mod ray;
+mod renderer;
 mod sampler;
 mod schedule;
 mod segments;
@@ -54,6 +55,7 @@ pub use parallel::{
 pub use pixel::{PixelRay, over_background};
 pub use prepared::{LARGE_LINEAR_BRICKS, RenderVolume, default_linear_brick_side};
 pub use ray::Ray;
+pub use renderer::Renderer;
 pub use sampler::{BrickSampler, VolumeSampler};
 pub use segments::{
     GlobalMode, ImportanceSource, LocalMode, Membership, ObjectStyle, SceneError, SegmentScene,

@@ -24,6 +24,7 @@ use super::error::RenderError;
 use super::frame::Frame;
 use super::march::{BrickContext, march_brick, owned_samples};
 use super::prepared::{FramePlan, RenderVolume};
+use super::renderer::{Renderer, WorkerPool};
 use super::sampler::VolumeSampler;
 use super::schedule::FrameSchedule;
 use super::settings::RenderSettings;
@@ -64,23 +65,15 @@ pub trait TileSink: Sync {
     fn tile_finished(&self, rect: PixelRect, rgba: &[[f32; 4]], depth: &[f32]);
 }
 
-/// Renders one frame with the object-parallel renderer into a [`Frame`].
+/// Renders one frame with the object-parallel renderer into a [`Frame`], on
+/// threads started for this frame only (a [`Renderer`] keeps them across frames).
 pub fn render_parallel(
     volume: &RenderVolume<'_>,
     camera: &Camera,
     settings: &RenderSettings,
     options: &ParallelOptions,
 ) -> Result<Frame, RenderError> {
-    let frame = Mutex::new(Frame::empty(
-        camera.width(),
-        camera.height(),
-        settings.background,
-    ));
-    let stats = render_parallel_into(volume, camera, settings, options, &frame, &|| false)?
-        .expect("a frame that cannot be cancelled completes");
-    let mut frame = frame.into_inner();
-    frame.stats = stats;
-    Ok(frame)
+    Renderer::new().render(volume, camera, settings, options)
 }
 
 impl TileSink for Mutex<Frame> {
@@ -95,10 +88,25 @@ impl TileSink for Mutex<Frame> {
     }
 }
 
-/// Renders one frame, handing finished tiles to `sink` as they complete.
+/// Renders one frame, handing finished tiles to `sink` as they complete, on
+/// threads started for this frame only (a [`Renderer`] keeps them across frames).
 /// `cancelled` is polled by the compositing threads; when it returns true no new
 /// task is sent, the frame stops early and `Ok(None)` is returned.
 pub fn render_parallel_into(
+    volume: &RenderVolume<'_>,
+    camera: &Camera,
+    settings: &RenderSettings,
+    options: &ParallelOptions,
+    sink: &dyn TileSink,
+    cancelled: &(dyn Fn() -> bool + Sync),
+) -> Result<Option<FrameStats>, RenderError> {
+    Renderer::new().render_into(volume, camera, settings, options, sink, cancelled)
+}
+
+/// Renders one frame on `workers` (render threads, compositing threads and the
+/// read-ahead, all waiting in the pool between frames).
+pub(crate) fn render_frame(
+    workers: &WorkerPool,
     volume: &RenderVolume<'_>,
     camera: &Camera,
     settings: &RenderSettings,
@@ -120,11 +128,13 @@ pub fn render_parallel_into(
     let counters = match volume.volume().data() {
         VolumeData::U8(data) => plan.compositor.run(ParallelPass {
             job: &frame,
+            workers,
             data: &data,
             options,
         }),
         VolumeData::U16(data) => plan.compositor.run(ParallelPass {
             job: &frame,
+            workers,
             data: &data,
             options,
         }),
@@ -160,6 +170,7 @@ struct FrameJob<'f> {
 /// A frame's threads with the frame's compositor (chosen once per frame).
 struct ParallelPass<'p, 'f, 'd, T: Sample> {
     job: &'p FrameJob<'f>,
+    workers: &'p WorkerPool,
     data: &'p TypedVolume<'d, T>,
     options: &'p ParallelOptions,
 }
@@ -167,7 +178,7 @@ struct ParallelPass<'p, 'f, 'd, T: Sample> {
 impl<T: Sample> CompositorJob for ParallelPass<'_, '_, '_, T> {
     type Output = Option<Counters>;
     fn run<C: Compositor>(self, c: &C) -> Option<Counters> {
-        self.job.run(c, self.data, self.options)
+        self.job.run(self.workers, c, self.data, self.options)
     }
 }
 
@@ -175,6 +186,7 @@ impl FrameJob<'_> {
     /// Runs the frame's threads; the summed counters, or `None` if cancelled.
     fn run<T: Sample, C: Compositor>(
         &self,
+        workers: &WorkerPool,
         c: &C,
         data: &TypedVolume<'_, T>,
         options: &ParallelOptions,
@@ -185,34 +197,35 @@ impl FrameJob<'_> {
         let (result_txs, result_rxs): Channel<C::State> = (0..compositors)
             .map(|_| crossbeam_channel::unbounded())
             .unzip();
-        std::thread::scope(|scope| {
-            scope.spawn(|| self.read_ahead());
+        let (total_tx, total_rx) = crossbeam_channel::unbounded::<Option<Counters>>();
+        workers.scope(options, |scope| {
+            scope.spawn(|_| self.read_ahead());
             for _ in 0..options.render_threads.max(1) {
                 let task_rx = task_rx.clone();
                 let result_txs = result_txs.clone();
-                scope.spawn(move || self.render_tasks(c, data, &task_rx, &result_txs));
+                scope.spawn(move |_| self.render_tasks(c, data, &task_rx, &result_txs));
             }
             drop(result_txs);
-            let handles: Vec<_> = result_rxs
-                .into_iter()
-                .enumerate()
-                .map(|(k, results)| {
-                    let task_tx = task_tx.clone();
-                    scope.spawn(move || {
-                        self.composite(c, k as u32, compositors as u32, &task_tx, &results)
-                    })
-                })
-                .collect();
-            drop(task_tx);
-            let mut total = Some(Counters::default());
-            for h in handles {
-                match (h.join().expect("compositing thread"), total.as_mut()) {
-                    (Some(c), Some(t)) => *t += c,
-                    _ => total = None,
-                }
+            for (k, results) in result_rxs.into_iter().enumerate() {
+                let task_tx = task_tx.clone();
+                let total_tx = total_tx.clone();
+                scope.spawn(move |_| {
+                    let counters =
+                        self.composite(c, k as u32, compositors as u32, &task_tx, &results);
+                    let _ = total_tx.send(counters);
+                });
             }
-            total
-        })
+            drop(task_tx);
+        });
+        drop(total_tx);
+        let mut total = Some(Counters::default());
+        for counters in total_rx.iter() {
+            match (counters, total.as_mut()) {
+                (Some(c), Some(t)) => *t += c,
+                _ => total = None,
+            }
+        }
+        total
     }
 
     /// Asks the OS to read the frame's bricks in the order the frame visits them
