@@ -6,11 +6,12 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use raycaster::render::{
     Camera, LevelChoice, Light, Membership, Mode, ModeParameters, Orbit, ParallelOptions,
-    Projection, RenderSettings, RenderVolume, SegmentScene, Shading, TransferFunction,
-    render_parallel, render_sequential,
+    Projection, RenderSettings, RenderVolume, SegmentScene, Shading, render_parallel,
+    render_sequential,
 };
-use raycaster::synth::{SceneKind, synthesize, synthesize_labels};
-use raycaster::volume::{Access, OpenOptions, SampleType, Volume};
+use raycaster::source::{self, OpenedVolume, VolumeSource};
+use raycaster::synth::SceneKind;
+use raycaster::volume::{Access, Volume};
 
 use crate::args::{
     parse_color, parse_domain, parse_positive, parse_size, parse_threshold, parse_vec3,
@@ -238,15 +239,6 @@ impl SceneArg {
             SceneArg::Gradient => SceneKind::Gradient,
         }
     }
-
-    fn preset(self) -> &'static str {
-        match self {
-            SceneArg::Shapes => "shapes",
-            SceneArg::Shells => "shells",
-            SceneArg::Noise => "cloud",
-            SceneArg::Gradient => "rainbow",
-        }
-    }
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -296,13 +288,19 @@ pub fn run(args: RenderArgs) -> Result<()> {
         bail!("--iso {} must lie in [0, 1]", args.iso);
     }
     let read_before = stats::bytes_read();
-    let volume = open_volume(&args)?;
-    let settings = settings(&args, &volume)?;
+    let opened = open_volume(&args)?;
+    let settings = settings(&args, &opened)?;
+    let OpenedVolume { volume, labels, .. } = opened;
     let label_volume = match (&settings.segments, &args.labels) {
         (Some(_), Some(path)) => Some(Volume::open(path)?),
         (Some(scene), None) => match &scene.membership {
             // A built-in scene brings its own segmentation, when it has one.
-            Membership::Labels(_) if args.file.is_none() => Some(built_in_labels(&args)?),
+            Membership::Labels(_) if args.file.is_none() => Some(labels.with_context(|| {
+                format!(
+                    "the built-in `{}` scene has no label volume; give --labels FILE or a layer scene",
+                    args.scene.kind().name()
+                )
+            })?),
             Membership::Labels(path) => Some(Volume::open(path)?),
             Membership::Layers(_) => None,
         },
@@ -314,7 +312,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         },
         fixed => fixed,
     };
-    let camera = camera(&args, volume_bounds(&volume))?;
+    let camera = camera(&args, source::world_box(&volume))?;
     // Two-level scenes with labels sample labels of the same level, when they have it.
     let level = match &label_volume {
         Some(labels) => choice
@@ -367,74 +365,32 @@ pub fn run(args: RenderArgs) -> Result<()> {
     Ok(())
 }
 
-fn open_volume(args: &RenderArgs) -> Result<Volume> {
-    match &args.file {
-        Some(path) if raycaster::import::detect(path).is_some() => {
-            let limit = raycaster::import::DEFAULT_IN_MEMORY_LIMIT;
-            Ok(raycaster::import::open_volume_any(path, limit)?)
-        }
-        Some(path) => {
-            let access = if args.ram {
+fn open_volume(args: &RenderArgs) -> Result<OpenedVolume> {
+    let source = match &args.file {
+        Some(path) => VolumeSource::File {
+            path: path.clone(),
+            access: if args.ram {
                 Access::Ram
             } else {
                 Access::Mapped
-            };
-            let options = OpenOptions {
-                access,
-                ..OpenOptions::default()
-            };
-            Ok(Volume::open_with(path, options)?)
-        }
-        None => {
-            let kind = args.scene.kind();
-            let n = args.scene_size;
-            let scene = kind.build([n; 3], args.seed);
-            let name = format!("built-in {} scene {n}³", kind.name());
-            Ok(synthesize(
-                scene.as_ref(),
-                &name,
-                [n; 3],
-                [1.0; 3],
-                SampleType::U8,
-            )?)
-        }
-    }
+            },
+        },
+        None => VolumeSource::BuiltIn {
+            kind: args.scene.kind(),
+            size: args.scene_size,
+            seed: args.seed,
+        },
+    };
+    Ok(source::open(&source)?)
 }
 
-/// The label volume of the built-in scene, for label scenes rendered without a file.
-fn built_in_labels(args: &RenderArgs) -> Result<Volume> {
-    let kind = args.scene.kind();
-    let n = args.scene_size;
-    let scene = kind.build([n; 3], args.seed);
-    let name = format!("built-in {} labels {n}³", kind.name());
-    synthesize_labels(scene.as_ref(), &name, [n; 3], [1.0; 3])?.with_context(|| {
-        format!(
-            "the built-in `{}` scene has no label volume; give --labels FILE or a layer scene",
-            kind.name()
-        )
-    })
-}
-
-fn settings(args: &RenderArgs, volume: &Volume) -> Result<RenderSettings> {
-    let tf_name = match (&args.tf, &args.file) {
-        (Some(tf), _) => tf.clone(),
-        (None, None) => args.scene.preset().to_string(),
-        (None, Some(_)) => "shapes".to_string(),
-    };
-    let mut transfer = if std::path::Path::new(&tf_name).is_file() {
-        TransferFunction::load(std::path::Path::new(&tf_name))
-            .with_context(|| format!("transfer function file {tf_name}"))?
-    } else {
-        TransferFunction::preset(&tf_name)
-            .with_context(|| format!("--tf {tf_name:?} is neither a preset nor a file"))?
-    };
+fn settings(args: &RenderArgs, opened: &OpenedVolume) -> Result<RenderSettings> {
+    let tf_name = args.tf.as_deref().unwrap_or(opened.preset);
+    let mut transfer = opened
+        .transfer(tf_name)
+        .with_context(|| format!("--tf {tf_name:?} is neither a preset nor a readable file"))?;
     if let Some(domain) = args.domain {
         transfer.domain = Some(domain);
-    } else if transfer.domain.is_none() && volume.sample_type() == SampleType::U16 {
-        let [lo, hi] = volume.ranges().overall();
-        if hi > lo {
-            transfer.domain = Some([f32::from(lo), f32::from(hi)]);
-        }
     }
     let shading = (!args.no_shading).then(|| Shading {
         light: match args.light {
@@ -465,16 +421,6 @@ fn settings(args: &RenderArgs, volume: &Volume) -> Result<RenderSettings> {
 
 fn glam_vec(v: [f32; 3]) -> raycaster::render::Vec3 {
     raycaster::render::Vec3::from(v)
-}
-
-/// The world box of level 0 (every level is framed alike).
-fn volume_bounds(volume: &Volume) -> (raycaster::render::Vec3, raycaster::render::Vec3) {
-    let hi = volume.dims().map(|d| (d - 1) as f32);
-    let spacing = volume.spacing();
-    (
-        raycaster::render::Vec3::ZERO,
-        glam_vec([0, 1, 2].map(|a| hi[a] * spacing[a])),
-    )
 }
 
 fn camera(

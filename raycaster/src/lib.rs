@@ -8,7 +8,9 @@
 //! - [`generate`] and [`convert`]: the generation and conversion jobs;
 //! - [`import`]: readers for NRRD, NIfTI-1, MetaImage files and DICOM series;
 //! - [`job`]: progress reporting and cancellation;
-//! - [`render`]: cameras, transfer functions and the ray casters.
+//! - [`render`]: cameras, transfer functions and the ray casters;
+//! - [`source`]: the front ends' façade: a built-in scene or a file, opened with
+//!   its labels, default transfer function, domain and framing.
 
 #[cfg(target_endian = "big")]
 compile_error!(
@@ -22,5 +24,6 @@ pub mod import;
 pub mod io;
 pub mod job;
 pub mod render;
+pub mod source;
 pub mod synth;
 pub mod volume;
