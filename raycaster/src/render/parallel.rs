@@ -24,7 +24,7 @@ use super::error::RenderError;
 use super::frame::Frame;
 use super::march::{BrickContext, march_brick, owned_samples};
 use super::prepared::{FramePlan, RenderVolume};
-use super::renderer::{Renderer, WorkerPool};
+use super::renderer::{FrameJobFn, Renderer, WorkerPool};
 use super::sampler::VolumeSampler;
 use super::schedule::FrameSchedule;
 use super::settings::RenderSettings;
@@ -73,7 +73,7 @@ pub fn render_parallel(
     settings: &RenderSettings,
     options: &ParallelOptions,
 ) -> Result<Frame, RenderError> {
-    Renderer::new().render(volume, camera, settings, options)
+    Renderer::per_frame().render(volume, camera, settings, options)
 }
 
 impl TileSink for Mutex<Frame> {
@@ -100,7 +100,7 @@ pub fn render_parallel_into(
     sink: &dyn TileSink,
     cancelled: &(dyn Fn() -> bool + Sync),
 ) -> Result<Option<FrameStats>, RenderError> {
-    Renderer::new().render_into(volume, camera, settings, options, sink, cancelled)
+    Renderer::per_frame().render_into(volume, camera, settings, options, sink, cancelled)
 }
 
 /// Renders one frame on `workers` (render threads, compositing threads and the
@@ -198,25 +198,25 @@ impl FrameJob<'_> {
             .map(|_| crossbeam_channel::unbounded())
             .unzip();
         let (total_tx, total_rx) = crossbeam_channel::unbounded::<Option<Counters>>();
-        workers.scope(options, |scope| {
-            scope.spawn(|_| self.read_ahead());
-            for _ in 0..options.render_threads.max(1) {
-                let task_rx = task_rx.clone();
-                let result_txs = result_txs.clone();
-                scope.spawn(move |_| self.render_tasks(c, data, &task_rx, &result_txs));
-            }
-            drop(result_txs);
-            for (k, results) in result_rxs.into_iter().enumerate() {
-                let task_tx = task_tx.clone();
-                let total_tx = total_tx.clone();
-                scope.spawn(move |_| {
-                    let counters =
-                        self.composite(c, k as u32, compositors as u32, &task_tx, &results);
-                    let _ = total_tx.send(counters);
-                });
-            }
-            drop(task_tx);
-        });
+        let mut jobs: Vec<FrameJobFn<'_>> = vec![Box::new(|| self.read_ahead())];
+        for _ in 0..options.render_threads.max(1) {
+            let task_rx = task_rx.clone();
+            let result_txs = result_txs.clone();
+            jobs.push(Box::new(move || {
+                self.render_tasks(c, data, &task_rx, &result_txs)
+            }));
+        }
+        drop(result_txs);
+        for (k, results) in result_rxs.into_iter().enumerate() {
+            let task_tx = task_tx.clone();
+            let total_tx = total_tx.clone();
+            jobs.push(Box::new(move || {
+                let counters = self.composite(c, k as u32, compositors as u32, &task_tx, &results);
+                let _ = total_tx.send(counters);
+            }));
+        }
+        drop(task_tx);
+        workers.run_all(jobs);
         drop(total_tx);
         let mut total = Some(Counters::default());
         for counters in total_rx.iter() {

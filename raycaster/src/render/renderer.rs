@@ -16,23 +16,33 @@ use super::parallel::{ParallelOptions, TileSink, render_frame};
 use super::prepared::RenderVolume;
 use super::settings::RenderSettings;
 
-/// The threads of one frame's jobs, kept between frames.
-pub(crate) struct WorkerPool {
-    pool: rayon::ThreadPool,
-    /// (render threads, compositing threads) the pool is sized for.
-    sized_for: (usize, usize),
+/// One of a frame's jobs: runs until the frame is done.
+pub(crate) type FrameJobFn<'a> = Box<dyn FnOnce() + Send + 'a>;
+
+/// Where a frame's jobs run: threads started for the frame, or threads kept
+/// between frames.
+pub(crate) enum WorkerPool {
+    /// A thread per job, started and joined for each frame.
+    PerFrame,
+    /// A pool of waiting threads, sized for (render, compositing) threads.
+    Kept {
+        /// The threads.
+        pool: rayon::ThreadPool,
+        /// (render threads, compositing threads) the pool is sized for.
+        sized_for: (usize, usize),
+    },
 }
 
 impl WorkerPool {
     /// Threads for `render` render threads, `compositors` compositing threads
     /// and the read-ahead.
-    fn new(render: usize, compositors: usize) -> WorkerPool {
+    fn kept(render: usize, compositors: usize) -> WorkerPool {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(render + compositors + 1)
             .thread_name(|i| format!("render-worker-{i}"))
             .build()
             .expect("starting the render worker threads");
-        WorkerPool {
+        WorkerPool::Kept {
             pool,
             sized_for: (render, compositors),
         }
@@ -46,14 +56,29 @@ impl WorkerPool {
         )
     }
 
-    /// Runs `op`, which may spawn up to the frame's jobs for `options`, and waits
-    /// until every spawned job has returned. Each job gets a thread of its own.
-    pub fn scope<'scope, OP>(&self, options: &ParallelOptions, op: OP)
-    where
-        OP: FnOnce(&rayon::Scope<'scope>) + Send,
-    {
-        debug_assert_eq!(WorkerPool::sizes(options), self.sized_for);
-        self.pool.scope(op);
+    /// Runs `jobs` concurrently, each on a thread of its own, and returns when
+    /// all have returned. They are at most the frame's jobs for the options the
+    /// pool is sized for (jobs block on one another, so none may wait for a
+    /// thread).
+    pub fn run_all(&self, jobs: Vec<FrameJobFn<'_>>) {
+        match self {
+            WorkerPool::PerFrame => std::thread::scope(|scope| {
+                for job in jobs {
+                    scope.spawn(job);
+                }
+            }),
+            WorkerPool::Kept { pool, sized_for } => {
+                assert!(
+                    jobs.len() <= sized_for.0 + sized_for.1 + 1,
+                    "more jobs than worker threads"
+                );
+                pool.scope(|scope| {
+                    for job in jobs {
+                        scope.spawn(move |_| job());
+                    }
+                });
+            }
+        }
     }
 }
 
@@ -64,12 +89,20 @@ impl WorkerPool {
 #[derive(Default)]
 pub struct Renderer {
     workers: Option<WorkerPool>,
+    /// Start threads for each frame instead (the one-frame functions).
+    per_frame: bool,
 }
 
 impl std::fmt::Debug for Renderer {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Renderer")
-            .field("threads", &self.workers.as_ref().map(|w| w.sized_for))
+            .field(
+                "kept_threads",
+                &match &self.workers {
+                    Some(WorkerPool::Kept { sized_for, .. }) => Some(*sized_for),
+                    _ => None,
+                },
+            )
             .finish()
     }
 }
@@ -78,6 +111,15 @@ impl Renderer {
     /// A renderer with no threads yet.
     pub fn new() -> Renderer {
         Renderer::default()
+    }
+
+    /// A renderer that starts and joins its threads for every frame (what
+    /// [`super::render_parallel`] does for a single frame).
+    pub fn per_frame() -> Renderer {
+        Renderer {
+            workers: None,
+            per_frame: true,
+        }
     }
 
     /// Renders one frame into a [`Frame`].
@@ -113,12 +155,20 @@ impl Renderer {
         sink: &dyn TileSink,
         cancelled: &(dyn Fn() -> bool + Sync),
     ) -> Result<Option<FrameStats>, RenderError> {
-        let workers = &mut self.workers;
         let sizes = WorkerPool::sizes(options);
-        if workers.as_ref().is_none_or(|w| w.sized_for != sizes) {
-            *workers = Some(WorkerPool::new(sizes.0, sizes.1));
+        let fits = match &self.workers {
+            Some(WorkerPool::PerFrame) => true,
+            Some(WorkerPool::Kept { sized_for, .. }) => *sized_for == sizes,
+            None => false,
+        };
+        if !fits {
+            self.workers = Some(if self.per_frame {
+                WorkerPool::PerFrame
+            } else {
+                WorkerPool::kept(sizes.0, sizes.1)
+            });
         }
-        let workers = workers.as_ref().expect("just started");
+        let workers = self.workers.as_ref().expect("just started");
         render_frame(workers, volume, camera, settings, options, sink, cancelled)
     }
 }
