@@ -47,20 +47,18 @@ pub use geometry::VolumeGeometry;
 pub use glam::Vec3;
 pub use image::{ImageError, RgbImage};
 pub use level::LevelChoice;
-pub use optics::{corrected_alpha, importance_composite};
+pub use optics::corrected_alpha;
 pub use orbit::Orbit;
 pub use parallel::{
     DEFAULT_TILE_SIZE, ParallelOptions, TileSink, render_parallel, render_parallel_into,
 };
-pub use pixel::{PixelRay, over_background};
 pub use prepared::{LARGE_LINEAR_BRICKS, RenderVolume, default_linear_brick_side};
 pub use ray::Ray;
 pub use renderer::Renderer;
-pub use sampler::{BrickSampler, VolumeSampler};
 pub use segments::{
     GlobalMode, ImportanceSource, LocalMode, Membership, ObjectStyle, SceneError, SegmentScene,
 };
 pub use sequential::render_sequential;
 pub use settings::{DEFAULT_ERT_THRESHOLD, Mode, ModeParameters, RenderSettings};
 pub use shading::{Light, Shading};
-pub use transfer::{ControlPoint, PRESETS, TransferError, TransferFunction, TransferTable};
+pub use transfer::{ControlPoint, PRESETS, TransferError, TransferFunction};
