@@ -388,7 +388,7 @@ fn settings(args: &RenderArgs, opened: &OpenedVolume) -> Result<RenderSettings> 
     let tf_name = args.tf.as_deref().unwrap_or(opened.preset);
     let mut transfer = opened
         .transfer(tf_name)
-        .with_context(|| format!("--tf {tf_name:?} is neither a preset nor a readable file"))?;
+        .with_context(|| format!("--tf {tf_name:?} is neither a preset nor a file"))?;
     if let Some(domain) = args.domain {
         transfer.domain = Some(domain);
     }
