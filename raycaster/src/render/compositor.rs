@@ -7,7 +7,7 @@
 
 use glam::Vec3;
 
-use super::local::{Average, ContextPreserving, Dvr, FirstHit, Importance, Mip, Silhouette, XRay};
+use super::local::{LocalCompositor, with_local};
 use super::march::BrickContext;
 use super::pixel::PixelRay;
 use super::sampler::VolumeSampler;
@@ -49,7 +49,10 @@ pub(crate) trait Compositor: Sync {
 
     /// The opacity that early ray termination compares with its threshold (0 for
     /// modes whose result is only known at the end).
-    fn opacity(&self, state: &Self::State) -> f32;
+    #[inline]
+    fn opacity(&self, _state: &Self::State) -> f32 {
+        0.0
+    }
 
     /// Whether nothing later on the ray can change `state` (a first hit).
     #[inline]
@@ -66,7 +69,9 @@ pub(crate) trait Compositor: Sync {
 
     /// The depth of the first hit (world distance from the ray origin), `∞` when
     /// there is none.
-    fn depth(&self, state: &Self::State) -> f32;
+    fn depth(&self, _state: &Self::State) -> f32 {
+        f32::INFINITY
+    }
 }
 
 /// One sample as a compositor sees it: its value, where it is, and what it may
@@ -142,25 +147,12 @@ impl<T: Sample> SamplePoint<'_, T> {
     }
 }
 
-/// The compositor of a frame: one variant per mode, chosen once per frame.
+/// The compositor of a frame, chosen once per frame: a plain mode or two-level
+/// compositing.
 #[derive(Clone, Debug)]
 pub(crate) enum FrameCompositor {
-    /// Emission–absorption.
-    Dvr(Dvr),
-    /// Maximum intensity projection.
-    Mip(Mip),
-    /// Average intensity projection.
-    Average(Average),
-    /// Sum of values along the ray.
-    XRay(XRay),
-    /// First hit of an iso-value, refined between samples.
-    FirstHit(FirstHit),
-    /// Importance-aware compositing.
-    Importance(Importance),
-    /// Context-preserving rendering.
-    ContextPreserving(ContextPreserving),
-    /// Tone shading and silhouettes.
-    Silhouette(Silhouette),
+    /// One local mode for whole rays.
+    Plain(LocalCompositor),
     /// Two-level compositing of a segmented volume.
     TwoLevel(TwoLevel),
 }
@@ -177,14 +169,7 @@ impl FrameCompositor {
     /// Runs `job` with the concrete compositor: the one dispatch of a frame.
     pub fn run<J: CompositorJob>(&self, job: J) -> J::Output {
         match self {
-            FrameCompositor::Dvr(c) => job.run(c),
-            FrameCompositor::Mip(c) => job.run(c),
-            FrameCompositor::Average(c) => job.run(c),
-            FrameCompositor::XRay(c) => job.run(c),
-            FrameCompositor::FirstHit(c) => job.run(c),
-            FrameCompositor::Importance(c) => job.run(c),
-            FrameCompositor::ContextPreserving(c) => job.run(c),
-            FrameCompositor::Silhouette(c) => job.run(c),
+            FrameCompositor::Plain(local) => with_local!(local, c => job.run(c)),
             FrameCompositor::TwoLevel(c) => job.run(c),
         }
     }

@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use glam::Vec3;
 
-use super::compositor::{Compositor, FrameCompositor, SamplePoint};
+use super::compositor::{Compositor, SamplePoint};
 use super::optics::{
     importance_composite, light_vectors, over, partial_step, shading_intensity, smoothstep,
 };
@@ -76,6 +76,21 @@ fn classify<T: Sample>(
     (a > 0.0).then_some(([r, g, b], a))
 }
 
+/// [`classify`] with the sample's gradient, which it returns too (the modes that
+/// always need it); `None` for a transparent sample, whose gradient is never
+/// computed when the table is 1D.
+#[inline]
+fn classify_with_gradient<T: Sample>(
+    table: &TransferTable,
+    s: &SamplePoint<'_, T>,
+) -> Option<([f32; 3], f32, Vec3)> {
+    if !table.is_2d() && table.lookup(s.value)[3] <= 0.0 {
+        return None;
+    }
+    let gradient = s.gradient();
+    classify(table, s, gradient).map(|(color, a)| (color, a, gradient))
+}
+
 #[inline]
 fn shade(shading: Option<&Shading>, color: [f32; 3], gradient: Vec3, view_dir: Vec3) -> [f32; 3] {
     match shading {
@@ -132,9 +147,6 @@ impl Compositor for Dvr {
     fn resolve(&self, st: &Accumulation) -> [f32; 4] {
         st.rgba()
     }
-    fn depth(&self, st: &Accumulation) -> f32 {
-        st.depth
-    }
 }
 
 /// Maximum intensity projection: the largest value, classified.
@@ -160,10 +172,6 @@ impl Compositor for Mip {
     fn sample<T: Sample>(&self, st: &mut Accumulation, s: &SamplePoint<'_, T>) {
         st.value = st.value.max(s.value);
     }
-    #[inline]
-    fn opacity(&self, _st: &Accumulation) -> f32 {
-        0.0
-    }
     fn resolve(&self, st: &Accumulation) -> [f32; 4] {
         if st.value.is_finite() {
             classify_once(&self.table, st.value)
@@ -171,15 +179,21 @@ impl Compositor for Mip {
             [0.0; 4]
         }
     }
-    fn depth(&self, st: &Accumulation) -> f32 {
-        st.depth
-    }
 }
 
 /// Average intensity projection: the mean value, classified.
 #[derive(Clone, Debug)]
 pub(crate) struct Average {
     table: Arc<TransferTable>,
+}
+
+impl Average {
+    /// Adds raw value `v` to the sum (average and X-ray).
+    #[inline]
+    fn fold(st: &mut Accumulation, v: f32) {
+        st.value += v;
+        st.count += 1;
+    }
 }
 
 impl Compositor for Average {
@@ -192,12 +206,7 @@ impl Compositor for Average {
     }
     #[inline]
     fn sample<T: Sample>(&self, st: &mut Accumulation, s: &SamplePoint<'_, T>) {
-        st.value += s.value;
-        st.count += 1;
-    }
-    #[inline]
-    fn opacity(&self, _st: &Accumulation) -> f32 {
-        0.0
+        Average::fold(st, s.value);
     }
     fn resolve(&self, st: &Accumulation) -> [f32; 4] {
         if st.count > 0 {
@@ -205,9 +214,6 @@ impl Compositor for Average {
         } else {
             [0.0; 4]
         }
-    }
-    fn depth(&self, st: &Accumulation) -> f32 {
-        st.depth
     }
 }
 
@@ -230,12 +236,7 @@ impl Compositor for XRay {
     }
     #[inline]
     fn sample<T: Sample>(&self, st: &mut Accumulation, s: &SamplePoint<'_, T>) {
-        st.value += s.value;
-        st.count += 1;
-    }
-    #[inline]
-    fn opacity(&self, _st: &Accumulation) -> f32 {
-        0.0
+        Average::fold(st, s.value);
     }
     fn resolve(&self, st: &Accumulation) -> [f32; 4] {
         if st.count == 0 {
@@ -247,9 +248,6 @@ impl Compositor for XRay {
         let sum = (st.value - n * self.domain[0]) / width * self.table.step_ratio();
         let a = 1.0 - (-self.gain * sum.max(0.0)).exp();
         [r * a, g * a, b * a, a]
-    }
-    fn depth(&self, st: &Accumulation) -> f32 {
-        st.depth
     }
 }
 
@@ -349,11 +347,7 @@ impl Compositor for Importance {
     }
     #[inline]
     fn sample<T: Sample>(&self, st: &mut Accumulation, s: &SamplePoint<'_, T>) {
-        if !self.table.is_2d() && self.table.lookup(s.value)[3] <= 0.0 {
-            return;
-        }
-        let gradient = s.gradient();
-        let Some((color, a)) = classify(&self.table, s, gradient) else {
+        let Some((color, a, gradient)) = classify_with_gradient(&self.table, s) else {
             return;
         };
         let color = shade(self.shading.as_ref(), color, gradient, s.view_dir());
@@ -375,9 +369,6 @@ impl Compositor for Importance {
     }
     fn resolve(&self, st: &Accumulation) -> [f32; 4] {
         st.rgba()
-    }
-    fn depth(&self, st: &Accumulation) -> f32 {
-        st.depth
     }
 }
 
@@ -402,11 +393,7 @@ impl Compositor for ContextPreserving {
     }
     #[inline]
     fn sample<T: Sample>(&self, st: &mut Accumulation, s: &SamplePoint<'_, T>) {
-        if !self.table.is_2d() && self.table.lookup(s.value)[3] <= 0.0 {
-            return;
-        }
-        let gradient = s.gradient();
-        let Some((color, a)) = classify(&self.table, s, gradient) else {
+        let Some((color, a, gradient)) = classify_with_gradient(&self.table, s) else {
             return;
         };
         let shading = self.shading.as_ref();
@@ -424,9 +411,6 @@ impl Compositor for ContextPreserving {
     }
     fn resolve(&self, st: &Accumulation) -> [f32; 4] {
         st.rgba()
-    }
-    fn depth(&self, st: &Accumulation) -> f32 {
-        st.depth
     }
 }
 
@@ -463,11 +447,7 @@ impl Compositor for Silhouette {
     }
     #[inline]
     fn sample<T: Sample>(&self, st: &mut Accumulation, s: &SamplePoint<'_, T>) {
-        if !self.table.is_2d() && self.table.lookup(s.value)[3] <= 0.0 {
-            return;
-        }
-        let gradient = s.gradient();
-        let Some((color, a)) = classify(&self.table, s, gradient) else {
+        let Some((color, a, gradient)) = classify_with_gradient(&self.table, s) else {
             return;
         };
         let color = Silhouette::tone(color, gradient, s.view_dir());
@@ -479,9 +459,6 @@ impl Compositor for Silhouette {
     }
     fn resolve(&self, st: &Accumulation) -> [f32; 4] {
         st.rgba()
-    }
-    fn depth(&self, st: &Accumulation) -> f32 {
-        st.depth
     }
 }
 
@@ -521,6 +498,7 @@ macro_rules! with_local {
         }
     };
 }
+pub(crate) use with_local;
 
 impl LocalCompositor {
     /// The compositor of `mode` over transfer table `table` (its opacities
@@ -563,20 +541,6 @@ impl LocalCompositor {
             LocalMode::Silhouette => LocalCompositor::Silhouette(Silhouette { table }),
         }
     }
-
-    /// The same compositor for whole rays.
-    pub fn into_frame(self) -> FrameCompositor {
-        match self {
-            LocalCompositor::Dvr(c) => FrameCompositor::Dvr(c),
-            LocalCompositor::Mip(c) => FrameCompositor::Mip(c),
-            LocalCompositor::Average(c) => FrameCompositor::Average(c),
-            LocalCompositor::XRay(c) => FrameCompositor::XRay(c),
-            LocalCompositor::FirstHit(c) => FrameCompositor::FirstHit(c),
-            LocalCompositor::Importance(c) => FrameCompositor::Importance(c),
-            LocalCompositor::ContextPreserving(c) => FrameCompositor::ContextPreserving(c),
-            LocalCompositor::Silhouette(c) => FrameCompositor::Silhouette(c),
-        }
-    }
 }
 
 impl Compositor for LocalCompositor {
@@ -599,6 +563,6 @@ impl Compositor for LocalCompositor {
         with_local!(self, c => c.resolve(st))
     }
     fn depth(&self, st: &Accumulation) -> f32 {
-        st.depth
+        with_local!(self, c => c.depth(st))
     }
 }

@@ -270,15 +270,14 @@ impl FramePlan {
                     settings.shading,
                 ))
             }
-            None => LocalCompositor::new(
+            None => FrameCompositor::Plain(LocalCompositor::new(
                 settings
                     .mode
                     .local(&settings.mode_parameters, settings.iso_value),
                 Arc::new(TransferTable::new(&settings.transfer, type_max, step_ratio)),
                 settings.shading,
                 domain,
-            )
-            .into_frame(),
+            )),
         };
         let [d0, d1] = domain;
         let mut plan = FramePlan {
