@@ -8,7 +8,8 @@ use std::str::FromStr;
 use anyhow::{Context, Result, bail};
 use raycaster::render::{
     Camera, DEFAULT_ERT_THRESHOLD, DEFAULT_TILE_SIZE, Frame, Mode, Orbit, ParallelOptions,
-    RenderSettings, RenderVolume, TransferFunction, Vec3, render_parallel, render_sequential,
+    RenderSettings, RenderVolume, Renderer, TransferFunction, Vec3, render_parallel,
+    render_sequential,
 };
 use raycaster::volume::{Access, Layout, SampleType, Volume};
 
@@ -295,6 +296,15 @@ impl PreparedCase<'_> {
     pub fn frame(&self) -> Result<Frame> {
         Ok(match &self.options {
             Some(o) => render_parallel(&self.volume, &self.camera, &self.settings, o)?,
+            None => render_sequential(&self.volume, &self.camera, &self.settings)?,
+        })
+    }
+
+    /// Renders one frame with `renderer`, whose worker threads live across frames
+    /// (the sequential renderer when the case has no parallel options).
+    pub fn frame_on(&self, renderer: &mut Renderer) -> Result<Frame> {
+        Ok(match &self.options {
+            Some(o) => renderer.render(&self.volume, &self.camera, &self.settings, o)?,
             None => render_sequential(&self.volume, &self.camera, &self.settings)?,
         })
     }

@@ -118,6 +118,17 @@ pub fn parallel_cases(quick: bool) -> Vec<BenchCase> {
     cases
 }
 
+/// Small frames of the viewer's coarse kind (160×160, the default threads) on a
+/// `shapes` volume in RAM: where starting threads per frame shows.
+pub fn small_frame_case(quick: bool) -> BenchCase {
+    let (n, _) = sizes(quick);
+    BenchCase {
+        volume: VolumeSpec::shapes(n),
+        image: [160, 160],
+        ..BenchCase::default()
+    }
+}
+
 /// The two-level benchmark's plain case (its layered twin adds segments to the
 /// settings): the default threads on a `shapes` volume in RAM.
 pub fn two_level_case(quick: bool) -> BenchCase {

@@ -9,10 +9,11 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use raycaster::render::{
-    Camera, LevelChoice, Light, Membership, Mode, Orbit, PRESETS, ParallelOptions, Projection,
-    RenderSettings, RenderVolume, SegmentScene, Shading, TileSink, TransferFunction,
+    Camera, LevelChoice, Light, Membership, Mode, ModeParameters, Orbit, PRESETS, ParallelOptions,
+    Projection, RenderSettings, RenderVolume, SegmentScene, Shading, TileSink, TransferFunction,
     closest_preset, render_parallel_into, render_sequential,
 };
+use raycaster::source;
 use raycaster::synth::{SceneKind, synthesize, synthesize_labels};
 use raycaster::volume::{Access, Content, OpenOptions, SampleType, Volume};
 
@@ -81,6 +82,10 @@ pub struct RenderArgs {
     /// Iso-value for first-hit mode, 0..1 over the transfer function's domain.
     #[arg(long, default_value_t = 0.5, value_name = "V")]
     iso: f32,
+
+    /// Gain of xray mode: opacity 1 − exp(−gain·Σ normalised value × step).
+    #[arg(long, default_value_t = 1.0, value_parser = parse_positive, value_name = "G")]
+    xray_gain: f32,
 
     /// Sample distance along rays, in voxels.
     #[arg(long, default_value_t = 0.5, value_parser = parse_positive, value_name = "VOXELS")]
@@ -251,15 +256,6 @@ impl SceneArg {
             SceneArg::Gradient => SceneKind::Gradient,
         }
     }
-
-    fn preset(self) -> &'static str {
-        match self {
-            SceneArg::Shapes => "shapes",
-            SceneArg::Shells => "shells",
-            SceneArg::Noise => "cloud",
-            SceneArg::Gradient => "rainbow",
-        }
-    }
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -270,8 +266,16 @@ pub(crate) enum ModeArg {
     Mip,
     /// Average intensity projection.
     Average,
-    /// First hit of the iso-value, shaded.
+    /// First hit of the iso-value, refined between samples, shaded.
     FirstHit,
+    /// X-ray: the sum of values along the ray (`--xray-gain`).
+    Xray,
+    /// Importance-aware compositing (constant importance).
+    Importance,
+    /// Context-preserving rendering (κt 1.5, κs 0.4).
+    Context,
+    /// Tone shading and silhouette darkening.
+    Silhouette,
 }
 
 impl From<ModeArg> for Mode {
@@ -281,6 +285,10 @@ impl From<ModeArg> for Mode {
             ModeArg::Mip => Mode::Mip,
             ModeArg::Average => Mode::Average,
             ModeArg::FirstHit => Mode::FirstHit,
+            ModeArg::Xray => Mode::XRay,
+            ModeArg::Importance => Mode::Importance,
+            ModeArg::Context => Mode::ContextPreserving,
+            ModeArg::Silhouette => Mode::Silhouette,
         }
     }
 }
@@ -322,7 +330,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         },
         fixed => fixed,
     };
-    let camera = camera(&args, volume_bounds(&volume))?;
+    let camera = camera(&args, source::world_box(&volume))?;
     // Two-level scenes with labels sample labels of the same level, when they have it.
     let level = match &label_volume {
         Some(labels) => choice
@@ -488,7 +496,9 @@ fn built_in_labels(args: &RenderArgs) -> Result<Volume> {
 fn settings(args: &RenderArgs, volume: &Volume) -> Result<RenderSettings> {
     let tf_name = match (&args.tf, &args.file) {
         (Some(tf), _) => tf.clone(),
-        (None, None) => args.scene.preset().to_string(),
+        (None, None) => source::scene_preset(args.scene.kind()).to_string(),
+        // u16 files are mostly CT scans (the viewer's rule too).
+        (None, Some(_)) if volume.sample_type() == SampleType::U16 => "ct-bone".to_string(),
         (None, Some(_)) => "shapes".to_string(),
     };
     let tf_path = Path::new(&tf_name);
@@ -515,11 +525,6 @@ fn settings(args: &RenderArgs, volume: &Volume) -> Result<RenderSettings> {
             eprintln!("{warning}");
         }
         transfer.domain = Some(domain);
-    } else if transfer.domain.is_none() && volume.sample_type() == SampleType::U16 {
-        let [lo, hi] = volume.ranges().overall();
-        if hi > lo {
-            transfer.domain = Some([f32::from(lo), f32::from(hi)]);
-        }
     }
     let shading = (!args.no_shading).then(|| Shading {
         light: match args.light {
@@ -530,6 +535,10 @@ fn settings(args: &RenderArgs, volume: &Volume) -> Result<RenderSettings> {
     });
     Ok(RenderSettings {
         mode: args.mode.into(),
+        mode_parameters: ModeParameters {
+            xray_gain: args.xray_gain,
+            ..ModeParameters::default()
+        },
         step: args.step,
         early_termination: (!args.no_ert).then_some(args.ert_threshold),
         empty_space_skipping: !args.no_ess,
@@ -563,16 +572,6 @@ fn domain_warning([a, b]: [f32; 2], [lo, hi]: [u16; 2], sample: SampleType) -> O
 
 fn glam_vec(v: [f32; 3]) -> raycaster::render::Vec3 {
     raycaster::render::Vec3::from(v)
-}
-
-/// The world box of level 0 (every level is framed alike).
-fn volume_bounds(volume: &Volume) -> (raycaster::render::Vec3, raycaster::render::Vec3) {
-    let hi = volume.dims().map(|d| (d - 1) as f32);
-    let spacing = volume.spacing();
-    (
-        raycaster::render::Vec3::ZERO,
-        glam_vec([0, 1, 2].map(|a| hi[a] * spacing[a])),
-    )
 }
 
 fn camera(

@@ -96,6 +96,7 @@ static SIGBUS_MESSAGE: std::sync::atomic::AtomicPtr<Vec<u8>> =
 /// atomically, so none is left half-written.
 ///
 /// For programs (the `raycaster` and `volgen` binaries): call once, early.
+#[allow(unsafe_code)] // libc calls without a safe wrapper; SAFETY notes inside
 pub fn guard_mapped_reads() {
     set_sigbus_message("a memory-mapped volume file".to_string());
     extern "C" fn on_sigbus(_: libc::c_int) {
@@ -204,6 +205,7 @@ fn remove_stale_partials(dir: &Path, name: &str) {
 }
 
 /// Whether process `pid` exists (it may belong to another user).
+#[allow(unsafe_code)] // libc calls without a safe wrapper; SAFETY notes inside
 fn process_alive(pid: i32) -> bool {
     // SAFETY: kill with signal 0 only checks for the process; it sends nothing.
     let r = unsafe { libc::kill(pid, 0) };
@@ -211,6 +213,7 @@ fn process_alive(pid: i32) -> bool {
 }
 
 /// Bytes free for an unprivileged user on the file system holding `dir`.
+#[allow(unsafe_code)] // libc calls without a safe wrapper; SAFETY notes inside
 pub fn free_space(dir: &Path) -> std::io::Result<u64> {
     use std::os::unix::ffi::OsStrExt;
     let c = std::ffi::CString::new(dir.as_os_str().as_bytes())
@@ -308,6 +311,7 @@ mod tests {
     }
 
     #[test]
+    #[allow(unsafe_code)] // libc calls without a safe wrapper; SAFETY notes inside
     fn fifos_directories_and_devices_are_refused_without_blocking() {
         let dir = tempfile::tempdir().unwrap();
         let fifo = dir.path().join("pipe.vol");

@@ -10,7 +10,9 @@
 //! - [`job`]: progress reporting and cancellation;
 //! - [`files`]: opening user-named files (regular files only, never blocking);
 //! - [`errors`]: error text for people, each cause said once;
-//! - [`render`]: cameras, transfer functions and the ray casters.
+//! - [`render`]: cameras, transfer functions and the ray casters;
+//! - [`source`]: the front ends' façade: a built-in scene or a file, opened with
+//!   its labels, default transfer function, domain and framing.
 
 #[cfg(target_endian = "big")]
 compile_error!(
@@ -26,5 +28,6 @@ pub mod import;
 pub mod io;
 pub mod job;
 pub mod render;
+pub mod source;
 pub mod synth;
 pub mod volume;

@@ -3,6 +3,8 @@
 //!
 //! Alone in its test binary: it lowers the process's open-file limit.
 
+#![allow(unsafe_code)] // libc without a safe wrapper: FIFOs, signals, resource limits
+
 use std::path::Path;
 
 use dicom_core::{DataElement, PrimitiveValue, VR};

@@ -7,8 +7,8 @@
 mod render_support;
 
 use raycaster::render::{
-    Camera, Mode, ParallelOptions, Projection, RenderSettings, RenderVolume, Vec3, render_parallel,
-    render_sequential,
+    Camera, Mode, ParallelOptions, Projection, RenderSettings, RenderVolume, Renderer, Vec3,
+    render_parallel, render_sequential,
 };
 use raycaster::synth::SceneKind;
 use raycaster::volume::{Access, Layout, SampleType, Volume};
@@ -89,6 +89,7 @@ fn parallel_equals_sequential_over_the_parameter_matrix() {
         View::Inside,
     ];
     let mut picker = Picker(12345);
+    let mut kept = Renderer::new();
     let mut combos = 0;
     // Every value of every parameter appears: the first rounds walk each list in
     // step, the rest are drawn at random.
@@ -117,6 +118,15 @@ fn parallel_equals_sequential_over_the_parameter_matrix() {
             Mode::FirstHit
         } else if round % 7 == 5 {
             Mode::Mip
+        } else if round % 7 == 1 {
+            // The other modes in turn: average, xray, importance, context, silhouette.
+            [
+                Mode::Average,
+                Mode::XRay,
+                Mode::Importance,
+                Mode::ContextPreserving,
+                Mode::Silhouette,
+            ][(round / 7) % 5]
         } else {
             Mode::Dvr
         };
@@ -146,7 +156,13 @@ fn parallel_equals_sequential_over_the_parameter_matrix() {
             compositing_threads: 1 + round % 2,
             tile_size: tile,
         };
-        let parallel = render_parallel(&prepared, &cam, &settings, &options).unwrap();
+        // Every other frame on workers kept across frames (whose thread counts
+        // change between frames), the others on threads started for the frame.
+        let parallel = if round % 2 == 0 {
+            kept.render(&prepared, &cam, &settings, &options).unwrap()
+        } else {
+            render_parallel(&prepared, &cam, &settings, &options).unwrap()
+        };
         let name = format!(
             "par-{round}-b{brick}-t{tile}-r{threads}-{view:?}-{}-ert{ert}-ess{ess}-bricked{bricked}-{access:?}",
             mode.name()

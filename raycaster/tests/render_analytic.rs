@@ -239,11 +239,15 @@ fn a_missing_ray_leaves_the_background_exactly() {
         let image = frame.to_image();
         assert_eq!(image.pixel(0, 0), [12, 200, 77], "{mode:?}");
         assert_eq!(image.pixel(31, 31), [12, 200, 77], "{mode:?}");
-        assert_ne!(
-            image.pixel(16, 16),
-            [12, 200, 77],
-            "{mode:?}: the volume is in view"
-        );
+        // Context-preserving rendering keeps only where the gradient is strong:
+        // nothing of a homogeneous volume.
+        if mode != Mode::ContextPreserving {
+            assert_ne!(
+                image.pixel(16, 16),
+                [12, 200, 77],
+                "{mode:?}: the volume is in view"
+            );
+        }
     }
     // Looking away from the volume: nothing is cast, the whole image is background.
     let away = Camera::new(

@@ -26,11 +26,20 @@ pub enum DragKind {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum AxisView {
     /// From +x (or −x when `negative`), etc.
-    X { negative: bool },
+    X {
+        /// From the negative side.
+        negative: bool,
+    },
     /// From +y.
-    Y { negative: bool },
+    Y {
+        /// From the negative side.
+        negative: bool,
+    },
     /// From +z (top) or −z (bottom).
-    Z { negative: bool },
+    Z {
+        /// From the negative side (the bottom).
+        negative: bool,
+    },
 }
 
 impl AxisView {

@@ -69,6 +69,7 @@ fn main() {
 
 /// A closed stdout (`volgen info big.vol | head -3`) ends the process quietly, as
 /// for any Unix tool, instead of a panic in `println!` (Rust ignores SIGPIPE).
+#[allow(unsafe_code)] // signal() has no safe wrapper in std
 fn restore_sigpipe() {
     // SAFETY: setting a signal's disposition to the default before any thread starts.
     unsafe {

@@ -1,6 +1,8 @@
 //! `volgen` under faults: signals, impossible sizes, stale partial files of a killed
 //! run, a closed stdout, named pipes and corrupt range tables.
 
+#![allow(unsafe_code)] // libc without a safe wrapper: FIFOs, signals, resource limits
+
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};

@@ -6,6 +6,7 @@
 //! with a timeout and assert a clean error or a valid result: no panic, no hang, no
 //! partial output. Add a case here when a new kind of bad input is found.
 
+#![allow(unsafe_code)] // libc without a safe wrapper: FIFOs, signals, resource limits
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};

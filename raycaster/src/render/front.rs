@@ -21,9 +21,10 @@ use super::camera::{Camera, PixelRect};
 use super::counters::FrameStats;
 use super::error::RenderError;
 use super::level::LevelChoice;
-use super::parallel::{ParallelOptions, TileSink, render_parallel_into};
+use super::parallel::{ParallelOptions, TileSink};
 use super::pixel::over_background;
 use super::prepared::{FramePlan, RenderVolume};
+use super::renderer::Renderer;
 use super::schedule::FrameSchedule;
 use super::settings::RenderSettings;
 use crate::volume::Volume;
@@ -246,6 +247,8 @@ impl Worker {
     }
 
     fn serve(&self, volume: &Volume, levels: &[RenderVolume<'_>], commands: &Receiver<Command>) {
+        // The render and compositing threads wait here between frames.
+        let mut renderer = Renderer::new();
         while let Ok(mut command) = commands.recv() {
             // Only the newest command counts; older renders are superseded unstarted.
             while let Ok(newer) = commands.try_recv() {
@@ -266,7 +269,7 @@ impl Worker {
                 .level
                 .resolve(volume, &request.camera)
                 .min(levels.len() - 1);
-            let event = self.render(&levels[level], id, &request);
+            let event = self.render(&mut renderer, &levels[level], id, &request);
             let done = matches!(event, FrameEvent::Done { .. });
             self.emit(event);
             // Idle after a coarse frame: have the OS read the next finer level's
@@ -277,7 +280,13 @@ impl Worker {
         }
     }
 
-    fn render(&self, volume: &RenderVolume<'_>, id: u64, request: &FrameRequest) -> FrameEvent {
+    fn render(
+        &self,
+        renderer: &mut Renderer,
+        volume: &RenderVolume<'_>,
+        id: u64,
+        request: &FrameRequest,
+    ) -> FrameEvent {
         let (w, h) = (request.camera.width(), request.camera.height());
         {
             let mut fb = self.framebuffer.lock();
@@ -298,7 +307,7 @@ impl Worker {
             background: request.settings.background,
         };
         let cancelled = || self.latest.load(Ordering::Relaxed) != id;
-        match render_parallel_into(
+        match renderer.render_into(
             volume,
             &request.camera,
             &request.settings,

@@ -1,27 +1,32 @@
-//! Ray casting: cameras, transfer functions, shading, the marching kernel and the
-//! sequential reference renderer.
+//! Ray casting: cameras, transfer functions, shading, the compositors, the marching
+//! loop and the renderers.
 //!
 //! The renderer sees volumes only through [`RenderVolume`] (brick grid + value
 //! ranges) and the sampler, never whether they are mapped or in RAM. Every renderer
-//! marches rays through bricks with one kernel ([`kernel::march_brick`]); samples
+//! marches rays through bricks with one generic loop (`march::march_brick`) over
+//! one compositor interface (`compositor::Compositor`); samples
 //! are placed globally along each ray so that the way the volume is cut cannot
 //! change the image.
 
 mod camera;
 mod cells;
+mod compositor;
 mod counters;
 mod error;
 mod frame;
 mod front;
 mod geometry;
 mod image;
-pub mod kernel;
 mod level;
+mod local;
+mod march;
+mod optics;
 mod orbit;
 mod parallel;
 mod pixel;
 mod prepared;
 mod ray;
+mod renderer;
 mod sampler;
 mod schedule;
 mod segments;
@@ -46,24 +51,21 @@ pub use geometry::{
 pub use glam::Vec3;
 pub use image::{ImageError, RgbImage};
 pub use level::LevelChoice;
+pub use optics::corrected_alpha;
 pub use orbit::Orbit;
 pub use parallel::{
     DEFAULT_TILE_SIZE, ParallelOptions, TileSink, render_parallel, render_parallel_into,
 };
-pub use pixel::{PixelRay, PixelState, over_background};
-pub use prepared::{FramePlan, LARGE_LINEAR_BRICKS, RenderVolume, default_linear_brick_side};
+pub use prepared::{LARGE_LINEAR_BRICKS, RenderVolume, default_linear_brick_side};
 pub use ray::Ray;
-pub use sampler::{BrickSampler, VolumeSampler};
-pub use schedule::{FrameSchedule, ScheduledBrick, TileQueue};
+pub use renderer::Renderer;
 pub use segments::{
     GlobalMode, ImportanceSource, LocalMode, Membership, ObjectStyle, SceneError, SegmentScene,
 };
 pub use sequential::render_sequential;
-pub use settings::{DEFAULT_ERT_THRESHOLD, Mode, RenderSettings};
+pub use settings::{DEFAULT_ERT_THRESHOLD, Mode, ModeParameters, RenderSettings};
 pub use shading::{Light, Shading};
-pub use tile::Tile;
 pub use transfer::{
-    ControlPoint, PRESETS, TEXT_MAX, TransferError, TransferFunction, TransferTable, check_domain,
-    check_gradient_ramp, closest_preset, corrected_alpha,
+    ControlPoint, PRESETS, TEXT_MAX, TransferError, TransferFunction, check_domain,
+    check_gradient_ramp, closest_preset,
 };
-pub use two_level::{NO_OBJECT, SegmentState, importance_composite};

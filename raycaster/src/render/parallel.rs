@@ -18,11 +18,13 @@ use crossbeam_channel::{Receiver, Sender};
 use parking_lot::Mutex;
 
 use super::camera::{Camera, PixelRect};
+use super::compositor::{Compositor, CompositorJob};
 use super::counters::{Counters, FrameStats};
 use super::error::RenderError;
 use super::frame::Frame;
-use super::kernel::{BrickContext, march_brick, owned_samples};
+use super::march::{BrickContext, march_brick, owned_samples};
 use super::prepared::{FramePlan, RenderVolume};
+use super::renderer::{FrameJobFn, Renderer, WorkerPool};
 use super::sampler::VolumeSampler;
 use super::schedule::FrameSchedule;
 use super::settings::RenderSettings;
@@ -63,23 +65,15 @@ pub trait TileSink: Sync {
     fn tile_finished(&self, rect: PixelRect, rgba: &[[f32; 4]], depth: &[f32]);
 }
 
-/// Renders one frame with the object-parallel renderer into a [`Frame`].
+/// Renders one frame with the object-parallel renderer into a [`Frame`], on
+/// threads started for this frame only (a [`Renderer`] keeps them across frames).
 pub fn render_parallel(
     volume: &RenderVolume<'_>,
     camera: &Camera,
     settings: &RenderSettings,
     options: &ParallelOptions,
 ) -> Result<Frame, RenderError> {
-    let frame = Mutex::new(Frame::empty(
-        camera.width(),
-        camera.height(),
-        settings.background,
-    ));
-    let stats = render_parallel_into(volume, camera, settings, options, &frame, &|| false)?
-        .expect("a frame that cannot be cancelled completes");
-    let mut frame = frame.into_inner();
-    frame.stats = stats;
-    Ok(frame)
+    Renderer::per_frame().render(volume, camera, settings, options)
 }
 
 impl TileSink for Mutex<Frame> {
@@ -94,10 +88,25 @@ impl TileSink for Mutex<Frame> {
     }
 }
 
-/// Renders one frame, handing finished tiles to `sink` as they complete.
+/// Renders one frame, handing finished tiles to `sink` as they complete, on
+/// threads started for this frame only (a [`Renderer`] keeps them across frames).
 /// `cancelled` is polled by the compositing threads; when it returns true no new
 /// task is sent, the frame stops early and `Ok(None)` is returned.
 pub fn render_parallel_into(
+    volume: &RenderVolume<'_>,
+    camera: &Camera,
+    settings: &RenderSettings,
+    options: &ParallelOptions,
+    sink: &dyn TileSink,
+    cancelled: &(dyn Fn() -> bool + Sync),
+) -> Result<Option<FrameStats>, RenderError> {
+    Renderer::per_frame().render_into(volume, camera, settings, options, sink, cancelled)
+}
+
+/// Renders one frame on `workers` (render threads, compositing threads and the
+/// read-ahead, all waiting in the pool between frames).
+pub(crate) fn render_frame(
+    workers: &WorkerPool,
     volume: &RenderVolume<'_>,
     camera: &Camera,
     settings: &RenderSettings,
@@ -118,8 +127,18 @@ pub fn render_parallel_into(
         cancelled,
     };
     let counters = match volume.volume().data() {
-        VolumeData::U8(data) => frame.run(&data, options),
-        VolumeData::U16(data) => frame.run(&data, options),
+        VolumeData::U8(data) => plan.compositor.run(ParallelPass {
+            job: &frame,
+            workers,
+            data: &data,
+            options,
+        }),
+        VolumeData::U16(data) => plan.compositor.run(ParallelPass {
+            job: &frame,
+            workers,
+            data: &data,
+            options,
+        }),
     };
     Ok(counters.map(|counters| FrameStats {
         width: camera.width(),
@@ -134,8 +153,8 @@ pub fn render_parallel_into(
 }
 
 /// A (tile, brick) task: the tile travels with it.
-struct Task {
-    tile: Tile,
+struct Task<S> {
+    tile: Tile<S>,
     brick: u32,
 }
 
@@ -149,46 +168,65 @@ struct FrameJob<'f> {
     cancelled: &'f (dyn Fn() -> bool + Sync),
 }
 
+/// A frame's threads with the frame's compositor (chosen once per frame).
+struct ParallelPass<'p, 'f, 'd, T: Sample> {
+    job: &'p FrameJob<'f>,
+    workers: &'p WorkerPool,
+    data: &'p TypedVolume<'d, T>,
+    options: &'p ParallelOptions,
+}
+
+impl<T: Sample> CompositorJob for ParallelPass<'_, '_, '_, T> {
+    type Output = Option<Counters>;
+    fn run<C: Compositor>(self, c: &C) -> Option<Counters> {
+        self.job.run(self.workers, c, self.data, self.options)
+    }
+}
+
 impl FrameJob<'_> {
     /// Runs the frame's threads; the summed counters, or `None` if cancelled.
-    fn run<T: Sample>(
+    fn run<T: Sample, C: Compositor>(
         &self,
+        workers: &WorkerPool,
+        c: &C,
         data: &TypedVolume<'_, T>,
         options: &ParallelOptions,
     ) -> Option<Counters> {
         let compositors = options.compositing_threads.max(1);
-        let (task_tx, task_rx) = crossbeam_channel::unbounded::<Task>();
-        let (result_txs, result_rxs): (Vec<Sender<Tile>>, Vec<Receiver<Tile>>) = (0..compositors)
+        let (task_tx, task_rx) = crossbeam_channel::unbounded::<Task<C::State>>();
+        type Channel<S> = (Vec<Sender<Tile<S>>>, Vec<Receiver<Tile<S>>>);
+        let (result_txs, result_rxs): Channel<C::State> = (0..compositors)
             .map(|_| crossbeam_channel::unbounded())
             .unzip();
-        std::thread::scope(|scope| {
-            scope.spawn(|| self.read_ahead());
-            for _ in 0..options.render_threads.max(1) {
-                let task_rx = task_rx.clone();
-                let result_txs = result_txs.clone();
-                scope.spawn(move || self.render_tasks(data, &task_rx, &result_txs));
+        let (total_tx, total_rx) = crossbeam_channel::unbounded::<Option<Counters>>();
+        let mut jobs: Vec<FrameJobFn<'_>> = vec![Box::new(|| self.read_ahead())];
+        for _ in 0..options.render_threads.max(1) {
+            let task_rx = task_rx.clone();
+            let result_txs = result_txs.clone();
+            jobs.push(Box::new(move || {
+                self.render_tasks(c, data, &task_rx, &result_txs)
+            }));
+        }
+        drop(result_txs);
+        for (k, results) in result_rxs.into_iter().enumerate() {
+            let task_tx = task_tx.clone();
+            let total_tx = total_tx.clone();
+            jobs.push(Box::new(move || {
+                let counters = self.composite(c, k as u32, compositors as u32, &task_tx, &results);
+                let _ = total_tx.send(counters);
+            }));
+        }
+        drop(task_tx);
+        workers.run_all(jobs);
+        drop(total_tx);
+        let mut total = Some(Counters::default());
+        for counters in total_rx.iter() {
+            match (counters, total.as_mut()) {
+                (Some(c), Some(t)) => *t += c,
+                _ => total = None,
             }
-            drop(result_txs);
-            let handles: Vec<_> = result_rxs
-                .into_iter()
-                .enumerate()
-                .map(|(k, results)| {
-                    let task_tx = task_tx.clone();
-                    scope.spawn(move || {
-                        self.composite(k as u32, compositors as u32, &task_tx, &results)
-                    })
-                })
-                .collect();
-            drop(task_tx);
-            let mut total = Some(Counters::default());
-            for h in handles {
-                match (h.join().expect("compositing thread"), total.as_mut()) {
-                    (Some(c), Some(t)) => *t += c,
-                    _ => total = None,
-                }
-            }
-            total
-        })
+        }
+        total
     }
 
     /// Asks the OS to read the frame's bricks in the order the frame visits them
@@ -205,11 +243,12 @@ impl FrameJob<'_> {
     }
 
     /// A render thread: march each task's tile through its brick, send it back.
-    fn render_tasks<T: Sample>(
+    fn render_tasks<T: Sample, C: Compositor>(
         &self,
+        c: &C,
         data: &TypedVolume<'_, T>,
-        tasks: &Receiver<Task>,
-        results: &[Sender<Tile>],
+        tasks: &Receiver<Task<C::State>>,
+        results: &[Sender<Tile<C::State>>],
     ) {
         let geometry = self.volume.geometry();
         let sampler = VolumeSampler::new(*data);
@@ -241,6 +280,7 @@ impl FrameJob<'_> {
                             {
                                 let first = first.max(state.next_sample);
                                 march_brick(
+                                    c,
                                     self.plan,
                                     &sampler,
                                     &context,
@@ -263,12 +303,13 @@ impl FrameJob<'_> {
 
     /// A compositing thread: owns tiles `k, k + n, k + 2n, …`; returns their summed
     /// counters, or `None` if the frame was cancelled.
-    fn composite(
+    fn composite<C: Compositor>(
         &self,
+        c: &C,
         k: u32,
         n: u32,
-        tasks: &Sender<Task>,
-        results: &Receiver<Tile>,
+        tasks: &Sender<Task<C::State>>,
+        results: &Receiver<Tile<C::State>>,
     ) -> Option<Counters> {
         let mut counters = Counters::default();
         let mut in_flight = 0usize;
@@ -280,8 +321,8 @@ impl FrameJob<'_> {
             .skip(k as usize)
             .step_by(n as usize)
         {
-            let tile = Tile::new(index as u32, k, queue.rect, self.plan.mode);
-            if let Some(task) = self.next_task(tile, &mut counters) {
+            let tile = Tile::new(index as u32, k, queue.rect, c.start());
+            if let Some(task) = self.next_task(c, tile, &mut counters) {
                 in_flight += 1;
                 tasks
                     .send(task)
@@ -297,7 +338,7 @@ impl FrameJob<'_> {
                 continue;
             }
             tile.next += 1;
-            if let Some(task) = self.next_task(tile, &mut counters) {
+            if let Some(task) = self.next_task(c, tile, &mut counters) {
                 in_flight += 1;
                 tasks
                     .send(task)
@@ -309,7 +350,12 @@ impl FrameJob<'_> {
 
     /// The tile's next task, skipping bricks whose covered pixels have all
     /// terminated; or `None` after resolving a finished tile into the sink.
-    fn next_task(&self, mut tile: Tile, counters: &mut Counters) -> Option<Task> {
+    fn next_task<C: Compositor>(
+        &self,
+        c: &C,
+        mut tile: Tile<C::State>,
+        counters: &mut Counters,
+    ) -> Option<Task<C::State>> {
         let queue = &self.schedule.tiles[tile.index as usize].bricks;
         while let Some(&brick) = queue.get(tile.next) {
             if !tile.finished_within(&self.schedule.bricks[brick as usize].rect) {
@@ -318,19 +364,15 @@ impl FrameJob<'_> {
             tile.counters.tasks_skipped_occluded += 1;
             tile.next += 1;
         }
-        self.finish(&tile);
+        self.finish(c, &tile);
         *counters += tile.counters;
         None
     }
 
     /// Resolves a finished tile's pixels and hands them to the sink.
-    fn finish(&self, tile: &Tile) {
-        let rgba: Vec<[f32; 4]> = tile
-            .states
-            .iter()
-            .map(|s| s.resolve(self.plan.mode, &self.plan.table))
-            .collect();
-        let depth: Vec<f32> = tile.states.iter().map(|s| s.depth).collect();
+    fn finish<C: Compositor>(&self, c: &C, tile: &Tile<C::State>) {
+        let rgba: Vec<[f32; 4]> = tile.states.iter().map(|s| c.resolve(&s.acc)).collect();
+        let depth: Vec<f32> = tile.states.iter().map(|s| c.depth(&s.acc)).collect();
         self.sink.tile_finished(tile.rect, &rgba, &depth);
     }
 }

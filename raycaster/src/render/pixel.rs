@@ -9,9 +9,6 @@ use glam::Vec3;
 
 use super::geometry::VolumeGeometry;
 use super::ray::Ray;
-use super::settings::Mode;
-use super::transfer::TransferTable;
-use super::two_level::SegmentState;
 
 /// A pixel's ray through the volume, in voxel coordinates.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -72,67 +69,26 @@ impl PixelRay {
     }
 }
 
-/// What a pixel has accumulated so far; travels with its tile between bricks.
+/// What a pixel has accumulated so far (`acc`, the compositor's state) and where
+/// its ray stands; travels with its tile between bricks.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PixelState {
-    /// Accumulated colour, premultiplied by opacity (DVR, first hit).
-    pub color: [f32; 3],
-    /// Accumulated opacity.
-    pub alpha: f32,
-    /// Mode value: the maximum (MIP) or the sum (average) of raw values.
-    pub value: f32,
-    /// Samples summed (average).
-    pub count: u32,
-    /// First-hit depth (world distance from the ray origin), `∞` without a hit.
-    pub depth: f32,
+pub(crate) struct PixelState<S> {
+    /// The compositor's state.
+    pub acc: S,
     /// The next sample index this pixel expects.
     pub next_sample: u32,
     /// The ray is finished: terminated early, hit, or past its last sample.
     pub done: bool,
-    /// The open segment of two-level compositing.
-    pub segment: SegmentState,
 }
 
-impl Default for PixelState {
-    fn default() -> Self {
+impl<S> PixelState<S> {
+    /// The state of a pixel whose ray has not started, the compositor's being
+    /// `start`.
+    pub fn new(start: S) -> Self {
         PixelState {
-            color: [0.0; 3],
-            alpha: 0.0,
-            value: f32::NEG_INFINITY,
-            count: 0,
-            depth: f32::INFINITY,
+            acc: start,
             next_sample: 0,
             done: false,
-            segment: SegmentState::default(),
-        }
-    }
-}
-
-impl PixelState {
-    /// The state of a pixel whose ray has not started.
-    pub fn new(mode: Mode) -> Self {
-        let mut s = PixelState::default();
-        if mode == Mode::Average {
-            s.value = 0.0;
-        }
-        s
-    }
-
-    /// The pixel's premultiplied RGBA (before the background) under `mode`.
-    pub fn resolve(&self, mode: Mode, table: &TransferTable) -> [f32; 4] {
-        let classify = |v: f32| {
-            let [r, g, b, _] = table.lookup(v);
-            let a = table.alpha0(v);
-            [r * a, g * a, b * a, a]
-        };
-        match mode {
-            Mode::Dvr | Mode::FirstHit => {
-                let [r, g, b] = self.color;
-                [r, g, b, self.alpha]
-            }
-            Mode::Mip if self.value.is_finite() => classify(self.value),
-            Mode::Average if self.count > 0 => classify(self.value / self.count as f32),
-            Mode::Mip | Mode::Average => [0.0; 4],
         }
     }
 }

@@ -2,18 +2,20 @@
 //! per-frame plan (sampled transfer function, empty bricks, kernel parameters).
 
 use std::borrow::Cow;
+use std::sync::Arc;
 
 use glam::Vec3;
 use rayon::prelude::*;
 
 use super::cells::{BrickCells, CellRanges};
+use super::compositor::FrameCompositor;
 use super::error::RenderError;
 use super::geometry::VolumeGeometry;
+use super::local::LocalCompositor;
 use super::segments::Membership;
-use super::settings::{Mode, RenderSettings};
-use super::shading::Shading;
+use super::settings::RenderSettings;
 use super::transfer::TransferTable;
-use super::two_level::SegmentPlan;
+use super::two_level::TwoLevel;
 use crate::volume::{
     BlockGrid, BrickRanges, BrickView, LINEAR_RANGE_SIDE, Layout, Sample, TypedVolume, Volume,
     VolumeData,
@@ -208,34 +210,22 @@ impl<'a> RenderVolume<'a> {
     }
 }
 
-/// Everything the marching kernel needs for one frame, besides the bricks.
+/// Everything the marching loop needs for one frame, besides the bricks.
 #[derive(Clone, Debug)]
-pub struct FramePlan {
-    /// The transfer function sampled and corrected for the step.
-    pub table: TransferTable,
-    /// Compositing mode.
-    pub mode: Mode,
+pub(crate) struct FramePlan {
+    /// How samples become pixels (plain mode or two-level).
+    pub compositor: FrameCompositor,
     /// Opacity at which a ray stops (above 1 when early termination is off).
     pub ert_threshold: f32,
     /// Skip empty bricks.
     pub empty_space_skipping: bool,
-    /// Shading, if any.
-    pub shading: Option<Shading>,
-    /// First-hit iso-value in raw sample units.
-    pub iso_raw: f32,
-    /// Step in reference steps (opacity correction exponent).
-    pub step_ratio: f32,
     /// World distance between samples.
     pub dt: f32,
     /// Per axis: raw value per voxel → value normalised over the transfer
     /// function's domain per world unit of the smallest spacing.
     pub gradient_scale: Vec3,
-    /// Per brick (file order): transparent under this transfer function.
+    /// Per brick (file order): empty under this frame's compositor.
     pub transparent: Vec<bool>,
-    /// The background colour.
-    pub background: [f32; 3],
-    /// Two-level compositing, when the settings have segments.
-    pub segments: Option<SegmentPlan>,
 }
 
 impl FramePlan {
@@ -256,40 +246,43 @@ impl FramePlan {
         // Opacity is defined per level-0 voxel: a coarse level's samples stand for
         // `2^level` times the distance (the level's spacing).
         let step_ratio = settings.step * volume.volume().level_scale();
-        let table = TransferTable::new(&settings.transfer, type_max, step_ratio);
-        let [d0, d1] = settings
+        let domain = settings
             .transfer
             .domain
             .unwrap_or([0.0, f32::from(type_max)]);
         let geometry = volume.geometry();
-        let segments = match &settings.segments {
+        let compositor = match &settings.segments {
             Some(scene) => {
                 if matches!(scene.membership, Membership::Labels(_)) && volume.labels().is_none() {
                     return Err(RenderError::Labels(
                         "the scene takes objects from a label volume but none is attached".into(),
                     ));
                 }
-                Some(SegmentPlan::new(scene, type_max, [d0, d1], step_ratio))
+                FrameCompositor::TwoLevel(TwoLevel::new(
+                    scene,
+                    type_max,
+                    domain,
+                    step_ratio,
+                    settings.shading,
+                ))
             }
-            None => None,
+            None => FrameCompositor::Plain(LocalCompositor::new(
+                settings
+                    .mode
+                    .local(&settings.mode_parameters, settings.iso_value),
+                Arc::new(TransferTable::new(&settings.transfer, type_max, step_ratio)),
+                settings.shading,
+                domain,
+            )),
         };
+        let [d0, d1] = domain;
         let mut plan = FramePlan {
-            table,
-            mode: if segments.is_some() {
-                Mode::Dvr
-            } else {
-                settings.mode
-            },
+            compositor,
             ert_threshold: settings.early_termination.unwrap_or(f32::INFINITY),
             empty_space_skipping: settings.empty_space_skipping,
-            shading: settings.shading,
-            iso_raw: d0 + settings.iso_value * (d1 - d0),
-            step_ratio,
             dt: settings.step * geometry.min_spacing(),
             gradient_scale: Vec3::splat(geometry.min_spacing() / (d1 - d0)) / geometry.spacing(),
             transparent: Vec::new(),
-            background: settings.background,
-            segments,
         };
         plan.transparent = volume
             .ranges()
@@ -300,30 +293,20 @@ impl FramePlan {
         Ok(plan)
     }
 
-    /// Whether every value in `lo..=hi` is empty under this frame's classification:
-    /// the transfer function, or every visible object's for two-level scenes whose
-    /// objects all composite by emission–absorption (others see every sample). An
-    /// empty range (`lo > hi`, a cell owning no sample) is empty.
+    /// Whether no sample with a value in `lo..=hi` can change a pixel under this
+    /// frame's compositor ([`Compositor::range_empty`](super::compositor::Compositor::range_empty)).
+    /// An empty range (`lo > hi`, a cell owning no sample) is empty.
     pub fn range_empty(&self, lo: u16, hi: u16) -> bool {
-        lo > hi
-            || match &self.segments {
-                None => self.table.is_transparent(lo, hi),
-                Some(seg) => seg.all_dvr && seg.is_transparent(lo, hi),
-            }
-    }
-    /// Whether brick number `index` (with value range `range`) can be left out of
-    /// the frame: nothing in it can change a pixel, whatever came before.
-    pub fn brick_droppable(&self, index: usize, range: [u16; 2]) -> bool {
-        self.empty_space_skipping
-            && match (self.mode, &self.segments) {
-                (_, Some(seg)) => seg.all_dvr && self.transparent[index],
-                (Mode::Dvr, None) => self.transparent[index],
-                (Mode::FirstHit, None) => f32::from(range[1]) < self.iso_raw,
-                (Mode::Mip | Mode::Average, None) => false,
-            }
+        lo > hi || self.compositor.range_empty(lo, hi)
     }
 
-    /// Bricks the transfer function makes fully transparent.
+    /// Whether brick number `index` can be left out of the frame: nothing in it can
+    /// change a pixel, whatever came before.
+    pub fn brick_droppable(&self, index: usize) -> bool {
+        self.empty_space_skipping && self.transparent[index]
+    }
+
+    /// Bricks that no sample of can change a pixel.
     pub fn transparent_bricks(&self) -> u64 {
         self.transparent.iter().filter(|&&t| t).count() as u64
     }

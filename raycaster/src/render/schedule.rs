@@ -16,7 +16,7 @@ use super::prepared::{FramePlan, RenderVolume};
 
 /// A brick in the frame's order with its screen rectangle.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ScheduledBrick {
+pub(crate) struct ScheduledBrick {
     /// Grid coordinates.
     pub coords: [u32; 3],
     /// Pixels whose rays may meet it.
@@ -25,7 +25,7 @@ pub struct ScheduledBrick {
 
 /// One tile: its pixels and its bricks, front to back.
 #[derive(Clone, Debug, PartialEq)]
-pub struct TileQueue {
+pub(crate) struct TileQueue {
     /// The tile's pixels.
     pub rect: PixelRect,
     /// Indices into [`FrameSchedule::bricks`], front to back.
@@ -34,15 +34,13 @@ pub struct TileQueue {
 
 /// Bricks in visibility order and the tiles' queues.
 #[derive(Clone, Debug)]
-pub struct FrameSchedule {
+pub(crate) struct FrameSchedule {
     /// Visible, non-empty bricks, front to back.
     pub bricks: Vec<ScheduledBrick>,
     /// Every tile of the image, row by row.
     pub tiles: Vec<TileQueue>,
     /// Pixels whose rays may hit the volume at all.
     pub volume_rect: Option<PixelRect>,
-    /// Bricks dropped before rendering as empty.
-    pub bricks_dropped_empty: u64,
 }
 
 impl FrameSchedule {
@@ -60,13 +58,11 @@ impl FrameSchedule {
         let volume_rect = camera.project_box(lo, hi);
         let spacing = geometry.spacing();
         let step = grid.step() as f32;
-        let mut dropped = 0;
         let mut keyed: Vec<(f32, ScheduledBrick)> = Vec::new();
         if volume_rect.is_some() {
             for (i, b) in grid.iter().enumerate() {
-                let empty = plan.brick_droppable(i, volume.ranges().range(b));
+                let empty = plan.brick_droppable(i);
                 if empty {
-                    dropped += 1;
                     continue;
                 }
                 let (blo, bhi) = geometry.brick_world_box(b);
@@ -106,7 +102,6 @@ impl FrameSchedule {
             bricks,
             tiles,
             volume_rect,
-            bricks_dropped_empty: dropped,
         }
     }
 }

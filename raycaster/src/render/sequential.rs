@@ -1,5 +1,5 @@
 //! The sequential reference renderer: image order, one pixel at a time, each ray
-//! walked brick by brick through the shared marching kernel.
+//! walked brick by brick through the shared marching loop.
 //!
 //! It is deliberately simple and is the oracle every faster renderer is compared
 //! with: for each pixel inside the volume's projected rectangle, find the brick
@@ -9,10 +9,11 @@
 use std::time::Instant;
 
 use super::camera::Camera;
+use super::compositor::{Compositor, CompositorJob};
 use super::counters::Counters;
 use super::error::RenderError;
 use super::frame::Frame;
-use super::kernel::{BrickContext, march_brick, owned_samples};
+use super::march::{BrickContext, march_brick, owned_samples};
 use super::pixel::{PixelRay, PixelState};
 use super::prepared::{FramePlan, RenderVolume};
 use super::sampler::VolumeSampler;
@@ -30,8 +31,20 @@ pub fn render_sequential(
     super::geometry::check_sample_budget(volume.geometry(), settings.step, camera)?;
     let mut frame = Frame::empty(camera.width(), camera.height(), settings.background);
     let counters = match volume.volume().data() {
-        VolumeData::U8(v) => render_pixels(volume, &v, camera, &plan, &mut frame),
-        VolumeData::U16(v) => render_pixels(volume, &v, camera, &plan, &mut frame),
+        VolumeData::U8(data) => plan.compositor.run(SequentialPass {
+            volume,
+            data: &data,
+            camera,
+            plan: &plan,
+            frame: &mut frame,
+        }),
+        VolumeData::U16(data) => plan.compositor.run(SequentialPass {
+            volume,
+            data: &data,
+            camera,
+            plan: &plan,
+            frame: &mut frame,
+        }),
     };
     frame.stats.counters = counters;
     frame.stats.bricks = volume.geometry().grid().block_count();
@@ -42,53 +55,68 @@ pub fn render_sequential(
     Ok(frame)
 }
 
-fn render_pixels<T: Sample>(
-    volume: &RenderVolume<'_>,
-    data: &TypedVolume<'_, T>,
-    camera: &Camera,
-    plan: &FramePlan,
-    frame: &mut Frame,
-) -> Counters {
-    let geometry = volume.geometry();
-    let sampler = VolumeSampler::new(*data);
-    let mut counters = Counters::default();
-    let (lo, hi) = geometry.world_bounds();
-    let Some(rect) = camera.project_box(lo, hi) else {
-        return counters;
-    };
-    let last_voxel = geometry.last_voxel();
-    for y in rect.y0..rect.y1 {
-        for x in rect.x0..rect.x1 {
-            let Some(ray) = PixelRay::new(&camera.ray(x, y), geometry, plan.dt) else {
-                continue;
-            };
-            counters.rays += 1;
-            let mut state = PixelState::new(plan.mode);
-            while !state.done {
-                let k = state.next_sample;
-                let b = geometry.owner(ray.position(k, last_voxel));
-                let brick = BrickContext::new(data, volume, plan, b);
-                // Ownership is contiguous along a ray, so the owned run starts at k;
-                // a run that does not (rounding at a brick corner) is cut to k alone.
-                let last = match owned_samples(&ray, geometry, b) {
-                    Some((first, last)) if first <= k && k <= last => last,
-                    _ => k,
+/// The frame's pixels with compositor `C` (chosen once per frame).
+struct SequentialPass<'p, 'v, 'd, T: Sample> {
+    volume: &'p RenderVolume<'v>,
+    data: &'p TypedVolume<'d, T>,
+    camera: &'p Camera,
+    plan: &'p FramePlan,
+    frame: &'p mut Frame,
+}
+
+impl<T: Sample> CompositorJob for SequentialPass<'_, '_, '_, T> {
+    type Output = Counters;
+
+    fn run<C: Compositor>(self, c: &C) -> Counters {
+        let SequentialPass {
+            volume,
+            data,
+            camera,
+            plan,
+            frame,
+        } = self;
+        let geometry = volume.geometry();
+        let sampler = VolumeSampler::new(*data);
+        let mut counters = Counters::default();
+        let (lo, hi) = geometry.world_bounds();
+        let Some(rect) = camera.project_box(lo, hi) else {
+            return counters;
+        };
+        let last_voxel = geometry.last_voxel();
+        for y in rect.y0..rect.y1 {
+            for x in rect.x0..rect.x1 {
+                let Some(ray) = PixelRay::new(&camera.ray(x, y), geometry, plan.dt) else {
+                    continue;
                 };
-                march_brick(
-                    plan,
-                    &sampler,
-                    &brick,
-                    &ray,
-                    k,
-                    last,
-                    &mut state,
-                    &mut counters,
-                );
+                counters.rays += 1;
+                let mut state = PixelState::new(c.start());
+                while !state.done {
+                    let k = state.next_sample;
+                    let b = geometry.owner(ray.position(k, last_voxel));
+                    let brick = BrickContext::new(data, volume, plan, b);
+                    // Ownership is contiguous along a ray, so the owned run starts at
+                    // k; a run that does not (rounding at a brick corner) is cut to k.
+                    let last = match owned_samples(&ray, geometry, b) {
+                        Some((first, last)) if first <= k && k <= last => last,
+                        _ => k,
+                    };
+                    march_brick(
+                        c,
+                        plan,
+                        &sampler,
+                        &brick,
+                        &ray,
+                        k,
+                        last,
+                        &mut state,
+                        &mut counters,
+                    );
+                }
+                let i = frame.index(x, y);
+                frame.rgba[i] = c.resolve(&state.acc);
+                frame.depth[i] = c.depth(&state.acc);
             }
-            let i = frame.index(x, y);
-            frame.rgba[i] = state.resolve(plan.mode, &plan.table);
-            frame.depth[i] = state.depth;
         }
+        counters
     }
-    counters
 }

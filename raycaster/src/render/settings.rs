@@ -1,6 +1,6 @@
 //! What a frame is rendered with, besides the camera.
 
-use super::segments::SegmentScene;
+use super::segments::{ImportanceSource, LocalMode, SegmentScene};
 use super::shading::Shading;
 use super::transfer::TransferFunction;
 
@@ -13,13 +13,32 @@ pub enum Mode {
     Mip,
     /// Average intensity projection: the mean value along the ray.
     Average,
-    /// The first sample at or above the iso-value, shaded as a surface.
+    /// The first sample at or above the iso-value (refined between samples),
+    /// shaded as a surface.
     FirstHit,
+    /// X-ray: the sum of values along the ray times the step, as opacity
+    /// `1 − exp(−gain·Σ)` ([`ModeParameters::xray_gain`]).
+    XRay,
+    /// Importance-aware compositing ([`ModeParameters::importance`]).
+    Importance,
+    /// Context-preserving rendering ([`ModeParameters::context`]).
+    ContextPreserving,
+    /// Tone shading and silhouette darkening.
+    Silhouette,
 }
 
 impl Mode {
     /// Every mode, in the order `--help` lists them.
-    pub const ALL: [Mode; 4] = [Mode::Dvr, Mode::Mip, Mode::Average, Mode::FirstHit];
+    pub const ALL: [Mode; 8] = [
+        Mode::Dvr,
+        Mode::Mip,
+        Mode::Average,
+        Mode::FirstHit,
+        Mode::XRay,
+        Mode::Importance,
+        Mode::ContextPreserving,
+        Mode::Silhouette,
+    ];
 
     /// The mode's name on the command line.
     pub fn name(self) -> &'static str {
@@ -28,6 +47,53 @@ impl Mode {
             Mode::Mip => "mip",
             Mode::Average => "average",
             Mode::FirstHit => "first-hit",
+            Mode::XRay => "xray",
+            Mode::Importance => "importance",
+            Mode::ContextPreserving => "context",
+            Mode::Silhouette => "silhouette",
+        }
+    }
+
+    /// The local mode of two-level compositing that composites like this mode,
+    /// with `parameters` and first-hit iso-value `iso` (normalised).
+    pub fn local(self, parameters: &ModeParameters, iso: f32) -> LocalMode {
+        match self {
+            Mode::Dvr => LocalMode::Dvr,
+            Mode::Mip => LocalMode::Mip,
+            Mode::Average => LocalMode::Average,
+            Mode::FirstHit => LocalMode::FirstHit { iso },
+            Mode::XRay => LocalMode::XRay {
+                gain: parameters.xray_gain,
+            },
+            Mode::Importance => LocalMode::Importance {
+                source: parameters.importance,
+            },
+            Mode::ContextPreserving => LocalMode::ContextPreserving {
+                kt: parameters.context[0],
+                ks: parameters.context[1],
+            },
+            Mode::Silhouette => LocalMode::Silhouette,
+        }
+    }
+}
+
+/// Parameters of the modes that have some (the defaults of scene descriptions).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ModeParameters {
+    /// X-ray gain.
+    pub xray_gain: f32,
+    /// Context-preserving κt and κs.
+    pub context: [f32; 2],
+    /// Where importance-aware compositing takes a sample's importance.
+    pub importance: ImportanceSource,
+}
+
+impl Default for ModeParameters {
+    fn default() -> Self {
+        ModeParameters {
+            xray_gain: 1.0,
+            context: [1.5, 0.4],
+            importance: ImportanceSource::Constant(1.0),
         }
     }
 }
@@ -37,6 +103,8 @@ impl Mode {
 pub struct RenderSettings {
     /// Compositing mode.
     pub mode: Mode,
+    /// Parameters of the X-ray, importance and context-preserving modes.
+    pub mode_parameters: ModeParameters,
     /// Distance between samples along a ray, in voxels (of the smallest spacing).
     /// The transfer function's opacities are per one such voxel (the reference step).
     pub step: f32,
@@ -64,6 +132,7 @@ impl Default for RenderSettings {
     fn default() -> Self {
         RenderSettings {
             mode: Mode::Dvr,
+            mode_parameters: ModeParameters::default(),
             step: 0.5,
             early_termination: Some(DEFAULT_ERT_THRESHOLD),
             empty_space_skipping: true,

@@ -3,6 +3,8 @@
 
 use glam::Vec3;
 
+use super::optics::light_vectors;
+
 /// Where the light comes from.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Light {
@@ -53,11 +55,7 @@ impl Shading {
             return color;
         }
         let normal = gradient / magnitude;
-        let to_light = match self.light {
-            Light::Headlight => -view_dir,
-            Light::Fixed(dir) => -dir.normalize_or_zero(),
-        };
-        let half = (to_light - view_dir).normalize_or_zero();
+        let (to_light, half) = light_vectors(Some(self.light), view_dir);
         let diffuse = normal.dot(to_light).abs();
         let specular = self.specular * normal.dot(half).abs().powf(self.shininess);
         let k = self.ambient + self.diffuse * diffuse;

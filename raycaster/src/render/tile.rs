@@ -5,11 +5,10 @@ use super::camera::{Camera, PixelRect};
 use super::counters::Counters;
 use super::geometry::VolumeGeometry;
 use super::pixel::{PixelRay, PixelState};
-use super::settings::Mode;
 
 /// A tile and everything its pixels have accumulated.
 #[derive(Clone, Debug)]
-pub struct Tile {
+pub(crate) struct Tile<S> {
     /// Index in the frame's tile list.
     pub index: u32,
     /// The compositing thread that owns it.
@@ -22,21 +21,22 @@ pub struct Tile {
     /// on the tile's first task.
     pub rays: Vec<Option<PixelRay>>,
     /// Per pixel: the compositing state.
-    pub states: Vec<PixelState>,
+    pub states: Vec<PixelState<S>>,
     /// Work done on this tile.
     pub counters: Counters,
 }
 
-impl Tile {
+impl<S: Copy> Tile<S> {
     /// A fresh tile with no rays yet.
-    pub fn new(index: u32, compositor: u32, rect: PixelRect, mode: Mode) -> Tile {
+    /// Every pixel starts from the compositor's `start` state.
+    pub fn new(index: u32, compositor: u32, rect: PixelRect, start: S) -> Tile<S> {
         Tile {
             index,
             compositor,
             rect,
             next: 0,
             rays: Vec::new(),
-            states: vec![PixelState::new(mode); rect.area() as usize],
+            states: vec![PixelState::new(start); rect.area() as usize],
             counters: Counters::default(),
         }
     }

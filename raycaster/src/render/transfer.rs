@@ -11,6 +11,8 @@
 
 use std::path::Path;
 
+use super::optics::{corrected_alpha, smoothstep};
+
 /// Entries in a frame's 1D table.
 pub const TABLE_SIZE: usize = 1024;
 /// Gradient-magnitude bins of a 2D table.
@@ -408,17 +410,6 @@ fn check_point(q: &ControlPoint, line: usize) -> Result<(), TransferError> {
     Ok(())
 }
 
-/// Opacity corrected for a step of `ratio` reference steps:
-/// `α = 1 − (1 − α0)^ratio`.
-#[inline]
-pub fn corrected_alpha(alpha0: f32, ratio: f32) -> f32 {
-    if alpha0 >= 1.0 {
-        1.0
-    } else {
-        1.0 - (1.0 - alpha0).powf(ratio)
-    }
-}
-
 /// A transfer function sampled for one frame.
 #[derive(Clone, Debug)]
 pub struct TransferTable {
@@ -433,6 +424,8 @@ pub struct TransferTable {
     scale: f32,
     /// Corrected opacity factor per gradient bin (2D tables).
     gradient: Option<GradientRamp>,
+    /// The step the opacities are corrected for, in reference steps.
+    step_ratio: f32,
 }
 
 #[derive(Clone, Debug)]
@@ -482,6 +475,7 @@ impl TransferTable {
             offset: d0,
             scale: (n - 1) as f32 / (d1 - d0),
             gradient,
+            step_ratio,
         }
     }
 
@@ -530,11 +524,16 @@ impl TransferTable {
 
     /// RGB and step-corrected opacity for raw value `v` and gradient magnitude `g`.
     #[inline]
-    pub fn lookup_2d(&self, v: f32, g: f32, step_ratio: f32) -> [f32; 4] {
+    pub fn lookup_2d(&self, v: f32, g: f32) -> [f32; 4] {
         let i = self.index(v);
         let [r, gr, b, _] = self.entries[i];
         let a0 = self.alpha0[i] * self.gradient_factor(g);
-        [r, gr, b, corrected_alpha(a0, step_ratio)]
+        [r, gr, b, corrected_alpha(a0, self.step_ratio)]
+    }
+
+    /// The step the opacities are corrected for, in reference steps.
+    pub fn step_ratio(&self) -> f32 {
+        self.step_ratio
     }
 
     /// Whether every raw value in `[lo, hi]` maps to opacity 0 (whatever the
@@ -544,11 +543,6 @@ impl TransferTable {
         let (a, b) = (self.index(f32::from(lo)), self.index(f32::from(hi)));
         self.opaque_prefix[b + 1] == self.opaque_prefix[a]
     }
-}
-
-fn smoothstep(e0: f32, e1: f32, x: f32) -> f32 {
-    let t = ((x - e0) / (e1 - e0)).clamp(0.0, 1.0);
-    t * t * (3.0 - 2.0 * t)
 }
 
 #[cfg(test)]
@@ -653,7 +647,7 @@ mod tests {
         tf.gradient_ramp = Some([0.1, 0.2]);
         let table = TransferTable::new(&tf, 255, 1.0);
         assert!(table.is_2d());
-        assert_eq!(table.lookup_2d(200.0, 0.0, 1.0)[3], 0.0);
-        assert_eq!(table.lookup_2d(200.0, 0.3, 1.0)[3], 1.0);
+        assert_eq!(table.lookup_2d(200.0, 0.0)[3], 0.0);
+        assert_eq!(table.lookup_2d(200.0, 0.3)[3], 1.0);
     }
 }

@@ -392,6 +392,7 @@ impl<T: Sample> PlaneFeed<T> {
 }
 
 /// Maps `len` bytes of `file` at `offset` read-only.
+#[allow(unsafe_code)] // memmap2: mapping a file is unsafe by contract
 pub(crate) fn map_region(file: &File, offset: u64, len: u64) -> std::io::Result<memmap2::Mmap> {
     let len = usize::try_from(len).map_err(|_| std::io::Error::other("region too large"))?;
     // SAFETY: read-only map of a region of a file this process wrote or opened

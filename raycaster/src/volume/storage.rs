@@ -43,6 +43,7 @@ impl Storage {
                 // that is the documented contract of opening a volume mapped, the
                 // reason the design uses mmap at all (volumes larger than RAM), and
                 // no Rust invariant beyond the bytes' values depends on the content.
+                #[allow(unsafe_code)] // memmap2: mapping a file is unsafe by contract
                 let map = unsafe { Mmap::map(file)? };
                 if map.len() < len {
                     return Err(std::io::Error::new(

@@ -1,0 +1,189 @@
+//! The compositing interface: how the samples of a ray become a pixel.
+//!
+//! Every mode — the plain ones and two-level compositing — is a [`Compositor`] with
+//! its own per-pixel state. The marching loop ([`super::march::march_brick`]) is
+//! generic over it and is chosen once per frame ([`FrameCompositor::run`]), never
+//! per sample.
+
+use glam::Vec3;
+
+use super::local::{LocalCompositor, with_local};
+use super::march::BrickContext;
+use super::pixel::PixelRay;
+use super::sampler::VolumeSampler;
+use super::two_level::TwoLevel;
+use crate::volume::Sample;
+
+/// How samples along a ray are composited into one pixel.
+///
+/// The loop calls [`Compositor::sample`] for every sample it reads, front to back;
+/// it stops the ray once [`Compositor::opacity`] reaches the early-termination
+/// threshold or [`Compositor::finished`] holds, then calls [`Compositor::close`]
+/// (also when the ray leaves the volume) and finally [`Compositor::resolve`].
+pub(crate) trait Compositor: Sync {
+    /// What one pixel accumulates; travels with its tile between bricks and
+    /// threads.
+    type State: Copy + Send + std::fmt::Debug;
+
+    /// The state of a pixel whose ray has not started.
+    fn start(&self) -> Self::State;
+
+    /// Whether no sample with a raw value in `lo..=hi` can change any pixel,
+    /// whatever it accumulated: the one emptiness rule of both the frame plan's
+    /// brick dropping and the loop's cell skipping.
+    fn range_empty(&self, lo: u16, hi: u16) -> bool;
+
+    /// Whether [`Compositor::below_interest`] can ever hold (the loop asks it per
+    /// skippable cell only then).
+    const STATE_SKIPS: bool = false;
+
+    /// Whether no sample of at most raw value `hi` can change `state` (the
+    /// state-dependent part of empty-space skipping, e.g. MIP's running maximum).
+    #[inline]
+    fn below_interest(&self, _state: &Self::State, _hi: u16) -> bool {
+        false
+    }
+
+    /// Folds one sample into `state`.
+    fn sample<T: Sample>(&self, state: &mut Self::State, sample: &SamplePoint<'_, T>);
+
+    /// The opacity that early ray termination compares with its threshold (0 for
+    /// modes whose result is only known at the end).
+    #[inline]
+    fn opacity(&self, _state: &Self::State) -> f32 {
+        0.0
+    }
+
+    /// Whether nothing later on the ray can change `state` (a first hit).
+    #[inline]
+    fn finished(&self, _state: &Self::State) -> bool {
+        false
+    }
+
+    /// Closes what is still open when the ray ends (a two-level segment).
+    #[inline]
+    fn close(&self, _state: &mut Self::State) {}
+
+    /// The pixel's premultiplied RGBA (before the background).
+    fn resolve(&self, state: &Self::State) -> [f32; 4];
+
+    /// The depth of the first hit (world distance from the ray origin), `∞` when
+    /// there is none.
+    fn depth(&self, _state: &Self::State) -> f32 {
+        f32::INFINITY
+    }
+}
+
+/// One sample as a compositor sees it: its value, where it is, and what it may
+/// ask for (gradient, label, depth) computed only when asked.
+pub(crate) struct SamplePoint<'s, T: Sample> {
+    /// Raw (interpolated) value.
+    pub value: f32,
+    /// Voxel position.
+    pub position: Vec3,
+    /// Index of the sample along its ray.
+    pub index: u32,
+    /// The part of a step this sample stands for (below 1 only for a ray's last).
+    pub fraction: f32,
+    pub(crate) ray: &'s PixelRay,
+    pub(crate) brick: &'s BrickContext<'s, T>,
+    pub(crate) volume: &'s VolumeSampler<'s, T>,
+    pub(crate) gradient_scale: Vec3,
+}
+
+impl<T: Sample> SamplePoint<'_, T> {
+    /// The gradient at the sample in normalised value per world unit of the
+    /// smallest spacing.
+    #[inline]
+    pub fn gradient(&self) -> Vec3 {
+        self.gradient_at(self.position)
+    }
+
+    /// The gradient at voxel position `p` (near the sample).
+    #[inline]
+    pub fn gradient_at(&self, p: Vec3) -> Vec3 {
+        self.volume.gradient(&self.brick.sampler, p) * self.gradient_scale
+    }
+
+    /// The unit world direction of the ray.
+    #[inline]
+    pub fn view_dir(&self) -> Vec3 {
+        self.ray.view_dir
+    }
+
+    /// The sample's ray parameter (world distance from the ray origin).
+    #[inline]
+    pub fn t(&self) -> f32 {
+        self.ray.t(self.index)
+    }
+
+    /// Distance from the eye normalised by where the ray leaves the volume.
+    #[inline]
+    pub fn depth(&self) -> f32 {
+        (self.t() / self.ray.t(self.ray.samples).max(1e-6)).min(1.0)
+    }
+
+    /// The object id of the label volume at the sample (0 without labels).
+    #[inline]
+    pub fn label(&self) -> u16 {
+        self.brick.label_at(self.position)
+    }
+
+    /// The value of the sample before this one on the ray, if there is one.
+    pub fn value_before(&self) -> Option<f32> {
+        let k = self.index.checked_sub(1)?;
+        let p = self.ray.position(k, self.volume.last());
+        Some(if self.brick.sampler.contains(p) {
+            self.brick.sampler.value(p)
+        } else {
+            self.volume.value(p)
+        })
+    }
+
+    /// The voxel position at ray parameter `t`, clamped into the volume.
+    #[inline]
+    pub fn position_at(&self, t: f32) -> Vec3 {
+        (self.ray.origin + self.ray.direction * t).clamp(Vec3::ZERO, self.volume.last())
+    }
+}
+
+/// The compositor of a frame, chosen once per frame: a plain mode or two-level
+/// compositing.
+#[derive(Clone, Debug)]
+pub(crate) enum FrameCompositor {
+    /// One local mode for whole rays.
+    Plain(LocalCompositor),
+    /// Two-level compositing of a segmented volume.
+    TwoLevel(TwoLevel),
+}
+
+/// Work generic over the compositor, handed to [`FrameCompositor::run`].
+pub(crate) trait CompositorJob {
+    /// What the work returns.
+    type Output;
+    /// Does the work with compositor `c`.
+    fn run<C: Compositor>(self, c: &C) -> Self::Output;
+}
+
+impl FrameCompositor {
+    /// Runs `job` with the concrete compositor: the one dispatch of a frame.
+    pub fn run<J: CompositorJob>(&self, job: J) -> J::Output {
+        match self {
+            FrameCompositor::Plain(local) => with_local!(local, c => job.run(c)),
+            FrameCompositor::TwoLevel(c) => job.run(c),
+        }
+    }
+
+    /// [`Compositor::range_empty`] of the frame's compositor (per brick or cell,
+    /// not per sample).
+    pub fn range_empty(&self, lo: u16, hi: u16) -> bool {
+        struct RangeEmpty(u16, u16);
+        impl CompositorJob for RangeEmpty {
+            type Output = bool;
+            fn run<C: Compositor>(self, c: &C) -> bool {
+                c.range_empty(self.0, self.1)
+            }
+        }
+        self.run(RangeEmpty(lo, hi))
+    }
+}

@@ -1,0 +1,568 @@
+//! The compositing modes of a run of samples: each a [`Compositor`] over one
+//! [`Accumulation`]. A plain frame uses one of them for whole rays; two-level
+//! compositing uses them for the segments of its objects ([`LocalCompositor`]).
+
+use std::sync::Arc;
+
+use glam::Vec3;
+
+use super::compositor::{Compositor, SamplePoint};
+use super::optics::{
+    importance_composite, light_vectors, over, partial_step, shading_intensity, smoothstep,
+};
+use super::segments::{ImportanceSource, LocalMode};
+use super::shading::Shading;
+use super::transfer::TransferTable;
+use crate::volume::Sample;
+
+/// What a run of samples has accumulated (every local mode uses some fields).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Accumulation {
+    /// Premultiplied colour (opacity-compositing modes, first hit).
+    pub color: [f32; 3],
+    /// Opacity.
+    pub alpha: f32,
+    /// Maximum (MIP) or sum (average, X-ray) of raw values.
+    pub value: f32,
+    /// Samples folded into `value`.
+    pub count: u32,
+    /// Accumulated importance (importance-aware compositing).
+    pub importance: f32,
+    /// First-hit depth, `∞` without a hit.
+    pub depth: f32,
+}
+
+impl Accumulation {
+    /// Nothing accumulated, with `value` as the start of the value fold.
+    pub fn starting_at(value: f32) -> Self {
+        Accumulation {
+            color: [0.0; 3],
+            alpha: 0.0,
+            value,
+            count: 0,
+            importance: 0.0,
+            depth: f32::INFINITY,
+        }
+    }
+
+    fn rgba(&self) -> [f32; 4] {
+        let [r, g, b] = self.color;
+        [r, g, b, self.alpha]
+    }
+}
+
+/// Colour and uncorrected opacity of value `v` as one premultiplied RGBA (the
+/// one-sample modes: MIP, average).
+fn classify_once(table: &TransferTable, v: f32) -> [f32; 4] {
+    let [r, g, b, _] = table.lookup(v);
+    let a = table.alpha0(v);
+    [r * a, g * a, b * a, a]
+}
+
+/// Colour and step-corrected opacity of a sample with gradient `gradient` (used
+/// by 2D tables), or `None` when it is transparent.
+#[inline]
+fn classify<T: Sample>(
+    table: &TransferTable,
+    s: &SamplePoint<'_, T>,
+    gradient: Vec3,
+) -> Option<([f32; 3], f32)> {
+    let [r, g, b, a] = if table.is_2d() {
+        table.lookup_2d(s.value, gradient.length())
+    } else {
+        table.lookup(s.value)
+    };
+    let a = partial_step(a, s.fraction);
+    (a > 0.0).then_some(([r, g, b], a))
+}
+
+/// [`classify`] with the sample's gradient, which it returns too (the modes that
+/// always need it); `None` for a transparent sample, whose gradient is never
+/// computed when the table is 1D.
+#[inline]
+fn classify_with_gradient<T: Sample>(
+    table: &TransferTable,
+    s: &SamplePoint<'_, T>,
+) -> Option<([f32; 3], f32, Vec3)> {
+    if !table.is_2d() && table.lookup(s.value)[3] <= 0.0 {
+        return None;
+    }
+    let gradient = s.gradient();
+    classify(table, s, gradient).map(|(color, a)| (color, a, gradient))
+}
+
+#[inline]
+fn shade(shading: Option<&Shading>, color: [f32; 3], gradient: Vec3, view_dir: Vec3) -> [f32; 3] {
+    match shading {
+        Some(sh) => sh.shade(color, gradient, view_dir),
+        None => color,
+    }
+}
+
+/// Front-to-back emission–absorption, shaded when asked.
+#[derive(Clone, Debug)]
+pub(crate) struct Dvr {
+    table: Arc<TransferTable>,
+    shading: Option<Shading>,
+}
+
+impl Compositor for Dvr {
+    type State = Accumulation;
+    fn start(&self) -> Accumulation {
+        Accumulation::starting_at(0.0)
+    }
+    #[inline]
+    fn range_empty(&self, lo: u16, hi: u16) -> bool {
+        self.table.is_transparent(lo, hi)
+    }
+    #[inline]
+    fn sample<T: Sample>(&self, st: &mut Accumulation, s: &SamplePoint<'_, T>) {
+        let [r, g, b, a] = self.table.lookup(s.value);
+        if a <= 0.0 {
+            return;
+        }
+        let (color, a) = if self.shading.is_some() || self.table.is_2d() {
+            let gradient = s.gradient();
+            let a = if self.table.is_2d() {
+                self.table.lookup_2d(s.value, gradient.length())[3]
+            } else {
+                a
+            };
+            let color = shade(self.shading.as_ref(), [r, g, b], gradient, s.view_dir());
+            (color, a)
+        } else {
+            ([r, g, b], a)
+        };
+        over(
+            &mut st.color,
+            &mut st.alpha,
+            color,
+            partial_step(a, s.fraction),
+        );
+    }
+    #[inline]
+    fn opacity(&self, st: &Accumulation) -> f32 {
+        st.alpha
+    }
+    fn resolve(&self, st: &Accumulation) -> [f32; 4] {
+        st.rgba()
+    }
+}
+
+/// Maximum intensity projection: the largest value, classified.
+#[derive(Clone, Debug)]
+pub(crate) struct Mip {
+    table: Arc<TransferTable>,
+}
+
+impl Compositor for Mip {
+    type State = Accumulation;
+    const STATE_SKIPS: bool = true;
+    fn start(&self) -> Accumulation {
+        Accumulation::starting_at(f32::NEG_INFINITY)
+    }
+    fn range_empty(&self, _lo: u16, _hi: u16) -> bool {
+        false
+    }
+    #[inline]
+    fn below_interest(&self, st: &Accumulation, hi: u16) -> bool {
+        f32::from(hi) <= st.value
+    }
+    #[inline]
+    fn sample<T: Sample>(&self, st: &mut Accumulation, s: &SamplePoint<'_, T>) {
+        st.value = st.value.max(s.value);
+    }
+    fn resolve(&self, st: &Accumulation) -> [f32; 4] {
+        if st.value.is_finite() {
+            classify_once(&self.table, st.value)
+        } else {
+            [0.0; 4]
+        }
+    }
+}
+
+/// Average intensity projection: the mean value, classified.
+#[derive(Clone, Debug)]
+pub(crate) struct Average {
+    table: Arc<TransferTable>,
+}
+
+impl Average {
+    /// Adds raw value `v` to the sum (average and X-ray).
+    #[inline]
+    fn fold(st: &mut Accumulation, v: f32) {
+        st.value += v;
+        st.count += 1;
+    }
+}
+
+impl Compositor for Average {
+    type State = Accumulation;
+    fn start(&self) -> Accumulation {
+        Accumulation::starting_at(0.0)
+    }
+    fn range_empty(&self, _lo: u16, _hi: u16) -> bool {
+        false
+    }
+    #[inline]
+    fn sample<T: Sample>(&self, st: &mut Accumulation, s: &SamplePoint<'_, T>) {
+        Average::fold(st, s.value);
+    }
+    fn resolve(&self, st: &Accumulation) -> [f32; 4] {
+        if st.count > 0 {
+            classify_once(&self.table, st.value / st.count as f32)
+        } else {
+            [0.0; 4]
+        }
+    }
+}
+
+/// X-ray: the sum of normalised values times the step, as opacity
+/// `1 − exp(−gain·Σ)`, coloured by the mean value.
+#[derive(Clone, Debug)]
+pub(crate) struct XRay {
+    table: Arc<TransferTable>,
+    gain: f32,
+    domain: [f32; 2],
+}
+
+impl Compositor for XRay {
+    type State = Accumulation;
+    fn start(&self) -> Accumulation {
+        Accumulation::starting_at(0.0)
+    }
+    fn range_empty(&self, _lo: u16, _hi: u16) -> bool {
+        false
+    }
+    #[inline]
+    fn sample<T: Sample>(&self, st: &mut Accumulation, s: &SamplePoint<'_, T>) {
+        Average::fold(st, s.value);
+    }
+    fn resolve(&self, st: &Accumulation) -> [f32; 4] {
+        if st.count == 0 {
+            return [0.0; 4];
+        }
+        let n = st.count as f32;
+        let [r, g, b, _] = self.table.lookup(st.value / n);
+        let width = self.domain[1] - self.domain[0];
+        let sum = (st.value - n * self.domain[0]) / width * self.table.step_ratio();
+        let a = 1.0 - (-self.gain * sum.max(0.0)).exp();
+        [r * a, g * a, b * a, a]
+    }
+}
+
+/// The first sample at or above the iso-value; the hit is refined linearly
+/// between it and the sample before, then shaded as an opaque surface.
+#[derive(Clone, Debug)]
+pub(crate) struct FirstHit {
+    table: Arc<TransferTable>,
+    shading: Option<Shading>,
+    iso_raw: f32,
+}
+
+impl Compositor for FirstHit {
+    type State = Accumulation;
+    fn start(&self) -> Accumulation {
+        Accumulation::starting_at(0.0)
+    }
+    #[inline]
+    fn range_empty(&self, _lo: u16, hi: u16) -> bool {
+        f32::from(hi) < self.iso_raw
+    }
+    #[inline]
+    fn sample<T: Sample>(&self, st: &mut Accumulation, s: &SamplePoint<'_, T>) {
+        let iso = self.iso_raw;
+        if s.value < iso || st.depth.is_finite() {
+            return;
+        }
+        let mut t_hit = s.t();
+        if let Some(before) = s.value_before()
+            && before < iso
+            && s.value > before
+        {
+            t_hit = s.t() - s.ray.dt + (iso - before) / (s.value - before) * s.ray.dt;
+        }
+        let [r, g, b, _] = self.table.lookup(iso);
+        st.color = match &self.shading {
+            Some(sh) => sh.shade([r, g, b], s.gradient_at(s.position_at(t_hit)), s.view_dir()),
+            None => [r, g, b],
+        };
+        st.alpha = 1.0;
+        st.depth = t_hit;
+    }
+    #[inline]
+    fn opacity(&self, st: &Accumulation) -> f32 {
+        st.alpha
+    }
+    #[inline]
+    fn finished(&self, st: &Accumulation) -> bool {
+        st.depth.is_finite()
+    }
+    fn resolve(&self, st: &Accumulation) -> [f32; 4] {
+        st.rgba()
+    }
+    fn depth(&self, st: &Accumulation) -> f32 {
+        st.depth
+    }
+}
+
+/// Importance-aware compositing (de Moura Pinto & Freitas).
+#[derive(Clone, Debug)]
+pub(crate) struct Importance {
+    table: Arc<TransferTable>,
+    shading: Option<Shading>,
+    source: ImportanceSource,
+    domain: [f32; 2],
+}
+
+impl Importance {
+    fn importance<T: Sample>(&self, s: &SamplePoint<'_, T>, gradient: Vec3) -> f32 {
+        let g = gradient.length().min(1.0);
+        let n = gradient.normalize_or_zero();
+        let normalised = (s.value - self.domain[0]) / (self.domain[1] - self.domain[0]);
+        match self.source {
+            ImportanceSource::Constant(w) => w,
+            ImportanceSource::Intensity(w) => w * normalised,
+            ImportanceSource::Gradient(w) => w * g,
+            ImportanceSource::Silhouette([p1, p2, p3]) => {
+                g.powf(p1) * smoothstep(p2, p3, 1.0 - n.dot(s.view_dir()).abs())
+            }
+            ImportanceSource::Lighting([p1, p2, p3]) => {
+                let (l, h) = light_vectors(None, s.view_dir());
+                3.0 - n.dot(h).abs().powf(p1) - n.dot(l).abs().powf(p2) - (1.0 - g).powf(p3)
+            }
+        }
+    }
+}
+
+impl Compositor for Importance {
+    type State = Accumulation;
+    fn start(&self) -> Accumulation {
+        Accumulation::starting_at(0.0)
+    }
+    #[inline]
+    fn range_empty(&self, lo: u16, hi: u16) -> bool {
+        // A transparent sample keeps colour, opacity and importance.
+        self.table.is_transparent(lo, hi)
+    }
+    #[inline]
+    fn sample<T: Sample>(&self, st: &mut Accumulation, s: &SamplePoint<'_, T>) {
+        let Some((color, a, gradient)) = classify_with_gradient(&self.table, s) else {
+            return;
+        };
+        let color = shade(self.shading.as_ref(), color, gradient, s.view_dir());
+        let (c, alpha, i) = importance_composite(
+            st.color,
+            st.alpha,
+            st.importance,
+            color.map(|c| c * a),
+            a,
+            self.importance(s, gradient),
+        );
+        st.color = c;
+        st.alpha = alpha;
+        st.importance = i;
+    }
+    #[inline]
+    fn opacity(&self, st: &Accumulation) -> f32 {
+        st.alpha
+    }
+    fn resolve(&self, st: &Accumulation) -> [f32; 4] {
+        st.rgba()
+    }
+}
+
+/// Context-preserving rendering (Bruckner et al.):
+/// `α = α_tf · |g|^((κt · s(P) · (1 − |P − E|) · (1 − α_{i−1}))^κs)`.
+#[derive(Clone, Debug)]
+pub(crate) struct ContextPreserving {
+    table: Arc<TransferTable>,
+    shading: Option<Shading>,
+    kt: f32,
+    ks: f32,
+}
+
+impl Compositor for ContextPreserving {
+    type State = Accumulation;
+    fn start(&self) -> Accumulation {
+        Accumulation::starting_at(0.0)
+    }
+    #[inline]
+    fn range_empty(&self, lo: u16, hi: u16) -> bool {
+        self.table.is_transparent(lo, hi)
+    }
+    #[inline]
+    fn sample<T: Sample>(&self, st: &mut Accumulation, s: &SamplePoint<'_, T>) {
+        let Some((color, a, gradient)) = classify_with_gradient(&self.table, s) else {
+            return;
+        };
+        let shading = self.shading.as_ref();
+        let color = shade(shading, color, gradient, s.view_dir());
+        let intensity = shading_intensity(shading, gradient, s.view_dir());
+        let exponent = (self.kt * intensity * (1.0 - s.depth()) * (1.0 - st.alpha))
+            .max(0.0)
+            .powf(self.ks);
+        let a = a * gradient.length().min(1.0).powf(exponent);
+        over(&mut st.color, &mut st.alpha, color, a);
+    }
+    #[inline]
+    fn opacity(&self, st: &Accumulation) -> f32 {
+        st.alpha
+    }
+    fn resolve(&self, st: &Accumulation) -> [f32; 4] {
+        st.rgba()
+    }
+}
+
+/// Non-photorealistic: Gooch-style tone shading (cool to warm by `N·L`) and
+/// silhouette darkening `color·exp(−8·sil)`, `sil = smoothstep(0.6, 1, 1 − |V·N|)`.
+#[derive(Clone, Debug)]
+pub(crate) struct Silhouette {
+    table: Arc<TransferTable>,
+}
+
+impl Silhouette {
+    fn tone(color: [f32; 3], gradient: Vec3, view_dir: Vec3) -> [f32; 3] {
+        const COOL: [f32; 3] = [0.3, 0.35, 0.6];
+        const WARM: [f32; 3] = [1.0, 0.9, 0.7];
+        let magnitude = gradient.length();
+        if magnitude <= 1e-3 {
+            return color;
+        }
+        let ndl = (gradient / magnitude).dot(-view_dir);
+        let k = (1.0 + ndl.abs()) / 2.0;
+        let dark = (-8.0 * smoothstep(0.6, 1.0, 1.0 - ndl.abs())).exp();
+        [0, 1, 2].map(|i| color[i] * (COOL[i] + (WARM[i] - COOL[i]) * k) * dark)
+    }
+}
+
+impl Compositor for Silhouette {
+    type State = Accumulation;
+    fn start(&self) -> Accumulation {
+        Accumulation::starting_at(0.0)
+    }
+    #[inline]
+    fn range_empty(&self, lo: u16, hi: u16) -> bool {
+        self.table.is_transparent(lo, hi)
+    }
+    #[inline]
+    fn sample<T: Sample>(&self, st: &mut Accumulation, s: &SamplePoint<'_, T>) {
+        let Some((color, a, gradient)) = classify_with_gradient(&self.table, s) else {
+            return;
+        };
+        let color = Silhouette::tone(color, gradient, s.view_dir());
+        over(&mut st.color, &mut st.alpha, color, a);
+    }
+    #[inline]
+    fn opacity(&self, st: &Accumulation) -> f32 {
+        st.alpha
+    }
+    fn resolve(&self, st: &Accumulation) -> [f32; 4] {
+        st.rgba()
+    }
+}
+
+/// One of the local modes, chosen per object (two-level compositing).
+#[derive(Clone, Debug)]
+pub(crate) enum LocalCompositor {
+    /// Emission–absorption.
+    Dvr(Dvr),
+    /// Maximum intensity projection.
+    Mip(Mip),
+    /// Average intensity projection.
+    Average(Average),
+    /// Sum of values.
+    XRay(XRay),
+    /// First hit.
+    FirstHit(FirstHit),
+    /// Importance-aware compositing.
+    Importance(Importance),
+    /// Context-preserving rendering.
+    ContextPreserving(ContextPreserving),
+    /// Tone shading and silhouettes.
+    Silhouette(Silhouette),
+}
+
+/// Calls `$body` with `$c` bound to the concrete compositor of `$local`.
+macro_rules! with_local {
+    ($local:expr, $c:ident => $body:expr) => {
+        match $local {
+            LocalCompositor::Dvr($c) => $body,
+            LocalCompositor::Mip($c) => $body,
+            LocalCompositor::Average($c) => $body,
+            LocalCompositor::XRay($c) => $body,
+            LocalCompositor::FirstHit($c) => $body,
+            LocalCompositor::Importance($c) => $body,
+            LocalCompositor::ContextPreserving($c) => $body,
+            LocalCompositor::Silhouette($c) => $body,
+        }
+    };
+}
+pub(crate) use with_local;
+
+impl LocalCompositor {
+    /// The compositor of `mode` over transfer table `table` (its opacities
+    /// corrected for the frame's step), with `domain` the raw values the table
+    /// spans and `shading` for the modes that shade.
+    pub fn new(
+        mode: LocalMode,
+        table: Arc<TransferTable>,
+        shading: Option<Shading>,
+        domain: [f32; 2],
+    ) -> Self {
+        match mode {
+            LocalMode::Dvr => LocalCompositor::Dvr(Dvr { table, shading }),
+            LocalMode::Mip => LocalCompositor::Mip(Mip { table }),
+            LocalMode::Average => LocalCompositor::Average(Average { table }),
+            LocalMode::XRay { gain } => LocalCompositor::XRay(XRay {
+                table,
+                gain,
+                domain,
+            }),
+            LocalMode::FirstHit { iso } => LocalCompositor::FirstHit(FirstHit {
+                table,
+                shading,
+                iso_raw: domain[0] + iso * (domain[1] - domain[0]),
+            }),
+            LocalMode::Importance { source } => LocalCompositor::Importance(Importance {
+                table,
+                shading,
+                source,
+                domain,
+            }),
+            LocalMode::ContextPreserving { kt, ks } => {
+                LocalCompositor::ContextPreserving(ContextPreserving {
+                    table,
+                    shading,
+                    kt,
+                    ks,
+                })
+            }
+            LocalMode::Silhouette => LocalCompositor::Silhouette(Silhouette { table }),
+        }
+    }
+}
+
+impl Compositor for LocalCompositor {
+    type State = Accumulation;
+    fn start(&self) -> Accumulation {
+        with_local!(self, c => c.start())
+    }
+    fn range_empty(&self, lo: u16, hi: u16) -> bool {
+        with_local!(self, c => c.range_empty(lo, hi))
+    }
+    #[inline]
+    fn sample<T: Sample>(&self, st: &mut Accumulation, s: &SamplePoint<'_, T>) {
+        with_local!(self, c => c.sample(st, s))
+    }
+    #[inline]
+    fn opacity(&self, st: &Accumulation) -> f32 {
+        with_local!(self, c => c.opacity(st))
+    }
+    fn resolve(&self, st: &Accumulation) -> [f32; 4] {
+        with_local!(self, c => c.resolve(st))
+    }
+    fn depth(&self, st: &Accumulation) -> f32 {
+        with_local!(self, c => c.depth(st))
+    }
+}

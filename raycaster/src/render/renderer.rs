@@ -1,0 +1,174 @@
+//! A renderer object whose worker threads live across frames.
+//!
+//! The parallel renderer's frame runs its render threads, compositing threads and
+//! the read-ahead concurrently; they block on channels, so each needs a thread of
+//! its own. A [`Renderer`] keeps a pool of exactly that many threads waiting
+//! between frames and hands each frame to them, instead of starting and joining
+//! them per frame (the viewer asks for a frame on every mouse move).
+
+use parking_lot::Mutex;
+
+use super::camera::Camera;
+use super::counters::FrameStats;
+use super::error::RenderError;
+use super::frame::Frame;
+use super::parallel::{ParallelOptions, TileSink, render_frame};
+use super::prepared::RenderVolume;
+use super::settings::RenderSettings;
+
+/// One of a frame's jobs: runs until the frame is done.
+pub(crate) type FrameJobFn<'a> = Box<dyn FnOnce() + Send + 'a>;
+
+/// Where a frame's jobs run: threads started for the frame, or threads kept
+/// between frames.
+pub(crate) enum WorkerPool {
+    /// A thread per job, started and joined for each frame.
+    PerFrame,
+    /// A pool of waiting threads, sized for (render, compositing) threads.
+    Kept {
+        /// The threads.
+        pool: rayon::ThreadPool,
+        /// (render threads, compositing threads) the pool is sized for.
+        sized_for: (usize, usize),
+    },
+}
+
+impl WorkerPool {
+    /// Threads for `render` render threads, `compositors` compositing threads
+    /// and the read-ahead.
+    fn kept(render: usize, compositors: usize) -> WorkerPool {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(render + compositors + 1)
+            .thread_name(|i| format!("render-worker-{i}"))
+            .build()
+            .expect("starting the render worker threads");
+        WorkerPool::Kept {
+            pool,
+            sized_for: (render, compositors),
+        }
+    }
+
+    /// The sizes `options` asks for (at least one of each).
+    fn sizes(options: &ParallelOptions) -> (usize, usize) {
+        (
+            options.render_threads.max(1),
+            options.compositing_threads.max(1),
+        )
+    }
+
+    /// Runs `jobs` concurrently, each on a thread of its own, and returns when
+    /// all have returned. They are at most the frame's jobs for the options the
+    /// pool is sized for (jobs block on one another, so none may wait for a
+    /// thread).
+    pub fn run_all(&self, jobs: Vec<FrameJobFn<'_>>) {
+        match self {
+            WorkerPool::PerFrame => std::thread::scope(|scope| {
+                for job in jobs {
+                    scope.spawn(job);
+                }
+            }),
+            WorkerPool::Kept { pool, sized_for } => {
+                assert!(
+                    jobs.len() <= sized_for.0 + sized_for.1 + 1,
+                    "more jobs than worker threads"
+                );
+                pool.scope(|scope| {
+                    for job in jobs {
+                        scope.spawn(move |_| job());
+                    }
+                });
+            }
+        }
+    }
+}
+
+/// The parallel renderer with worker threads that live across frames.
+///
+/// One renderer renders one frame at a time (`&mut self`); the first frame, and a
+/// frame whose options ask for other thread counts, start the threads.
+#[derive(Default)]
+pub struct Renderer {
+    workers: Option<WorkerPool>,
+    /// Start threads for each frame instead (the one-frame functions).
+    per_frame: bool,
+}
+
+impl std::fmt::Debug for Renderer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Renderer")
+            .field(
+                "kept_threads",
+                &match &self.workers {
+                    Some(WorkerPool::Kept { sized_for, .. }) => Some(*sized_for),
+                    _ => None,
+                },
+            )
+            .finish()
+    }
+}
+
+impl Renderer {
+    /// A renderer with no threads yet.
+    pub fn new() -> Renderer {
+        Renderer::default()
+    }
+
+    /// A renderer that starts and joins its threads for every frame (what
+    /// [`super::render_parallel`] does for a single frame).
+    pub fn per_frame() -> Renderer {
+        Renderer {
+            workers: None,
+            per_frame: true,
+        }
+    }
+
+    /// Renders one frame into a [`Frame`].
+    pub fn render(
+        &mut self,
+        volume: &RenderVolume<'_>,
+        camera: &Camera,
+        settings: &RenderSettings,
+        options: &ParallelOptions,
+    ) -> Result<Frame, RenderError> {
+        let frame = Mutex::new(Frame::empty(
+            camera.width(),
+            camera.height(),
+            settings.background,
+        ));
+        let stats = self
+            .render_into(volume, camera, settings, options, &frame, &|| false)?
+            .expect("a frame that cannot be cancelled completes");
+        let mut frame = frame.into_inner();
+        frame.stats = stats;
+        Ok(frame)
+    }
+
+    /// Renders one frame, handing finished tiles to `sink` as they complete.
+    /// `cancelled` is polled by the compositing threads; when it returns true no
+    /// new task is sent, the frame stops early and `Ok(None)` is returned.
+    pub fn render_into(
+        &mut self,
+        volume: &RenderVolume<'_>,
+        camera: &Camera,
+        settings: &RenderSettings,
+        options: &ParallelOptions,
+        sink: &dyn TileSink,
+        cancelled: &(dyn Fn() -> bool + Sync),
+    ) -> Result<Option<FrameStats>, RenderError> {
+        let sizes = WorkerPool::sizes(options);
+        let fits = match &self.workers {
+            Some(WorkerPool::PerFrame) => true,
+            Some(WorkerPool::Kept { sized_for, .. }) => *sized_for == sizes,
+            None => false,
+        };
+        if !fits {
+            self.workers = Some(if self.per_frame {
+                WorkerPool::PerFrame
+            } else {
+                WorkerPool::kept(sizes.0, sizes.1)
+            });
+        }
+        let workers = self.workers.as_ref().expect("just started");
+        render_frame(workers, volume, camera, settings, options, sink, cancelled)
+    }
+}
