@@ -13,7 +13,7 @@ $volgen generate -q --force --scene shapes --size 192 -o $work/shapes.vol
 $volgen generate -q --force --scene shells --size 160 -o $work/shells.vol   # + shells.labels.vol
 $volgen generate -q --force --scene noise --size 160 -o $work/noise.vol
 $volgen generate -q --force --scene gradient --size 128 -o $work/gradient.vol
-view="--size 200x200 -q"
+view="--size 200x200 --level 0 --force -q"
 render() { $rc render "$@" $view; }
 render $work/shapes.vol --tf shapes -o $out/shapes-dvr.png
 for s in importance npr context; do
