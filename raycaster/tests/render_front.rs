@@ -164,6 +164,47 @@ fn invalid_settings_fail_the_frame_not_the_front() {
 }
 
 #[test]
+fn a_frame_of_another_size_starts_from_the_last_picture_not_black() {
+    let volume = Arc::new(scene_volume(SceneKind::Shapes, 32));
+    let front = RenderFront::new(volume.clone(), None, None).unwrap();
+    let full = FrameRequest {
+        camera: default_camera(&volume, 64),
+        settings: settings(),
+        options: ParallelOptions::default(),
+        level: LevelChoice::default(),
+    };
+    let id = front.request(full.clone());
+    assert!(matches!(front.events().recv().unwrap(), FrameEvent::Done { id: i, .. } if i == id));
+    let lit = |pixels: &[[u8; 4]]| {
+        pixels
+            .iter()
+            .filter(|p| p[..3].iter().any(|&c| c > 8))
+            .count()
+    };
+    let shown = lit(&front.framebuffer().lock().pixels);
+    assert!(shown > 64 * 64 / 20, "the scene is visible: {shown} pixels");
+    // A half-size frame that fails before any tile lands: the buffer holds the
+    // last picture scaled to the new size.
+    let bad = FrameRequest {
+        camera: default_camera(&volume, 32),
+        settings: RenderSettings {
+            step: -1.0,
+            ..settings()
+        },
+        ..full
+    };
+    let id = front.request(bad);
+    assert!(matches!(front.events().recv().unwrap(), FrameEvent::Failed { id: i, .. } if i == id));
+    let fb = front.framebuffer().lock();
+    assert_eq!((fb.width, fb.height), (32, 32));
+    let scaled = lit(&fb.pixels);
+    assert!(
+        scaled * 4 > shown / 2 && scaled * 4 < shown * 2,
+        "{scaled} lit of 32² after {shown} of 64²"
+    );
+}
+
+#[test]
 fn request_storms_end_every_frame_exactly_once_and_shut_down() {
     with_timeout(Duration::from_secs(240), || {
         let volume = Arc::new(scene_volume(SceneKind::Shapes, 24));

@@ -92,6 +92,33 @@ pub struct FrameBuffer {
     pub tiles_written: u64,
 }
 
+impl FrameBuffer {
+    /// This image scaled (nearest pixel) to `width × height`; black where there
+    /// was no image.
+    pub fn rescaled(&self, width: u32, height: u32) -> FrameBuffer {
+        let n = width as usize * height as usize;
+        let pixels = if self.width == 0 || self.height == 0 || self.pixels.is_empty() {
+            vec![[0, 0, 0, 255]; n]
+        } else {
+            let mut out = Vec::with_capacity(n);
+            for y in 0..height {
+                let sy = (u64::from(y) * u64::from(self.height) / u64::from(height)) as usize;
+                for x in 0..width {
+                    let sx = (u64::from(x) * u64::from(self.width) / u64::from(width)) as usize;
+                    out.push(self.pixels[sy * self.width as usize + sx]);
+                }
+            }
+            out
+        };
+        FrameBuffer {
+            width,
+            height,
+            pixels,
+            ..FrameBuffer::default()
+        }
+    }
+}
+
 /// Called (from renderer threads) after a tile lands or a frame ends, e.g. to wake
 /// a UI event loop.
 pub type Notify = Arc<dyn Fn() + Send + Sync>;
@@ -291,12 +318,10 @@ impl Worker {
         {
             let mut fb = self.framebuffer.lock();
             if (fb.width, fb.height) != (w, h) {
-                *fb = FrameBuffer {
-                    width: w,
-                    height: h,
-                    pixels: vec![[0, 0, 0, 255]; w as usize * h as usize],
-                    ..FrameBuffer::default()
-                };
+                // The last picture, scaled, stays under the new frame's tiles: a
+                // frame of another size (interactive ↔ full quality) never starts
+                // from black.
+                *fb = fb.rescaled(w, h);
             }
             fb.frame_id = id;
             fb.tiles_written = 0;
@@ -375,5 +400,38 @@ impl TileSink for FrameBufferSink<'_> {
         if let Some(n) = &self.worker.notify {
             n();
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_rescaled_frame_keeps_the_picture_not_black() {
+        // 2×2: red, green / blue, white.
+        let fb = FrameBuffer {
+            width: 2,
+            height: 2,
+            pixels: vec![
+                [255, 0, 0, 255],
+                [0, 255, 0, 255],
+                [0, 0, 255, 255],
+                [255, 255, 255, 255],
+            ],
+            ..FrameBuffer::default()
+        };
+        let big = fb.rescaled(4, 6);
+        assert_eq!((big.width, big.height, big.pixels.len()), (4, 6, 24));
+        assert_eq!(big.pixels[0], [255, 0, 0, 255]);
+        assert_eq!(big.pixels[3], [0, 255, 0, 255]);
+        assert_eq!(big.pixels[5 * 4], [0, 0, 255, 255]);
+        assert_eq!(big.pixels[23], [255, 255, 255, 255]);
+        let small = big.rescaled(1, 1);
+        assert_eq!(small.pixels, vec![[255, 0, 0, 255]]);
+        assert_eq!(
+            FrameBuffer::default().rescaled(3, 2).pixels,
+            vec![[0, 0, 0, 255]; 6]
+        );
     }
 }
