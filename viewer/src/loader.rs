@@ -4,9 +4,10 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use anyhow::{Context, Result, bail};
-use raycaster::synth::{SceneKind, synthesize, synthesize_labels};
-use raycaster::volume::{Content, SampleType, Volume};
+use anyhow::Result;
+use raycaster::source::{self, OpenedVolume, VolumeSource};
+use raycaster::synth::SceneKind;
+use raycaster::volume::{Access, SampleType, Volume};
 
 /// Bins of the histogram drawn behind the transfer function.
 pub const HISTOGRAM_BINS: usize = 256;
@@ -38,58 +39,38 @@ pub struct LoadedVolume {
 
 /// The built-in `shapes` scene the viewer starts with.
 pub fn built_in(kind: SceneKind, size: u32) -> Result<LoadedVolume> {
-    let scene = kind.build([size; 3], 1);
-    let name = format!("built-in {} scene {size}³", kind.name());
-    let volume = synthesize(scene.as_ref(), &name, [size; 3], [1.0; 3], SampleType::U8)?;
-    let labels = synthesize_labels(scene.as_ref(), &name, [size; 3], [1.0; 3])?;
-    let preset = match kind {
-        SceneKind::Shapes => "shapes",
-        SceneKind::Shells => "shells",
-        SceneKind::Noise => "cloud",
-        SceneKind::Gradient => "rainbow",
+    let source = VolumeSource::BuiltIn {
+        kind,
+        size,
+        seed: 1,
     };
-    Ok(finish(volume, labels.map(Arc::new), name, preset))
+    Ok(finish(source::open(&source)?))
 }
 
 /// Opens a `.vol` file (mapped, never read whole) or a scan in a foreign format
 /// (NRRD, NIfTI-1, MetaImage, a DICOM series folder), converted in RAM when it
 /// takes at most [`IN_MEMORY_LIMIT`]; bigger scans are refused with the
-/// `volgen convert` command that makes them a `.vol` file.
+/// `volgen convert` command that makes them a `.vol` file. The policy (what opens
+/// how, which preset suits it) is the library's [`raycaster::source`], shared with
+/// the `raycaster` command.
 pub fn open_file(path: &Path) -> Result<LoadedVolume> {
-    if path.as_os_str().is_empty() {
-        bail!("no file given: type the path of a volume (.vol, .nrrd, .nii, .mhd, DICOM folder)");
-    }
-    let volume = raycaster::import::open_volume_any(path, IN_MEMORY_LIMIT)
-        .with_context(|| format!("cannot open {}", path.display()))?;
-    if volume.content() == Content::Labels {
-        bail!(
-            "{} is a label volume (object ids), not data: open the data volume and load a \
-             label scene",
-            path.display()
-        );
-    }
-    let name = path.display().to_string();
-    let preset = match volume.sample_type() {
-        SampleType::U8 => "shapes",
-        SampleType::U16 => "ct-bone",
+    let source = VolumeSource::File {
+        path: path.to_path_buf(),
+        access: Access::Mapped,
     };
-    Ok(finish(volume, None, name, preset))
+    Ok(finish(source::open(&source)?))
 }
 
-fn finish(
-    volume: Volume,
-    labels: Option<Arc<Volume>>,
-    name: String,
-    preset: &'static str,
-) -> LoadedVolume {
+fn finish(opened: OpenedVolume) -> LoadedVolume {
+    let domain = opened.default_domain();
+    let OpenedVolume {
+        volume,
+        labels,
+        name,
+        preset,
+    } = opened;
+    let labels = labels.map(Arc::new);
     let [x, y, z] = volume.dims();
-    let domain = match volume.sample_type() {
-        SampleType::U8 => None,
-        SampleType::U16 => {
-            let [lo, hi] = volume.ranges().overall();
-            (hi > lo).then(|| [f32::from(lo), f32::from(hi)])
-        }
-    };
     let histogram = histogram(&volume, domain);
     let description = format!(
         "{name}: {x}×{y}×{z} {}, {}",
@@ -180,7 +161,7 @@ mod tests {
     #[test]
     fn large_files_get_their_histogram_without_a_pass_over_the_data() {
         use raycaster::io::{WriteOptions, write_volume};
-        use raycaster::volume::{Format, Header, Layout};
+        use raycaster::volume::{Content, Format, Header, Layout};
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("ramp.vol");
         let dims = [130, 40, 40];
