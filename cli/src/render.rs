@@ -305,7 +305,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         bail!("--iso {} must lie in [0, 1]", args.iso);
     }
     check_output(&args.output, args.force)?;
-    let read_before = stats::bytes_read();
+    let read_before = raycaster::io::process_bytes_read();
     let volume = open_volume(&args)?;
     if volume.content() == Content::Labels {
         bail!(
@@ -362,7 +362,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         )?
     };
     frame.to_image().save_png(&args.output)?;
-    let bytes_read = stats::bytes_read().saturating_sub(read_before);
+    let bytes_read = raycaster::io::process_bytes_read().saturating_sub(read_before);
     if args.stats {
         eprint!("{}", stats::table(&frame.stats));
         eprint!("{}", stats::level_table(&volume, level, bytes_read));

@@ -90,8 +90,3 @@ pub fn level_table(volume: &Volume, level: usize, bytes_read: u64) -> String {
         bytes_read as f64 / 1e6
     )
 }
-
-/// Bytes this process has caused to be read from storage so far.
-pub fn bytes_read() -> u64 {
-    raycaster::io::process_bytes_read()
-}

@@ -109,6 +109,18 @@ fn write(
     .map(|_| ())
 }
 
+/// A u8 scalar volume of [`DIMS`] and unit spacing.
+fn u8_header(layout: Layout, format: Format) -> Header {
+    Header::new(
+        DIMS,
+        [1.0; 3],
+        layout,
+        SampleType::U8,
+        Content::Scalar,
+        format,
+    )
+}
+
 fn small_slabs() -> WriteOptions {
     WriteOptions {
         overwrite: true,
@@ -198,14 +210,7 @@ fn every_level_equals_an_independent_box_filter_or_maximum() {
 #[test]
 fn a_render_at_level_k_equals_the_render_of_a_separately_reduced_volume() {
     let dir = TempDir::new().unwrap();
-    let header = Header::new(
-        DIMS,
-        [1.0; 3],
-        Layout::Bricked { side: 16 },
-        SampleType::U8,
-        Content::Scalar,
-        Format::Extended,
-    );
+    let header = u8_header(Layout::Bricked { side: 16 }, Format::Extended);
     let values = pattern(DIMS, 255, false);
     let path = dir.path().join("a.vol");
     write(&path, &header, &values, &small_slabs(), &Job::silent()).unwrap();
@@ -276,14 +281,7 @@ fn an_interrupted_pyramid_write_leaves_no_file() {
     let dir = TempDir::new().unwrap();
     let level0: u64 = DIMS.iter().map(|&d| u64::from(d)).product();
     for format in [Format::Extended, Format::Thesis] {
-        let header = Header::new(
-            DIMS,
-            [1.0; 3],
-            Layout::Bricked { side: 16 },
-            SampleType::U8,
-            Content::Scalar,
-            format,
-        );
+        let header = u8_header(Layout::Bricked { side: 16 }, format);
         let values = pattern(DIMS, 255, false);
         let path = dir.path().join("cut.vol");
         // Cancel once level 0 is written: while the pyramid is being built.
@@ -345,14 +343,7 @@ fn an_interrupted_pyramid_write_leaves_no_file() {
 #[test]
 fn files_without_a_pyramid_still_open_and_render() {
     let dir = TempDir::new().unwrap();
-    let header = Header::new(
-        DIMS,
-        [1.0; 3],
-        Layout::Linear,
-        SampleType::U8,
-        Content::Scalar,
-        Format::Extended,
-    );
+    let header = u8_header(Layout::Linear, Format::Extended);
     let values = pattern(DIMS, 255, false);
     let path = dir.path().join("old.vol");
     let options = WriteOptions {
@@ -388,14 +379,7 @@ fn files_without_a_pyramid_still_open_and_render() {
 fn a_corrupt_embedded_pyramid_is_refused_and_a_stale_sidecar_ignored() {
     let dir = TempDir::new().unwrap();
     let values = pattern(DIMS, 255, false);
-    let header = Header::new(
-        DIMS,
-        [1.0; 3],
-        Layout::Bricked { side: 16 },
-        SampleType::U8,
-        Content::Scalar,
-        Format::Extended,
-    );
+    let header = u8_header(Layout::Bricked { side: 16 }, Format::Extended);
     let path = dir.path().join("c.vol");
     write(&path, &header, &values, &small_slabs(), &Job::silent()).unwrap();
     let offset = Volume::open(&path)
@@ -419,14 +403,7 @@ fn a_corrupt_embedded_pyramid_is_refused_and_a_stale_sidecar_ignored() {
         .to_string();
     assert!(msg.contains("pyramid offset"), "{msg}");
 
-    let thesis = Header::new(
-        DIMS,
-        [1.0; 3],
-        Layout::Bricked { side: 16 },
-        SampleType::U8,
-        Content::Scalar,
-        Format::Thesis,
-    );
+    let thesis = u8_header(Layout::Bricked { side: 16 }, Format::Thesis);
     let path = dir.path().join("t.vol");
     write(&path, &thesis, &values, &small_slabs(), &Job::silent()).unwrap();
     assert_eq!(Volume::open(&path).unwrap().level_count(), 3);
@@ -443,14 +420,7 @@ fn a_corrupt_embedded_pyramid_is_refused_and_a_stale_sidecar_ignored() {
 #[test]
 fn opening_reads_nothing_and_frames_compute_cells_only_for_bricks_they_visit() {
     let dir = TempDir::new().unwrap();
-    let header = Header::new(
-        DIMS,
-        [1.0; 3],
-        Layout::Bricked { side: 16 },
-        SampleType::U8,
-        Content::Scalar,
-        Format::Extended,
-    );
+    let header = u8_header(Layout::Bricked { side: 16 }, Format::Extended);
     let values = pattern(DIMS, 255, false);
     let path = dir.path().join("lazy.vol");
     write(&path, &header, &values, &small_slabs(), &Job::silent()).unwrap();
@@ -491,14 +461,7 @@ fn opening_reads_nothing_and_frames_compute_cells_only_for_bricks_they_visit() {
 #[test]
 fn the_automatic_level_follows_the_projected_voxel_size() {
     let dir = TempDir::new().unwrap();
-    let header = Header::new(
-        DIMS,
-        [1.0; 3],
-        Layout::Bricked { side: 16 },
-        SampleType::U8,
-        Content::Scalar,
-        Format::Extended,
-    );
+    let header = u8_header(Layout::Bricked { side: 16 }, Format::Extended);
     let path = dir.path().join("lod.vol");
     write(
         &path,

@@ -47,6 +47,27 @@ fn wait_until(v: &Viewer, done: impl Fn(&Viewer) -> bool) {
     wait_for_frame(v);
 }
 
+/// Writes the built-in `kind` scene of `size³` voxels as a bricked `.vol` file
+/// (with its resolution pyramid, when it is large enough for one).
+fn generate_file(path: &Path, kind: SceneKind, size: u32) {
+    let header = raycaster::volume::Header::new(
+        [size; 3],
+        [1.0; 3],
+        raycaster::volume::Layout::Bricked { side: 16 },
+        raycaster::volume::SampleType::U8,
+        raycaster::volume::Content::Scalar,
+        raycaster::volume::Format::Extended,
+    );
+    raycaster::generate::generate(
+        kind.build([size; 3], 1).as_ref(),
+        &header,
+        path,
+        &Default::default(),
+        &raycaster::job::Job::silent(),
+    )
+    .unwrap();
+}
+
 /// The canvas image as RGB triples, with its size.
 fn frame(v: &Viewer) -> (u32, u32, Vec<[u8; 3]>) {
     let image = v.ui().get_frame();
@@ -212,22 +233,7 @@ fn the_viewer_runs_headless() {
 
     // A good file opens (in the background) and replaces the volume.
     let good = dir.path().join("shells.vol");
-    let header = raycaster::volume::Header::new(
-        [48; 3],
-        [1.0; 3],
-        raycaster::volume::Layout::Bricked { side: 16 },
-        raycaster::volume::SampleType::U8,
-        raycaster::volume::Content::Scalar,
-        raycaster::volume::Format::Extended,
-    );
-    raycaster::generate::generate(
-        SceneKind::Shells.build([48; 3], 1).as_ref(),
-        &header,
-        &good,
-        &Default::default(),
-        &raycaster::job::Job::silent(),
-    )
-    .unwrap();
+    generate_file(&good, SceneKind::Shells, 48);
     v.ui().invoke_open_file(good.display().to_string().into());
     wait_until(&v, |v| v.volume_name() == good.display().to_string());
     assert!(v.ui().get_volume_info().contains("48×48×48"));
@@ -276,22 +282,7 @@ fn the_viewer_runs_headless() {
     // level at once, the resting view refines to full resolution (close enough
     // that a voxel covers a pixel), and the status line names the level.
     let big = dir.path().join("pyramid.vol");
-    let header = raycaster::volume::Header::new(
-        [160; 3],
-        [1.0; 3],
-        raycaster::volume::Layout::Bricked { side: 16 },
-        raycaster::volume::SampleType::U8,
-        raycaster::volume::Content::Scalar,
-        raycaster::volume::Format::Extended,
-    );
-    raycaster::generate::generate(
-        SceneKind::Shapes.build([160; 3], 1).as_ref(),
-        &header,
-        &big,
-        &Default::default(),
-        &raycaster::job::Job::silent(),
-    )
-    .unwrap();
+    generate_file(&big, SceneKind::Shapes, 160);
     v.ui().invoke_open_file(big.display().to_string().into());
     wait_until(&v, |v| v.volume_name() == big.display().to_string());
     let (first, moving) = v.last_stats().unwrap_or_else(|| {

@@ -494,13 +494,7 @@ pub(crate) fn write_levels<T: Sample>(
 /// The head of a pyramid sidecar for a volume file of `file_len` bytes modified at
 /// `mtime`.
 pub(crate) fn sidecar_head(file_len: u64, mtime: SystemTime) -> Vec<u8> {
-    let (secs, nanos) = match mtime.duration_since(SystemTime::UNIX_EPOCH) {
-        Ok(d) => (d.as_secs() as i64, d.subsec_nanos()),
-        Err(e) => (
-            -(e.duration().as_secs() as i64),
-            e.duration().subsec_nanos(),
-        ),
-    };
+    let (secs, nanos) = super::ranges::split_time(mtime);
     let mut out = Vec::with_capacity(SIDECAR_HEAD_LEN as usize);
     out.extend_from_slice(&SIDECAR_MAGIC);
     out.extend_from_slice(&SIDECAR_VERSION.to_le_bytes());

@@ -230,7 +230,8 @@ impl BrickRanges {
     }
 }
 
-fn split_time(t: SystemTime) -> (i64, u32) {
+/// Seconds (negative before the epoch) and nanoseconds of `t`, as sidecars record it.
+pub(crate) fn split_time(t: SystemTime) -> (i64, u32) {
     match t.duration_since(SystemTime::UNIX_EPOCH) {
         Ok(d) => (d.as_secs() as i64, d.subsec_nanos()),
         Err(e) => (

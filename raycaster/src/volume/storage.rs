@@ -53,13 +53,8 @@ impl Storage {
                 }
                 Ok(Storage::Mapped(map))
             }
-            Access::Ram => {
-                let mut words = vec![0u64; len.div_ceil(8)];
-                let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut words);
-                // Positioned: the header was already read through this handle.
-                file.read_exact_at(&mut bytes[..len], 0)?;
-                Ok(Storage::Ram { words, len })
-            }
+            // Positioned: the header was already read through this handle.
+            Access::Ram => Storage::read_into_ram(file, 0, len),
         }
     }
 
@@ -78,10 +73,7 @@ impl Storage {
                 let len = usize::try_from(len).map_err(|_| {
                     std::io::Error::new(std::io::ErrorKind::OutOfMemory, "level too large")
                 })?;
-                let mut words = vec![0u64; len.div_ceil(8)];
-                let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut words);
-                file.read_exact_at(&mut bytes[..len], offset)?;
-                Ok(Storage::Ram { words, len })
+                Storage::read_into_ram(file, offset, len)
             }
         }
     }
@@ -94,6 +86,14 @@ impl Storage {
         if let Storage::Mapped(map) = self {
             let _ = map.advise(memmap2::Advice::Random);
         }
+    }
+
+    /// `len` bytes of `file` at `offset` read into an 8-byte aligned buffer.
+    fn read_into_ram(file: &File, offset: u64, len: usize) -> std::io::Result<Storage> {
+        let mut words = vec![0u64; len.div_ceil(8)];
+        let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut words);
+        file.read_exact_at(&mut bytes[..len], offset)?;
+        Ok(Storage::Ram { words, len })
     }
 
     /// Asks the OS to read `len` bytes at `offset` ahead of use (mapped storage
