@@ -136,12 +136,25 @@ impl VolumeGeometry {
     /// The brick owning voxel position `p` (clamped into the volume first).
     #[inline]
     pub fn owner(&self, p: Vec3) -> [u32; 3] {
-        let [nx, ny, nz] = self.grid.counts();
-        let q = p.clamp(Vec3::ZERO, self.last) / self.step;
+        let p = p.clamp(Vec3::ZERO, self.last);
         [
-            (q.x as u32).min(nx - 1),
-            (q.y as u32).min(ny - 1),
-            (q.z as u32).min(nz - 1),
+            self.owner_along(p.x, 0),
+            self.owner_along(p.y, 1),
+            self.owner_along(p.z, 2),
         ]
+    }
+
+    /// Coordinate `axis` of the brick owning a position whose coordinate `axis` is
+    /// `c` (inside the volume): [`Self::owner`] one axis at a time, non-decreasing
+    /// in `c`.
+    #[inline]
+    pub fn owner_along(&self, c: f32, axis: usize) -> u32 {
+        ((c / self.step) as u32).min(self.grid.counts()[axis] - 1)
+    }
+
+    /// The brick side in owned cells (the grid's step) as a float.
+    #[inline]
+    pub fn brick_step(&self) -> f32 {
+        self.step
     }
 }

@@ -62,16 +62,38 @@ pub(crate) fn smoothstep(e0: f32, e1: f32, x: f32) -> f32 {
     t * t * (3.0 - 2.0 * t)
 }
 
+/// `x^e` for the specular term, `x` in `[0, 1]`: by repeated squaring when `e` is a
+/// whole number up to 255 (the usual shininess; a few multiplications instead of a
+/// `powf` call), else `powf`.
+#[inline]
+pub(crate) fn specular_power(x: f32, e: f32) -> f32 {
+    if (0.0..=255.0).contains(&e) && e.fract() == 0.0 {
+        let (mut n, mut base, mut out) = (e as u32, x, 1.0f32);
+        while n > 0 {
+            if n & 1 == 1 {
+                out *= base;
+            }
+            base *= base;
+            n >>= 1;
+        }
+        out
+    } else {
+        x.powf(e)
+    }
+}
+
 /// Unit vectors towards the light and halfway between it and the eye, for a ray
 /// of unit direction `view_dir` (the headlight when `light` is `None`).
 #[inline]
 pub(crate) fn light_vectors(light: Option<Light>, view_dir: Vec3) -> (Vec3, Vec3) {
-    let to_light = match light {
-        Some(Light::Fixed(d)) => -d.normalize_or_zero(),
-        _ => -view_dir,
-    };
-    let half = (to_light - view_dir).normalize_or_zero();
-    (to_light, half)
+    match light {
+        Some(Light::Fixed(d)) => {
+            let to_light = -d.normalize_or_zero();
+            (to_light, (to_light - view_dir).normalize_or_zero())
+        }
+        // A headlight: the half vector is the light vector itself.
+        _ => (-view_dir, -view_dir),
+    }
 }
 
 /// Blinn-Phong intensity `c_d|L·N| + c_s|H·N|^c_e + c_a` at gradient `gradient`
@@ -80,7 +102,9 @@ pub(crate) fn shading_intensity(shading: Option<&Shading>, gradient: Vec3, view_
     let Some(sh) = shading else { return 1.0 };
     let n = gradient.normalize_or_zero();
     let (l, h) = light_vectors(Some(sh.light), view_dir);
-    sh.diffuse * n.dot(l).abs() + sh.specular * n.dot(h).abs().powf(sh.shininess) + sh.ambient
+    sh.diffuse * n.dot(l).abs()
+        + sh.specular * specular_power(n.dot(h).abs(), sh.shininess)
+        + sh.ambient
 }
 
 /// One step of importance-aware compositing (de Moura Pinto & Freitas) of a
@@ -141,6 +165,19 @@ mod tests {
         let (c, _, _) = importance_composite([0.9, 0.0, 0.0], 0.9, 0.0, [0.0, 0.5, 0.0], 0.5, 5.0);
         let plain = 0.1 * 0.5;
         assert!(c[1] > plain * 2.0, "{c:?}");
+    }
+
+    #[test]
+    fn the_specular_power_equals_powf() {
+        for e in [0.0, 1.0, 2.0, 7.0, 24.0, 100.0, 2.5, 300.0] {
+            for x in [0.0f32, 0.1, 0.5, 0.9, 0.999, 1.0] {
+                let (fast, exact) = (specular_power(x, e), x.powf(e));
+                assert!(
+                    (fast - exact).abs() <= 1e-5 * exact.max(1e-3),
+                    "{x}^{e}: {fast} {exact}"
+                );
+            }
+        }
     }
 
     #[test]

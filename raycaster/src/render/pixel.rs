@@ -29,6 +29,12 @@ pub struct PixelRay {
     /// The last sample's segment length as a fraction of `dt`, in `(0, 1]`
     /// (0 only for a ray that merely touches the box).
     pub last_fraction: f32,
+    /// Voxel position of sample 0 (unclamped): `origin + direction·t_enter`.
+    pub start: Vec3,
+    /// Voxel distance between samples: `direction·dt`.
+    pub step: Vec3,
+    /// `1 / step` per axis, 0 on an axis the ray does not move along.
+    pub inv_step: Vec3,
 }
 
 impl PixelRay {
@@ -44,14 +50,20 @@ impl PixelRay {
         let samples = ((length / dt).ceil().min(u32::MAX as f32 - 1.0) as u32).max(1);
         let last_fraction = ((length - (samples - 1) as f32 * dt) / dt).clamp(0.0, 1.0);
         let inv_spacing = geometry.spacing().recip();
+        let origin = (ray.origin - geometry.origin()) * inv_spacing;
+        let direction = ray.direction * inv_spacing;
+        let step = direction * dt;
         Some(PixelRay {
-            origin: (ray.origin - geometry.origin()) * inv_spacing,
-            direction: ray.direction * inv_spacing,
+            origin,
+            direction,
             view_dir: ray.direction,
             t_enter,
             dt,
             samples,
             last_fraction,
+            start: origin + direction * t_enter,
+            step,
+            inv_step: Vec3::select(step.cmpeq(Vec3::ZERO), Vec3::ZERO, step.recip()),
         })
     }
 
@@ -62,10 +74,20 @@ impl PixelRay {
     }
 
     /// The voxel position of sample `k`, clamped into the box `[0, last]` (rounding
-    /// can put the first and last samples a hair outside).
+    /// can put the first and last samples a hair outside). Each coordinate is
+    /// monotone in `k` (one product and one sum, both rounded monotonically), which
+    /// makes brick ownership along a ray one interval of `k`
+    /// ([`super::ownership::owned_samples`]).
     #[inline]
     pub fn position(&self, k: u32, last: Vec3) -> Vec3 {
-        (self.origin + self.direction * self.t(k)).clamp(Vec3::ZERO, last)
+        (self.start + self.step * k as f32).clamp(Vec3::ZERO, last)
+    }
+
+    /// Coordinate `axis` of [`Self::position`] (the same arithmetic, one axis).
+    #[inline]
+    pub fn coordinate(&self, k: u32, axis: usize, last: f32) -> f32 {
+        let (start, step) = (self.start.to_array(), self.step.to_array());
+        (start[axis] + step[axis] * k as f32).clamp(0.0, last)
     }
 }
 

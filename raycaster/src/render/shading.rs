@@ -3,7 +3,7 @@
 
 use glam::Vec3;
 
-use super::optics::light_vectors;
+use super::optics::{light_vectors, specular_power};
 
 /// Where the light comes from.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -57,7 +57,7 @@ impl Shading {
         let normal = gradient / magnitude;
         let (to_light, half) = light_vectors(Some(self.light), view_dir);
         let diffuse = normal.dot(to_light).abs();
-        let specular = self.specular * normal.dot(half).abs().powf(self.shininess);
+        let specular = self.specular * specular_power(normal.dot(half).abs(), self.shininess);
         let k = self.ambient + self.diffuse * diffuse;
         color.map(|c| (c * k + specular).min(1.0))
     }

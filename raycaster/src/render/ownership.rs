@@ -1,0 +1,259 @@
+//! Which samples of a ray a brick owns: one interval of sample indices, found by
+//! arithmetic per axis instead of by walking samples.
+//!
+//! Sample `k` belongs to the brick [`VolumeGeometry::owner`] gives for its
+//! position ([`PixelRay::position`]). Each coordinate of that position is monotone
+//! in `k`, and the owner is monotone in each coordinate, so along one axis the
+//! samples owned by brick coordinate `b` form an interval; the brick's samples are
+//! the intersection of its three axes' intervals. Each interval end is estimated
+//! from the brick's face and then corrected with the exact owner function, so the
+//! result is exactly the set of samples the owner function assigns to the brick —
+//! the sequential and parallel renderers can rely on it to agree.
+
+use super::geometry::VolumeGeometry;
+use super::pixel::PixelRay;
+
+/// The first and last sample index of `ray` that brick `b` owns, if any.
+#[inline]
+pub(crate) fn owned_samples(
+    ray: &PixelRay,
+    geometry: &VolumeGeometry,
+    b: [u32; 3],
+) -> Option<(u32, u32)> {
+    guessed_and_checked(ray, geometry, b).or_else(|| owned_per_axis(ray, geometry, b))
+}
+
+/// The owned interval from the brick's box in sample space, when four reads of
+/// the owner function confirm both its ends (the usual case): the owned samples
+/// are one interval, so an owned first sample whose predecessor is not owned is
+/// its start, and likewise at the end. `None` when the guess is empty or fails a
+/// check; [`owned_per_axis`] then decides.
+#[inline]
+fn guessed_and_checked(
+    ray: &PixelRay,
+    geometry: &VolumeGeometry,
+    b: [u32; 3],
+) -> Option<(u32, u32)> {
+    let counts = geometry.grid().counts();
+    let side = geometry.brick_step();
+    let (mut enter, mut exit) = (0.0f32, ray.samples as f32);
+    let (inv_step, start) = (ray.inv_step.to_array(), ray.start.to_array());
+    for a in 0..3 {
+        let inv = inv_step[a];
+        if inv == 0.0 {
+            continue;
+        }
+        // The first brick of an axis owns everything below it, the last
+        // everything above (positions are clamped into the volume).
+        let lower = if b[a] == 0 {
+            f32::NEG_INFINITY
+        } else {
+            b[a] as f32 * side
+        };
+        let upper = if b[a] + 1 >= counts[a] {
+            f32::INFINITY
+        } else {
+            (b[a] + 1) as f32 * side
+        };
+        let (t0, t1) = ((lower - start[a]) * inv, (upper - start[a]) * inv);
+        enter = enter.max(t0.min(t1));
+        exit = exit.min(t0.max(t1));
+    }
+    // Samples k with enter ≤ k < exit: first = ceil(enter), last = ceil(exit) − 1.
+    let ceil = |x: f32| {
+        let whole = x as u32;
+        if (whole as f32) < x { whole + 1 } else { whole }
+    };
+    let (first, end) = (ceil(enter), ceil(exit.max(0.0)).min(ray.samples));
+    if first >= end {
+        return None;
+    }
+    let last = end - 1;
+    let last_voxel = geometry.last_voxel();
+    let owns = |k: u32| geometry.owner(ray.position(k, last_voxel)) == b;
+    let checked = owns(first)
+        && owns(last)
+        && (first == 0 || !owns(first - 1))
+        && (last + 1 >= ray.samples || !owns(last + 1));
+    checked.then_some((first, last))
+}
+
+/// The owned interval axis by axis, each end found exactly with the owner
+/// function (see the module's documentation).
+fn owned_per_axis(ray: &PixelRay, geometry: &VolumeGeometry, b: [u32; 3]) -> Option<(u32, u32)> {
+    let last_voxel = geometry.last_voxel();
+    let side = geometry.brick_step();
+    let (mut lo, mut hi) = (0u32, ray.samples.checked_sub(1)?);
+    for axis in 0..3 {
+        let last = last_voxel[axis];
+        let own = |k: u32| geometry.owner_along(ray.coordinate(k, axis, last), axis);
+        let target = b[axis];
+        let (own_lo, own_hi) = (own(lo), own(hi));
+        if own_lo == target && own_hi == target {
+            continue;
+        }
+        let step = ray.step[axis];
+        let start = ray.start[axis];
+        // The sample index where the ray crosses plane `c` of this axis, roughly.
+        let crossing = |c: f32| (c - start) / step;
+        if own_lo <= own_hi {
+            // Non-decreasing along the ray (or constant and not the target).
+            if own_lo > target || own_hi < target {
+                return None;
+            }
+            // First sample at or past the brick's lower face, first past its upper.
+            let first = if own_lo >= target {
+                lo
+            } else {
+                first_where(lo, hi, crossing(target as f32 * side), |k| own(k) >= target)
+            };
+            let end = if own_hi <= target {
+                hi + 1
+            } else {
+                first_where(lo, hi, crossing((target + 1) as f32 * side), |k| {
+                    own(k) > target
+                })
+            };
+            (lo, hi) = (first, end.checked_sub(1)?);
+        } else {
+            // Decreasing along the ray.
+            if own_hi > target || own_lo < target {
+                return None;
+            }
+            let first = if own_lo <= target {
+                lo
+            } else {
+                first_where(lo, hi, crossing((target + 1) as f32 * side), |k| {
+                    own(k) <= target
+                })
+            };
+            let end = if own_hi >= target {
+                hi + 1
+            } else {
+                first_where(lo, hi, crossing(target as f32 * side), |k| own(k) < target)
+            };
+            (lo, hi) = (first, end.checked_sub(1)?);
+        }
+        if lo > hi {
+            return None;
+        }
+    }
+    Some((lo, hi))
+}
+
+/// The first `k` in `lo..=hi` where the monotone predicate `holds` (false, then
+/// true) is true, or `hi + 1` when it never is; `estimate` is a guess of it.
+///
+/// The guess is corrected a sample or two at a time, as it is almost always right
+/// within one; a poor guess (a ray almost parallel to a face) falls back to a
+/// binary search, so the answer is exact either way.
+#[inline]
+fn first_where(lo: u32, hi: u32, estimate: f32, holds: impl Fn(u32) -> bool) -> u32 {
+    // NaN and infinities land on the ends (`as` saturates, NaN becomes 0).
+    let end = hi + 1;
+    let mut k = (estimate.max(lo as f32) as u32).clamp(lo, end);
+    for _ in 0..3 {
+        if k < end && !holds(k) {
+            k += 1;
+        } else if k > lo && holds(k - 1) {
+            k -= 1;
+        } else {
+            return k;
+        }
+    }
+    // Binary search over the whole interval: invariant "holds(a - 1) is false or
+    // a = lo" and "holds(b) is true or b = end".
+    let (mut a, mut b) = (lo, end);
+    while a < b {
+        let mid = a + (b - a) / 2;
+        if holds(mid) {
+            b = mid;
+        } else {
+            a = mid + 1;
+        }
+    }
+    a
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+
+    use super::*;
+    use crate::render::ray::Ray;
+    use crate::volume::BlockGrid;
+
+    /// Every sample of a ray is owned by exactly the brick the owner function
+    /// names, and each brick's owned samples are the interval `owned_samples` says.
+    fn check(geometry: &VolumeGeometry, ray: &Ray, dt: f32) {
+        let Some(pixel) = PixelRay::new(ray, geometry, dt) else {
+            return;
+        };
+        let last = geometry.last_voxel();
+        let grid = geometry.grid();
+        for b in grid.iter() {
+            let owned: Vec<u32> = (0..pixel.samples)
+                .filter(|&k| geometry.owner(pixel.position(k, last)) == b)
+                .collect();
+            let expected = owned.first().map(|&f| (f, *owned.last().unwrap()));
+            if let Some((f, l)) = expected {
+                assert_eq!(owned.len() as u32, l - f + 1, "{b:?}: not one interval");
+            }
+            assert_eq!(
+                owned_samples(&pixel, geometry, b),
+                expected,
+                "{b:?} {ray:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn owned_intervals_match_the_owner_of_every_sample() {
+        let mut seed = 0x9e37_79b9_u32;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            (seed % 10_000) as f32 / 10_000.0
+        };
+        for (dims, side, spacing) in [
+            ([33, 17, 25], 9, [1.0, 1.0, 1.0]),
+            ([40, 40, 40], 8, [0.7, 1.3, 2.0]),
+            ([9, 1, 12], 4, [1.0, 1.0, 1.0]),
+        ] {
+            let geometry = VolumeGeometry::new(BlockGrid::new(dims, side), spacing);
+            let (lo, hi) = geometry.world_bounds();
+            let centre = (lo + hi) * 0.5;
+            for i in 0..60 {
+                let origin =
+                    centre + Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5) * (hi - lo) * 3.0;
+                let target = lo + Vec3::new(next(), next(), next()) * (hi - lo);
+                let mut direction = (target - origin).normalize();
+                // Axis-parallel and face-grazing rays too.
+                if i % 7 == 0 {
+                    direction = Vec3::new(direction.x, 0.0, 0.0).normalize_or(Vec3::X);
+                }
+                let ray = Ray { origin, direction };
+                check(&geometry, &ray, 0.5 * geometry.min_spacing());
+                check(&geometry, &ray, 1.3);
+            }
+            // A ray along a brick face.
+            let face = Ray {
+                origin: Vec3::new(-5.0, (side - 1) as f32 * spacing[1], 2.0 * spacing[2]),
+                direction: Vec3::X,
+            };
+            check(&geometry, &face, 0.25);
+        }
+    }
+
+    #[test]
+    fn first_where_is_exact_for_any_estimate() {
+        for threshold in [0u32, 1, 5, 17, 40, 41] {
+            for estimate in [-3.0, 0.0, 4.5, 16.0, 39.0, 1e9, f32::NAN, f32::INFINITY] {
+                let k = first_where(0, 40, estimate, |k| k >= threshold);
+                assert_eq!(k, threshold.min(41), "{threshold} {estimate}");
+            }
+        }
+        assert_eq!(first_where(10, 20, 0.0, |k| k >= 15), 15);
+    }
+}

@@ -1,0 +1,275 @@
+//! The non-empty sample runs of a ray inside one brick: what every compositor's
+//! loop walks.
+//!
+//! A brick's owned cells are split into small cells with known value ranges
+//! ([`super::cells`]). [`SampleRuns`] walks a ray's samples in a brick cell by
+//! cell: the samples of a cell whose range is empty under the frame's compositor
+//! ([`Compositor::range_empty`], the same rule that drops whole bricks from the
+//! frame plan) are skipped without being read; every other cell yields one run of
+//! consecutive samples with the cell's largest value, so the loop can still skip
+//! it for a state-dependent reason ([`Compositor::below_interest`]).
+
+use glam::Vec3;
+
+use super::cells::BrickCells;
+use super::compositor::Compositor;
+use super::pixel::PixelRay;
+
+/// Consecutive samples `first..end` of a ray, all in one non-empty small cell
+/// (or, without empty-space skipping, all the samples asked for).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct SampleRun {
+    /// First sample index.
+    pub first: u32,
+    /// One past the last sample index.
+    pub end: u32,
+    /// The largest raw value any sample of the run can have.
+    pub hi: u16,
+}
+
+impl SampleRun {
+    /// Samples in the run.
+    #[inline]
+    pub fn len(&self) -> u32 {
+        self.end - self.first
+    }
+}
+
+/// A brick's small cells as the run walker sees them.
+#[derive(Clone, Debug)]
+pub(crate) struct CellGrid {
+    /// Value range per cell, `per_axis³`, x slowest.
+    pub ranges: BrickCells,
+    /// Cells per axis.
+    pub per_axis: u32,
+    /// Cell side in voxels.
+    pub cell_step: f32,
+    /// `1 / cell_step`.
+    pub inv_cell_step: f32,
+    /// The brick's first voxel (volume voxel coordinates).
+    pub origin: Vec3,
+}
+
+/// Iterator over the [`SampleRun`]s of samples `first..=last` of a ray in one brick.
+pub(crate) struct SampleRuns<'r, C> {
+    compositor: &'r C,
+    ray: &'r PixelRay,
+    cells: Option<&'r CellGrid>,
+    last_voxel: Vec3,
+    next: u32,
+    end: u32,
+    /// Samples skipped so far (in empty cells).
+    pub skipped: u64,
+}
+
+impl<'r, C: Compositor> SampleRuns<'r, C> {
+    /// The runs of samples `first..=last` of `ray`; with `cells` `None` (no
+    /// empty-space skipping) one run of them all.
+    #[inline]
+    pub fn new(
+        compositor: &'r C,
+        ray: &'r PixelRay,
+        cells: Option<&'r CellGrid>,
+        last_voxel: Vec3,
+        first: u32,
+        last: u32,
+    ) -> Self {
+        SampleRuns {
+            compositor,
+            ray,
+            cells,
+            last_voxel,
+            next: first,
+            end: last.saturating_add(1),
+            skipped: 0,
+        }
+    }
+
+    /// The cell holding sample `k` and the first sample after `k` past the cell's
+    /// exit face (the samples from `k` to just before it are in the cell, up to
+    /// rounding at the face); always greater than `k`.
+    #[inline]
+    fn cell_and_exit(&self, cells: &CellGrid, k: u32) -> (usize, u32) {
+        let p = self.ray.position(k, self.last_voxel);
+        let m = cells.per_axis - 1;
+        let local = (p - cells.origin) * cells.inv_cell_step;
+        // Positions inside the brick are ≥ its origin: `as` truncates = floors.
+        let (cx, cy, cz) = (
+            (local.x as u32).min(m),
+            (local.y as u32).min(m),
+            (local.z as u32).min(m),
+        );
+        let lower = cells.origin + Vec3::new(cx as f32, cy as f32, cz as f32) * cells.cell_step;
+        let (step, start, inv) = (
+            self.ray.step.to_array(),
+            self.ray.start.to_array(),
+            self.ray.inv_step.to_array(),
+        );
+        let lower = lower.to_array();
+        let mut crossing = f32::INFINITY;
+        for a in 0..3 {
+            if step[a] != 0.0 {
+                let face = if step[a] > 0.0 {
+                    lower[a] + cells.cell_step
+                } else {
+                    lower[a]
+                };
+                crossing = crossing.min((face - start[a]) * inv[a]);
+            }
+        }
+        // The first sample at or past the exit face: ceil(crossing), at least
+        // k + 1 (negative and NaN saturate to 0). A sample rounding puts a hair
+        // past the face stays in this run: it reads the voxels the cell's range
+        // already covers (its span includes the voxel after), or lies within a
+        // rounding error of them; one a hair before it starts the next run, which
+        // finds this cell again.
+        let whole = crossing as u32;
+        let exit = if (whole as f32) < crossing {
+            whole.saturating_add(1)
+        } else {
+            whole
+        };
+        let exit = exit.max(k + 1);
+        (
+            ((cx * cells.per_axis + cy) * cells.per_axis + cz) as usize,
+            exit,
+        )
+    }
+}
+
+impl<C: Compositor> Iterator for SampleRuns<'_, C> {
+    type Item = SampleRun;
+
+    #[inline]
+    fn next(&mut self) -> Option<SampleRun> {
+        let Some(cells) = self.cells else {
+            let run = (self.next < self.end).then_some(SampleRun {
+                first: self.next,
+                end: self.end,
+                hi: u16::MAX,
+            });
+            self.next = self.end;
+            return run;
+        };
+        while self.next < self.end {
+            let k = self.next;
+            let (cell, exit) = self.cell_and_exit(cells, k);
+            let exit = exit.min(self.end);
+            self.next = exit;
+            let [lo, hi] = cells.ranges[cell];
+            // `lo > hi`: a cell past an edge brick's voxels (owns no sample).
+            if lo > hi || self.compositor.range_empty(lo, hi) {
+                self.skipped += u64::from(exit - k);
+                continue;
+            }
+            return Some(SampleRun {
+                first: k,
+                end: exit,
+                hi,
+            });
+        }
+        None
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::cells::CellRanges;
+    use crate::render::compositor::SamplePoint;
+    use crate::render::geometry::VolumeGeometry;
+    use crate::render::ownership::owned_samples;
+    use crate::render::ray::Ray;
+    use crate::render::sampler::BrickSampler;
+    use crate::volume::{BlockGrid, Layout, Sample, TypedVolume};
+
+    /// Values below 100 are empty.
+    struct Threshold;
+
+    impl Compositor for Threshold {
+        type State = ();
+        fn start(&self) {}
+        fn range_empty(&self, _lo: u16, hi: u16) -> bool {
+            hi < 100
+        }
+        fn sample<T: Sample>(&self, _state: &mut (), _sample: &SamplePoint<'_, T>) {}
+        fn resolve(&self, _state: &()) -> [f32; 4] {
+            [0.0; 4]
+        }
+    }
+
+    #[test]
+    fn runs_cover_every_sample_that_is_not_empty_in_order() {
+        let dims = [30, 26, 33];
+        // Blobs of high values in a low background.
+        let samples: Vec<u8> = (0..30 * 26 * 33)
+            .map(|i| {
+                let (x, y, z) = (i / (26 * 33), (i / 33) % 26, i % 33);
+                let d = (x as i32 - 12).pow(2) + (y as i32 - 14).pow(2) + (z as i32 - 20).pow(2);
+                if d < 30 || (x + 2 * y + z) % 61 == 0 {
+                    200
+                } else {
+                    (i % 50) as u8
+                }
+            })
+            .collect();
+        let volume = TypedVolume::new(&samples, dims, Layout::Linear);
+        let grid = BlockGrid::new(dims, 13);
+        let cells = CellRanges::compute(&grid, |b| volume.brick(&grid, b));
+        let geometry = VolumeGeometry::new(grid, [1.0, 1.0, 1.0]);
+        let last = geometry.last_voxel();
+        let (mut marched, mut skipped_total) = (0u64, 0u64);
+        for i in 0..200u32 {
+            let f = |s: u32| ((i * s) % 97) as f32 / 97.0;
+            let origin = Vec3::new(-20.0 + 60.0 * f(7), -15.0 + 50.0 * f(13), -25.0 * f(29));
+            let target = Vec3::new(30.0 * f(31), 26.0 * f(17), 33.0 * f(11));
+            let ray = Ray {
+                origin,
+                direction: (target - origin).normalize_or(Vec3::Z),
+            };
+            let Some(pixel) = PixelRay::new(&ray, &geometry, 0.37) else {
+                continue;
+            };
+            for b in grid.iter() {
+                let Some((first, last_k)) = owned_samples(&pixel, &geometry, b) else {
+                    continue;
+                };
+                let sampler = BrickSampler::new(volume.brick(&grid, b));
+                let cell_grid = CellGrid {
+                    ranges: cells.cached(grid.index(b)).unwrap(),
+                    per_axis: cells.per_axis(),
+                    cell_step: cells.cell_step() as f32,
+                    inv_cell_step: 1.0 / cells.cell_step() as f32,
+                    origin: sampler.origin(),
+                };
+                let mut runs =
+                    SampleRuns::new(&Threshold, &pixel, Some(&cell_grid), last, first, last_k);
+                let mut covered = Vec::new();
+                let mut expect = first;
+                for run in runs.by_ref() {
+                    assert!(run.first >= expect && run.first < run.end && run.end <= last_k + 1);
+                    // Everything between runs is empty.
+                    for k in expect..run.first {
+                        assert!(sampler.value(pixel.position(k, last)) < 100.0, "sample {k}");
+                    }
+                    for k in run.first..run.end {
+                        assert!(sampler.value(pixel.position(k, last)) <= f32::from(run.hi));
+                    }
+                    covered.extend(run.first..run.end);
+                    expect = run.end;
+                }
+                for k in expect..=last_k {
+                    assert!(sampler.value(pixel.position(k, last)) < 100.0, "sample {k}");
+                }
+                let total = u64::from(last_k - first + 1);
+                assert_eq!(covered.len() as u64 + runs.skipped, total);
+                marched += covered.len() as u64;
+                skipped_total += runs.skipped;
+            }
+        }
+        assert!(
+            marched > 1000 && skipped_total > 1000,
+            "{marched} {skipped_total}"
+        );
+    }
+}
