@@ -20,23 +20,39 @@ pub(crate) fn owned_samples(
     geometry: &VolumeGeometry,
     b: [u32; 3],
 ) -> Option<(u32, u32)> {
-    guessed_and_checked(ray, geometry, b).or_else(|| owned_per_axis(ray, geometry, b))
+    match guess(ray, geometry, b) {
+        Guess::Owned(first, last) => Some((first, last)),
+        Guess::Missed => None,
+        Guess::Unsure => owned_per_axis(ray, geometry, b),
+    }
+}
+
+/// How far outside a brick's box a computed sample position can be while the
+/// exact ray is inside, in voxels: rounding of `start + step·k` for coordinates
+/// up to 2^14, with a wide margin.
+const MISS_MARGIN: f32 = 0.05;
+
+/// What the brick's box in sample space says.
+enum Guess {
+    /// These samples, confirmed at both ends.
+    Owned(u32, u32),
+    /// No sample: the ray misses the box grown by [`MISS_MARGIN`].
+    Missed,
+    /// Neither could be confirmed.
+    Unsure,
 }
 
 /// The owned interval from the brick's box in sample space, when four reads of
 /// the owner function confirm both its ends (the usual case): the owned samples
 /// are one interval, so an owned first sample whose predecessor is not owned is
-/// its start, and likewise at the end. `None` when the guess is empty or fails a
-/// check; [`owned_per_axis`] then decides.
+/// its start, and likewise at the end. A ray that misses the box grown by
+/// [`MISS_MARGIN`] owns nothing. Anything else is [`Guess::Unsure`].
 #[inline]
-fn guessed_and_checked(
-    ray: &PixelRay,
-    geometry: &VolumeGeometry,
-    b: [u32; 3],
-) -> Option<(u32, u32)> {
+fn guess(ray: &PixelRay, geometry: &VolumeGeometry, b: [u32; 3]) -> Guess {
     let counts = geometry.grid().counts();
     let side = geometry.brick_step();
     let (mut enter, mut exit) = (0.0f32, ray.samples as f32);
+    let (mut enter_wide, mut exit_wide) = (enter, exit);
     let (inv_step, start) = (ray.inv_step.to_array(), ray.start.to_array());
     for a in 0..3 {
         let inv = inv_step[a];
@@ -58,15 +74,24 @@ fn guessed_and_checked(
         let (t0, t1) = ((lower - start[a]) * inv, (upper - start[a]) * inv);
         enter = enter.max(t0.min(t1));
         exit = exit.min(t0.max(t1));
+        let (w0, w1) = (
+            (lower - MISS_MARGIN - start[a]) * inv,
+            (upper + MISS_MARGIN - start[a]) * inv,
+        );
+        enter_wide = enter_wide.max(w0.min(w1));
+        exit_wide = exit_wide.min(w0.max(w1));
     }
     // Samples k with enter ≤ k < exit: first = ceil(enter), last = ceil(exit) − 1.
     let ceil = |x: f32| {
-        let whole = x as u32;
+        let whole = x.max(0.0) as u32;
         if (whole as f32) < x { whole + 1 } else { whole }
     };
-    let (first, end) = (ceil(enter), ceil(exit.max(0.0)).min(ray.samples));
+    if ceil(enter_wide) >= ceil(exit_wide).min(ray.samples) {
+        return Guess::Missed;
+    }
+    let (first, end) = (ceil(enter), ceil(exit).min(ray.samples));
     if first >= end {
-        return None;
+        return Guess::Unsure;
     }
     let last = end - 1;
     let last_voxel = geometry.last_voxel();
@@ -75,7 +100,11 @@ fn guessed_and_checked(
         && owns(last)
         && (first == 0 || !owns(first - 1))
         && (last + 1 >= ray.samples || !owns(last + 1));
-    checked.then_some((first, last))
+    if checked {
+        Guess::Owned(first, last)
+    } else {
+        Guess::Unsure
+    }
 }
 
 /// The owned interval axis by axis, each end found exactly with the owner
