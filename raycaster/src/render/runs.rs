@@ -202,7 +202,7 @@ mod tests {
     fn runs_cover_every_sample_that_is_not_empty_in_order() {
         let dims = [30, 26, 33];
         // Blobs of high values in a low background.
-        let samples: Vec<u8> = (0..30 * 26 * 33)
+        let samples: Vec<u8> = (0..30 * 26 * 33u32)
             .map(|i| {
                 let (x, y, z) = (i / (26 * 33), (i / 33) % 26, i % 33);
                 let d = (x as i32 - 12).pow(2) + (y as i32 - 14).pow(2) + (z as i32 - 20).pow(2);
