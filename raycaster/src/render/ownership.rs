@@ -49,49 +49,20 @@ enum Guess {
 /// [`MISS_MARGIN`] owns nothing. Anything else is [`Guess::Unsure`].
 #[inline]
 fn guess(ray: &PixelRay, geometry: &VolumeGeometry, b: [u32; 3]) -> Guess {
-    let counts = geometry.grid().counts();
-    let side = geometry.brick_step();
-    let (mut enter, mut exit) = (0.0f32, ray.samples as f32);
-    let (mut enter_wide, mut exit_wide) = (enter, exit);
-    let (inv_step, start) = (ray.inv_step.to_array(), ray.start.to_array());
-    for a in 0..3 {
-        let inv = inv_step[a];
-        if inv == 0.0 {
-            continue;
-        }
-        // The first brick of an axis owns everything below it, the last
-        // everything above (positions are clamped into the volume).
-        let lower = if b[a] == 0 {
-            f32::NEG_INFINITY
-        } else {
-            b[a] as f32 * side
-        };
-        let upper = if b[a] + 1 >= counts[a] {
-            f32::INFINITY
-        } else {
-            (b[a] + 1) as f32 * side
-        };
-        let (t0, t1) = ((lower - start[a]) * inv, (upper - start[a]) * inv);
-        enter = enter.max(t0.min(t1));
-        exit = exit.min(t0.max(t1));
-        let (w0, w1) = (
-            (lower - MISS_MARGIN - start[a]) * inv,
-            (upper + MISS_MARGIN - start[a]) * inv,
-        );
-        enter_wide = enter_wide.max(w0.min(w1));
-        exit_wide = exit_wide.min(w0.max(w1));
-    }
-    // Samples k with enter ≤ k < exit: first = ceil(enter), last = ceil(exit) − 1.
+    // Samples k with enter ≤ k < exit: first = ceil(enter), end = ceil(exit).
     let ceil = |x: f32| {
-        let whole = x.max(0.0) as u32;
+        let whole = x as u32;
         if (whole as f32) < x { whole + 1 } else { whole }
     };
-    if ceil(enter_wide) >= ceil(exit_wide).min(ray.samples) {
-        return Guess::Missed;
-    }
+    let (enter, exit) = sample_slab(ray, geometry, b, 0.0);
     let (first, end) = (ceil(enter), ceil(exit).min(ray.samples));
     if first >= end {
-        return Guess::Unsure;
+        let (enter, exit) = sample_slab(ray, geometry, b, MISS_MARGIN);
+        return if ceil(enter) >= ceil(exit).min(ray.samples) {
+            Guess::Missed
+        } else {
+            Guess::Unsure
+        };
     }
     let last = end - 1;
     let last_voxel = geometry.last_voxel();
@@ -105,6 +76,41 @@ fn guess(ray: &PixelRay, geometry: &VolumeGeometry, b: [u32; 3]) -> Guess {
     } else {
         Guess::Unsure
     }
+}
+
+/// The sample-index interval `[enter, exit)` (clipped to the ray's samples) in
+/// which the ray is inside brick `b`'s owned box grown by `margin` voxels.
+#[inline]
+fn sample_slab(ray: &PixelRay, geometry: &VolumeGeometry, b: [u32; 3], margin: f32) -> (f32, f32) {
+    // Plain comparisons: no NaN can arise (a zero step is skipped).
+    let min = |a: f32, b: f32| if a < b { a } else { b };
+    let max = |a: f32, b: f32| if a > b { a } else { b };
+    let counts = geometry.grid().counts();
+    let side = geometry.brick_step();
+    let (mut enter, mut exit) = (0.0f32, ray.samples as f32);
+    let (inv_step, start) = (ray.inv_step.to_array(), ray.start.to_array());
+    for a in 0..3 {
+        let inv = inv_step[a];
+        if inv == 0.0 {
+            continue;
+        }
+        // The first brick of an axis owns everything below it, the last
+        // everything above (positions are clamped into the volume).
+        let lower = if b[a] == 0 {
+            f32::NEG_INFINITY
+        } else {
+            b[a] as f32 * side - margin
+        };
+        let upper = if b[a] + 1 >= counts[a] {
+            f32::INFINITY
+        } else {
+            (b[a] + 1) as f32 * side + margin
+        };
+        let (t0, t1) = ((lower - start[a]) * inv, (upper - start[a]) * inv);
+        enter = max(enter, min(t0, t1));
+        exit = min(exit, max(t0, t1));
+    }
+    (enter, exit)
 }
 
 /// The owned interval axis by axis, each end found exactly with the owner
