@@ -10,8 +10,8 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use raycaster::render::{
     Camera, LevelChoice, Light, Membership, Mode, ModeParameters, Orbit, PRESETS, ParallelOptions,
-    Projection, RenderSettings, RenderVolume, SegmentScene, Shading, TileSink, TransferFunction,
-    closest_preset, render_parallel_into, render_sequential,
+    Projection, RenderSettings, RenderVolume, SegmentScene, Shading, SimdLevel, TileSink,
+    TransferFunction, closest_preset, render_parallel_into, render_sequential,
 };
 use raycaster::source;
 use raycaster::synth::{SceneKind, synthesize, synthesize_labels};
@@ -170,8 +170,16 @@ pub struct RenderArgs {
     tile: u32,
 
     /// Render with the sequential reference renderer (one thread, image order).
-    #[arg(long, conflicts_with_all = ["threads", "compositors", "tile"])]
+    #[arg(long, conflicts_with_all = ["threads", "compositors", "tile", "simd"])]
     sequential: bool,
+
+    /// Marching kernel of the parallel renderer: `auto` (the fastest this CPU
+    /// runs), `scalar` (one ray at a time: the reference), or ray packets in SIMD
+    /// lanes compiled for `sse4.1`, `avx2`, `avx512` (x86-64) or `neon` (aarch64).
+    /// Packets serve DVR with a 1D transfer function; other modes use the scalar
+    /// kernel.
+    #[arg(long, default_value = "auto", value_parser = parse_simd, value_name = "LEVEL")]
+    simd: SimdChoice,
 
     /// Brick side: logical bricks of linear volumes (default 16; 31 above about
     /// 800³ voxels, where fewer bricks render faster), or sub-bricks of a bricked
@@ -550,7 +558,25 @@ fn settings(args: &RenderArgs, volume: &Volume) -> Result<RenderSettings> {
             Some(path) => Some(SegmentScene::load(path)?),
             None => None,
         },
+        simd: args.simd.0,
     })
+}
+
+/// `--simd`: `auto` (`None`) or a kernel level.
+#[derive(Clone, Copy, Debug)]
+struct SimdChoice(Option<SimdLevel>);
+
+/// Parses `--simd`.
+fn parse_simd(text: &str) -> Result<SimdChoice, String> {
+    if text == "auto" {
+        return Ok(SimdChoice(None));
+    }
+    SimdLevel::parse(text)
+        .map(|l| SimdChoice(Some(l)))
+        .ok_or_else(|| {
+            let names: Vec<&str> = SimdLevel::ALL.iter().map(|l| l.name()).collect();
+            format!("unknown kernel {text:?}: auto, {}", names.join(", "))
+        })
 }
 
 /// A warning when `--domain` misses the data's stored values `lo..=hi` entirely

@@ -8,7 +8,7 @@ mod render_support;
 
 use raycaster::render::{
     Camera, Mode, ParallelOptions, Projection, RenderSettings, RenderVolume, Renderer, Vec3,
-    render_parallel, render_sequential,
+    render_parallel, render_sequential, simd_levels,
 };
 use raycaster::synth::SceneKind;
 use raycaster::volume::{Access, Layout, SampleType, Volume};
@@ -141,11 +141,15 @@ fn parallel_equals_sequential_over_the_parameter_matrix() {
         } else {
             (&ram_linear, Some(brick))
         };
+        // Every kernel this machine runs: scalar and each packet level.
+        let levels = simd_levels();
+        let simd = levels[round % levels.len()];
         let settings = RenderSettings {
             mode,
             early_termination: ert.then_some(0.99),
             empty_space_skipping: ess,
             transfer: scene_preset(kind),
+            simd: Some(simd),
             ..RenderSettings::default()
         };
         let cam = camera(view, volume);
@@ -164,7 +168,7 @@ fn parallel_equals_sequential_over_the_parameter_matrix() {
             render_parallel(&prepared, &cam, &settings, &options).unwrap()
         };
         let name = format!(
-            "par-{round}-b{brick}-t{tile}-r{threads}-{view:?}-{}-ert{ert}-ess{ess}-bricked{bricked}-{access:?}",
+            "par-{round}-b{brick}-t{tile}-r{threads}-{view:?}-{}-ert{ert}-ess{ess}-bricked{bricked}-{access:?}-{simd}",
             mode.name()
         );
         assert_images_match(&name, &parallel.to_image(), &reference.to_image(), 1);

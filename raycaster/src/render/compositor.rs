@@ -9,8 +9,10 @@ use glam::Vec3;
 
 use super::local::{LocalCompositor, with_local};
 use super::march::BrickContext;
+use super::packet::PacketWork;
 use super::pixel::PixelRay;
 use super::sampler::VolumeSampler;
+use super::simd::SimdLevel;
 use super::two_level::TwoLevel;
 use crate::volume::Sample;
 
@@ -71,6 +73,18 @@ pub(crate) trait Compositor: Sync {
     /// there is none.
     fn depth(&self, _state: &Self::State) -> f32 {
         f32::INFINITY
+    }
+
+    /// Marches a task's rays in packets of SIMD lanes at `level` (never
+    /// [`SimdLevel::Scalar`]) when this compositor has a packet kernel for the
+    /// frame, with the results and counts of [`super::march::march_brick`] for
+    /// each ray; `false` (the default) leaves them to that loop.
+    fn march_packets<T: Sample>(
+        &self,
+        _work: &mut PacketWork<'_, '_, T, Self::State>,
+        _level: SimdLevel,
+    ) -> bool {
+        false
     }
 }
 

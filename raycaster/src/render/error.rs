@@ -52,6 +52,12 @@ pub enum RenderError {
         /// The step, in units of the smallest spacing.
         step: f32,
     },
+    /// A kernel level this machine cannot run.
+    #[error(
+        "the {0} kernel needs an instruction set this CPU lacks (available here: {available})",
+        available = super::simd::available().iter().map(|l| l.name()).collect::<Vec<_>>().join(", ")
+    )]
+    Simd(super::simd::SimdLevel),
     /// The camera is invalid.
     #[error(transparent)]
     Camera(#[from] CameraError),

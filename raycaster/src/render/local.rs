@@ -10,8 +10,10 @@ use super::compositor::{Compositor, SamplePoint};
 use super::optics::{
     importance_composite, light_vectors, over, partial_step, shading_intensity, smoothstep,
 };
+use super::packet::{DvrLanes, PacketWork, march_dvr};
 use super::segments::{ImportanceSource, LocalMode};
 use super::shading::Shading;
+use super::simd::SimdLevel;
 use super::transfer::TransferTable;
 use crate::volume::Sample;
 
@@ -143,6 +145,22 @@ impl Compositor for Dvr {
     #[inline]
     fn opacity(&self, st: &Accumulation) -> f32 {
         st.alpha
+    }
+    fn march_packets<T: Sample>(
+        &self,
+        work: &mut PacketWork<'_, '_, T, Accumulation>,
+        level: SimdLevel,
+    ) -> bool {
+        if self.table.is_2d() {
+            return false;
+        }
+        let lanes = DvrLanes {
+            table: &self.table,
+            shading: self.shading,
+            runs_compositor: self,
+        };
+        march_dvr(&lanes, work, level);
+        true
     }
     fn resolve(&self, st: &Accumulation) -> [f32; 4] {
         st.rgba()
@@ -564,5 +582,12 @@ impl Compositor for LocalCompositor {
     }
     fn depth(&self, st: &Accumulation) -> f32 {
         with_local!(self, c => c.depth(st))
+    }
+    fn march_packets<T: Sample>(
+        &self,
+        work: &mut PacketWork<'_, '_, T, Accumulation>,
+        level: SimdLevel,
+    ) -> bool {
+        with_local!(self, c => c.march_packets(work, level))
     }
 }

@@ -69,6 +69,13 @@ impl<'a, T: Sample> BrickContext<'a, T> {
         }
     }
 
+    /// The brick's small cells, when the frame skips empty space and some ray may
+    /// need the brick.
+    #[inline]
+    pub(crate) fn cell_grid(&self) -> Option<&CellGrid> {
+        self.cells.as_ref()
+    }
+
     /// The label of the voxel nearest to volume position `p` (inside the brick).
     #[inline]
     pub(crate) fn label_at(&self, p: Vec3) -> u16 {

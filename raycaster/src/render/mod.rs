@@ -23,6 +23,7 @@ mod march;
 mod optics;
 mod orbit;
 mod ownership;
+mod packet;
 mod parallel;
 mod pixel;
 mod prepared;
@@ -35,6 +36,7 @@ mod segments;
 mod sequential;
 mod settings;
 mod shading;
+mod simd;
 mod tile;
 mod transfer;
 mod two_level;
@@ -67,6 +69,7 @@ pub use segments::{
 pub use sequential::render_sequential;
 pub use settings::{DEFAULT_ERT_THRESHOLD, Mode, ModeParameters, RenderSettings};
 pub use shading::{Light, Shading};
+pub use simd::{SimdLevel, available as simd_levels};
 pub use transfer::{
     ControlPoint, PRESETS, TEXT_MAX, TransferError, TransferFunction, check_domain,
     check_gradient_ramp, closest_preset,

@@ -24,11 +24,13 @@ use super::error::RenderError;
 use super::frame::Frame;
 use super::march::{BrickContext, march_brick};
 use super::ownership::owned_samples;
+use super::packet::{PacketItem, PacketWork};
 use super::prepared::{FramePlan, RenderVolume};
 use super::renderer::{FrameJobFn, Renderer, WorkerPool};
 use super::sampler::VolumeSampler;
 use super::schedule::FrameSchedule;
 use super::settings::RenderSettings;
+use super::simd::SimdLevel;
 use super::tile::Tile;
 use crate::volume::{Sample, TypedVolume, VolumeData};
 
@@ -259,6 +261,7 @@ impl FrameJob<'_> {
             x1: 0,
             y1: 0,
         });
+        let mut items: Vec<PacketItem> = Vec::new();
         for Task { mut tile, brick } in tasks.iter() {
             if !(self.cancelled)() {
                 tile.prepare_rays(self.camera, geometry, self.plan.dt, &volume_rect);
@@ -266,11 +269,12 @@ impl FrameJob<'_> {
                 let context = BrickContext::new(data, self.volume, self.plan, scheduled.coords);
                 let mut counters = tile.counters;
                 counters.tasks += 1;
+                items.clear();
                 if let Some(r) = tile.rect.intersect(&scheduled.rect) {
                     for y in r.y0..r.y1 {
                         for x in r.x0..r.x1 {
                             let i = tile.local(x, y);
-                            let (Some(ray), state) = (&tile.rays[i], &mut tile.states[i]) else {
+                            let (Some(ray), state) = (&tile.rays[i], &tile.states[i]) else {
                                 continue;
                             };
                             if state.done {
@@ -279,20 +283,47 @@ impl FrameJob<'_> {
                             if let Some((first, last)) =
                                 owned_samples(ray, geometry, scheduled.coords)
                             {
-                                let first = first.max(state.next_sample);
-                                march_brick(
-                                    c,
-                                    self.plan,
-                                    &sampler,
-                                    &context,
-                                    ray,
-                                    first,
+                                items.push(PacketItem {
+                                    pixel: i,
+                                    first: first.max(state.next_sample),
                                     last,
-                                    state,
-                                    &mut counters,
-                                );
+                                });
                             }
                         }
+                    }
+                }
+                let level = self.plan.simd;
+                let in_packets = level != SimdLevel::Scalar
+                    && c.march_packets(
+                        &mut PacketWork {
+                            plan: self.plan,
+                            volume: &sampler,
+                            brick: &context,
+                            rays: &tile.rays,
+                            states: &mut tile.states,
+                            items: &items,
+                            counters: &mut counters,
+                        },
+                        level,
+                    );
+                if !in_packets {
+                    for item in &items {
+                        let (Some(ray), state) =
+                            (&tile.rays[item.pixel], &mut tile.states[item.pixel])
+                        else {
+                            continue;
+                        };
+                        march_brick(
+                            c,
+                            self.plan,
+                            &sampler,
+                            &context,
+                            ray,
+                            item.first,
+                            item.last,
+                            state,
+                            &mut counters,
+                        );
                     }
                 }
                 tile.counters = counters;

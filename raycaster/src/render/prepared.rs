@@ -14,6 +14,7 @@ use super::geometry::VolumeGeometry;
 use super::local::LocalCompositor;
 use super::segments::Membership;
 use super::settings::RenderSettings;
+use super::simd::SimdLevel;
 use super::transfer::TransferTable;
 use super::two_level::TwoLevel;
 use crate::volume::{
@@ -226,6 +227,8 @@ pub(crate) struct FramePlan {
     pub gradient_scale: Vec3,
     /// Per brick (file order): empty under this frame's compositor.
     pub transparent: Vec<bool>,
+    /// The parallel renderer's kernel (available on this machine).
+    pub simd: SimdLevel,
 }
 
 impl FramePlan {
@@ -242,6 +245,11 @@ impl FramePlan {
         if !(0.0..=1.0).contains(&settings.iso_value) {
             return Err(RenderError::IsoValue(settings.iso_value));
         }
+        let simd = match settings.simd {
+            None => SimdLevel::best(),
+            Some(level) if level.is_available() => level,
+            Some(level) => return Err(RenderError::Simd(level)),
+        };
         let type_max = volume.volume().sample_type().max_value();
         // Opacity is defined per level-0 voxel: a coarse level's samples stand for
         // `2^level` times the distance (the level's spacing).
@@ -283,6 +291,7 @@ impl FramePlan {
             dt: settings.step * geometry.min_spacing(),
             gradient_scale: Vec3::splat(geometry.min_spacing() / (d1 - d0)) / geometry.spacing(),
             transparent: Vec::new(),
+            simd,
         };
         plan.transparent = volume
             .ranges()

@@ -10,6 +10,20 @@ use glam::Vec3;
 
 use crate::volume::{BlockGrid, BrickView, Layout, Sample, TypedVolume};
 
+/// How a brick's samples are addressed: what [`BrickSampler::value_local`] and
+/// [`BrickSampler::gradient_interior`] compute their reads from.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct CellGeometry {
+    /// Distance in samples between neighbours along x, y, z.
+    pub strides: [usize; 3],
+    /// Stride to a cell's upper corner per axis (0 on a one-voxel axis).
+    pub corner_stride: [usize; 3],
+    /// Largest lower cell corner per axis.
+    pub max_cell: [u32; 3],
+    /// Voxels per axis.
+    pub extent: [u32; 3],
+}
+
 /// Trilinear interpolation in one brick, by local coordinates.
 #[derive(Clone, Copy, Debug)]
 pub struct BrickSampler<'a, T: Sample> {
@@ -40,6 +54,24 @@ impl<'a, T: Sample> BrickSampler<'a, T> {
     /// The brick's first voxel, in volume voxel coordinates.
     pub fn origin(&self) -> Vec3 {
         self.origin
+    }
+
+    /// The brick's samples in storage order (what [`Self::cell_geometry`]'s
+    /// strides address).
+    #[inline]
+    pub(crate) fn samples(&self) -> &'a [T] {
+        self.view.samples_from(0)
+    }
+
+    /// How the brick's cells are addressed (for kernels that gather themselves).
+    #[inline]
+    pub(crate) fn cell_geometry(&self) -> CellGeometry {
+        CellGeometry {
+            strides: self.view.strides(),
+            corner_stride: self.corner_stride,
+            max_cell: self.max_cell,
+            extent: self.view.extent(),
+        }
     }
 
     /// Whether volume position `p` can be interpolated from this brick alone.

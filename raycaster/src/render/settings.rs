@@ -2,6 +2,7 @@
 
 use super::segments::{ImportanceSource, LocalMode, SegmentScene};
 use super::shading::Shading;
+use super::simd::SimdLevel;
 use super::transfer::TransferFunction;
 
 /// How the samples of a whole ray become one pixel.
@@ -123,6 +124,11 @@ pub struct RenderSettings {
     /// Two-level compositing of a segmented volume: when set, each object's own
     /// transfer function and local mode replace `mode` and `transfer`'s colours.
     pub segments: Option<SegmentScene>,
+    /// The marching kernel of the parallel renderer: `None` for the fastest this
+    /// machine runs, [`SimdLevel::Scalar`] for one ray at a time (the reference),
+    /// or a packet level (an error if this CPU lacks it). The sequential renderer
+    /// always marches one ray at a time.
+    pub simd: Option<SimdLevel>,
 }
 
 /// The default early-ray-termination threshold.
@@ -141,6 +147,7 @@ impl Default for RenderSettings {
             background: [0.0; 3],
             transfer: TransferFunction::preset("shapes").expect("built-in preset"),
             segments: None,
+            simd: None,
         }
     }
 }

@@ -1,0 +1,117 @@
+//! The instruction sets the packet kernel runs on, detected once per process.
+//!
+//! [`SimdLevel::Scalar`] is the reference: one ray at a time through the generic
+//! marching loop. Every other level marches packets of rays in SIMD lanes
+//! ([`super::packet`]) with the same arithmetic, compiled for that instruction set.
+
+use std::fmt;
+use std::sync::OnceLock;
+
+/// How the marching kernel runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum SimdLevel {
+    /// One ray at a time, no packets: the reference kernel.
+    Scalar,
+    /// Packets compiled for SSE4.1 (x86-64).
+    Sse41,
+    /// Packets compiled for AVX2 and FMA (x86-64).
+    Avx2,
+    /// Packets compiled for AVX-512 (F, VL, BW; x86-64).
+    Avx512,
+    /// Packets compiled for NEON (aarch64).
+    Neon,
+}
+
+impl SimdLevel {
+    /// Every level, in the order `--help` lists them.
+    pub const ALL: [SimdLevel; 5] = [
+        SimdLevel::Scalar,
+        SimdLevel::Sse41,
+        SimdLevel::Avx2,
+        SimdLevel::Avx512,
+        SimdLevel::Neon,
+    ];
+
+    /// The level's name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            SimdLevel::Scalar => "scalar",
+            SimdLevel::Sse41 => "sse4.1",
+            SimdLevel::Avx2 => "avx2",
+            SimdLevel::Avx512 => "avx512",
+            SimdLevel::Neon => "neon",
+        }
+    }
+
+    /// The level named `name` (as [`Self::name`] spells it).
+    pub fn parse(name: &str) -> Option<SimdLevel> {
+        Self::ALL.into_iter().find(|l| l.name() == name)
+    }
+
+    /// Whether this machine can run the level.
+    pub fn is_available(self) -> bool {
+        available().contains(&self)
+    }
+
+    /// The fastest level this machine runs (detected once per process).
+    pub fn best() -> SimdLevel {
+        *available().last().expect("scalar is always available")
+    }
+}
+
+impl fmt::Display for SimdLevel {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// The levels this machine runs, slowest first (`Scalar` always).
+pub fn available() -> &'static [SimdLevel] {
+    static LEVELS: OnceLock<Vec<SimdLevel>> = OnceLock::new();
+    LEVELS.get_or_init(detect)
+}
+
+#[cfg(target_arch = "x86_64")]
+fn detect() -> Vec<SimdLevel> {
+    let mut levels = vec![SimdLevel::Scalar];
+    if is_x86_feature_detected!("sse4.1") {
+        levels.push(SimdLevel::Sse41);
+    }
+    if is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") {
+        levels.push(SimdLevel::Avx2);
+        if is_x86_feature_detected!("avx512f")
+            && is_x86_feature_detected!("avx512vl")
+            && is_x86_feature_detected!("avx512bw")
+        {
+            levels.push(SimdLevel::Avx512);
+        }
+    }
+    levels
+}
+
+#[cfg(target_arch = "aarch64")]
+fn detect() -> Vec<SimdLevel> {
+    // NEON is part of every aarch64 target Rust supports.
+    vec![SimdLevel::Scalar, SimdLevel::Neon]
+}
+
+#[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+fn detect() -> Vec<SimdLevel> {
+    vec![SimdLevel::Scalar]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_round_trip_and_scalar_is_always_there() {
+        for level in SimdLevel::ALL {
+            assert_eq!(SimdLevel::parse(level.name()), Some(level));
+        }
+        assert_eq!(SimdLevel::parse("avx3"), None);
+        assert_eq!(available()[0], SimdLevel::Scalar);
+        assert!(SimdLevel::Scalar.is_available());
+        assert!(available().contains(&SimdLevel::best()));
+    }
+}

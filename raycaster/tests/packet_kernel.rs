@@ -1,0 +1,155 @@
+//! The packet kernel (rays in SIMD lanes) against the scalar kernel it replaces,
+//! on every instruction set this machine runs: the same frames to the bit and the
+//! same counts, over scenes, sample types, layouts, shading, lights, early
+//! termination and empty-space skipping; and against the sequential renderer.
+
+mod render_support;
+
+use raycaster::render::{
+    Light, ParallelOptions, RenderSettings, RenderVolume, Shading, SimdLevel, Vec3,
+    render_parallel, render_sequential, simd_levels,
+};
+use raycaster::synth::SceneKind;
+use raycaster::volume::{Access, Layout, SampleType};
+use render_support::*;
+
+const N: u32 = 36;
+
+fn packet_levels() -> Vec<SimdLevel> {
+    simd_levels()
+        .iter()
+        .copied()
+        .filter(|&l| l != SimdLevel::Scalar)
+        .collect()
+}
+
+#[test]
+fn packets_equal_the_scalar_kernel_bit_for_bit_on_every_level() {
+    let levels = packet_levels();
+    #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+    assert!(!levels.is_empty(), "no packet level detected");
+    let dir = tempfile::tempdir().unwrap();
+    let mut frames = 0;
+    for kind in [SceneKind::Shapes, SceneKind::Noise, SceneKind::Shells] {
+        for (layout, sample_type) in [
+            (Layout::Linear, SampleType::U8),
+            (Layout::Bricked { side: 16 }, SampleType::U16),
+            (Layout::Bricked { side: 8 }, SampleType::U8),
+        ] {
+            let file = scene_file(dir.path(), kind, N, layout, sample_type, Access::Mapped);
+            let prepared = RenderVolume::new(&file, None).unwrap();
+            let camera = default_camera(&file, 48);
+            let lights = [
+                None,
+                Some(Shading::default()),
+                Some(Shading {
+                    light: Light::Fixed(Vec3::new(0.3, -1.0, -0.4)),
+                    shininess: 7.5,
+                    ..Shading::default()
+                }),
+            ];
+            for (round, shading) in lights.into_iter().enumerate() {
+                for (ert, ess) in [(true, true), (false, true), (true, false)] {
+                    let settings = RenderSettings {
+                        transfer: scene_preset(kind),
+                        shading,
+                        early_termination: ert.then_some(0.95),
+                        empty_space_skipping: ess,
+                        step: [0.5, 0.3, 0.9][round],
+                        simd: Some(SimdLevel::Scalar),
+                        ..RenderSettings::default()
+                    };
+                    let options = ParallelOptions {
+                        render_threads: 2,
+                        compositing_threads: 1,
+                        tile_size: [16, 7, 32][round],
+                    };
+                    let scalar = render_parallel(&prepared, &camera, &settings, &options).unwrap();
+                    for &level in &levels {
+                        let packets = render_parallel(
+                            &prepared,
+                            &camera,
+                            &RenderSettings {
+                                simd: Some(level),
+                                ..settings.clone()
+                            },
+                            &options,
+                        )
+                        .unwrap();
+                        let name = format!(
+                            "{kind:?} {layout:?} {sample_type:?} light {round} ert {ert} ess {ess} {level}"
+                        );
+                        assert!(packets.rgba == scalar.rgba, "{name}: images differ");
+                        assert_eq!(
+                            packets.stats.counters, scalar.stats.counters,
+                            "{name}: counts differ"
+                        );
+                        frames += 1;
+                    }
+                    assert!(scalar.stats.counters.samples > 0);
+                }
+            }
+        }
+    }
+    assert_eq!(frames, 81 * levels.len());
+}
+
+#[test]
+fn packets_equal_the_sequential_renderer() {
+    let kind = SceneKind::Shapes;
+    let volume = scene_volume(kind, N);
+    let prepared = RenderVolume::new(&volume, Some(12)).unwrap();
+    let camera = default_camera(&volume, 40);
+    let settings = RenderSettings {
+        transfer: scene_preset(kind),
+        ..RenderSettings::default()
+    };
+    let reference = render_sequential(&prepared, &camera, &settings).unwrap();
+    for level in packet_levels() {
+        let options = ParallelOptions {
+            render_threads: 3,
+            compositing_threads: 2,
+            tile_size: 9,
+        };
+        let frame = render_parallel(
+            &prepared,
+            &camera,
+            &RenderSettings {
+                simd: Some(level),
+                ..settings.clone()
+            },
+            &options,
+        )
+        .unwrap();
+        assert_images_match(
+            &format!("packets-{level}"),
+            &frame.to_image(),
+            &reference.to_image(),
+            1,
+        );
+        assert_eq!(
+            frame.stats.counters.samples, reference.stats.counters.samples,
+            "{level}"
+        );
+    }
+}
+
+#[test]
+fn a_level_this_cpu_lacks_is_refused_by_name() {
+    let volume = scene_volume(SceneKind::Shapes, 16);
+    let prepared = RenderVolume::new(&volume, None).unwrap();
+    let camera = default_camera(&volume, 8);
+    for level in SimdLevel::ALL {
+        let settings = RenderSettings {
+            simd: Some(level),
+            ..RenderSettings::default()
+        };
+        let result = render_parallel(&prepared, &camera, &settings, &ParallelOptions::default());
+        if level.is_available() {
+            assert!(result.is_ok(), "{level}");
+        } else {
+            let e = result.unwrap_err().to_string();
+            assert!(e.contains(level.name()) && e.contains("scalar"), "{e}");
+        }
+    }
+}
