@@ -132,12 +132,31 @@ impl<T: Sample> SamplePoint<'_, T> {
     /// The value of the sample before this one on the ray, if there is one.
     pub fn value_before(&self) -> Option<f32> {
         let k = self.index.checked_sub(1)?;
-        let p = self.ray.position(k, self.volume.last());
-        Some(if self.brick.sampler.contains(p) {
+        Some(self.value_at(self.ray.position(k, self.volume.last())))
+    }
+
+    /// The value where this sample's segment ends: the next sample's position
+    /// (placed exactly as the loop places it), or the ray's exit for its last
+    /// sample.
+    #[inline]
+    pub fn value_after(&self) -> f32 {
+        let p = if self.fraction < 1.0 {
+            self.position_at(self.t() + self.fraction * self.ray.dt)
+        } else {
+            self.ray.position(self.index + 1, self.volume.last())
+        };
+        self.value_at(p)
+    }
+
+    /// The trilinear value at voxel position `p` (inside the volume), from the
+    /// brick when it holds `p`.
+    #[inline]
+    pub fn value_at(&self, p: Vec3) -> f32 {
+        if self.brick.sampler.contains(p) {
             self.brick.sampler.value(p)
         } else {
             self.volume.value(p)
-        })
+        }
     }
 
     /// The voxel position at ray parameter `t`, clamped into the volume.

@@ -56,13 +56,15 @@ pub(crate) struct TwoLevel {
 
 impl TwoLevel {
     /// Prepares `scene` for samples of `type_max` with the data's raw `domain`,
-    /// opacities corrected for `step_ratio` reference steps.
+    /// opacities corrected for `step_ratio` reference steps; `preintegrate` gives
+    /// the tables of DVR objects pre-integrated segments.
     pub fn new(
         scene: &SegmentScene,
         type_max: u16,
         domain: [f32; 2],
         step_ratio: f32,
         shading: Option<Shading>,
+        preintegrate: bool,
     ) -> TwoLevel {
         let mut objects = vec![None; 256];
         let mut tables: Vec<(&TransferFunction, Arc<TransferTable>)> = Vec::new();
@@ -70,7 +72,17 @@ impl TwoLevel {
             let table = match tables.iter().find(|(tf, _)| **tf == o.transfer) {
                 Some((_, t)) => t.clone(),
                 None => {
-                    let t = Arc::new(TransferTable::new(&o.transfer, type_max, step_ratio));
+                    let mut t = TransferTable::new(&o.transfer, type_max, step_ratio);
+                    // One table per function: pre-integrated when any DVR object
+                    // uses it (other modes ignore that part).
+                    let dvr = scene
+                        .objects
+                        .iter()
+                        .any(|p| p.visible && p.mode == LocalMode::Dvr && p.transfer == o.transfer);
+                    if preintegrate && dvr {
+                        t = t.with_preintegration(&o.transfer, type_max);
+                    }
+                    let t = Arc::new(t);
                     tables.push((&o.transfer, t.clone()));
                     t
                 }
@@ -190,6 +202,9 @@ impl Compositor for TwoLevel {
             st.object = id;
             if let Some(object) = self.object(id) {
                 st.segment = object.start();
+                // A segment starts at its first sample: the one before belongs to
+                // the previous segment, which composited the step between them.
+                st.segment.next_index = s.index;
             }
         }
         if let Some(object) = self.object(id) {
