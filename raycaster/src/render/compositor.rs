@@ -135,19 +135,6 @@ impl<T: Sample> SamplePoint<'_, T> {
         Some(self.value_at(self.ray.position(k, self.volume.last())))
     }
 
-    /// The value where this sample's segment ends: the next sample's position
-    /// (placed exactly as the loop places it), or the ray's exit for its last
-    /// sample.
-    #[inline]
-    pub fn value_after(&self) -> f32 {
-        let p = if self.fraction < 1.0 {
-            self.position_at(self.t() + self.fraction * self.ray.dt)
-        } else {
-            self.ray.position(self.index + 1, self.volume.last())
-        };
-        self.value_at(p)
-    }
-
     /// The trilinear value at voxel position `p` (inside the volume), from the
     /// brick when it holds `p`.
     #[inline]

@@ -157,34 +157,43 @@ impl Dvr {
             && let Some(before) = s.value_before()
         {
             // The sample before was skipped as empty: its segment ends here.
-            let p = s.ray.position(k - 1, s.volume.last());
+            let mid = (s.ray.position(k - 1, s.volume.last()) + s.position) * 0.5;
             self.segment(
                 pre,
                 st,
                 before,
                 s.value,
                 1.0,
-                || s.gradient_at(p),
+                || s.gradient_at(mid),
                 s.view_dir(),
             );
         }
         st.next_index = k + 1;
-        // The ray's last sample stands for a constant partial step (its value
-        // lies in its own cell's range: see `range_empty`).
-        let back = if s.fraction < 1.0 {
-            s.value
+        if s.fraction < 1.0 {
+            // The ray's last sample stands for a constant partial step (its value
+            // lies in its own cell's range: see `range_empty`).
+            self.segment(
+                pre,
+                st,
+                s.value,
+                s.value,
+                s.fraction,
+                || s.gradient(),
+                s.view_dir(),
+            );
         } else {
-            s.value_after()
-        };
-        self.segment(
-            pre,
-            st,
-            s.value,
-            back,
-            s.fraction,
-            || s.gradient(),
-            s.view_dir(),
-        );
+            let p = s.ray.position(k + 1, s.volume.last());
+            let back = s.value_at(p);
+            self.segment(
+                pre,
+                st,
+                s.value,
+                back,
+                1.0,
+                || s.gradient_at((s.position + p) * 0.5),
+                s.view_dir(),
+            );
+        }
     }
 }
 
@@ -197,10 +206,11 @@ impl Compositor for Dvr {
     ///
     /// With pre-integration this stays exact, skipping included. Sample `k`
     /// stands for the segment from its value to sample `k + 1`'s (the ray's last
-    /// sample for a constant partial step), shaded with sample `k`'s gradient.
+    /// sample for a constant partial step), shaded with the gradient at the
+    /// segment's midpoint (the last sample: its own).
     /// Skipping sample `k` (it lies in an empty cell or a transparent brick, so
-    /// its value is in a transparent range) drops that segment; it is never
-    /// visible unless sample `k + 1` is visible:
+    /// its value is in a transparent range) drops that segment, which can be
+    /// visible only when sample `k + 1` is marched:
     /// - if sample `k + 1` is skipped too, both lie in empty cells that touch
     ///   (consecutive samples are less than a cell apart: the plan turns skipping
     ///   off for steps of a smallest cell's extent or more), and touching cells
@@ -208,8 +218,8 @@ impl Compositor for Dvr {
     ///   is one transparent interval holding the whole linear segment;
     /// - if sample `k + 1` is marched, it sees that the sample before it was not
     ///   (the state's `next_index`) and composites the dropped segment first,
-    ///   from [`SamplePoint::value_before`] to its own value with the gradient at
-    ///   sample `k` — what the unskipped ray composites in the same order.
+    ///   from [`SamplePoint::value_before`] to its own value, shaded at the same
+    ///   midpoint — what the unskipped ray composites, in the same order.
     ///
     /// A visible sample's own segment is never dropped: it is composited when the
     /// sample is marched, whatever follows. So the rule for bricks and cells is

@@ -733,6 +733,7 @@ impl PreintegratedTable {
     }
 
     /// Bins per axis.
+    #[cfg(test)]
     pub fn bins(&self) -> usize {
         self.bins
     }
