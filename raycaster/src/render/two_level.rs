@@ -32,6 +32,8 @@ pub(crate) struct SegmentedState {
     segment: Accumulation,
     /// Depth of the first local hit, `∞` without one.
     depth: f32,
+    /// One past the last sample index folded (skipped samples leave a gap).
+    next_index: u32,
 }
 
 /// A segment scene prepared for a frame: the two-level compositor.
@@ -179,6 +181,7 @@ impl Compositor for TwoLevel {
             object: NO_OBJECT,
             segment: Accumulation::starting_at(0.0),
             depth: f32::INFINITY,
+            next_index: 0,
         }
     }
 
@@ -202,11 +205,14 @@ impl Compositor for TwoLevel {
             st.object = id;
             if let Some(object) = self.object(id) {
                 st.segment = object.start();
-                // A segment starts at its first sample: the one before belongs to
-                // the previous segment, which composited the step between them.
-                st.segment.next_index = s.index;
+                // A segment starts at its first sample: the sample before belongs
+                // to the previous segment, which composited the step between
+                // them — unless it was skipped as empty; then a pre-integrated
+                // DVR object composites that step itself (with its own table).
+                st.segment.next_index = s.index.min(st.next_index);
             }
         }
+        st.next_index = s.index + 1;
         if let Some(object) = self.object(id) {
             object.sample(&mut st.segment, s);
             if st.depth.is_infinite() {
