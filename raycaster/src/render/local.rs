@@ -112,7 +112,7 @@ pub(crate) struct Dvr {
 }
 
 impl Dvr {
-    /// Composites the pre-integrated segment from `front` to `back`, shaded with
+    /// Composites the pre-integrated segment from value `front` to `back`, shaded with
     /// gradient `gradient()` (asked only for a visible segment), standing for
     /// `fraction` of a step.
     #[inline]
@@ -120,8 +120,7 @@ impl Dvr {
         &self,
         pre: &PreintegratedTable,
         st: &mut Accumulation,
-        front: f32,
-        back: f32,
+        [front, back]: [f32; 2],
         fraction: f32,
         gradient: impl FnOnce() -> Vec3,
         view_dir: Vec3,
@@ -161,8 +160,7 @@ impl Dvr {
             self.segment(
                 pre,
                 st,
-                before,
-                s.value,
+                [before, s.value],
                 1.0,
                 || s.gradient_at(mid),
                 s.view_dir(),
@@ -175,8 +173,7 @@ impl Dvr {
             self.segment(
                 pre,
                 st,
-                s.value,
-                s.value,
+                [s.value, s.value],
                 s.fraction,
                 || s.gradient(),
                 s.view_dir(),
@@ -187,8 +184,7 @@ impl Dvr {
             self.segment(
                 pre,
                 st,
-                s.value,
-                back,
+                [s.value, back],
                 1.0,
                 || s.gradient_at((s.position + p) * 0.5),
                 s.view_dir(),
