@@ -5,6 +5,7 @@
 
 mod args;
 mod bench;
+mod compare;
 mod plot;
 mod render;
 mod stats;
@@ -23,6 +24,7 @@ struct Cli {
 enum Command {
     Render(Box<render::RenderArgs>),
     Bench(Box<bench::BenchArgs>),
+    Compare(compare::CompareArgs),
 }
 
 fn main() {
@@ -32,6 +34,7 @@ fn main() {
     let result = match cli.command {
         Command::Render(a) => render::run(*a),
         Command::Bench(a) => bench::run(*a),
+        Command::Compare(a) => compare::run(a),
     };
     if let Err(e) = result {
         eprintln!("error: {}", raycaster::errors::error_text(e.as_ref()));

@@ -103,6 +103,17 @@ pub struct RenderArgs {
     #[arg(long)]
     no_ess: bool,
 
+    /// Pre-integrated transfer tables (DVR, plain and two-level DVR objects; 1D
+    /// transfer functions): each step composites the segment between two samples,
+    /// so coarse steps (1 voxel) look like fine ones.
+    #[arg(long)]
+    preintegrate: bool,
+
+    /// Per-pixel ray-start jitter (deterministic noise of up to a step): fine
+    /// noise instead of stripe and ring moiré at coarse steps.
+    #[arg(long)]
+    jitter: bool,
+
     /// Disable Blinn-Phong shading.
     #[arg(long)]
     no_shading: bool,
@@ -559,6 +570,8 @@ fn settings(args: &RenderArgs, volume: &Volume) -> Result<RenderSettings> {
             None => None,
         },
         simd: args.simd.0,
+        preintegrated: args.preintegrate,
+        jitter: args.jitter,
     })
 }
 

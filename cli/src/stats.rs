@@ -63,6 +63,8 @@ pub fn json(
         "step": settings.step,
         "ert": settings.early_termination,
         "ess": settings.empty_space_skipping,
+        "preintegrated": settings.preintegrated,
+        "jitter": settings.jitter,
         "threads": s.threads,
         "rays": c.rays,
         "samples": c.samples,

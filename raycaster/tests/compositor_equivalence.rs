@@ -154,6 +154,43 @@ fn one_object_covering_every_value_renders_the_plain_mode() {
 }
 
 #[test]
+fn preintegrated_two_level_dvr_segments_render_the_plain_preintegrated_mode() {
+    for kind in [SceneKind::Shapes, SceneKind::Noise] {
+        for sample_type in [SampleType::U8, SampleType::U16] {
+            let volume = volume(kind, sample_type);
+            let tf = transfer(kind, &volume);
+            let plain = RenderSettings {
+                transfer: tf.clone(),
+                step: 1.0,
+                preintegrated: true,
+                ..RenderSettings::default()
+            };
+            let two_level = RenderSettings {
+                segments: Some(one_object(&tf, LocalMode::Dvr)),
+                ..plain.clone()
+            };
+            let without = RenderSettings {
+                preintegrated: false,
+                ..two_level.clone()
+            };
+            for parallel in [false, true] {
+                let name = format!(
+                    "pre-one-object-{}-{sample_type:?}-{}",
+                    kind.name(),
+                    if parallel { "parallel" } else { "sequential" }
+                );
+                let expected = draw(&volume, &plain, parallel).to_image();
+                let actual = draw(&volume, &two_level, parallel).to_image();
+                assert_images_match(&name, &actual, &expected, 3);
+                // The segments do use the pre-integrated table.
+                let ordinary = draw(&volume, &without, parallel).to_image();
+                assert_ne!(ordinary, actual, "{name}");
+            }
+        }
+    }
+}
+
+#[test]
 fn every_mode_draws_its_own_picture() {
     // The modes are distinct compositors, not aliases of one another.
     let volume = volume(SceneKind::Shapes, SampleType::U8);

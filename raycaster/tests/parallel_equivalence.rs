@@ -144,12 +144,18 @@ fn parallel_equals_sequential_over_the_parameter_matrix() {
         // Every kernel this machine runs: scalar and each packet level.
         let levels = simd_levels();
         let simd = levels[round % levels.len()];
+        // Pre-integration (DVR; other modes ignore it) and ray-start jitter in
+        // turn, without disturbing the picks above.
+        let preintegrated = round % 3 == 0;
+        let jitter = round % 4 < 2;
         let settings = RenderSettings {
             mode,
             early_termination: ert.then_some(0.99),
             empty_space_skipping: ess,
             transfer: scene_preset(kind),
             simd: Some(simd),
+            preintegrated,
+            jitter,
             ..RenderSettings::default()
         };
         let cam = camera(view, volume);
@@ -168,7 +174,7 @@ fn parallel_equals_sequential_over_the_parameter_matrix() {
             render_parallel(&prepared, &cam, &settings, &options).unwrap()
         };
         let name = format!(
-            "par-{round}-b{brick}-t{tile}-r{threads}-{view:?}-{}-ert{ert}-ess{ess}-bricked{bricked}-{access:?}-{simd}",
+            "par-{round}-b{brick}-t{tile}-r{threads}-{view:?}-{}-ert{ert}-ess{ess}-bricked{bricked}-{access:?}-{simd}-pre{preintegrated}-jitter{jitter}",
             mode.name()
         );
         assert_images_match(&name, &parallel.to_image(), &reference.to_image(), 1);
@@ -180,6 +186,9 @@ fn parallel_equals_sequential_over_the_parameter_matrix() {
             p.abs_diff(s) as f64 <= 0.01 * s as f64,
             "{name}: parallel took {p} samples, sequential {s}"
         );
+        if preintegrated || jitter {
+            assert_eq!(p, s, "{name}: sample counts");
+        }
         combos += 1;
     }
     assert_eq!(combos, 60);

@@ -34,6 +34,49 @@ fn early_termination_changes_pixels_by_at_most_its_residual() {
 }
 
 #[test]
+fn empty_space_skipping_stays_exact_with_preintegration() {
+    for kind in SCENES {
+        let volume = scene_volume(kind, 40);
+        let camera = default_camera(&volume, 48);
+        // Brick 5 has cells of 3 and 2 voxels: step 1.5 is still below both.
+        for (step, brick, jitter) in [
+            (0.5, Some(5), false),
+            (1.0, None, true),
+            (1.5, Some(5), true),
+            (1.0, Some(8), false),
+        ] {
+            let with = RenderSettings {
+                step,
+                preintegrated: true,
+                jitter,
+                ..settings(kind, Some(0.99), true)
+            };
+            let without = RenderSettings {
+                empty_space_skipping: false,
+                ..with.clone()
+            };
+            let a = render_bricked(&volume, brick, &camera, &with);
+            let b = render_bricked(&volume, brick, &camera, &without);
+            let name = format!("ess-pre-{}-{step}-{brick:?}-jitter{jitter}", kind.name());
+            assert_images_match(&name, &a.to_image(), &b.to_image(), 1);
+            let (sa, sb) = (a.stats.counters.samples, b.stats.counters.samples);
+            assert!(sa < sb, "{name}: skipping must skip ({sa} vs {sb})");
+            // Not vacuous: pre-integration changes the picture.
+            let plain = render_bricked(
+                &volume,
+                brick,
+                &camera,
+                &RenderSettings {
+                    preintegrated: false,
+                    ..with.clone()
+                },
+            );
+            assert_ne!(plain.to_image(), a.to_image(), "{name}");
+        }
+    }
+}
+
+#[test]
 fn empty_space_skipping_leaves_every_mode_identical() {
     for kind in SCENES {
         let volume = scene_volume(kind, 40);

@@ -146,12 +146,18 @@ impl<T: Sample> SamplePoint<'_, T> {
     /// The value of the sample before this one on the ray, if there is one.
     pub fn value_before(&self) -> Option<f32> {
         let k = self.index.checked_sub(1)?;
-        let p = self.ray.position(k, self.volume.last());
-        Some(if self.brick.sampler.contains(p) {
+        Some(self.value_at(self.ray.position(k, self.volume.last())))
+    }
+
+    /// The trilinear value at voxel position `p` (inside the volume), from the
+    /// brick when it holds `p`.
+    #[inline]
+    pub fn value_at(&self, p: Vec3) -> f32 {
+        if self.brick.sampler.contains(p) {
             self.brick.sampler.value(p)
         } else {
             self.volume.value(p)
-        })
+        }
     }
 
     /// The voxel position at ray parameter `t`, clamped into the volume.

@@ -136,6 +136,27 @@ impl RgbImage {
         })
     }
 
+    /// Peak signal-to-noise ratio to `other` in dB over all channels of 8-bit
+    /// values: `10·log10(255² / MSE)`; `∞` for identical images, `None` when the
+    /// sizes differ.
+    pub fn psnr(&self, other: &RgbImage) -> Option<f64> {
+        if self.width != other.width || self.height != other.height {
+            return None;
+        }
+        let sum: f64 = self
+            .data
+            .iter()
+            .zip(&other.data)
+            .map(|(a, b)| (f64::from(*a) - f64::from(*b)).powi(2))
+            .sum();
+        let mse = sum / self.data.len().max(1) as f64;
+        Some(if mse == 0.0 {
+            f64::INFINITY
+        } else {
+            10.0 * (255.0f64 * 255.0 / mse).log10()
+        })
+    }
+
     /// Number of channel values differing by more than `tolerance`.
     pub fn count_differences(&self, other: &RgbImage, tolerance: u8) -> usize {
         self.data
@@ -176,5 +197,21 @@ mod tests {
         assert_eq!(img.diff(&other).data[4], 24);
         assert!(RgbImage::load_png(&dir.path().join("none.png")).is_err());
         assert!(img.save_png(&dir.path().join("no/dir/a.png")).is_err());
+    }
+
+    #[test]
+    fn psnr_follows_the_mean_squared_error() {
+        let img = RgbImage::new(2, 2, vec![100; 12]);
+        assert_eq!(img.psnr(&img), Some(f64::INFINITY));
+        // One channel off by 12: MSE = 144/12 = 12.
+        let mut other = img.clone();
+        other.data[0] = 112;
+        let want = 10.0 * (255.0f64 * 255.0 / 12.0).log10();
+        assert!((img.psnr(&other).unwrap() - want).abs() < 1e-9);
+        // Every channel off by 255: 0 dB.
+        let black = RgbImage::new(2, 2, vec![0; 12]);
+        let white = RgbImage::new(2, 2, vec![255; 12]);
+        assert!(black.psnr(&white).unwrap().abs() < 1e-9);
+        assert_eq!(img.psnr(&RgbImage::new(1, 2, vec![0; 6])), None);
     }
 }

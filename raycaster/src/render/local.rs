@@ -14,7 +14,7 @@ use super::packet::{DvrLanes, PacketWork, march_dvr};
 use super::segments::{ImportanceSource, LocalMode};
 use super::shading::Shading;
 use super::simd::SimdLevel;
-use super::transfer::TransferTable;
+use super::transfer::{PreintegratedTable, TransferTable};
 use crate::volume::Sample;
 
 /// What a run of samples has accumulated (every local mode uses some fields).
@@ -32,6 +32,10 @@ pub(crate) struct Accumulation {
     pub importance: f32,
     /// First-hit depth, `∞` without a hit.
     pub depth: f32,
+    /// The index of the sample the run expects next: one past the last it
+    /// folded, or where it starts (pre-integrated DVR notices skipped samples
+    /// by it).
+    pub next_index: u32,
 }
 
 impl Accumulation {
@@ -44,6 +48,7 @@ impl Accumulation {
             count: 0,
             importance: 0.0,
             depth: f32::INFINITY,
+            next_index: 0,
         }
     }
 
@@ -108,17 +113,125 @@ pub(crate) struct Dvr {
     shading: Option<Shading>,
 }
 
+impl Dvr {
+    /// Composites the pre-integrated segment from value `front` to `back`, shaded with
+    /// gradient `gradient()` (asked only for a visible segment), standing for
+    /// `fraction` of a step.
+    #[inline]
+    fn segment(
+        &self,
+        pre: &PreintegratedTable,
+        st: &mut Accumulation,
+        [front, back]: [f32; 2],
+        fraction: f32,
+        gradient: impl FnOnce() -> Vec3,
+        view_dir: Vec3,
+    ) {
+        let [r, g, b, a] = pre.lookup(front, back);
+        if a <= 0.0 {
+            return;
+        }
+        let color = match &self.shading {
+            Some(sh) => sh.shade([r, g, b], gradient(), view_dir),
+            None => [r, g, b],
+        };
+        over(
+            &mut st.color,
+            &mut st.alpha,
+            color,
+            partial_step(a, fraction),
+        );
+    }
+
+    /// A sample with pre-integration: it stands for the segment to the next
+    /// sample (see [`Dvr::range_empty`]), preceded by the segment from the
+    /// sample before when that one was skipped.
+    #[inline]
+    fn sample_preintegrated<T: Sample>(
+        &self,
+        pre: &PreintegratedTable,
+        st: &mut Accumulation,
+        s: &SamplePoint<'_, T>,
+    ) {
+        let k = s.index;
+        if k > st.next_index
+            && let Some(before) = s.value_before()
+        {
+            // The sample before was skipped as empty: its segment ends here.
+            let mid = (s.ray.position(k - 1, s.volume.last()) + s.position) * 0.5;
+            self.segment(
+                pre,
+                st,
+                [before, s.value],
+                1.0,
+                || s.gradient_at(mid),
+                s.view_dir(),
+            );
+        }
+        st.next_index = k + 1;
+        if s.fraction < 1.0 {
+            // The ray's last sample stands for a constant partial step (its value
+            // lies in its own cell's range: see `range_empty`).
+            self.segment(
+                pre,
+                st,
+                [s.value, s.value],
+                s.fraction,
+                || s.gradient(),
+                s.view_dir(),
+            );
+        } else {
+            let p = s.ray.position(k + 1, s.volume.last());
+            let back = s.value_at(p);
+            self.segment(
+                pre,
+                st,
+                [s.value, back],
+                1.0,
+                || s.gradient_at((s.position + p) * 0.5),
+                s.view_dir(),
+            );
+        }
+    }
+}
+
 impl Compositor for Dvr {
     type State = Accumulation;
     fn start(&self) -> Accumulation {
         Accumulation::starting_at(0.0)
     }
+    /// Whether every value in `lo..=hi` is transparent.
+    ///
+    /// With pre-integration this stays exact, skipping included. Sample `k`
+    /// stands for the segment from its value to sample `k + 1`'s (the ray's last
+    /// sample for a constant partial step), shaded with the gradient at the
+    /// segment's midpoint (the last sample: its own).
+    /// Skipping sample `k` (it lies in an empty cell or a transparent brick, so
+    /// its value is in a transparent range) drops that segment, which can be
+    /// visible only when sample `k + 1` is marched:
+    /// - if sample `k + 1` is skipped too, both lie in empty cells that touch
+    ///   (consecutive samples are less than a cell apart: the plan turns skipping
+    ///   off for steps of a smallest cell's extent or more), and touching cells
+    ///   share voxels, so their transparent value ranges overlap and their union
+    ///   is one transparent interval holding the whole linear segment;
+    /// - if sample `k + 1` is marched, it sees that the sample before it was not
+    ///   (the state's `next_index`) and composites the dropped segment first,
+    ///   from [`SamplePoint::value_before`] to its own value, shaded at the same
+    ///   midpoint — what the unskipped ray composites, in the same order.
+    ///
+    /// A visible sample's own segment is never dropped: it is composited when the
+    /// sample is marched, whatever follows. So the rule for bricks and cells is
+    /// the ordinary one.
     #[inline]
     fn range_empty(&self, lo: u16, hi: u16) -> bool {
         self.table.is_transparent(lo, hi)
     }
     #[inline]
     fn sample<T: Sample>(&self, st: &mut Accumulation, s: &SamplePoint<'_, T>) {
+        if let Some(pre) = self.table.preintegrated() {
+            self.sample_preintegrated(pre, st, s);
+            return;
+        }
         let [r, g, b, a] = self.table.lookup(s.value);
         if a <= 0.0 {
             return;
@@ -151,7 +264,8 @@ impl Compositor for Dvr {
         work: &mut PacketWork<'_, '_, T, Accumulation>,
         level: SimdLevel,
     ) -> bool {
-        if self.table.is_2d() {
+        // The packet kernel composites plain samples of a 1D table.
+        if self.table.is_2d() || self.table.preintegrated().is_some() {
             return false;
         }
         let lanes = DvrLanes {

@@ -221,7 +221,12 @@ mod tests {
     /// Every sample of a ray is owned by exactly the brick the owner function
     /// names, and each brick's owned samples are the interval `owned_samples` says.
     fn check(geometry: &VolumeGeometry, ray: &Ray, dt: f32) {
-        let Some(pixel) = PixelRay::new(ray, geometry, dt) else {
+        check_jittered(geometry, ray, dt, 0.0);
+        check_jittered(geometry, ray, dt, 0.61);
+    }
+
+    fn check_jittered(geometry: &VolumeGeometry, ray: &Ray, dt: f32, jitter: f32) {
+        let Some(pixel) = PixelRay::new(ray, geometry, dt, jitter) else {
             return;
         };
         let last = geometry.last_voxel();

@@ -264,7 +264,13 @@ impl FrameJob<'_> {
         let mut items: Vec<PacketItem> = Vec::new();
         for Task { mut tile, brick } in tasks.iter() {
             if !(self.cancelled)() {
-                tile.prepare_rays(self.camera, geometry, self.plan.dt, &volume_rect);
+                tile.prepare_rays(
+                    self.camera,
+                    geometry,
+                    self.plan.dt,
+                    self.plan.jitter,
+                    &volume_rect,
+                );
                 let scheduled = self.schedule.bricks[brick as usize];
                 let context = BrickContext::new(data, self.volume, self.plan, scheduled.coords);
                 let mut counters = tile.counters;

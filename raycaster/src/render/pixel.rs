@@ -19,7 +19,8 @@ pub struct PixelRay {
     pub direction: Vec3,
     /// The world-space unit direction (for shading).
     pub view_dir: Vec3,
-    /// Where the ray enters the volume's box (world distance).
+    /// The parameter of sample 0 (world distance): where the ray enters the
+    /// volume's box, moved on by the ray's start jitter (a fraction of `dt`).
     pub t_enter: f32,
     /// World distance between samples.
     pub dt: f32,
@@ -38,11 +39,23 @@ pub struct PixelRay {
 }
 
 impl PixelRay {
-    /// The volume part of world ray `ray` (unit direction), sampled every `dt`;
-    /// `None` when the ray misses the volume's box.
-    pub fn new(ray: &Ray, geometry: &VolumeGeometry, dt: f32) -> Option<PixelRay> {
+    /// The volume part of world ray `ray` (unit direction), sampled every `dt`
+    /// from `jitter·dt` (`jitter` in `[0, 1)`) after its entry into the box; `None`
+    /// when the ray misses the volume's box.
+    ///
+    /// A jittered ray starts later: the part of the box before its first sample
+    /// is not sampled (it is shorter than a step, and sample `k` at
+    /// `t_enter + (jitter + k)·dt` stands for the step after it as always). A ray
+    /// shorter than its jitter is not jittered.
+    pub fn new(ray: &Ray, geometry: &VolumeGeometry, dt: f32, jitter: f32) -> Option<PixelRay> {
         let (lo, hi) = geometry.world_bounds();
-        let (t_enter, t_exit) = ray.intersect_box(lo, hi)?;
+        let (t_box, t_exit) = ray.intersect_box(lo, hi)?;
+        let offset = jitter * dt;
+        let t_enter = if t_box + offset < t_exit {
+            t_box + offset
+        } else {
+            t_box
+        };
         let length = t_exit - t_enter;
         // Samples cover [t_enter, t_exit): ceil(L/dt) of them, at least one; the
         // last stands for the remaining length only. A huge count can only come
@@ -89,6 +102,18 @@ impl PixelRay {
         let (start, step) = (self.start.to_array(), self.step.to_array());
         (start[axis] + step[axis] * k as f32).clamp(0.0, last)
     }
+}
+
+/// The ray-start jitter of pixel `(x, y)`, in `[0, 1)`: interleaved gradient
+/// noise (Jimenez 2014), a blue-noise-like per-pixel pattern that needs no state,
+/// so the sequential and parallel renderers give every pixel the same value.
+#[inline]
+pub fn ray_jitter(x: u32, y: u32) -> f32 {
+    // In f64 so that large coordinates keep their fraction.
+    let f = (0.067_110_56 * f64::from(x) + 0.005_837_15 * f64::from(y)).fract();
+    let j = (52.982_918_9 * f).fract() as f32;
+    // f64 → f32 rounding may give exactly 1.0.
+    if j < 1.0 { j } else { 0.0 }
 }
 
 /// What a pixel has accumulated so far (`acc`, the compositor's state) and where

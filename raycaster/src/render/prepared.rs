@@ -13,7 +13,7 @@ use super::error::RenderError;
 use super::geometry::VolumeGeometry;
 use super::local::LocalCompositor;
 use super::segments::Membership;
-use super::settings::RenderSettings;
+use super::settings::{Mode, RenderSettings};
 use super::simd::SimdLevel;
 use super::transfer::TransferTable;
 use super::two_level::TwoLevel;
@@ -229,6 +229,24 @@ pub(crate) struct FramePlan {
     pub transparent: Vec<bool>,
     /// The parallel renderer's kernel (available on this machine).
     pub simd: SimdLevel,
+    /// Per-pixel ray-start jitter ([`RenderSettings::jitter`]).
+    pub jitter: bool,
+}
+
+/// The smallest extent, in voxels, of a small cell of `volume`'s bricks along an
+/// axis (a brick's last cell may be shorter than the others). Pre-integrated
+/// empty-space skipping is exact only for steps below it (see
+/// [`Dvr::range_empty`](super::local::Dvr)); larger steps render without skipping.
+fn min_cell_extent(volume: &RenderVolume<'_>) -> f32 {
+    let brick = volume.geometry().grid().step();
+    let cells = volume.cells();
+    let last = brick.saturating_sub((cells.per_axis() - 1) * cells.cell_step());
+    let extent = if last == 0 {
+        cells.cell_step()
+    } else {
+        last.min(cells.cell_step())
+    };
+    extent as f32
 }
 
 impl FramePlan {
@@ -272,23 +290,32 @@ impl FramePlan {
                     domain,
                     step_ratio,
                     settings.shading,
+                    settings.preintegrated,
                 ))
             }
-            None => FrameCompositor::Plain(LocalCompositor::new(
-                settings
-                    .mode
-                    .local(&settings.mode_parameters, settings.iso_value),
-                Arc::new(TransferTable::new(&settings.transfer, type_max, step_ratio)),
-                settings.shading,
-                domain,
-            )),
+            None => {
+                let mut table = TransferTable::new(&settings.transfer, type_max, step_ratio);
+                if settings.preintegrated && settings.mode == Mode::Dvr {
+                    table = table.with_preintegration(&settings.transfer, type_max);
+                }
+                FrameCompositor::Plain(LocalCompositor::new(
+                    settings
+                        .mode
+                        .local(&settings.mode_parameters, settings.iso_value),
+                    Arc::new(table),
+                    settings.shading,
+                    domain,
+                ))
+            }
         };
         let [d0, d1] = domain;
         let mut plan = FramePlan {
             compositor,
             ert_threshold: settings.early_termination.unwrap_or(f32::INFINITY),
-            empty_space_skipping: settings.empty_space_skipping,
+            empty_space_skipping: settings.empty_space_skipping
+                && !(settings.preintegrated && settings.step >= min_cell_extent(volume)),
             dt: settings.step * geometry.min_spacing(),
+            jitter: settings.jitter,
             gradient_scale: Vec3::splat(geometry.min_spacing() / (d1 - d0)) / geometry.spacing(),
             transparent: Vec::new(),
             simd,

@@ -227,7 +227,7 @@ mod tests {
                 origin,
                 direction: (target - origin).normalize_or(Vec3::Z),
             };
-            let Some(pixel) = PixelRay::new(&ray, &geometry, 0.37) else {
+            let Some(pixel) = PixelRay::new(&ray, &geometry, 0.37, (i % 5) as f32 * 0.2) else {
                 continue;
             };
             for b in grid.iter() {

@@ -15,7 +15,7 @@ use super::error::RenderError;
 use super::frame::Frame;
 use super::march::{BrickContext, march_brick};
 use super::ownership::owned_samples;
-use super::pixel::{PixelRay, PixelState};
+use super::pixel::{PixelRay, PixelState, ray_jitter};
 use super::prepared::{FramePlan, RenderVolume};
 use super::sampler::VolumeSampler;
 use super::settings::RenderSettings;
@@ -86,7 +86,8 @@ impl<T: Sample> CompositorJob for SequentialPass<'_, '_, '_, T> {
         let last_voxel = geometry.last_voxel();
         for y in rect.y0..rect.y1 {
             for x in rect.x0..rect.x1 {
-                let Some(ray) = PixelRay::new(&camera.ray(x, y), geometry, plan.dt) else {
+                let jitter = if plan.jitter { ray_jitter(x, y) } else { 0.0 };
+                let Some(ray) = PixelRay::new(&camera.ray(x, y), geometry, plan.dt, jitter) else {
                     continue;
                 };
                 counters.rays += 1;

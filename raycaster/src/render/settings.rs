@@ -129,6 +129,16 @@ pub struct RenderSettings {
     /// or a packet level (an error if this CPU lacks it). The sequential renderer
     /// always marches one ray at a time.
     pub simd: Option<SimdLevel>,
+    /// Pre-integrated transfer tables (Engel et al. 2001) for DVR, plain and the
+    /// DVR segments of two-level scenes: each sample stands for the segment to
+    /// the next one with the value going linearly between them, so thin features
+    /// and steep ramps between samples are not missed. 1D transfer functions only
+    /// (2D ones render as without). Off by default (see `docs/rendering.md`).
+    pub preintegrated: bool,
+    /// Per-pixel ray-start jitter: each ray's first sample moves by a
+    /// deterministic per-pixel fraction of a step (interleaved gradient noise),
+    /// trading the stripe and ring moiré of fixed sample positions for fine noise.
+    pub jitter: bool,
 }
 
 /// The default early-ray-termination threshold.
@@ -148,6 +158,8 @@ impl Default for RenderSettings {
             transfer: TransferFunction::preset("shapes").expect("built-in preset"),
             segments: None,
             simd: None,
+            preintegrated: false,
+            jitter: false,
         }
     }
 }

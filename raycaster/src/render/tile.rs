@@ -4,7 +4,7 @@
 use super::camera::{Camera, PixelRect};
 use super::counters::Counters;
 use super::geometry::VolumeGeometry;
-use super::pixel::{PixelRay, PixelState};
+use super::pixel::{PixelRay, PixelState, ray_jitter};
 
 /// A tile and everything its pixels have accumulated.
 #[derive(Clone, Debug)]
@@ -48,11 +48,13 @@ impl<S: Copy> Tile<S> {
     }
 
     /// Computes the pixels' rays (once); pixels outside `volume_rect` get none.
+    /// With `jitter`, each ray starts [`ray_jitter`] of a step later.
     pub fn prepare_rays(
         &mut self,
         camera: &Camera,
         geometry: &VolumeGeometry,
         dt: f32,
+        jitter: bool,
         volume_rect: &PixelRect,
     ) {
         if !self.rays.is_empty() {
@@ -67,7 +69,10 @@ impl<S: Copy> Tile<S> {
                     && y >= volume_rect.y0
                     && y < volume_rect.y1;
                 let ray = inside
-                    .then(|| PixelRay::new(&camera.ray(x, y), geometry, dt))
+                    .then(|| {
+                        let j = if jitter { ray_jitter(x, y) } else { 0.0 };
+                        PixelRay::new(&camera.ray(x, y), geometry, dt, j)
+                    })
                     .flatten();
                 self.counters.rays += u64::from(ray.is_some());
                 self.rays.push(ray);

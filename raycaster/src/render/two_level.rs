@@ -32,6 +32,8 @@ pub(crate) struct SegmentedState {
     segment: Accumulation,
     /// Depth of the first local hit, `∞` without one.
     depth: f32,
+    /// One past the last sample index folded (skipped samples leave a gap).
+    next_index: u32,
 }
 
 /// A segment scene prepared for a frame: the two-level compositor.
@@ -56,13 +58,15 @@ pub(crate) struct TwoLevel {
 
 impl TwoLevel {
     /// Prepares `scene` for samples of `type_max` with the data's raw `domain`,
-    /// opacities corrected for `step_ratio` reference steps.
+    /// opacities corrected for `step_ratio` reference steps; `preintegrate` gives
+    /// the tables of DVR objects pre-integrated segments.
     pub fn new(
         scene: &SegmentScene,
         type_max: u16,
         domain: [f32; 2],
         step_ratio: f32,
         shading: Option<Shading>,
+        preintegrate: bool,
     ) -> TwoLevel {
         let mut objects = vec![None; 256];
         let mut tables: Vec<(&TransferFunction, Arc<TransferTable>)> = Vec::new();
@@ -70,7 +74,17 @@ impl TwoLevel {
             let table = match tables.iter().find(|(tf, _)| **tf == o.transfer) {
                 Some((_, t)) => t.clone(),
                 None => {
-                    let t = Arc::new(TransferTable::new(&o.transfer, type_max, step_ratio));
+                    let mut t = TransferTable::new(&o.transfer, type_max, step_ratio);
+                    // One table per function: pre-integrated when any DVR object
+                    // uses it (other modes ignore that part).
+                    let dvr = scene
+                        .objects
+                        .iter()
+                        .any(|p| p.visible && p.mode == LocalMode::Dvr && p.transfer == o.transfer);
+                    if preintegrate && dvr {
+                        t = t.with_preintegration(&o.transfer, type_max);
+                    }
+                    let t = Arc::new(t);
                     tables.push((&o.transfer, t.clone()));
                     t
                 }
@@ -167,6 +181,7 @@ impl Compositor for TwoLevel {
             object: NO_OBJECT,
             segment: Accumulation::starting_at(0.0),
             depth: f32::INFINITY,
+            next_index: 0,
         }
     }
 
@@ -190,8 +205,14 @@ impl Compositor for TwoLevel {
             st.object = id;
             if let Some(object) = self.object(id) {
                 st.segment = object.start();
+                // A segment starts at its first sample: the sample before belongs
+                // to the previous segment, which composited the step between
+                // them — unless it was skipped as empty; then a pre-integrated
+                // DVR object composites that step itself (with its own table).
+                st.segment.next_index = s.index.min(st.next_index);
             }
         }
+        st.next_index = s.index + 1;
         if let Some(object) = self.object(id) {
             object.sample(&mut st.segment, s);
             if st.depth.is_infinite() {
