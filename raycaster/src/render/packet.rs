@@ -113,7 +113,7 @@ pub(crate) fn march_dvr<T: Sample>(
             }
         }
         // NEON is the aarch64 baseline; other levels never reach here.
-        _ => march_dvr_lanes(dvr, work),
+        _ => march_dvr_lanes::<T, LaneLoads>(dvr, work),
     }
 }
 
@@ -124,7 +124,7 @@ unsafe fn march_dvr_avx512<T: Sample>(
     dvr: &DvrLanes<'_>,
     work: &mut PacketWork<'_, '_, T, Accumulation>,
 ) {
-    march_dvr_lanes(dvr, work)
+    march_dvr_lanes::<T, gather::Avx2Gathers>(dvr, work)
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -134,7 +134,7 @@ unsafe fn march_dvr_avx2<T: Sample>(
     dvr: &DvrLanes<'_>,
     work: &mut PacketWork<'_, '_, T, Accumulation>,
 ) {
-    march_dvr_lanes(dvr, work)
+    march_dvr_lanes::<T, gather::Avx2Gathers>(dvr, work)
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -144,7 +144,7 @@ unsafe fn march_dvr_sse41<T: Sample>(
     dvr: &DvrLanes<'_>,
     work: &mut PacketWork<'_, '_, T, Accumulation>,
 ) {
-    march_dvr_lanes(dvr, work)
+    march_dvr_lanes::<T, LaneLoads>(dvr, work)
 }
 
 /// Per lane: `[f32; LANES]`.
@@ -173,14 +173,29 @@ struct StepInput {
     view: [Lanes; 3],
 }
 
+/// `[f(0), f(1), …]`, written as a plain loop: `std::array::from_fn` calls its
+/// closure through a function the compiler does not always inline, which keeps
+/// lane loops from vectorising.
+#[inline(always)]
+fn each<U: Copy + Default, const N: usize>(f: impl Fn(usize) -> U) -> [U; N] {
+    let mut out = [U::default(); N];
+    for (i, o) in out.iter_mut().enumerate() {
+        *o = f(i);
+    }
+    out
+}
+
 #[inline(always)]
 fn lerp(a: Lanes, b: Lanes, t: Lanes) -> Lanes {
-    std::array::from_fn(|i| a[i] + (b[i] - a[i]) * t[i])
+    each(|i| a[i] + (b[i] - a[i]) * t[i])
 }
 
 /// The packet march, compiled once per level through the wrappers above.
 #[inline(always)]
-fn march_dvr_lanes<T: Sample>(dvr: &DvrLanes<'_>, work: &mut PacketWork<'_, '_, T, Accumulation>) {
+fn march_dvr_lanes<T: Sample, G: Gather>(
+    dvr: &DvrLanes<'_>,
+    work: &mut PacketWork<'_, '_, T, Accumulation>,
+) {
     let plan = work.plan;
     let brick = work.brick;
     let ess = plan.empty_space_skipping;
@@ -271,8 +286,8 @@ fn march_dvr_lanes<T: Sample>(dvr: &DvrLanes<'_>, work: &mut PacketWork<'_, '_, 
             }
             input.fraction[l] = fraction;
         }
-        let busy: [bool; LANES] = std::array::from_fn(|l| lanes[l].is_some());
-        step(dvr, plan, work.volume, brick, &input, busy, &mut acc);
+        let busy: [bool; LANES] = each(|l| lanes[l].is_some());
+        step::<T, G>(dvr, plan, work.volume, brick, &input, busy, &mut acc);
         // Advance; stop lanes whose ray reached the opacity threshold.
         for l in 0..LANES {
             let Some(lane) = &mut lanes[l] else { continue };
@@ -313,7 +328,7 @@ fn finish_visit(
 /// One sample in every lane: trilinear value, classification, gradient and
 /// shading where visible, and the "over" step into `acc` for busy lanes.
 #[inline(always)]
-fn step<T: Sample>(
+fn step<T: Sample, G: Gather>(
     dvr: &DvrLanes<'_>,
     plan: &FramePlan,
     volume: &VolumeSampler<'_, T>,
@@ -326,31 +341,22 @@ fn step<T: Sample>(
     let geometry = sampler.cell_geometry();
     let origin = sampler.origin().to_array();
     // Local positions, cells and fractions (the scalar `value_local`).
-    let local: [Lanes; 3] =
-        std::array::from_fn(|a| std::array::from_fn(|i| input.p[a][i] - origin[a]));
-    let cell: [[u32; LANES]; 3] = std::array::from_fn(|a| {
-        std::array::from_fn(|i| (local[a][i] as u32).min(geometry.max_cell[a]))
+    let local: [Lanes; 3] = each(|a| each(|i| input.p[a][i] - origin[a]));
+    let cell: [[u32; LANES]; 3] = each(|a| {
+        // `as i32` then 0 at least: the scalar `as u32` for every finite value
+        // (and NaN), but a conversion the vector units have.
+        each(|i| ((local[a][i] as i32).max(0) as u32).min(geometry.max_cell[a]))
     });
-    let frac: [Lanes; 3] =
-        std::array::from_fn(|a| std::array::from_fn(|i| local[a][i] - cell[a][i] as f32));
+    let frac: [Lanes; 3] = each(|a| each(|i| local[a][i] - cell[a][i] as f32));
     // Gather the eight corners.
     let samples = sampler.samples();
     let [ox, oy, oz] = geometry.corner_stride;
     let [sx, sy, _] = geometry.strides;
-    let mut corner = [[0.0f32; LANES]; 8];
-    for i in 0..LANES {
-        let base = cell[0][i] as usize * sx + cell[1][i] as usize * sy + cell[2][i] as usize;
-        let s = &samples[base..][..=ox + oy + oz];
-        let v = |o: usize| f32::from(s[o].to_u16());
-        corner[0][i] = v(0);
-        corner[1][i] = v(oz);
-        corner[2][i] = v(oy);
-        corner[3][i] = v(oy + oz);
-        corner[4][i] = v(ox);
-        corner[5][i] = v(ox + oz);
-        corner[6][i] = v(ox + oy);
-        corner[7][i] = v(ox + oy + oz);
-    }
+    let base: [usize; LANES] =
+        each(|i| cell[0][i] as usize * sx + cell[1][i] as usize * sy + cell[2][i] as usize);
+    let offsets = [0, oz, oy, oy + oz, ox, ox + oz, ox + oy, ox + oy + oz];
+    let base = G::base(samples, &base, ox + oy + oz + 1);
+    let corner: [Lanes; 8] = each(|c| G::samples(samples, &base, offsets[c]));
     let [fx, fy, fz] = frac;
     let c00 = lerp(corner[0], corner[1], fz);
     let c01 = lerp(corner[2], corner[3], fz);
@@ -361,32 +367,26 @@ fn step<T: Sample>(
     let (offset, scale, top) = dvr.table.index_parameters();
     let entries = dvr.table.entries();
     let index: [usize; LANES] =
-        std::array::from_fn(|i| ((value[i] - offset) * scale + 0.5).max(0.0).min(top) as usize);
-    let mut rgba = [[0.0f32; LANES]; 4];
-    for i in 0..LANES {
-        let e = entries[index[i]];
-        for (ch, v) in rgba.iter_mut().zip(e) {
-            ch[i] = v;
-        }
-    }
-    let visible: [bool; LANES] = std::array::from_fn(|i| busy[i] && rgba[3][i] > 0.0);
+        each(|i| ((value[i] - offset) * scale + 0.5).max(0.0).min(top) as usize);
+    let rgba: [Lanes; 4] = each(|ch| G::entries(entries, &index, ch));
+    let visible: [bool; LANES] = each(|i| busy[i] && rgba[3][i] > 0.0);
     if !visible.iter().any(|&v| v) {
         return;
     }
     let mut color = [rgba[0], rgba[1], rgba[2]];
     if let Some(shading) = &dvr.shading {
-        let gradient = gradients(plan, volume, brick, input, &local, visible);
+        let gradient = gradients::<T, G>(plan, volume, brick, input, &local, visible);
         color = shade(shading, color, &gradient, &input.view);
     }
     // Opacity of a partial last step, then "over".
-    let alpha: Lanes = std::array::from_fn(|i| {
+    let alpha: Lanes = each(|i| {
         if input.fraction[i] < 1.0 {
             partial_step(rgba[3][i], input.fraction[i])
         } else {
             rgba[3][i]
         }
     });
-    let w: Lanes = std::array::from_fn(|i| (1.0 - acc[3][i]) * alpha[i]);
+    let w: Lanes = each(|i| (1.0 - acc[3][i]) * alpha[i]);
     for ch in 0..3 {
         for i in 0..LANES {
             let next = acc[ch][i] + w[i] * color[ch][i];
@@ -404,7 +404,7 @@ fn step<T: Sample>(
 /// `gradient_interior`'s arithmetic), else one lane at a time through the
 /// volume sampler.
 #[inline(always)]
-fn gradients<T: Sample>(
+fn gradients<T: Sample, G: Gather>(
     plan: &FramePlan,
     volume: &VolumeSampler<'_, T>,
     brick: &BrickContext<'_, T>,
@@ -420,11 +420,12 @@ fn gradients<T: Sample>(
     // Per lane: the neighbourhood's z-runs the six reads use, as in
     // `gradient_interior`: runs (1,1) (1,2) (2,1) (2,2) whole, the others'
     // middle pair.
-    let mut whole_runs = [[[0.0f32; LANES]; 4]; 4];
-    let mut mid_runs = [[[0.0f32; LANES]; 2]; 8];
     let mut interior = [false; LANES];
     let mut fallback: [Vec3; LANES] = [Vec3::ZERO; LANES];
     let mut cell_frac = [[0.0f32; LANES]; 3];
+    // The neighbourhood's first voxel per lane; lanes without an interior
+    // neighbourhood read an interior lane's (their values are not used).
+    let mut base = [usize::MAX; LANES];
     const MID: [(usize, usize); 8] = [
         (0, 1),
         (0, 2),
@@ -455,19 +456,26 @@ fn gradients<T: Sample>(
         cell_frac[0][i] = l[0] - ix as f32;
         cell_frac[1][i] = l[1] - iy as f32;
         cell_frac[2][i] = l[2] - iz as f32;
-        let base = (ix - 1) as usize * sx + (iy - 1) as usize * sy + (iz - 1) as usize;
-        let block = &samples[base..][..3 * sx + 3 * sy + 4];
-        let f = |v: T| f32::from(v.to_u16());
+        base[i] = (ix - 1) as usize * sx + (iy - 1) as usize * sy + (iz - 1) as usize;
+    }
+    let mut whole_runs = [[[0.0f32; LANES]; 4]; 4];
+    let mut mid_runs = [[[0.0f32; LANES]; 2]; 8];
+    if let Some(&any) = base.iter().find(|&&b| b != usize::MAX) {
+        for b in &mut base {
+            if *b == usize::MAX {
+                *b = any;
+            }
+        }
+        let base = G::base(samples, &base, 3 * sx + 3 * sy + 4);
         for (r, &(x, y)) in WHOLE.iter().enumerate() {
-            let run = &block[x * sx + y * sy..][..4];
-            for (z, &v) in run.iter().enumerate() {
-                whole_runs[r][z][i] = f(v);
+            for z in 0..4 {
+                whole_runs[r][z] = G::samples(samples, &base, x * sx + y * sy + z);
             }
         }
         for (r, &(x, y)) in MID.iter().enumerate() {
-            let run = &block[x * sx + y * sy + 1..][..2];
-            mid_runs[r][0][i] = f(run[0]);
-            mid_runs[r][1][i] = f(run[1]);
+            for z in 0..2 {
+                mid_runs[r][z] = G::samples(samples, &base, x * sx + y * sy + 1 + z);
+            }
         }
     }
     let [fx, fy, fz] = cell_frac;
@@ -483,7 +491,7 @@ fn gradients<T: Sample>(
     let (m20, m23) = (zm(&mid_runs[4]), zm(&mid_runs[5]));
     let (m31, m32) = (zm(&mid_runs[6]), zm(&mid_runs[7]));
     let (m11, m12, m21, m22) = (zl(r11, 1), zl(r12, 1), zl(r21, 1), zl(r22, 1));
-    let sub = |a: Lanes, b: Lanes| -> Lanes { std::array::from_fn(|i| a[i] - b[i]) };
+    let sub = |a: Lanes, b: Lanes| -> Lanes { each(|i| a[i] - b[i]) };
     let gx = sub(tri(m21, m22, m31, m32), tri(m01, m02, m11, m12));
     let gy = sub(tri(m12, m13, m22, m23), tri(m10, m11, m20, m21));
     let gz = sub(
@@ -492,8 +500,8 @@ fn gradients<T: Sample>(
     );
     let scale = plan.gradient_scale.to_array();
     let raw = [gx, gy, gz];
-    std::array::from_fn(|a| {
-        std::array::from_fn(|i| {
+    each(|a| {
+        each(|i| {
             let g = if interior[i] {
                 raw[a][i] * 0.5
             } else {
@@ -513,16 +521,14 @@ fn shade(
     view: &[Lanes; 3],
 ) -> [Lanes; 3] {
     let [gx, gy, gz] = gradient;
-    let magnitude: Lanes =
-        std::array::from_fn(|i| (gx[i] * gx[i] + gy[i] * gy[i] + gz[i] * gz[i]).sqrt());
-    let normal: [Lanes; 3] =
-        std::array::from_fn(|a| std::array::from_fn(|i| gradient[a][i] / magnitude[i]));
+    let magnitude: Lanes = each(|i| (gx[i] * gx[i] + gy[i] * gy[i] + gz[i] * gz[i]).sqrt());
+    let normal: [Lanes; 3] = each(|a| each(|i| gradient[a][i] / magnitude[i]));
     let dot = |u: &[Lanes; 3], v: &[Lanes; 3]| -> Lanes {
-        std::array::from_fn(|i| u[0][i] * v[0][i] + u[1][i] * v[1][i] + u[2][i] * v[2][i])
+        each(|i| u[0][i] * v[0][i] + u[1][i] * v[1][i] + u[2][i] * v[2][i])
     };
     let (to_light, half): ([Lanes; 3], [Lanes; 3]) = match shading.light {
         Light::Headlight => {
-            let l = std::array::from_fn(|a| std::array::from_fn(|i| -view[a][i]));
+            let l = each(|a| each(|i| -view[a][i]));
             (l, l)
         }
         Light::Fixed(d) => {
@@ -553,4 +559,237 @@ fn shade(
         }
     }
     out
+}
+
+/// How a kernel reads one value per lane from scattered places.
+trait Gather {
+    /// Per-lane starting points prepared for several reads at offsets below a
+    /// reach.
+    type Base: Copy;
+    /// Prepares `base` for reads `samples[base[i] + offset]`, `offset < reach`
+    /// (every such index in bounds).
+    fn base<T: Sample>(samples: &[T], base: &[usize; LANES], reach: usize) -> Self::Base;
+    /// `samples[base[i] + offset]` per lane, as `f32`.
+    fn samples<T: Sample>(samples: &[T], base: &Self::Base, offset: usize) -> Lanes;
+    /// Channel `ch` of `entries[index[i]]` per lane (every index in bounds).
+    fn entries(entries: &[[f32; 4]], index: &[usize; LANES], ch: usize) -> Lanes;
+}
+
+/// One load per lane (SSE4.1, NEON, and the fallback of the gathers).
+struct LaneLoads;
+
+impl Gather for LaneLoads {
+    type Base = [usize; LANES];
+    #[inline(always)]
+    fn base<T: Sample>(_samples: &[T], base: &[usize; LANES], _reach: usize) -> [usize; LANES] {
+        *base
+    }
+    #[inline(always)]
+    fn samples<T: Sample>(samples: &[T], base: &[usize; LANES], offset: usize) -> Lanes {
+        each(|i| f32::from(samples[base[i] + offset].to_u16()))
+    }
+    #[inline(always)]
+    fn entries(entries: &[[f32; 4]], index: &[usize; LANES], ch: usize) -> Lanes {
+        each(|i| entries[index[i]][ch])
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod gather {
+    //! AVX2 gathers: eight loads in one instruction.
+    #![allow(unsafe_code)]
+
+    use std::arch::x86_64::{
+        __m256i, _mm256_add_epi32, _mm256_and_si256, _mm256_cvtepi32_ps, _mm256_i32gather_epi32,
+        _mm256_i32gather_ps, _mm256_loadu_si256, _mm256_set1_epi32, _mm256_storeu_ps,
+    };
+
+    use super::{Gather, LANES, LaneLoads, Lanes, each};
+    use crate::volume::Sample;
+
+    /// Hardware gathers (AVX2 and AVX-512 levels only).
+    pub(super) struct Avx2Gathers;
+
+    /// Where eight lanes read: byte offsets from a common first sample, or
+    /// plain indices when the words would leave the slice.
+    #[derive(Clone, Copy)]
+    pub(super) enum Words {
+        /// The lanes' byte offsets from sample `first`.
+        Gather { first: usize, bytes: __m256i },
+        /// One load per lane.
+        Lanes([usize; LANES]),
+    }
+
+    impl Gather for Avx2Gathers {
+        type Base = Words;
+
+        #[inline(always)]
+        fn base<T: Sample>(samples: &[T], base: &[usize; LANES], reach: usize) -> Words {
+            let size = size_of::<T>();
+            let (mut first, mut last) = (base[0], base[0]);
+            for &b in base {
+                first = first.min(b);
+                last = last.max(b);
+            }
+            let last = last + reach.saturating_sub(1);
+            // Each read takes the 4-byte word at its sample: the words must lie
+            // in the slice and the byte offsets from `first` fit an i32.
+            let words_fit = last * size + 4 <= size_of_val(samples);
+            let span_fits = (last - first + 1) * size < i32::MAX as usize;
+            if !(words_fit && span_fits) {
+                return Words::Lanes(*base);
+            }
+            let bytes: [i32; LANES] = each(|i| ((base[i] - first) * size) as i32);
+            // SAFETY: AVX2 is present (see `samples`); an unaligned load of the
+            // 32 bytes of `bytes`.
+            let bytes = unsafe { load(&bytes) };
+            Words::Gather { first, bytes }
+        }
+
+        #[inline(always)]
+        fn samples<T: Sample>(samples: &[T], base: &Words, offset: usize) -> Lanes {
+            match *base {
+                Words::Lanes(base) => LaneLoads::samples(samples, &base, offset),
+                Words::Gather { first, bytes } => {
+                    let size = size_of::<T>();
+                    let mask = if size == 1 { 0xff } else { 0xffff };
+                    // SAFETY: only the AVX2 and AVX-512 kernels use this type,
+                    // and the frame plan picks them only where `simd::available`
+                    // detected AVX2. `base` checked that every word from
+                    // `samples[first]` plus a lane's byte offset plus
+                    // `offset·size` (offset below the reach) lies in `samples`.
+                    unsafe {
+                        gather_words(
+                            samples.as_ptr().add(first).cast::<u8>(),
+                            bytes,
+                            (offset * size) as i32,
+                            mask,
+                        )
+                    }
+                }
+            }
+        }
+
+        #[inline(always)]
+        fn entries(entries: &[[f32; 4]], index: &[usize; LANES], ch: usize) -> Lanes {
+            let len = entries.len() * 4;
+            let mut last = 0;
+            for &i in index {
+                last = last.max(i);
+            }
+            if ch >= 4 || last * 4 + ch >= len || len > i32::MAX as usize {
+                return LaneLoads::entries(entries, index, ch);
+            }
+            let floats: [i32; LANES] = each(|i| (index[i] * 4 + ch) as i32);
+            // SAFETY: AVX2 is present (as above); every float index is inside
+            // `entries` viewed as `len` floats (checked above).
+            unsafe { gather_floats(entries.as_ptr().cast::<f32>(), &floats) }
+        }
+    }
+
+    /// Eight i32 as a vector.
+    ///
+    /// # Safety
+    /// AVX2 must be available.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn load(values: &[i32; LANES]) -> __m256i {
+        // SAFETY: `values` is 32 readable bytes; the load is unaligned.
+        unsafe { _mm256_loadu_si256(values.as_ptr().cast::<__m256i>()) }
+    }
+
+    /// The 32-bit words at `base + bytes[i] + offset`, masked with `mask`, as
+    /// floats.
+    ///
+    /// # Safety
+    /// AVX2 must be available, and each word `base + bytes[i] + offset .. + 4`
+    /// readable.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn gather_words(base: *const u8, bytes: __m256i, offset: i32, mask: i32) -> Lanes {
+        // SAFETY: the gather reads only the words the caller vouches for.
+        unsafe {
+            let index = _mm256_add_epi32(bytes, _mm256_set1_epi32(offset));
+            let words = _mm256_i32gather_epi32::<1>(base.cast::<i32>(), index);
+            let values = _mm256_cvtepi32_ps(_mm256_and_si256(words, _mm256_set1_epi32(mask)));
+            let mut out = [0.0f32; LANES];
+            _mm256_storeu_ps(out.as_mut_ptr(), values);
+            out
+        }
+    }
+
+    /// The floats `base[floats[i]]`.
+    ///
+    /// # Safety
+    /// AVX2 must be available, and each `base[floats[i]]` readable.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn gather_floats(base: *const f32, floats: &[i32; LANES]) -> Lanes {
+        // SAFETY: as `gather_words`.
+        unsafe {
+            let index = _mm256_loadu_si256(floats.as_ptr().cast::<__m256i>());
+            let values = _mm256_i32gather_ps::<4>(base, index);
+            let mut out = [0.0f32; LANES];
+            _mm256_storeu_ps(out.as_mut_ptr(), values);
+            out
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn check<T: Sample + From<u8>>() {
+        let samples: Vec<T> = (0..300u32).map(|i| T::from((i * 37 % 251) as u8)).collect();
+        let mut seed = 7u32;
+        let mut next = |n: usize| {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (seed >> 8) as usize % n
+        };
+        for round in 0..400 {
+            // Near the end of the slice in some rounds: the gathers fall back.
+            let reach = 1 + next(20);
+            let top = if round % 3 == 0 {
+                samples.len() - reach
+            } else {
+                200
+            };
+            let base: [usize; LANES] = each(|_| 0);
+            let base = base.map(|_| next(top + 1));
+            let plain_base = LaneLoads::base(&samples, &base, reach);
+            for offset in 0..reach {
+                let expected = LaneLoads::samples(&samples, &plain_base, offset);
+                #[cfg(target_arch = "x86_64")]
+                if SimdLevel::Avx2.is_available() {
+                    let wide = gather::Avx2Gathers::base(&samples, &base, reach);
+                    assert_eq!(
+                        gather::Avx2Gathers::samples(&samples, &wide, offset),
+                        expected
+                    );
+                }
+                for (i, &e) in expected.iter().enumerate() {
+                    assert_eq!(e, f32::from(samples[base[i] + offset].to_u16()));
+                }
+            }
+        }
+        let entries: Vec<[f32; 4]> = (0..1024)
+            .map(|i| [i as f32, 1.0, 2.0, -(i as f32)])
+            .collect();
+        let index: [usize; LANES] = [0, 1023, 5, 77, 1023, 0, 512, 9];
+        for ch in 0..4 {
+            let expected = LaneLoads::entries(&entries, &index, ch);
+            #[cfg(target_arch = "x86_64")]
+            if SimdLevel::Avx2.is_available() {
+                assert_eq!(gather::Avx2Gathers::entries(&entries, &index, ch), expected);
+            }
+            assert_eq!(expected[1], entries[1023][ch]);
+        }
+    }
+
+    #[test]
+    fn gathers_read_what_lane_loads_read_up_to_the_slice_end() {
+        check::<u8>();
+        check::<u16>();
+    }
 }

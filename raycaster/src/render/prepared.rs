@@ -264,7 +264,7 @@ impl FramePlan {
             return Err(RenderError::IsoValue(settings.iso_value));
         }
         let simd = match settings.simd {
-            None => SimdLevel::best(),
+            None => SimdLevel::automatic(),
             Some(level) if level.is_available() => level,
             Some(level) => return Err(RenderError::Simd(level)),
         };
