@@ -51,13 +51,32 @@ pub(crate) struct CellGrid {
 }
 
 /// Iterator over the [`SampleRun`]s of samples `first..=last` of a ray in one brick.
+///
+/// It walks the brick's cells along the ray with a 3D DDA (Amanatides & Woo): the
+/// cell of the first sample from its position, then from each cell to the
+/// neighbour across the face the ray leaves it by. A cell's samples are those
+/// whose index lies before the ray's exit from it (in sample-index units: the
+/// face's crossing `(face − start) / step`, computed afresh for each face, so
+/// nothing drifts). A sample within rounding of a face may fall to the cell on
+/// the other side: its trilinear reads lie in that cell's range too when it is a
+/// hair past an exit face (a cell's range covers the voxel after it), and within
+/// a rounding error of it otherwise.
 pub(crate) struct SampleRuns<'r, C> {
     compositor: &'r C,
-    ray: &'r PixelRay,
     cells: Option<&'r CellGrid>,
-    last_voxel: Vec3,
     next: u32,
     end: u32,
+    /// The current cell per axis.
+    cell: [u32; 3],
+    /// Per axis: +1 or −1 cell per face crossed, 0 where the ray does not move
+    /// along it.
+    direction: [i32; 3],
+    /// Per axis: the crossing of the current cell's exit face, in sample-index
+    /// units (`∞` where the ray does not leave the cell along it).
+    exit: [f32; 3],
+    /// What the exit faces are computed from.
+    start: [f32; 3],
+    inv_step: [f32; 3],
     /// Samples skipped so far (in empty cells).
     pub skipped: u64,
 }
@@ -74,66 +93,63 @@ impl<'r, C: Compositor> SampleRuns<'r, C> {
         first: u32,
         last: u32,
     ) -> Self {
-        SampleRuns {
+        let mut runs = SampleRuns {
             compositor,
-            ray,
             cells,
-            last_voxel,
             next: first,
             end: last.saturating_add(1),
+            cell: [0; 3],
+            direction: [0; 3],
+            exit: [f32::INFINITY; 3],
+            start: ray.start.to_array(),
+            inv_step: ray.inv_step.to_array(),
             skipped: 0,
-        }
-    }
-
-    /// The cell holding sample `k` and the first sample after `k` past the cell's
-    /// exit face (the samples from `k` to just before it are in the cell, up to
-    /// rounding at the face); always greater than `k`.
-    #[inline]
-    fn cell_and_exit(&self, cells: &CellGrid, k: u32) -> (usize, u32) {
-        let p = self.ray.position(k, self.last_voxel);
-        let m = cells.per_axis - 1;
-        let local = (p - cells.origin) * cells.inv_cell_step;
-        // Positions inside the brick are ≥ its origin: `as` truncates = floors.
-        let (cx, cy, cz) = (
-            (local.x as u32).min(m),
-            (local.y as u32).min(m),
-            (local.z as u32).min(m),
-        );
-        let lower = cells.origin + Vec3::new(cx as f32, cy as f32, cz as f32) * cells.cell_step;
-        let (step, start, inv) = (
-            self.ray.step.to_array(),
-            self.ray.start.to_array(),
-            self.ray.inv_step.to_array(),
-        );
-        let lower = lower.to_array();
-        let mut crossing = f32::INFINITY;
-        for a in 0..3 {
-            if step[a] != 0.0 {
-                let face = if step[a] > 0.0 {
-                    lower[a] + cells.cell_step
+        };
+        if let Some(grid) = cells {
+            let p = ray.position(first, last_voxel);
+            let local = ((p - grid.origin) * grid.inv_cell_step).to_array();
+            let step = ray.step.to_array();
+            let m = grid.per_axis - 1;
+            for a in 0..3 {
+                // Positions inside the brick are ≥ its origin: `as` floors.
+                runs.cell[a] = (local[a] as u32).min(m);
+                runs.direction[a] = if step[a] > 0.0 {
+                    1
+                } else if step[a] < 0.0 {
+                    -1
                 } else {
-                    lower[a]
+                    0
                 };
-                crossing = crossing.min((face - start[a]) * inv[a]);
+                runs.exit[a] = runs.exit_along(grid, a);
             }
         }
-        // The first sample at or past the exit face: ceil(crossing), at least
-        // k + 1 (negative and NaN saturate to 0). A sample rounding puts a hair
-        // past the face stays in this run: it reads the voxels the cell's range
-        // already covers (its span includes the voxel after), or lies within a
-        // rounding error of them; one a hair before it starts the next run, which
-        // finds this cell again.
-        let whole = crossing as u32;
-        let exit = if (whole as f32) < crossing {
-            whole.saturating_add(1)
-        } else {
-            whole
+        runs
+    }
+
+    /// The crossing of the current cell's exit face along `axis`, in sample-index
+    /// units; `∞` when the ray does not move along the axis or the cell is the
+    /// brick's last that way (its samples end with the brick's).
+    #[inline]
+    fn exit_along(&self, grid: &CellGrid, axis: usize) -> f32 {
+        let c = self.cell[axis];
+        let face = match self.direction[axis] {
+            1 if c + 1 < grid.per_axis => c + 1,
+            -1 if c > 0 => c,
+            _ => return f32::INFINITY,
         };
-        let exit = exit.max(k + 1);
-        (
-            ((cx * cells.per_axis + cy) * cells.per_axis + cz) as usize,
-            exit,
-        )
+        let origin = grid.origin.to_array()[axis];
+        (origin + face as f32 * grid.cell_step - self.start[axis]) * self.inv_step[axis]
+    }
+}
+
+/// `⌈x⌉` for `x ≥ 0`, saturating (negative and NaN give 0), without a libm call.
+#[inline]
+fn ceil(x: f32) -> u32 {
+    let whole = x as u32;
+    if (whole as f32) < x {
+        whole.saturating_add(1)
+    } else {
+        whole
     }
 }
 
@@ -142,7 +158,7 @@ impl<C: Compositor> Iterator for SampleRuns<'_, C> {
 
     #[inline]
     fn next(&mut self) -> Option<SampleRun> {
-        let Some(cells) = self.cells else {
+        let Some(grid) = self.cells else {
             let run = (self.next < self.end).then_some(SampleRun {
                 first: self.next,
                 end: self.end,
@@ -153,18 +169,37 @@ impl<C: Compositor> Iterator for SampleRuns<'_, C> {
         };
         while self.next < self.end {
             let k = self.next;
-            let (cell, exit) = self.cell_and_exit(cells, k);
-            let exit = exit.min(self.end);
-            self.next = exit;
-            let [lo, hi] = cells.ranges[cell];
+            // The axis whose face the ray leaves the cell by first.
+            let [ex, ey, ez] = self.exit;
+            let axis = if ex <= ey && ex <= ez {
+                0
+            } else if ey <= ez {
+                1
+            } else {
+                2
+            };
+            let run_end = ceil(self.exit[axis]).min(self.end);
+            let [cx, cy, cz] = self.cell;
+            let index = ((cx * grid.per_axis + cy) * grid.per_axis + cz) as usize;
+            // On to the neighbour (a cell the ray only grazes between two
+            // samples yields nothing).
+            if self.exit[axis].is_finite() {
+                self.cell[axis] = self.cell[axis].wrapping_add_signed(self.direction[axis]);
+                self.exit[axis] = self.exit_along(grid, axis);
+            }
+            if run_end <= k {
+                continue;
+            }
+            self.next = run_end;
+            let [lo, hi] = grid.ranges[index];
             // `lo > hi`: a cell past an edge brick's voxels (owns no sample).
             if lo > hi || self.compositor.range_empty(lo, hi) {
-                self.skipped += u64::from(exit - k);
+                self.skipped += u64::from(run_end - k);
                 continue;
             }
             return Some(SampleRun {
                 first: k,
-                end: exit,
+                end: run_end,
                 hi,
             });
         }
