@@ -8,7 +8,7 @@ use std::str::FromStr;
 use anyhow::{Context, Result, bail};
 use raycaster::render::{
     Camera, DEFAULT_ERT_THRESHOLD, DEFAULT_TILE_SIZE, Frame, Mode, Orbit, ParallelOptions,
-    RenderSettings, RenderVolume, Renderer, TransferFunction, Vec3, render_parallel,
+    RenderSettings, RenderVolume, Renderer, SimdLevel, TransferFunction, Vec3, render_parallel,
     render_sequential,
 };
 use raycaster::volume::{Access, Layout, SampleType, Volume};
@@ -141,6 +141,8 @@ pub struct BenchCase {
     pub transfer: &'static str,
     /// Image size in pixels.
     pub image: [u32; 2],
+    /// The parallel renderer's kernel (`None`: the automatic choice).
+    pub simd: Option<SimdLevel>,
 }
 
 impl Default for BenchCase {
@@ -160,6 +162,7 @@ impl Default for BenchCase {
             shading: true,
             transfer: "shapes",
             image: [256, 256],
+            simd: None,
         }
     }
 }
@@ -176,6 +179,10 @@ impl BenchCase {
         let renderer = match self.threads {
             None => format!("seq-{}", self.brick_name()),
             Some(t) => format!("t{t}-tile{}-{}", self.tile, self.brick_name()),
+        };
+        let renderer = match self.simd {
+            Some(level) => format!("{renderer}-{level}"),
+            None => renderer,
         };
         let shading = if self.shading { "" } else { "-unshaded" };
         let transfer = if self.transfer == "shapes" {
@@ -230,6 +237,7 @@ impl BenchCase {
             empty_space_skipping: self.optimisations.ess(),
             shading: if self.shading { defaults.shading } else { None },
             transfer: TransferFunction::preset(self.transfer)?,
+            simd: self.simd,
             ..defaults
         })
     }

@@ -129,6 +129,23 @@ pub fn small_frame_case(quick: bool) -> BenchCase {
     }
 }
 
+/// The kernel benchmark's cases: shaded DVR at step 0.2 on one render thread, once
+/// per marching kernel this machine runs (scalar first, then each packet level).
+pub fn kernel_cases(quick: bool) -> Vec<BenchCase> {
+    let (n, image) = sizes(quick);
+    raycaster::render::simd_levels()
+        .iter()
+        .map(|&level| BenchCase {
+            volume: VolumeSpec::shapes(n),
+            threads: Some(1),
+            step: 0.2,
+            image,
+            simd: Some(level),
+            ..BenchCase::default()
+        })
+        .collect()
+}
+
 /// The two-level benchmark's plain case (its layered twin adds segments to the
 /// settings): the default threads on a `shapes` volume in RAM.
 pub fn two_level_case(quick: bool) -> BenchCase {
@@ -222,10 +239,19 @@ mod tests {
             shading: false,
             transfer: "opaque",
             image: [70, 50],
+            simd: None,
         };
         assert_eq!(
             case.name(),
             "shapes-96-u16-b32-mapped/ess/t2-tile8-brick16/close-step0.2-mip-unshaded-tf-opaque-70x50"
+        );
+        let packets = BenchCase {
+            simd: Some(raycaster::render::SimdLevel::Avx2),
+            ..case.clone()
+        };
+        assert_eq!(
+            packets.name(),
+            "shapes-96-u16-b32-mapped/ess/t2-tile8-brick16-avx2/close-step0.2-mip-unshaded-tf-opaque-70x50"
         );
         let seq = BenchCase {
             threads: None,

@@ -110,6 +110,11 @@ pub struct BenchArgs {
     #[arg(long)]
     sequential: bool,
 
+    /// Marching kernel of the parallel renderer (as `raycaster render --simd`):
+    /// auto, scalar, sse4.1, avx2, avx512, neon.
+    #[arg(long, default_value = "auto", value_parser = crate::render::parse_simd, value_name = "LEVEL")]
+    simd: crate::render::SimdChoice,
+
     /// Small and fast: at most a 96³ volume, 128×128 image, one frame (for CI).
     #[arg(long)]
     quick: bool,
@@ -231,6 +236,7 @@ fn cases(args: &BenchArgs) -> Vec<BenchCase> {
         mode: args.mode.into(),
         transfer: args.transfer,
         image: args.image,
+        simd: args.simd.0,
         ..BenchCase::default()
     };
     let mut out = Vec::new();
@@ -295,14 +301,17 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
     let volume = first.open_volume(&cache_dir)?;
     let [w, h] = args.image;
     eprintln!(
-        "bench: {} ({}×{}×{}, {}), image {w}×{h}, step {}, {} frame(s) per configuration",
+        "bench: {} ({}×{}×{}, {}), image {w}×{h}, step {}, {} frame(s) per configuration, {} kernel",
         volume.path().display(),
         volume.dims()[0],
         volume.dims()[1],
         volume.dims()[2],
         first.volume.name(),
         args.step,
-        args.frames
+        args.frames,
+        args.simd
+            .0
+            .unwrap_or(raycaster::render::SimdLevel::automatic())
     );
     if let Some(warning) = load_warning(load_average(), available_cores()) {
         eprintln!("{warning}");

@@ -578,10 +578,10 @@ fn settings(args: &RenderArgs, volume: &Volume) -> Result<RenderSettings> {
 
 /// `--simd`: `auto` (`None`) or a kernel level.
 #[derive(Clone, Copy, Debug)]
-struct SimdChoice(Option<SimdLevel>);
+pub(crate) struct SimdChoice(pub(crate) Option<SimdLevel>);
 
 /// Parses `--simd`.
-fn parse_simd(text: &str) -> Result<SimdChoice, String> {
+pub(crate) fn parse_simd(text: &str) -> Result<SimdChoice, String> {
     if text == "auto" {
         return Ok(SimdChoice(None));
     }
