@@ -162,16 +162,39 @@ pub(crate) fn march_brick<T: Sample, C: Compositor>(
         counters.samples += taken;
         counters.samples_skipped_empty += skipped;
         if let Some(k) = stopped_before {
-            c.close(&mut state.acc);
-            state.done = true;
-            state.next_sample = k;
-            counters.rays_terminated += 1;
+            stop_ray(c, state, k, counters);
             return;
         }
     }
-    state.next_sample = last + 1;
-    if state.next_sample >= ray.samples {
+    end_visit(c, state, ray, last + 1);
+}
+
+/// Ends a ray's visit of a brick with sample `next` the next it expects; past its
+/// last sample the ray is done and `c` closes it.
+#[inline]
+pub(crate) fn end_visit<C: Compositor>(
+    c: &C,
+    state: &mut PixelState<C::State>,
+    ray: &PixelRay,
+    next: u32,
+) {
+    state.next_sample = next;
+    if next >= ray.samples {
         state.done = true;
         c.close(&mut state.acc);
     }
+}
+
+/// Stops a ray early (opacity threshold or a first hit) before sample `next`.
+#[inline]
+pub(crate) fn stop_ray<C: Compositor>(
+    c: &C,
+    state: &mut PixelState<C::State>,
+    next: u32,
+    counters: &mut Counters,
+) {
+    c.close(&mut state.acc);
+    state.done = true;
+    state.next_sample = next;
+    counters.rays_terminated += 1;
 }

@@ -12,6 +12,7 @@
 
 use super::geometry::VolumeGeometry;
 use super::pixel::PixelRay;
+use super::runs::ceil;
 
 /// The first and last sample index of `ray` that brick `b` owns, if any.
 #[inline]
@@ -50,10 +51,6 @@ enum Guess {
 #[inline]
 fn guess(ray: &PixelRay, geometry: &VolumeGeometry, b: [u32; 3]) -> Guess {
     // Samples k with enter ≤ k < exit: first = ceil(enter), end = ceil(exit).
-    let ceil = |x: f32| {
-        let whole = x as u32;
-        if (whole as f32) < x { whole + 1 } else { whole }
-    };
     let (enter, exit) = sample_slab(ray, geometry, b, 0.0);
     let (first, end) = (ceil(enter), ceil(exit).min(ray.samples));
     if first >= end {

@@ -26,7 +26,7 @@ use glam::Vec3;
 
 use super::counters::Counters;
 use super::local::Accumulation;
-use super::march::BrickContext;
+use super::march::{BrickContext, end_visit, stop_ray};
 use super::optics::{partial_step, specular_power};
 use super::pixel::{PixelRay, PixelState};
 use super::prepared::FramePlan;
@@ -220,13 +220,9 @@ fn march_dvr_lanes<T: Sample, G: Gather>(
                     }
                     // The ray leaves the brick.
                     let lane = lanes[l].take().expect("lane is busy");
-                    let item = work.items[lane.item];
-                    let state = &mut work.states[item.pixel];
-                    state.acc.color = [acc[0][l], acc[1][l], acc[2][l]];
-                    state.acc.alpha = acc[3][l];
-                    work.counters.samples += lane.taken;
-                    work.counters.samples_skipped_empty += lane.runs.skipped;
-                    finish_visit(c, state, lane.ray, item.last + 1);
+                    let pixel = retire(work, &lane, &acc, l);
+                    let next = work.items[lane.item].last + 1;
+                    end_visit(c, &mut work.states[pixel], lane.ray, next);
                 }
                 let Some(&item) = work.items.get(next_item) else {
                     break;
@@ -242,7 +238,7 @@ fn march_dvr_lanes<T: Sample, G: Gather>(
                 if ess && brick.transparent {
                     work.counters.samples_skipped_empty += u64::from(item.last - item.first + 1);
                     work.counters.brick_visits_skipped += 1;
-                    finish_visit(c, state, ray, item.last + 1);
+                    end_visit(c, state, ray, item.last + 1);
                     continue;
                 }
                 work.counters.brick_visits += 1;
@@ -295,34 +291,29 @@ fn march_dvr_lanes<T: Sample, G: Gather>(
             lane.k += 1;
             if acc[3][l] >= plan.ert_threshold {
                 let lane = lanes[l].take().expect("lane is busy");
-                let item = work.items[lane.item];
-                let state = &mut work.states[item.pixel];
-                state.acc.color = [acc[0][l], acc[1][l], acc[2][l]];
-                state.acc.alpha = acc[3][l];
-                work.counters.samples += lane.taken;
-                work.counters.samples_skipped_empty += lane.runs.skipped;
-                work.counters.rays_terminated += 1;
-                state.done = true;
-                state.next_sample = lane.k;
-                super::compositor::Compositor::close(c, &mut state.acc);
+                let pixel = retire(work, &lane, &acc, l);
+                stop_ray(c, &mut work.states[pixel], lane.k, work.counters);
             }
         }
     }
 }
 
-/// Ends a ray's visit of the brick at sample `next` (as the scalar loop does).
+/// Writes lane `l`'s accumulated colour and opacity and its counts back to its
+/// ray's pixel; returns the pixel's index in the tile.
 #[inline(always)]
-fn finish_visit(
-    c: &super::local::Dvr,
-    state: &mut PixelState<Accumulation>,
-    ray: &PixelRay,
-    next: u32,
-) {
-    state.next_sample = next;
-    if next >= ray.samples {
-        state.done = true;
-        super::compositor::Compositor::close(c, &mut state.acc);
-    }
+fn retire<T: Sample>(
+    work: &mut PacketWork<'_, '_, T, Accumulation>,
+    lane: &Lane<'_>,
+    acc: &[Lanes; 4],
+    l: usize,
+) -> usize {
+    let pixel = work.items[lane.item].pixel;
+    let state = &mut work.states[pixel];
+    state.acc.color = [acc[0][l], acc[1][l], acc[2][l]];
+    state.acc.alpha = acc[3][l];
+    work.counters.samples += lane.taken;
+    work.counters.samples_skipped_empty += lane.runs.skipped;
+    pixel
 }
 
 /// One sample in every lane: trilinear value, classification, gradient and

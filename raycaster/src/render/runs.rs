@@ -142,9 +142,10 @@ impl<'r, C: Compositor> SampleRuns<'r, C> {
     }
 }
 
-/// `⌈x⌉` for `x ≥ 0`, saturating (negative and NaN give 0), without a libm call.
+/// `⌈x⌉` for `x ≥ 0`, saturating (negative and NaN give 0), without a libm call:
+/// the first sample index at or after sample-index position `x`.
 #[inline]
-fn ceil(x: f32) -> u32 {
+pub(crate) fn ceil(x: f32) -> u32 {
     let whole = x as u32;
     if (whole as f32) < x {
         whole.saturating_add(1)
