@@ -4,60 +4,18 @@
 
 #[path = "../../volumes/hostile/corpus.rs"]
 mod corpus;
+#[path = "../../volumes/hostile/harness.rs"]
+mod harness;
 
 use std::path::Path;
-use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use corpus::Kind;
+use harness::{assert_clean_error, run_limited};
 
+/// `raycaster args` in `dir` under a time limit: exit code and stderr.
 fn run(dir: &Path, args: &[&str], limit: Duration) -> (Option<i32>, String) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_raycaster"))
-        .current_dir(dir)
-        .args(args)
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let start = Instant::now();
-    loop {
-        if let Some(status) = child.try_wait().unwrap() {
-            let mut err = String::new();
-            use std::io::Read;
-            child
-                .stderr
-                .take()
-                .unwrap()
-                .read_to_string(&mut err)
-                .unwrap();
-            return (status.code(), err);
-        }
-        if start.elapsed() > limit {
-            child.kill().unwrap();
-            child.wait().unwrap();
-            panic!("raycaster {args:?} hung (over {limit:?})");
-        }
-        std::thread::sleep(Duration::from_millis(2));
-    }
-}
-
-fn assert_clean_error(what: &str, err: &str) {
-    assert!(err.starts_with("error: "), "{what}: {err}");
-    assert!(!err.contains("panicked"), "{what}: {err}");
-    for debug in ["Some(", "None", " { ", "Os {", "kind: "] {
-        assert!(!err.contains(debug), "{what}: debug text in {err}");
-    }
-    assert!(!err.contains(".partial"), "{what}: temporary name in {err}");
-    let parts: Vec<&str> = err.trim().split(": ").map(str::trim).collect();
-    for (i, p) in parts.iter().enumerate() {
-        if p.len() > 12 {
-            assert!(
-                !parts[i + 1..].contains(p),
-                "{what}: `{p}` said twice in {err}"
-            );
-        }
-    }
+    run_limited(env!("CARGO_BIN_EXE_raycaster"), dir, args, limit)
 }
 
 #[test]
