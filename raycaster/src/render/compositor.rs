@@ -13,6 +13,7 @@ use super::packet::PacketWork;
 use super::pixel::PixelRay;
 use super::sampler::VolumeSampler;
 use super::simd::SimdLevel;
+use super::state_buffer::StateCodec;
 use super::two_level::TwoLevel;
 use crate::volume::Sample;
 
@@ -25,7 +26,7 @@ use crate::volume::Sample;
 pub(crate) trait Compositor: Sync {
     /// What one pixel accumulates; travels with its tile between bricks and
     /// threads.
-    type State: Copy + Send + std::fmt::Debug;
+    type State: Copy + Send + std::fmt::Debug + StateCodec;
 
     /// The state of a pixel whose ray has not started.
     fn start(&self) -> Self::State;

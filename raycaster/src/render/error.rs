@@ -58,6 +58,10 @@ pub enum RenderError {
         available = super::simd::available().iter().map(|l| l.name()).collect::<Vec<_>>().join(", ")
     )]
     Simd(super::simd::SimdLevel),
+    /// A distributed frame failed between ranks (a message not delivered or
+    /// malformed).
+    #[error("distributed rendering: {0}")]
+    Distributed(String),
     /// The camera is invalid.
     #[error(transparent)]
     Camera(#[from] CameraError),

@@ -360,7 +360,13 @@ fn prefetch_view(
     let Ok(plan) = FramePlan::new(volume, &request.settings) else {
         return;
     };
-    let schedule = FrameSchedule::new(volume, &plan, &request.camera, request.options.tile_size);
+    let schedule = FrameSchedule::new(
+        volume,
+        &plan,
+        &request.camera,
+        request.options.tile_size,
+        None,
+    );
     for (i, brick) in schedule.bricks.iter().enumerate() {
         if i % 256 == 0 && interrupted() {
             return;

@@ -14,6 +14,7 @@ use super::packet::{DvrLanes, PacketWork, march_dvr};
 use super::segments::{ImportanceSource, LocalMode};
 use super::shading::Shading;
 use super::simd::SimdLevel;
+use super::state_buffer::{Reader, StateCodec, put_f32, put_u32};
 use super::transfer::{PreintegratedTable, TransferTable};
 use crate::volume::Sample;
 
@@ -55,6 +56,38 @@ impl Accumulation {
     fn rgba(&self) -> [f32; 4] {
         let [r, g, b] = self.color;
         [r, g, b, self.alpha]
+    }
+}
+
+impl StateCodec for Accumulation {
+    const BYTES: usize = 36;
+
+    fn encode(&self, out: &mut Vec<u8>) {
+        for v in [
+            self.color[0],
+            self.color[1],
+            self.color[2],
+            self.alpha,
+            self.value,
+        ] {
+            put_f32(out, v);
+        }
+        put_u32(out, self.count);
+        put_f32(out, self.importance);
+        put_f32(out, self.depth);
+        put_u32(out, self.next_index);
+    }
+
+    fn decode(r: &mut Reader<'_>) -> Self {
+        Accumulation {
+            color: [r.f32(), r.f32(), r.f32()],
+            alpha: r.f32(),
+            value: r.f32(),
+            count: r.u32(),
+            importance: r.f32(),
+            depth: r.f32(),
+            next_index: r.u32(),
+        }
     }
 }
 

@@ -25,9 +25,11 @@ mod orbit;
 mod ownership;
 mod packet;
 mod parallel;
+mod partition;
 mod pixel;
 mod prepared;
 mod ray;
+mod relay;
 mod renderer;
 mod runs;
 mod sampler;
@@ -37,6 +39,7 @@ mod sequential;
 mod settings;
 mod shading;
 mod simd;
+mod state_buffer;
 mod tile;
 mod transfer;
 mod two_level;
@@ -60,8 +63,13 @@ pub use orbit::Orbit;
 pub use parallel::{
     DEFAULT_TILE_SIZE, ParallelOptions, TileSink, render_parallel, render_parallel_into,
 };
+pub use partition::{BrickBox, Partition};
 pub use prepared::{LARGE_LINEAR_BRICKS, RenderVolume, default_linear_brick_side};
 pub use ray::Ray;
+pub use relay::{
+    ChannelLink, DistributedFrame, DistributedOptions, Link, LinkError, RankStats, channel_links,
+    default_bands, render_distributed,
+};
 pub use renderer::Renderer;
 pub use segments::{
     GlobalMode, ImportanceSource, LocalMode, Membership, ObjectStyle, SceneError, SegmentScene,
@@ -70,6 +78,7 @@ pub use sequential::render_sequential;
 pub use settings::{DEFAULT_ERT_THRESHOLD, Mode, ModeParameters, RenderSettings};
 pub use shading::{Light, Shading};
 pub use simd::{SimdLevel, available as simd_levels};
+pub use state_buffer::{StateBuffer, StateBufferError};
 pub use transfer::{
     ControlPoint, PRESETS, TEXT_MAX, TransferError, TransferFunction, check_domain,
     check_gradient_ramp, closest_preset,

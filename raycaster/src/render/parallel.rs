@@ -31,6 +31,7 @@ use super::sampler::VolumeSampler;
 use super::schedule::FrameSchedule;
 use super::settings::RenderSettings;
 use super::simd::SimdLevel;
+use super::state_buffer::StateBuffer;
 use super::tile::Tile;
 use crate::volume::{Sample, TypedVolume, VolumeData};
 
@@ -120,29 +121,23 @@ pub(crate) fn render_frame(
     let start = Instant::now();
     let plan = FramePlan::new(volume, settings)?;
     super::geometry::check_sample_budget(volume.geometry(), settings.step, camera)?;
-    let schedule = FrameSchedule::new(volume, &plan, camera, options.tile_size);
-    let frame = FrameJob {
-        volume,
-        camera,
-        plan: &plan,
-        schedule: &schedule,
-        sink,
-        cancelled,
-    };
-    let counters = match volume.volume().data() {
-        VolumeData::U8(data) => plan.compositor.run(ParallelPass {
-            job: &frame,
-            workers,
-            data: &data,
-            options,
-        }),
-        VolumeData::U16(data) => plan.compositor.run(ParallelPass {
-            job: &frame,
-            workers,
-            data: &data,
-            options,
-        }),
-    };
+    let schedule = FrameSchedule::new(volume, &plan, camera, options.tile_size, None);
+    let counters = render_tiles(
+        workers,
+        &FrameJob {
+            volume,
+            camera,
+            plan: &plan,
+            schedule: &schedule,
+            sink,
+            cancelled,
+            tiles: 0..schedule.tiles.len(),
+            incoming: None,
+            outgoing: None,
+            read_ahead: true,
+        },
+        options,
+    );
     Ok(counters.map(|counters| FrameStats {
         width: camera.width(),
         height: camera.height(),
@@ -155,6 +150,28 @@ pub(crate) fn render_frame(
     }))
 }
 
+/// Runs `job`'s tiles on `workers`: the summed counters, or `None` if cancelled.
+pub(crate) fn render_tiles(
+    workers: &WorkerPool,
+    job: &FrameJob<'_>,
+    options: &ParallelOptions,
+) -> Option<Counters> {
+    match job.volume.volume().data() {
+        VolumeData::U8(data) => job.plan.compositor.run(ParallelPass {
+            job,
+            workers,
+            data: &data,
+            options,
+        }),
+        VolumeData::U16(data) => job.plan.compositor.run(ParallelPass {
+            job,
+            workers,
+            data: &data,
+            options,
+        }),
+    }
+}
+
 /// A (tile, brick) task: the tile travels with it.
 struct Task<S> {
     tile: Tile<S>,
@@ -162,13 +179,25 @@ struct Task<S> {
 }
 
 /// Everything one frame's threads share (read only).
-struct FrameJob<'f> {
-    volume: &'f RenderVolume<'f>,
-    camera: &'f Camera,
-    plan: &'f FramePlan,
-    schedule: &'f FrameSchedule,
-    sink: &'f dyn TileSink,
-    cancelled: &'f (dyn Fn() -> bool + Sync),
+pub(crate) struct FrameJob<'f> {
+    pub volume: &'f RenderVolume<'f>,
+    pub camera: &'f Camera,
+    pub plan: &'f FramePlan,
+    pub schedule: &'f FrameSchedule,
+    /// Receives finished tiles' pixels (not with `outgoing`).
+    pub sink: &'f dyn TileSink,
+    pub cancelled: &'f (dyn Fn() -> bool + Sync),
+    /// The tiles to render (indices into the schedule's tiles): all of them, or
+    /// a band of a distributed frame.
+    pub tiles: std::ops::Range<usize>,
+    /// The pixels' states to start from (another process rendered the parts
+    /// in front); `None`: the compositor's start state.
+    pub incoming: Option<&'f StateBuffer>,
+    /// Where finished tiles' states go instead of `sink`, unresolved (a part
+    /// behind, on another process, continues them).
+    pub outgoing: Option<&'f Mutex<StateBuffer>>,
+    /// Whether to ask the OS to read the schedule's bricks ahead.
+    pub read_ahead: bool,
 }
 
 /// A frame's threads with the frame's compositor (chosen once per frame).
@@ -202,7 +231,10 @@ impl FrameJob<'_> {
             .map(|_| crossbeam_channel::unbounded())
             .unzip();
         let (total_tx, total_rx) = crossbeam_channel::unbounded::<Option<Counters>>();
-        let mut jobs: Vec<FrameJobFn<'_>> = vec![Box::new(|| self.read_ahead())];
+        let mut jobs: Vec<FrameJobFn<'_>> = Vec::new();
+        if self.read_ahead {
+            jobs.push(Box::new(|| self.read_ahead()));
+        }
         for _ in 0..options.render_threads.max(1) {
             let task_rx = task_rx.clone();
             let result_txs = result_txs.clone();
@@ -351,15 +383,12 @@ impl FrameJob<'_> {
     ) -> Option<Counters> {
         let mut counters = Counters::default();
         let mut in_flight = 0usize;
-        for (index, queue) in self
-            .schedule
-            .tiles
-            .iter()
-            .enumerate()
-            .skip(k as usize)
-            .step_by(n as usize)
-        {
-            let tile = Tile::new(index as u32, k, queue.rect, c.start());
+        for index in self.tiles.clone().skip(k as usize).step_by(n as usize) {
+            let queue = &self.schedule.tiles[index];
+            let mut tile = Tile::new(index as u32, k, queue.rect, c.start());
+            if let Some(incoming) = self.incoming {
+                incoming.read(queue.rect, &mut tile.states);
+            }
             if let Some(task) = self.next_task(c, tile, &mut counters) {
                 in_flight += 1;
                 tasks
@@ -407,8 +436,13 @@ impl FrameJob<'_> {
         None
     }
 
-    /// Resolves a finished tile's pixels and hands them to the sink.
+    /// Resolves a finished tile's pixels and hands them to the sink, or hands
+    /// on its states unresolved.
     fn finish<C: Compositor>(&self, c: &C, tile: &Tile<C::State>) {
+        if let Some(outgoing) = self.outgoing {
+            outgoing.lock().write(tile.rect, &tile.states);
+            return;
+        }
         let rgba: Vec<[f32; 4]> = tile.states.iter().map(|s| c.resolve(&s.acc)).collect();
         let depth: Vec<f32> = tile.states.iter().map(|s| c.depth(&s.acc)).collect();
         self.sink.tile_finished(tile.rect, &rgba, &depth);

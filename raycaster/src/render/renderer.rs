@@ -155,6 +155,13 @@ impl Renderer {
         sink: &dyn TileSink,
         cancelled: &(dyn Fn() -> bool + Sync),
     ) -> Result<Option<FrameStats>, RenderError> {
+        let workers = self.workers_for(options);
+        render_frame(workers, volume, camera, settings, options, sink, cancelled)
+    }
+
+    /// The worker threads for frames with `options`, started when missing or
+    /// sized for other options.
+    pub(crate) fn workers_for(&mut self, options: &ParallelOptions) -> &WorkerPool {
         let sizes = WorkerPool::sizes(options);
         let fits = match &self.workers {
             Some(WorkerPool::PerFrame) => true,
@@ -168,7 +175,6 @@ impl Renderer {
                 WorkerPool::kept(sizes.0, sizes.1)
             });
         }
-        let workers = self.workers.as_ref().expect("just started");
-        render_frame(workers, volume, camera, settings, options, sink, cancelled)
+        self.workers.as_ref().expect("just started")
     }
 }

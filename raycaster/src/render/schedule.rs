@@ -12,6 +12,7 @@
 use glam::Vec3;
 
 use super::camera::{Camera, PixelRect};
+use super::partition::BrickBox;
 use super::prepared::{FramePlan, RenderVolume};
 
 /// A brick in the frame's order with its screen rectangle.
@@ -44,12 +45,14 @@ pub(crate) struct FrameSchedule {
 }
 
 impl FrameSchedule {
-    /// The schedule of `volume` seen by `camera`, with square tiles of `tile_size`.
+    /// The schedule of `volume` seen by `camera`, with square tiles of `tile_size`;
+    /// with `part`, only that part's bricks (distributed rendering).
     pub fn new(
         volume: &RenderVolume<'_>,
         plan: &FramePlan,
         camera: &Camera,
         tile_size: u32,
+        part: Option<&BrickBox>,
     ) -> Self {
         let tile_size = tile_size.max(1);
         let geometry = volume.geometry();
@@ -62,7 +65,7 @@ impl FrameSchedule {
         if volume_rect.is_some() {
             for (i, b) in grid.iter().enumerate() {
                 let empty = plan.brick_droppable(i);
-                if empty {
+                if empty || part.is_some_and(|p| !p.contains(b)) {
                     continue;
                 }
                 let (blo, bhi) = geometry.brick_world_box(b);

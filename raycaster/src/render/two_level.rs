@@ -13,6 +13,7 @@ use super::local::{Accumulation, LocalCompositor};
 use super::optics::over_premultiplied;
 use super::segments::{GlobalMode, LocalMode, Membership, SegmentScene};
 use super::shading::Shading;
+use super::state_buffer::{Reader, StateCodec, put_f32, put_u32};
 use super::transfer::{TransferFunction, TransferTable};
 use crate::volume::Sample;
 
@@ -34,6 +35,31 @@ pub(crate) struct SegmentedState {
     depth: f32,
     /// One past the last sample index folded (skipped samples leave a gap).
     next_index: u32,
+}
+
+impl StateCodec for SegmentedState {
+    const BYTES: usize = 26 + Accumulation::BYTES;
+
+    fn encode(&self, out: &mut Vec<u8>) {
+        for v in [self.color[0], self.color[1], self.color[2], self.alpha] {
+            put_f32(out, v);
+        }
+        out.extend_from_slice(&self.object.to_le_bytes());
+        self.segment.encode(out);
+        put_f32(out, self.depth);
+        put_u32(out, self.next_index);
+    }
+
+    fn decode(r: &mut Reader<'_>) -> Self {
+        SegmentedState {
+            color: [r.f32(), r.f32(), r.f32()],
+            alpha: r.f32(),
+            object: r.u16(),
+            segment: Accumulation::decode(r),
+            depth: r.f32(),
+            next_index: r.u32(),
+        }
+    }
 }
 
 /// A segment scene prepared for a frame: the two-level compositor.

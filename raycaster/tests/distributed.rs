@@ -1,0 +1,245 @@
+//! Distributed rendering against the single-process renderers, with the ranks
+//! as threads linked by channels (the same protocol the `raycaster` binary
+//! runs over MPI): for 1 to 8 ranks, perspective, orthographic and inside
+//! cameras, every plain mode and a two-level scene, the image equals the
+//! object-parallel renderer's exactly and the sequential oracle's within
+//! 1/255, and the ranks together take exactly the samples one process takes.
+
+mod render_support;
+
+use std::time::Duration;
+
+use raycaster::render::{
+    Camera, DistributedFrame, DistributedOptions, GlobalMode, LocalMode, Membership, Mode,
+    ObjectStyle, ParallelOptions, Partition, Projection, RenderSettings, RenderVolume, Renderer,
+    SegmentScene, Vec3, channel_links, render_distributed, render_parallel, render_sequential,
+};
+use raycaster::synth::SceneKind;
+use raycaster::volume::Volume;
+use render_support::*;
+
+const SIZE: u32 = 36;
+
+fn cameras(volume: &Volume) -> Vec<(&'static str, Camera)> {
+    let c = centre(volume);
+    vec![
+        ("perspective", default_camera(volume, SIZE)),
+        (
+            "orthographic",
+            Camera::look_at(
+                c + Vec3::new(-40.0, 45.0, -30.0),
+                c,
+                Vec3::Z,
+                Projection::Orthographic { height: 70.0 },
+                SIZE,
+                SIZE + 5,
+            )
+            .unwrap(),
+        ),
+        (
+            "inside",
+            Camera::look_at(
+                c + Vec3::new(1.5, -2.0, 0.7),
+                c + Vec3::new(20.0, 8.0, -5.0),
+                Vec3::Z,
+                Projection::Perspective { vfov_deg: 100.0 },
+                SIZE + 3,
+                SIZE,
+            )
+            .unwrap(),
+        ),
+    ]
+}
+
+/// Renders on `ranks` thread-ranks; rank 0's result.
+fn distributed(
+    volume: &RenderVolume<'_>,
+    camera: &Camera,
+    settings: &RenderSettings,
+    ranks: usize,
+    tile: u32,
+    bands: Option<u32>,
+) -> DistributedFrame {
+    let links = channel_links(ranks, Duration::from_secs(120));
+    let options = DistributedOptions {
+        parallel: ParallelOptions {
+            render_threads: 1,
+            compositing_threads: 1,
+            tile_size: tile,
+        },
+        bands,
+    };
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = links
+            .iter()
+            .map(|link| {
+                scope.spawn(move || {
+                    render_distributed(
+                        link,
+                        &mut Renderer::new(),
+                        volume,
+                        camera,
+                        settings,
+                        &options,
+                    )
+                    .unwrap()
+                })
+            })
+            .collect();
+        let mut results: Vec<DistributedFrame> =
+            handles.into_iter().map(|h| h.join().unwrap()).collect();
+        for other in &results[1..] {
+            assert!(other.frame.is_none(), "only rank 0 assembles the image");
+        }
+        results.swap_remove(0)
+    })
+}
+
+fn layers_scene() -> SegmentScene {
+    let tf = scene_preset(SceneKind::Shapes);
+    let modes = [
+        LocalMode::Dvr,
+        LocalMode::Mip,
+        LocalMode::Importance {
+            source: raycaster::render::ImportanceSource::Constant(1.0),
+        },
+    ];
+    SegmentScene {
+        membership: Membership::Layers(vec![[40.0, 120.0], [120.0, 200.0], [200.0, 256.0]]),
+        objects: modes
+            .iter()
+            .enumerate()
+            .map(|(i, &mode)| ObjectStyle {
+                name: format!("layer {i}"),
+                id: (i + 1) as u8,
+                visible: true,
+                transfer: tf.clone(),
+                mode,
+            })
+            .collect(),
+        global: GlobalMode::Dvr,
+    }
+}
+
+#[test]
+fn every_rank_count_camera_and_mode_gives_the_single_process_image() {
+    let volume = scene_volume(SceneKind::Shapes, 40);
+    let prepared = RenderVolume::new(&volume, Some(9)).unwrap();
+    let base = RenderSettings {
+        transfer: scene_preset(SceneKind::Shapes),
+        step: 0.6,
+        ..RenderSettings::default()
+    };
+    let mut cases: Vec<(String, RenderSettings)> = Mode::ALL
+        .iter()
+        .map(|&mode| {
+            (
+                mode.name().to_string(),
+                RenderSettings {
+                    mode,
+                    ..base.clone()
+                },
+            )
+        })
+        .collect();
+    cases.push((
+        "two-level".into(),
+        RenderSettings {
+            segments: Some(layers_scene()),
+            ..base.clone()
+        },
+    ));
+    cases.push((
+        "dvr-no-ert-no-ess-jitter".into(),
+        RenderSettings {
+            early_termination: None,
+            empty_space_skipping: false,
+            jitter: true,
+            ..base.clone()
+        },
+    ));
+    cases.push((
+        "dvr-preintegrated".into(),
+        RenderSettings {
+            preintegrated: true,
+            ..base.clone()
+        },
+    ));
+    let mut checked = 0;
+    for (view, camera) in cameras(&volume) {
+        for (name, settings) in &cases {
+            let single = render_parallel(
+                &prepared,
+                &camera,
+                settings,
+                &ParallelOptions {
+                    render_threads: 2,
+                    compositing_threads: 1,
+                    tile_size: 8,
+                },
+            )
+            .unwrap();
+            let oracle = render_sequential(&prepared, &camera, settings).unwrap();
+            let single_image = single.to_image();
+            for ranks in [1, 2, 3, 4, 8] {
+                let (tile, bands) = match ranks {
+                    3 => (5, Some(7)),
+                    8 => (8, Some(2)),
+                    _ => (8, None),
+                };
+                let result = distributed(&prepared, &camera, settings, ranks, tile, bands);
+                let frame = result.frame.unwrap();
+                let label = format!("{view} {name} {ranks} ranks");
+                assert_images_match(&label, &frame.to_image(), &single_image, 0);
+                assert_images_match(&label, &frame.to_image(), &oracle.to_image(), 1);
+                assert_eq!(frame.depth.len(), single.depth.len());
+                for (a, b) in frame.depth.iter().zip(&single.depth) {
+                    assert!(a == b || (a - b).abs() < 1e-4, "{label}: depth {a} vs {b}");
+                }
+                assert_eq!(
+                    frame.stats.counters.samples, single.stats.counters.samples,
+                    "{label}: the ranks together take the samples one process takes"
+                );
+                assert_eq!(
+                    frame.stats.counters.rays_terminated, single.stats.counters.rays_terminated,
+                    "{label}"
+                );
+                assert_eq!(
+                    result.ranks.len(),
+                    ranks,
+                    "{label}: one statistics row per rank"
+                );
+                let per_rank: u64 = result.ranks.iter().map(|r| r.counters.samples).sum();
+                assert_eq!(per_rank, frame.stats.counters.samples, "{label}");
+                checked += 1;
+            }
+        }
+    }
+    assert_eq!(checked, 3 * 11 * 5);
+}
+
+#[test]
+fn ranks_share_the_rendered_bricks_and_each_renders_only_its_part() {
+    let volume = scene_volume(SceneKind::Shapes, 48);
+    let prepared = RenderVolume::new(&volume, Some(9)).unwrap();
+    let settings = RenderSettings {
+        transfer: scene_preset(SceneKind::Shapes),
+        ..RenderSettings::default()
+    };
+    let camera = default_camera(&volume, 40);
+    let partition = Partition::new(&prepared, &settings, 4).unwrap();
+    let result = distributed(&prepared, &camera, &settings, 4, 8, None);
+    for (r, stats) in result.ranks.iter().enumerate() {
+        assert_eq!(stats.rank as usize, r);
+        assert_eq!(stats.part_box(), partition.parts()[r]);
+        assert_eq!(stats.bricks, partition.weights()[r]);
+        assert!(
+            stats.counters.samples > 0,
+            "rank {r} rendered nothing: {stats:?}"
+        );
+    }
+    let total: u64 = partition.weights().iter().sum();
+    for &w in partition.weights() {
+        assert!(w * 4 >= total / 2, "unbalanced: {:?}", partition.weights());
+    }
+}
