@@ -6,6 +6,7 @@
 mod args;
 mod bench;
 mod compare;
+mod distributed;
 mod plot;
 mod render;
 mod stats;
@@ -37,6 +38,9 @@ fn main() {
         Command::Compare(a) => compare::run(a),
     };
     if let Err(e) = result {
+        if distributed::reported_elsewhere(&e) {
+            std::process::exit(1);
+        }
         eprintln!("error: {}", raycaster::errors::error_text(e.as_ref()));
         std::process::exit(1);
     }

@@ -41,11 +41,11 @@ pub struct RenderArgs {
 
     /// Output PNG (the name must end in .png).
     #[arg(short, long, default_value = "render.png", value_name = "PNG")]
-    output: PathBuf,
+    pub(crate) output: PathBuf,
 
     /// Replace the output image if it exists.
     #[arg(long)]
-    force: bool,
+    pub(crate) force: bool,
 
     /// Image size, WxH (or N for a square).
     #[arg(long, default_value = "512x512", value_parser = parse_size, value_name = "WxH")]
@@ -230,9 +230,21 @@ pub struct RenderArgs {
     #[arg(long, value_name = "FILE", requires = "segments")]
     labels: Option<PathBuf>,
 
-    /// Print the frame's counters.
+    /// Render as one rank of an MPI job: `mpirun -np N raycaster render FILE
+    /// --distributed -o out.png`. Each rank renders one part of the volume and
+    /// hands unfinished pixels to the rank behind it; rank 0 writes the image
+    /// (docs/distributed.md). Needs a raycaster built with `--features mpi`.
+    #[arg(long, conflicts_with = "sequential")]
+    pub(crate) distributed: bool,
+
+    /// Bands of tile rows a distributed frame is pipelined in (default: four
+    /// per rank).
+    #[arg(long, requires = "distributed", value_parser = clap::value_parser!(u32).range(1..=65536), value_name = "N")]
+    pub(crate) bands: Option<u32>,
+
+    /// Print the frame's counters (with --distributed: per rank too).
     #[arg(long)]
-    stats: bool,
+    pub(crate) stats: bool,
 
     /// Print the frame's counters as one JSON object on stdout.
     #[arg(long)]
@@ -315,6 +327,29 @@ impl From<ModeArg> for Mode {
 
 /// Runs the render command.
 pub fn run(args: RenderArgs) -> Result<()> {
+    if args.distributed {
+        return crate::distributed::run(args);
+    }
+    check_arguments(&args)?;
+    check_output(&args.output, args.force)?;
+    let setup = Setup::new(&args)?;
+    let prepared = setup.prepared(&args)?;
+    let frame = if args.sequential {
+        render_sequential(&prepared, &setup.camera, &setup.settings)?
+    } else {
+        render_with_progress(
+            &prepared,
+            &setup.camera,
+            &setup.settings,
+            &parallel_options(&args, 1),
+            progress_after(&args),
+        )?
+    };
+    finish(&args, &setup, &frame)
+}
+
+/// Refuses flag values no render can use (before anything is opened).
+pub(crate) fn check_arguments(args: &RenderArgs) -> Result<()> {
     if !(args.fov > 0.0 && args.fov < 180.0) {
         bail!(
             "--fov {} must lie strictly between 0 and 180 degrees",
@@ -324,73 +359,117 @@ pub fn run(args: RenderArgs) -> Result<()> {
     if !(0.0..=1.0).contains(&args.iso) {
         bail!("--iso {} must lie in [0, 1]", args.iso);
     }
-    check_output(&args.output, args.force)?;
-    let read_before = raycaster::io::process_bytes_read();
-    let volume = open_volume(&args)?;
-    if volume.content() == Content::Labels {
-        bail!(
-            "{}: is a label volume (object ids, not values); render the data volume and give this file with --labels (and a --segments SCENE.toml)",
-            volume.path().display()
-        );
-    }
-    let settings = settings(&args, &volume)?;
-    let label_volume = match (&settings.segments, &args.labels) {
-        (Some(_), Some(path)) => Some(open_labels(path)?),
-        (Some(scene), None) => match &scene.membership {
-            // A built-in scene brings its own segmentation, when it has one.
-            Membership::Labels(_) if args.file.is_none() => Some(built_in_labels(&args)?),
-            Membership::Labels(path) => Some(open_labels(path)?),
-            Membership::Layers(_) => None,
-        },
-        (None, _) => None,
+    Ok(())
+}
+
+/// The parallel renderer's options from the flags; without `--threads`, the
+/// cores shared by `processes` processes on this machine.
+pub(crate) fn parallel_options(args: &RenderArgs, processes: usize) -> ParallelOptions {
+    let mut options = ParallelOptions {
+        compositing_threads: args.compositors as usize,
+        tile_size: args.tile,
+        ..ParallelOptions::default()
     };
-    let choice = match args.level {
-        LevelChoice::Auto { .. } => LevelChoice::Auto {
-            bias: args.lod_bias,
-        },
-        fixed => fixed,
+    options.render_threads = match args.threads {
+        Some(n) => n as usize,
+        None => (options.render_threads / processes.max(1)).max(1),
     };
-    let camera = camera(&args, source::world_box(&volume))?;
-    // Two-level scenes with labels sample labels of the same level, when they have it.
-    let level = match &label_volume {
-        Some(labels) => choice
-            .resolve(&volume, &camera)
-            .min(labels.level_count() - 1),
-        None => choice.resolve(&volume, &camera),
-    };
-    let mut prepared = RenderVolume::new(volume.level(level), args.brick)?;
-    if let Some(labels) = &label_volume {
-        prepared = prepared.with_labels(labels.level(level))?;
-    }
-    let frame = if args.sequential {
-        render_sequential(&prepared, &camera, &settings)?
-    } else {
-        let mut options = ParallelOptions {
-            compositing_threads: args.compositors as usize,
-            tile_size: args.tile,
-            ..ParallelOptions::default()
-        };
-        if let Some(n) = args.threads {
-            options.render_threads = n as usize;
+    options
+}
+
+/// Everything a frame needs besides the renderer: the opened volume (and label
+/// volume), the settings, the camera and the pyramid level.
+pub(crate) struct Setup {
+    pub volume: Volume,
+    pub labels: Option<Volume>,
+    pub settings: RenderSettings,
+    pub camera: Camera,
+    pub level: usize,
+    /// Bytes this process had read before opening anything.
+    read_before: u64,
+}
+
+impl Setup {
+    /// Opens the volume and labels and resolves the settings, camera and level.
+    pub(crate) fn new(args: &RenderArgs) -> Result<Setup> {
+        let read_before = raycaster::io::process_bytes_read();
+        let volume = open_volume(args)?;
+        if volume.content() == Content::Labels {
+            bail!(
+                "{}: is a label volume (object ids, not values); render the data volume and give this file with --labels (and a --segments SCENE.toml)",
+                volume.path().display()
+            );
         }
-        render_with_progress(
-            &prepared,
-            &camera,
-            &settings,
-            &options,
-            progress_after(&args),
-        )?
-    };
+        let settings = settings(args, &volume)?;
+        let labels = match (&settings.segments, &args.labels) {
+            (Some(_), Some(path)) => Some(open_labels(path)?),
+            (Some(scene), None) => match &scene.membership {
+                // A built-in scene brings its own segmentation, when it has one.
+                Membership::Labels(_) if args.file.is_none() => Some(built_in_labels(args)?),
+                Membership::Labels(path) => Some(open_labels(path)?),
+                Membership::Layers(_) => None,
+            },
+            (None, _) => None,
+        };
+        let choice = match args.level {
+            LevelChoice::Auto { .. } => LevelChoice::Auto {
+                bias: args.lod_bias,
+            },
+            fixed => fixed,
+        };
+        let camera = camera(args, source::world_box(&volume))?;
+        // Two-level scenes with labels sample labels of the same level, when they have it.
+        let level = match &labels {
+            Some(labels) => choice
+                .resolve(&volume, &camera)
+                .min(labels.level_count() - 1),
+            None => choice.resolve(&volume, &camera),
+        };
+        Ok(Setup {
+            volume,
+            labels,
+            settings,
+            camera,
+            level,
+            read_before,
+        })
+    }
+
+    /// The volume's level prepared for rendering with `--brick`, labels attached.
+    pub(crate) fn prepared(&self, args: &RenderArgs) -> Result<RenderVolume<'_>> {
+        let mut prepared = RenderVolume::new(self.volume.level(self.level), args.brick)?;
+        if let Some(labels) = &self.labels {
+            prepared = prepared.with_labels(labels.level(self.level))?;
+        }
+        Ok(prepared)
+    }
+}
+
+/// Writes the image and prints the statistics and the closing line.
+pub(crate) fn finish(
+    args: &RenderArgs,
+    setup: &Setup,
+    frame: &raycaster::render::Frame,
+) -> Result<()> {
     frame.to_image().save_png(&args.output)?;
-    let bytes_read = raycaster::io::process_bytes_read().saturating_sub(read_before);
+    let bytes_read = raycaster::io::process_bytes_read().saturating_sub(setup.read_before);
     if args.stats {
         eprint!("{}", stats::table(&frame.stats));
-        eprint!("{}", stats::level_table(&volume, level, bytes_read));
+        eprint!(
+            "{}",
+            stats::level_table(&setup.volume, setup.level, bytes_read)
+        );
     }
     if args.stats_json {
         println!(
             "{}",
-            stats::json(&frame.stats, &volume, &settings, level, bytes_read)
+            stats::json(
+                &frame.stats,
+                &setup.volume,
+                &setup.settings,
+                setup.level,
+                bytes_read
+            )
         );
     }
     if !args.quiet {
@@ -409,7 +488,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
 /// Refuses, before any rendering, an output that could not be written: not a
 /// `.png` name, a missing or unwritable folder, or an existing file without
 /// `--force`.
-fn check_output(output: &Path, force: bool) -> Result<()> {
+pub(crate) fn check_output(output: &Path, force: bool) -> Result<()> {
     let is_png = output
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("png"));

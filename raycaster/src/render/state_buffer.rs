@@ -66,6 +66,13 @@ pub(crate) fn put_f32(out: &mut Vec<u8>, v: f32) {
     put_u32(out, v.to_bits());
 }
 
+/// A compositor that keeps nothing per pixel.
+impl StateCodec for () {
+    const BYTES: usize = 0;
+    fn encode(&self, _out: &mut Vec<u8>) {}
+    fn decode(_bytes: &mut Reader<'_>) -> Self {}
+}
+
 impl<S: StateCodec> StateCodec for PixelState<S> {
     const BYTES: usize = S::BYTES + 5;
 

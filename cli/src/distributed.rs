@@ -1,0 +1,198 @@
+//! `raycaster render --distributed`: one rank of an MPI job.
+//!
+//! Every rank opens the same file and renders its part of the volume
+//! ([`raycaster::render::render_distributed`]); MPI carries the pixel states
+//! between ranks. Each step that can fail is agreed on by all ranks: when any
+//! rank fails, the lowest failing rank says why (once) and every rank exits,
+//! none waits for a message that will not come.
+
+use anyhow::Result;
+
+use crate::render::RenderArgs;
+
+/// Runs the render command as one rank of an MPI job.
+#[cfg(feature = "mpi")]
+pub fn run(args: RenderArgs) -> Result<()> {
+    mpi_rank::run(args)
+}
+
+/// Without MPI compiled in, `--distributed` says how to get it.
+#[cfg(not(feature = "mpi"))]
+pub fn run(_args: RenderArgs) -> Result<()> {
+    anyhow::bail!(
+        "--distributed needs MPI, and this raycaster was built without it: build it with `cargo build --release -p raycaster-cli --features mpi` (needs libopenmpi-dev and libclang-dev; docs/distributed.md) and run it under mpirun"
+    )
+}
+
+#[cfg(feature = "mpi")]
+mod mpi_rank {
+    use std::time::Duration;
+
+    use anyhow::{Result, anyhow};
+    use mpi::collective::SystemOperation;
+    use mpi::topology::SimpleCommunicator;
+    use mpi::traits::*;
+    use raycaster::render::{
+        DistributedOptions, Link, LinkError, RankStats, Renderer, render_distributed,
+    };
+
+    use crate::render::{
+        RenderArgs, Setup, check_arguments, check_output, finish, parallel_options,
+    };
+
+    /// An error another rank has already reported: exit quietly with failure.
+    #[derive(Debug)]
+    pub struct ReportedElsewhere;
+
+    impl std::fmt::Display for ReportedElsewhere {
+        fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+            f.write_str("another rank failed")
+        }
+    }
+
+    impl std::error::Error for ReportedElsewhere {}
+
+    /// MPI point-to-point messages as the renderer's [`Link`].
+    struct MpiLink<'w> {
+        world: &'w SimpleCommunicator,
+    }
+
+    impl Link for MpiLink<'_> {
+        fn rank(&self) -> usize {
+            self.world.rank() as usize
+        }
+
+        fn ranks(&self) -> usize {
+            self.world.size() as usize
+        }
+
+        fn send(&self, to: usize, tag: u32, message: Vec<u8>) -> Result<(), LinkError> {
+            if message.len() > i32::MAX as usize {
+                return Err(LinkError(format!(
+                    "a message of {} bytes is over MPI's 2 GiB count limit: use a smaller image or more --bands",
+                    message.len()
+                )));
+            }
+            self.world
+                .process_at_rank(to as i32)
+                .send_with_tag(&message[..], tag as i32);
+            Ok(())
+        }
+
+        fn receive(&self, from: usize, tag: u32) -> Result<Vec<u8>, LinkError> {
+            let (message, _status) = self
+                .world
+                .process_at_rank(from as i32)
+                .receive_vec_with_tag::<u8>(tag as i32);
+            Ok(message)
+        }
+    }
+
+    /// Whether every rank got `result`: `Ok` everywhere, or the lowest failing
+    /// rank's error there and [`ReportedElsewhere`] on the others.
+    fn agree<T>(world: &SimpleCommunicator, result: Result<T>) -> Result<T> {
+        let rank = world.rank();
+        let mine = if result.is_err() { rank } else { i32::MAX };
+        let mut first = i32::MAX;
+        world.all_reduce_into(&mine, &mut first, SystemOperation::min());
+        match result {
+            Ok(value) if first == i32::MAX => Ok(value),
+            Err(e) if first == rank => Err(if world.size() > 1 {
+                e.context(format!("rank {rank} of {}", world.size()))
+            } else {
+                e
+            }),
+            _ => Err(ReportedElsewhere.into()),
+        }
+    }
+
+    /// A panic on one rank aborts the whole job instead of leaving the others
+    /// waiting for its messages.
+    fn abort_job_on_panic() {
+        let default = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            default(info);
+            SimpleCommunicator::world().abort(70);
+        }));
+    }
+
+    pub fn run(args: RenderArgs) -> Result<()> {
+        let (universe, _threading) = mpi::initialize_with_threading(mpi::Threading::Funneled)
+            .ok_or_else(|| anyhow!("MPI could not be initialised"))?;
+        abort_job_on_panic();
+        let world = universe.world();
+        let rank = world.rank();
+        // Ranks sharing this machine share its cores.
+        let local = world.split_shared(rank).size().max(1) as usize;
+        let checked = check_arguments(&args).and_then(|()| {
+            if rank == 0 {
+                check_output(&args.output, args.force)
+            } else {
+                Ok(())
+            }
+        });
+        agree(&world, checked)?;
+        let setup = agree(&world, Setup::new(&args))?;
+        let prepared = agree(&world, setup.prepared(&args))?;
+        let options = DistributedOptions {
+            parallel: parallel_options(&args, local),
+            bands: args.bands,
+        };
+        let link = MpiLink { world: &world };
+        let result = render_distributed(
+            &link,
+            &mut Renderer::new(),
+            &prepared,
+            &setup.camera,
+            &setup.settings,
+            &options,
+        )
+        .map_err(anyhow::Error::from);
+        let result = agree(&world, result)?;
+        let Some(frame) = result.frame else {
+            return Ok(());
+        };
+        if args.stats {
+            eprint!("{}", rank_table(&result.ranks, result.gather));
+        }
+        finish(&args, &setup, &frame)
+    }
+
+    /// Per-rank statistics as an aligned table.
+    fn rank_table(ranks: &[RankStats], gather: Duration) -> String {
+        let mut out = String::from(
+            "rank  part (bricks lo..hi)            rendered bricks   samples      bands  render s  relay s\n",
+        );
+        for r in ranks {
+            let part = r.part_box();
+            out += &format!(
+                "{:>4}  {:<30}  {:>15}  {:>11}  {:>5}  {:>8.3}  {:>7.3}\n",
+                r.rank,
+                format!("{:?}..{:?}", part.lo, part.hi),
+                r.bricks,
+                r.counters.samples,
+                r.bands,
+                r.render.as_secs_f64(),
+                r.relay.as_secs_f64(),
+            );
+        }
+        out += &format!(
+            "gather           {:.3} s (rank 0 receiving and assembling the bands)\n",
+            gather.as_secs_f64()
+        );
+        out
+    }
+}
+
+/// Whether `e` was already reported by another rank (exit quietly).
+pub fn reported_elsewhere(e: &anyhow::Error) -> bool {
+    #[cfg(feature = "mpi")]
+    {
+        e.is::<mpi_rank::ReportedElsewhere>()
+    }
+    #[cfg(not(feature = "mpi"))]
+    {
+        let _ = e;
+        false
+    }
+}

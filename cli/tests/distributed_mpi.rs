@@ -1,0 +1,199 @@
+//! `mpirun -np N raycaster render --distributed` against the single-process
+//! binary: the same image (max channel difference ≤ 2/255; the relay is exact,
+//! so 0 is expected) for N = 1, 2, 3, 4, 8, perspective, orthographic and
+//! inside cameras, every plain mode and a two-level scene; and a bad input
+//! stops every rank with one message. Built only with `--features mpi` (the
+//! CI installs Open MPI and runs it).
+#![cfg(feature = "mpi")]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::time::{Duration, Instant};
+
+use raycaster::render::RgbImage;
+
+fn binary() -> &'static str {
+    env!("CARGO_BIN_EXE_raycaster")
+}
+
+/// Runs `mpirun -np ranks raycaster ARGS`, killed after two minutes (a hang
+/// fails the test instead of blocking CI).
+fn mpirun(ranks: usize, args: &[&str]) -> Output {
+    let mut child = Command::new("mpirun")
+        .args(["--oversubscribe", "-np", &ranks.to_string(), binary()])
+        .args(args)
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("mpirun (Open MPI) is installed");
+    let start = Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed() > Duration::from_secs(120) {
+            child.kill().unwrap();
+            panic!("mpirun -np {ranks} {args:?} hung");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    child.wait_with_output().unwrap()
+}
+
+fn single(args: &[&str]) -> Output {
+    Command::new(binary()).args(args).output().unwrap()
+}
+
+fn max_difference(a: &Path, b: &Path) -> u8 {
+    let (a, b) = (
+        RgbImage::load_png(a).unwrap(),
+        RgbImage::load_png(b).unwrap(),
+    );
+    assert_eq!((a.width(), a.height()), (b.width(), b.height()));
+    a.data()
+        .iter()
+        .zip(b.data())
+        .map(|(x, y)| x.abs_diff(*y))
+        .max()
+        .unwrap_or(0)
+}
+
+fn scenes_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../volumes/scenes")
+}
+
+#[test]
+fn distributed_images_equal_the_single_process_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let common = [
+        "--scene-size",
+        "64",
+        "--size",
+        "72x64",
+        "--step",
+        "0.7",
+        "--quiet",
+        "--force",
+    ];
+    let layers = scenes_dir().join("shapes-layers10.toml");
+    let layers = layers.to_str().unwrap();
+    let cameras: [(&str, Vec<&str>); 3] = [
+        ("perspective", vec![]),
+        (
+            "orthographic",
+            vec!["--orthographic", "--azimuth", "130", "--elevation", "-35"],
+        ),
+        (
+            "inside",
+            vec![
+                "--position",
+                "30,33,28",
+                "--target",
+                "60,50,20",
+                "--fov",
+                "100",
+            ],
+        ),
+    ];
+    let mut cases: Vec<(String, Vec<&str>, Vec<usize>)> = Vec::new();
+    for (view, flags) in &cameras {
+        cases.push((format!("{view} dvr"), flags.clone(), vec![1, 2, 3, 4, 8]));
+    }
+    for mode in [
+        "mip",
+        "average",
+        "first-hit",
+        "xray",
+        "importance",
+        "context",
+        "silhouette",
+    ] {
+        cases.push((format!("perspective {mode}"), vec!["--mode", mode], vec![3]));
+    }
+    cases.push((
+        "two-level".into(),
+        vec!["--segments", layers],
+        vec![1, 2, 3, 4, 8],
+    ));
+    for (i, (name, flags, rank_counts)) in cases.iter().enumerate() {
+        let reference = dir.path().join(format!("single-{i}.png"));
+        let out = single(
+            &[
+                &["render", "-o", reference.to_str().unwrap()],
+                &common[..],
+                flags,
+            ]
+            .concat(),
+        );
+        assert!(out.status.success(), "{name}: {out:?}");
+        for &ranks in rank_counts {
+            let image = dir.path().join(format!("dist-{i}-{ranks}.png"));
+            let out = mpirun(
+                ranks,
+                &[
+                    &["render", "--distributed", "-o", image.to_str().unwrap()],
+                    &common[..],
+                    flags,
+                ]
+                .concat(),
+            );
+            assert!(
+                out.status.success(),
+                "{name}, {ranks} ranks: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+            let d = max_difference(&image, &reference);
+            assert!(d <= 2, "{name}, {ranks} ranks: differs by {d}/255");
+        }
+    }
+}
+
+#[test]
+fn stats_list_every_rank_and_a_bad_input_stops_every_rank_with_one_message() {
+    let dir = tempfile::tempdir().unwrap();
+    let image = dir.path().join("stats.png");
+    let out = mpirun(
+        4,
+        &[
+            "render",
+            "--distributed",
+            "--stats",
+            "--scene-size",
+            "48",
+            "--size",
+            "40",
+            "-o",
+            image.to_str().unwrap(),
+        ],
+    );
+    assert!(out.status.success(), "{out:?}");
+    let text = String::from_utf8_lossy(&out.stderr);
+    for rank in 0..4 {
+        assert!(
+            text.lines()
+                .any(|l| l.trim_start().starts_with(&format!("{rank}  ["))),
+            "no row for rank {rank}:\n{text}"
+        );
+    }
+    assert!(text.contains("gather"), "{text}");
+    assert!(image.exists());
+
+    let missing = dir.path().join("missing.vol");
+    let out = mpirun(
+        3,
+        &[
+            "render",
+            missing.to_str().unwrap(),
+            "--distributed",
+            "-o",
+            dir.path().join("never.png").to_str().unwrap(),
+        ],
+    );
+    assert!(!out.status.success());
+    let text = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(
+        text.matches("No such file").count(),
+        1,
+        "the error is said once:\n{text}"
+    );
+    assert!(!dir.path().join("never.png").exists());
+}
