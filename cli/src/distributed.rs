@@ -155,7 +155,32 @@ mod mpi_rank {
         if args.stats {
             eprint!("{}", rank_table(&result.ranks, result.gather));
         }
-        finish(&args, &setup, &frame)
+        let mut extra = serde_json::Map::new();
+        if args.stats_json {
+            extra.insert("ranks".into(), rank_json(&result.ranks));
+            extra.insert("gather_seconds".into(), result.gather.as_secs_f64().into());
+        }
+        finish(&args, &setup, &frame, extra)
+    }
+
+    /// Per-rank statistics for `--stats-json`.
+    fn rank_json(ranks: &[RankStats]) -> serde_json::Value {
+        ranks
+            .iter()
+            .map(|r| {
+                let part = r.part_box();
+                serde_json::json!({
+                    "rank": r.rank,
+                    "part_lo": part.lo,
+                    "part_hi": part.hi,
+                    "rendered_bricks": r.bricks,
+                    "samples": r.counters.samples,
+                    "bands": r.bands,
+                    "render_seconds": r.render.as_secs_f64(),
+                    "relay_seconds": r.relay.as_secs_f64(),
+                })
+            })
+            .collect()
     }
 
     /// Per-rank statistics as an aligned table.

@@ -248,7 +248,7 @@ pub struct RenderArgs {
 
     /// Print the frame's counters as one JSON object on stdout.
     #[arg(long)]
-    stats_json: bool,
+    pub(crate) stats_json: bool,
 
     /// No message on success.
     #[arg(short, long)]
@@ -345,7 +345,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
             progress_after(&args),
         )?
     };
-    finish(&args, &setup, &frame)
+    finish(&args, &setup, &frame, serde_json::Map::new())
 }
 
 /// Refuses flag values no render can use (before anything is opened).
@@ -445,11 +445,13 @@ impl Setup {
     }
 }
 
-/// Writes the image and prints the statistics and the closing line.
+/// Writes the image and prints the statistics and the closing line; `extra`
+/// fields join the `--stats-json` object.
 pub(crate) fn finish(
     args: &RenderArgs,
     setup: &Setup,
     frame: &raycaster::render::Frame,
+    extra: serde_json::Map<String, serde_json::Value>,
 ) -> Result<()> {
     frame.to_image().save_png(&args.output)?;
     let bytes_read = raycaster::io::process_bytes_read().saturating_sub(setup.read_before);
@@ -461,16 +463,17 @@ pub(crate) fn finish(
         );
     }
     if args.stats_json {
-        println!(
-            "{}",
-            stats::json(
-                &frame.stats,
-                &setup.volume,
-                &setup.settings,
-                setup.level,
-                bytes_read
-            )
+        let mut json = stats::json(
+            &frame.stats,
+            &setup.volume,
+            &setup.settings,
+            setup.level,
+            bytes_read,
         );
+        if let Some(object) = json.as_object_mut() {
+            object.extend(extra);
+        }
+        println!("{json}");
     }
     if !args.quiet {
         eprintln!(

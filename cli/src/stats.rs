@@ -48,7 +48,7 @@ pub fn json(
     settings: &RenderSettings,
     level: usize,
     bytes_read: u64,
-) -> String {
+) -> serde_json::Value {
     let c = &s.counters;
     serde_json::json!({
         "volume": volume.path().display().to_string(),
@@ -79,7 +79,6 @@ pub fn json(
         "seconds": s.time.as_secs_f64(),
         "samples_per_second": s.samples_per_second(),
     })
-    .to_string()
 }
 
 /// The level line and the bytes read from storage, for [`table`]'s reader.

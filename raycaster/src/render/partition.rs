@@ -124,10 +124,8 @@ impl Partition {
                 }
                 weight += 1;
                 let o = occupied.get_or_insert(BrickBox { lo: b, hi: b });
-                for a in 0..3 {
-                    o.lo[a] = o.lo[a].min(b[a]);
-                    o.hi[a] = o.hi[a].max(b[a]);
-                }
+                o.lo = [0, 1, 2].map(|a| o.lo[a].min(b[a]));
+                o.hi = [0, 1, 2].map(|a| o.hi[a].max(b[a]));
             });
             partition.weights[p] = weight;
             partition.occupied[p] = occupied.map(|o| BrickBox {
