@@ -26,14 +26,16 @@ pub fn run(_args: RenderArgs) -> Result<()> {
 
 #[cfg(feature = "mpi")]
 mod mpi_rank {
+    use std::cell::RefCell;
     use std::time::Duration;
 
     use anyhow::{Result, anyhow};
     use mpi::collective::SystemOperation;
+    use mpi::request::{Request, StaticScope};
     use mpi::topology::SimpleCommunicator;
     use mpi::traits::*;
     use raycaster::render::{
-        DistributedOptions, Link, LinkError, RankStats, Renderer, render_distributed,
+        DistributedOptions, Link, LinkError, RankStats, RenderError, Renderer, render_distributed,
     };
 
     use crate::render::{
@@ -53,8 +55,15 @@ mod mpi_rank {
     impl std::error::Error for ReportedElsewhere {}
 
     /// MPI point-to-point messages as the renderer's [`Link`].
+    ///
+    /// Sends are immediate (`MPI_Isend`): a rank goes on with its next band
+    /// while the rank behind it is still busy, instead of waiting until that
+    /// rank posts the matching receive. A send's buffer must stay put until
+    /// the send completes, so it is kept for the rest of the process (one
+    /// frame per process: at most what the rank sends in that frame).
     struct MpiLink<'w> {
         world: &'w SimpleCommunicator,
+        pending: RefCell<Vec<Request<'static, [u8], StaticScope>>>,
     }
 
     impl Link for MpiLink<'_> {
@@ -73,9 +82,19 @@ mod mpi_rank {
                     message.len()
                 )));
             }
-            self.world
+            let buffer: &'static [u8] = Box::leak(message.into_boxed_slice());
+            let request = self
+                .world
                 .process_at_rank(to as i32)
-                .send_with_tag(&message[..], tag as i32);
+                .immediate_send_with_tag(StaticScope, buffer, tag as i32);
+            self.pending.borrow_mut().push(request);
+            Ok(())
+        }
+
+        fn flush(&self) -> Result<(), LinkError> {
+            for request in self.pending.borrow_mut().drain(..) {
+                request.wait();
+            }
             Ok(())
         }
 
@@ -138,7 +157,10 @@ mod mpi_rank {
             parallel: parallel_options(&args, local),
             bands: args.bands,
         };
-        let link = MpiLink { world: &world };
+        let link = MpiLink {
+            world: &world,
+            pending: RefCell::new(Vec::new()),
+        };
         let result = render_distributed(
             &link,
             &mut Renderer::new(),
@@ -146,9 +168,15 @@ mod mpi_rank {
             &setup.camera,
             &setup.settings,
             &options,
-        )
-        .map_err(anyhow::Error::from);
-        let result = agree(&world, result)?;
+        );
+        // Setup errors come before any message and alike on every rank; a
+        // failure between ranks may leave others waiting for this one: end
+        // the job.
+        if let Err(e @ RenderError::Distributed(_)) = &result {
+            eprintln!("error: {e}");
+            world.abort(1);
+        }
+        let result = agree(&world, result.map_err(anyhow::Error::from))?;
         let Some(frame) = result.frame else {
             return Ok(());
         };

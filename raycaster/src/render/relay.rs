@@ -50,6 +50,11 @@ pub trait Link {
     fn send(&self, to: usize, tag: u32, message: Vec<u8>) -> Result<(), LinkError>;
     /// The next message from rank `from` with `tag` (waits for it).
     fn receive(&self, from: usize, tag: u32) -> Result<Vec<u8>, LinkError>;
+    /// Waits until every message sent has left (sends may return before);
+    /// called once at the end of a frame.
+    fn flush(&self) -> Result<(), LinkError> {
+        Ok(())
+    }
 }
 
 /// A message could not be sent or received.
@@ -224,6 +229,7 @@ pub fn render_distributed(
     if rank != 0 {
         link.send(0, FINAL_TAG, finals)
             .and_then(|()| link.send(0, STATS_TAG, own.to_bytes()))
+            .and_then(|()| link.flush())
             .map_err(|e| link_error(rank, &e))?;
         return Ok(DistributedFrame {
             frame: None,
@@ -267,6 +273,7 @@ pub fn render_distributed(
             RenderError::Distributed(format!("rank {from} sent malformed statistics"))
         })?);
     }
+    link.flush().map_err(|e| link_error(rank, &e))?;
     let gather = gathering.elapsed();
     let mut counters = Counters::default();
     for r in &all {
