@@ -156,6 +156,7 @@ mod mpi_rank {
         let options = DistributedOptions {
             parallel: parallel_options(&args, local),
             bands: args.bands,
+            compositing: args.compositing.into(),
         };
         let link = MpiLink {
             world: &world,

@@ -242,6 +242,13 @@ pub struct RenderArgs {
     #[arg(long, requires = "distributed", value_parser = clap::value_parser!(u32).range(1..=65536), value_name = "N")]
     pub(crate) bands: Option<u32>,
 
+    /// How a distributed frame's parts become one image: `relay` (pixel states
+    /// handed on front to back: exact for every mode, early ray termination
+    /// global) or `direct-send` (partial images composited with "over" by strip
+    /// owners: plain DVR only, early ray termination per part; for comparison).
+    #[arg(long, value_enum, default_value_t = CompositingArg::Relay, requires = "distributed")]
+    pub(crate) compositing: CompositingArg,
+
     /// Print the frame's counters (with --distributed: per rank too).
     #[arg(long)]
     pub(crate) stats: bool,
@@ -286,6 +293,24 @@ impl SceneArg {
             SceneArg::Shells => SceneKind::Shells,
             SceneArg::Noise => SceneKind::Noise,
             SceneArg::Gradient => SceneKind::Gradient,
+        }
+    }
+}
+
+/// `--compositing`.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub(crate) enum CompositingArg {
+    /// Pixel states handed on front to back.
+    Relay,
+    /// Partial images composited by strip owners.
+    DirectSend,
+}
+
+impl From<CompositingArg> for raycaster::render::Compositing {
+    fn from(c: CompositingArg) -> Self {
+        match c {
+            CompositingArg::Relay => raycaster::render::Compositing::Relay,
+            CompositingArg::DirectSend => raycaster::render::Compositing::DirectSend,
         }
     }
 }

@@ -10,9 +10,10 @@ mod render_support;
 use std::time::Duration;
 
 use raycaster::render::{
-    Camera, DistributedFrame, DistributedOptions, GlobalMode, LocalMode, Membership, Mode,
-    ObjectStyle, ParallelOptions, Partition, Projection, RenderSettings, RenderVolume, Renderer,
-    SegmentScene, Vec3, channel_links, render_distributed, render_parallel, render_sequential,
+    Camera, Compositing, DistributedFrame, DistributedOptions, GlobalMode, LocalMode, Membership,
+    Mode, ObjectStyle, ParallelOptions, Partition, Projection, RenderError, RenderSettings,
+    RenderVolume, Renderer, SegmentScene, Vec3, channel_links, render_distributed, render_parallel,
+    render_sequential,
 };
 use raycaster::synth::SceneKind;
 use raycaster::volume::Volume;
@@ -60,6 +61,29 @@ fn distributed(
     tile: u32,
     bands: Option<u32>,
 ) -> DistributedFrame {
+    distributed_with(
+        volume,
+        camera,
+        settings,
+        ranks,
+        tile,
+        bands,
+        Compositing::Relay,
+    )
+    .unwrap()
+}
+
+/// Renders on `ranks` thread-ranks with `compositing`; rank 0's result or the
+/// first rank's error.
+fn distributed_with(
+    volume: &RenderVolume<'_>,
+    camera: &Camera,
+    settings: &RenderSettings,
+    ranks: usize,
+    tile: u32,
+    bands: Option<u32>,
+    compositing: Compositing,
+) -> Result<DistributedFrame, RenderError> {
     let links = channel_links(ranks, Duration::from_secs(120));
     let options = DistributedOptions {
         parallel: ParallelOptions {
@@ -68,6 +92,7 @@ fn distributed(
             tile_size: tile,
         },
         bands,
+        compositing,
     };
     std::thread::scope(|scope| {
         let handles: Vec<_> = links
@@ -82,16 +107,19 @@ fn distributed(
                         settings,
                         &options,
                     )
-                    .unwrap()
                 })
             })
             .collect();
-        let mut results: Vec<DistributedFrame> =
+        let results: Vec<Result<DistributedFrame, RenderError>> =
             handles.into_iter().map(|h| h.join().unwrap()).collect();
-        for other in &results[1..] {
+        let mut frames = Vec::new();
+        for result in results {
+            frames.push(result?);
+        }
+        for other in &frames[1..] {
             assert!(other.frame.is_none(), "only rank 0 assembles the image");
         }
-        results.swap_remove(0)
+        Ok(frames.swap_remove(0))
     })
 }
 
@@ -241,5 +269,83 @@ fn ranks_share_the_rendered_bricks_and_each_renders_only_its_part() {
     let total: u64 = partition.weights().iter().sum();
     for &w in partition.weights() {
         assert!(w * 4 >= total / 2, "unbalanced: {:?}", partition.weights());
+    }
+}
+
+#[test]
+fn direct_send_of_partial_images_matches_for_dvr_and_refuses_other_modes() {
+    let volume = scene_volume(SceneKind::Shapes, 40);
+    let prepared = RenderVolume::new(&volume, Some(9)).unwrap();
+    let base = RenderSettings {
+        transfer: scene_preset(SceneKind::Shapes),
+        step: 0.6,
+        ..RenderSettings::default()
+    };
+    let options = ParallelOptions {
+        render_threads: 2,
+        compositing_threads: 1,
+        tile_size: 8,
+    };
+    for (view, camera) in cameras(&volume) {
+        // With ERT each part stops only at its own opacity threshold, so the
+        // parts behind add what one process skips: at most (1 − 0.99) of
+        // full intensity, 2.55/255, which can round to 3.
+        for (ert, tolerance) in [(None, 1), (Some(0.99), 3)] {
+            let settings = RenderSettings {
+                early_termination: ert,
+                ..base.clone()
+            };
+            let single = render_parallel(&prepared, &camera, &settings, &options).unwrap();
+            for ranks in [1, 2, 3, 5, 8] {
+                let frame = distributed_with(
+                    &prepared,
+                    &camera,
+                    &settings,
+                    ranks,
+                    8,
+                    None,
+                    Compositing::DirectSend,
+                )
+                .unwrap()
+                .frame
+                .unwrap();
+                let label = format!("direct send, {view}, ERT {ert:?}, {ranks} ranks");
+                assert_images_match(&label, &frame.to_image(), &single.to_image(), tolerance);
+                if ert.is_none() {
+                    assert_eq!(
+                        frame.stats.counters.samples, single.stats.counters.samples,
+                        "{label}: without ERT the parts take exactly one process's samples"
+                    );
+                } else {
+                    assert!(
+                        frame.stats.counters.samples >= single.stats.counters.samples,
+                        "{label}: ERT per part can only take more samples"
+                    );
+                }
+            }
+        }
+    }
+    let camera = default_camera(&volume, SIZE);
+    for settings in [
+        RenderSettings {
+            mode: Mode::Mip,
+            ..base.clone()
+        },
+        RenderSettings {
+            segments: Some(layers_scene()),
+            ..base.clone()
+        },
+    ] {
+        let error = distributed_with(
+            &prepared,
+            &camera,
+            &settings,
+            2,
+            8,
+            None,
+            Compositing::DirectSend,
+        )
+        .unwrap_err();
+        assert!(error.to_string().contains("DVR only"), "{error}");
     }
 }

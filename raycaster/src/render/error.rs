@@ -62,6 +62,11 @@ pub enum RenderError {
     /// malformed).
     #[error("distributed rendering: {0}")]
     Distributed(String),
+    /// Direct-send compositing asked for a frame it cannot composite.
+    #[error(
+        "direct-send compositing composites partial images with \"over\": plain DVR only (the relay serves every mode)"
+    )]
+    DirectSendMode,
     /// The camera is invalid.
     #[error(transparent)]
     Camera(#[from] CameraError),

@@ -12,6 +12,7 @@ mod camera;
 mod cells;
 mod compositor;
 mod counters;
+mod direct_send;
 mod error;
 mod frame;
 mod front;
@@ -67,8 +68,8 @@ pub use partition::{BrickBox, Partition};
 pub use prepared::{LARGE_LINEAR_BRICKS, RenderVolume, default_linear_brick_side};
 pub use ray::Ray;
 pub use relay::{
-    ChannelLink, DistributedFrame, DistributedOptions, Link, LinkError, RankStats, channel_links,
-    default_bands, render_distributed,
+    ChannelLink, Compositing, DistributedFrame, DistributedOptions, Link, LinkError, RankStats,
+    channel_links, default_bands, render_distributed,
 };
 pub use renderer::Renderer;
 pub use segments::{

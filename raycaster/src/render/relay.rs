@@ -26,6 +26,7 @@ use parking_lot::Mutex;
 use super::camera::{Camera, PixelRect};
 use super::compositor::{Compositor, CompositorJob};
 use super::counters::{Counters, FrameStats};
+use super::direct_send::DirectSend;
 use super::error::RenderError;
 use super::frame::Frame;
 use super::parallel::{FrameJob, ParallelOptions, TileSink, render_tiles};
@@ -34,7 +35,7 @@ use super::pixel::PixelState;
 use super::prepared::{FramePlan, RenderVolume};
 use super::renderer::Renderer;
 use super::schedule::FrameSchedule;
-use super::settings::RenderSettings;
+use super::settings::{Mode, RenderSettings};
 use super::state_buffer::{Reader, StateBuffer, StateCodec, put_f32, put_u32};
 
 /// Point-to-point messages between the ranks of a distributed frame (MPI in
@@ -70,6 +71,21 @@ pub struct DistributedOptions {
     /// Bands of tile rows the image is cut into for the pipeline (`None`:
     /// [`default_bands`]).
     pub bands: Option<u32>,
+    /// How the parts' pixels become one image.
+    pub compositing: Compositing,
+}
+
+/// How the parts of a distributed frame become one image.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Compositing {
+    /// Pixel states handed on front to back, band by band: exact for every
+    /// mode, early ray termination global.
+    #[default]
+    Relay,
+    /// Partial images of premultiplied RGBA composited with "over" by strip
+    /// owners (sort-last direct send): plain DVR only, early ray termination
+    /// per part; for comparison.
+    DirectSend,
 }
 
 /// Bands of a frame on `ranks` ranks: one rank needs no pipeline; more ranks
@@ -140,9 +156,37 @@ pub fn render_distributed(
         .map(|p| partition.screen_rect(p, camera, geometry))
         .collect();
     let part = partition.parts()[rank];
+    let mut own = RankStats {
+        rank: rank as u32,
+        part: [part.lo, part.hi].concat().try_into().expect("six"),
+        bricks: partition.weights()[rank],
+        ..RankStats::default()
+    };
+    let (width, height) = (camera.width(), camera.height());
+    if options.compositing == Compositing::DirectSend {
+        if settings.mode != Mode::Dvr || settings.segments.is_some() {
+            return Err(RenderError::DirectSendMode);
+        }
+        let (rect, pixels) = DirectSend {
+            link,
+            workers: renderer.workers_for(&options.parallel),
+            volume,
+            camera,
+            plan: &plan,
+            partition: &partition,
+            order: &order,
+            options: &options.parallel,
+        }
+        .run(&mut own)?;
+        let mut rows = Vec::new();
+        pixels.encode_rows(&mut rows, rect, rect);
+        let finals = vec![(rect, rows)];
+        return gather(
+            link, own, finals, &plan, volume, camera, settings, options, start,
+        );
+    }
     let tile = options.parallel.tile_size.max(1);
     let schedule = FrameSchedule::new(volume, &plan, camera, tile, Some(&part));
-    let (width, height) = (camera.width(), camera.height());
     let tiles_per_row = width.div_ceil(tile) as usize;
     let bands = band_rows(
         height.div_ceil(tile),
@@ -150,15 +194,8 @@ pub fn render_distributed(
     );
     let record = plan.compositor.run(StateBytes);
     let workers = renderer.workers_for(&options.parallel);
-    let mut own = RankStats {
-        rank: rank as u32,
-        part: [part.lo, part.hi].concat().try_into().expect("six"),
-        bricks: partition.weights()[rank],
-        ..RankStats::default()
-    };
-    // Resolved bands: (band, pixels) kept on rank 0, encoded for it elsewhere.
-    let mut kept: Vec<(usize, BandPixels)> = Vec::new();
-    let mut finals = Vec::new();
+    // Resolved bands: their rows and pixels, for rank 0.
+    let mut finals: Vec<(PixelRect, Vec<u8>)> = Vec::new();
     for (b, rows) in bands.iter().enumerate() {
         let rect = PixelRect {
             x0: 0,
@@ -219,15 +256,42 @@ pub fn render_distributed(
                 .map_err(|e| link_error(rank, &e))?;
                 own.relay += sending.elapsed();
             }
-            None if rank == 0 => kept.push((b, sink.pixels.into_inner())),
             None => {
-                put_u32(&mut finals, b as u32);
-                sink.pixels.into_inner().encode(&mut finals);
+                let mut rows = Vec::new();
+                sink.pixels.into_inner().encode_rows(&mut rows, rect, rect);
+                finals.push((rect, rows));
             }
         }
     }
+    gather(
+        link, own, finals, &plan, volume, camera, settings, options, start,
+    )
+}
+
+/// Sends this rank's resolved rows and statistics to rank 0, where the image
+/// is assembled.
+#[allow(clippy::too_many_arguments)]
+fn gather(
+    link: &dyn Link,
+    own: RankStats,
+    finals: Vec<(PixelRect, Vec<u8>)>,
+    plan: &FramePlan,
+    volume: &RenderVolume<'_>,
+    camera: &Camera,
+    settings: &RenderSettings,
+    options: &DistributedOptions,
+    start: Instant,
+) -> Result<DistributedFrame, RenderError> {
+    let (rank, ranks) = (link.rank(), link.ranks().max(1));
+    let (width, height) = (camera.width(), camera.height());
     if rank != 0 {
-        link.send(0, FINAL_TAG, finals)
+        let mut message = Vec::new();
+        for (rect, rows) in finals.iter().filter(|(r, _)| r.y0 < r.y1) {
+            put_u32(&mut message, rect.y0);
+            put_u32(&mut message, rect.y1);
+            message.extend_from_slice(rows);
+        }
+        link.send(0, FINAL_TAG, message)
             .and_then(|()| link.send(0, STATS_TAG, own.to_bytes()))
             .and_then(|()| link.flush())
             .map_err(|e| link_error(rank, &e))?;
@@ -239,14 +303,14 @@ pub fn render_distributed(
     }
     let gathering = Instant::now();
     let mut frame = Frame::empty(width, height, settings.background);
-    let band_rect = |b: usize| PixelRect {
+    let rows_rect = |y0, y1| PixelRect {
         x0: 0,
-        y0: bands[b].start * tile,
+        y0,
         x1: width,
-        y1: (bands[b].end * tile).min(height),
+        y1,
     };
-    for (b, pixels) in &kept {
-        pixels.write_into(&mut frame, band_rect(*b));
+    for (rect, rows) in finals.iter().filter(|(r, _)| r.y0 < r.y1) {
+        BandPixels::decode(rows, *rect).write_into(&mut frame, *rect);
     }
     let mut all = vec![own];
     for from in 1..ranks {
@@ -256,15 +320,16 @@ pub fn render_distributed(
         let malformed = || RenderError::Distributed(format!("rank {from} sent malformed pixels"));
         let mut at = 0;
         while at < message.len() {
-            let b = Reader::new(message.get(at..at + 4).ok_or_else(malformed)?).u32() as usize;
-            let rect = band_rect(b.min(bands.len() - 1));
-            let len = rect.area() as usize * BandPixels::BYTES_PER_PIXEL;
-            let body = message.get(at + 4..at + 4 + len).ok_or_else(malformed)?;
-            if b >= bands.len() {
+            let mut header = Reader::new(message.get(at..at + 8).ok_or_else(malformed)?);
+            let (y0, y1) = (header.u32(), header.u32());
+            if !(y0 < y1 && y1 <= height) {
                 return Err(malformed());
             }
+            let rect = rows_rect(y0, y1);
+            let len = rect.area() as usize * BandPixels::BYTES_PER_PIXEL;
+            let body = message.get(at + 8..at + 8 + len).ok_or_else(malformed)?;
             BandPixels::decode(body, rect).write_into(&mut frame, rect);
-            at += 4 + len;
+            at += 8 + len;
         }
         let stats = link
             .receive(from, STATS_TAG)
@@ -283,7 +348,7 @@ pub fn render_distributed(
         width,
         height,
         counters,
-        bricks: geometry.grid().block_count(),
+        bricks: volume.geometry().grid().block_count(),
         bricks_transparent: plan.transparent_bricks(),
         threads: (options.parallel.render_threads.max(1) * ranks) as u32,
         time: start.elapsed(),
@@ -296,7 +361,7 @@ pub fn render_distributed(
     })
 }
 
-fn link_error(rank: usize, e: &LinkError) -> RenderError {
+pub(crate) fn link_error(rank: usize, e: &LinkError) -> RenderError {
     RenderError::Distributed(format!("rank {rank}: {e}"))
 }
 
@@ -329,23 +394,29 @@ impl CompositorJob for StateBytes {
 
 /// A band's resolved pixels.
 #[derive(Debug, Default)]
-struct BandPixels {
-    rgba: Vec<[f32; 4]>,
-    depth: Vec<f32>,
+pub(crate) struct BandPixels {
+    pub rgba: Vec<[f32; 4]>,
+    pub depth: Vec<f32>,
 }
 
 impl BandPixels {
-    const BYTES_PER_PIXEL: usize = 20;
+    pub const BYTES_PER_PIXEL: usize = 20;
 
-    fn encode(&self, out: &mut Vec<u8>) {
-        for (px, &d) in self.rgba.iter().zip(&self.depth) {
+    /// Appends the pixels of full-width `rows` (inside `band`, which these
+    /// pixels cover).
+    pub fn encode_rows(&self, out: &mut Vec<u8>, band: PixelRect, rows: PixelRect) {
+        let w = (band.x1 - band.x0) as usize;
+        let from = (rows.y0 - band.y0) as usize * w;
+        let to = (rows.y1 - band.y0) as usize * w;
+        out.reserve((to - from) * Self::BYTES_PER_PIXEL);
+        for (px, &d) in self.rgba[from..to].iter().zip(&self.depth[from..to]) {
             for v in px.iter().copied().chain([d]) {
                 put_f32(out, v);
             }
         }
     }
 
-    fn decode(bytes: &[u8], rect: PixelRect) -> BandPixels {
+    pub fn decode(bytes: &[u8], rect: PixelRect) -> BandPixels {
         let mut r = Reader::new(bytes);
         let n = rect.area() as usize;
         let mut pixels = BandPixels {
@@ -359,7 +430,7 @@ impl BandPixels {
         pixels
     }
 
-    fn write_into(&self, frame: &mut Frame, rect: PixelRect) {
+    pub fn write_into(&self, frame: &mut Frame, rect: PixelRect) {
         let w = (rect.x1 - rect.x0) as usize;
         for (row, y) in (rect.y0..rect.y1).enumerate() {
             let start = frame.index(rect.x0, y);
@@ -370,13 +441,13 @@ impl BandPixels {
 }
 
 /// Collects a band's finished tiles.
-struct BandSink {
+pub(crate) struct BandSink {
     rect: PixelRect,
-    pixels: Mutex<BandPixels>,
+    pub pixels: Mutex<BandPixels>,
 }
 
 impl BandSink {
-    fn new(rect: PixelRect) -> Self {
+    pub fn new(rect: PixelRect) -> Self {
         let n = rect.area() as usize;
         BandSink {
             rect,
