@@ -20,41 +20,46 @@ mkdir -p "$DIR" "$OUT"
 [ -f "$DIR/shapes-1024.vol" ] || $VOLGEN generate --scene shapes --size 1024 -o "$DIR/shapes-1024.vol" --quiet
 
 CSV="$OUT/distributed.csv"
-echo "case,volume,image,ranks,threads_per_rank,rep,frame_s,render_s_max,relay_s_max,relay_s_mean,gather_s,samples" > "$CSV"
+echo "case,compositing,volume,image,ranks,threads_per_rank,rep,frame_s,render_s_max,relay_s_max,relay_s_mean,gather_s,samples" > "$CSV"
 
 # One run: prints a CSV row from the --stats-json object.
-run() { # case volume size ranks threads rep
+run() { # case compositing volume size ranks threads rep
     local json
-    if [ "$4" = 0 ]; then # single process, no MPI
-        json=$($RAYCASTER render "$DIR/$2" --size "$3" --threads "$5" -o "$DIR/out.png" --force --quiet --stats-json)
+    if [ "$5" = 0 ]; then # single process, no MPI
+        json=$($RAYCASTER render "$DIR/$3" --size "$4" --threads "$6" -o "$DIR/out.png" --force --quiet --stats-json)
     else
-        json=$(mpirun --oversubscribe -np "$4" $RAYCASTER render "$DIR/$2" --distributed --size "$3" \
-            --threads "$5" -o "$DIR/out.png" --force --quiet --stats-json)
+        json=$(mpirun --oversubscribe -np "$5" $RAYCASTER render "$DIR/$3" --distributed --compositing "$2" \
+            --size "$4" --threads "$6" -o "$DIR/out.png" --force --quiet --stats-json)
     fi
-    python3 - "$1" "$2" "$3" "$4" "$5" "$6" "$json" >> "$CSV" <<'PY'
+    python3 - "$1" "$2" "$3" "$4" "$5" "$6" "$7" "$json" >> "$CSV" <<'PY'
 import json, sys
-case, volume, size, ranks, threads, rep, text = sys.argv[1:]
+case, compositing, volume, size, ranks, threads, rep, text = sys.argv[1:]
 s = json.loads(text)
 ranks_ = s.get("ranks", [])
 render = max((r["render_seconds"] for r in ranks_), default=s["seconds"])
 relay = [r["relay_seconds"] for r in ranks_] or [0.0]
-print(",".join(map(str, [case, volume, size, ranks, threads, rep, s["seconds"], render,
+print(",".join(map(str, [case, compositing, volume, size, ranks, threads, rep, s["seconds"], render,
     max(relay), sum(relay) / len(relay), s.get("gather_seconds", 0.0), s["samples"]])))
 PY
 }
 
 for rep in $(seq "$REPS"); do
-    # Compositing cost against image size and rank count (256³, one thread per rank).
+    # Compositing cost against image size and rank count (256³, one thread per
+    # rank), the relay against direct send of partial images.
     for size in 256 512 1024 2048; do
-        run image shapes-256.vol "$size" 0 1 "$rep"
+        run image single shapes-256.vol "$size" 0 1 "$rep"
         for ranks in 1 2 4 8; do
-            run image shapes-256.vol "$size" "$ranks" 1 "$rep"
+            for compositing in relay direct-send; do
+                run image "$compositing" shapes-256.vol "$size" "$ranks" 1 "$rep"
+            done
         done
     done
     # Strong scaling of a 1024³ frame, 700², on this machine's cores.
-    run scaling shapes-1024.vol 700 0 1 "$rep"
-    run scaling shapes-1024.vol 700 0 2 "$rep"
-    run scaling shapes-1024.vol 700 1 1 "$rep"
-    run scaling shapes-1024.vol 700 2 1 "$rep"
+    run scaling single shapes-1024.vol 700 0 1 "$rep"
+    run scaling single shapes-1024.vol 700 0 2 "$rep"
+    for compositing in relay direct-send; do
+        run scaling "$compositing" shapes-1024.vol 700 1 1 "$rep"
+        run scaling "$compositing" shapes-1024.vol 700 2 1 "$rep"
+    done
 done
 echo "wrote $CSV"

@@ -149,15 +149,20 @@ fn layers_scene() -> SegmentScene {
     }
 }
 
+/// DVR of the `shapes` scene at a step that puts samples off the voxel grid.
+fn shapes_settings() -> RenderSettings {
+    RenderSettings {
+        transfer: scene_preset(SceneKind::Shapes),
+        step: 0.6,
+        ..RenderSettings::default()
+    }
+}
+
 #[test]
 fn every_rank_count_camera_and_mode_gives_the_single_process_image() {
     let volume = scene_volume(SceneKind::Shapes, 40);
     let prepared = RenderVolume::new(&volume, Some(9)).unwrap();
-    let base = RenderSettings {
-        transfer: scene_preset(SceneKind::Shapes),
-        step: 0.6,
-        ..RenderSettings::default()
-    };
+    let base = shapes_settings();
     let mut cases: Vec<(String, RenderSettings)> = Mode::ALL
         .iter()
         .map(|&mode| {
@@ -276,11 +281,7 @@ fn ranks_share_the_rendered_bricks_and_each_renders_only_its_part() {
 fn direct_send_of_partial_images_matches_for_dvr_and_refuses_other_modes() {
     let volume = scene_volume(SceneKind::Shapes, 40);
     let prepared = RenderVolume::new(&volume, Some(9)).unwrap();
-    let base = RenderSettings {
-        transfer: scene_preset(SceneKind::Shapes),
-        step: 0.6,
-        ..RenderSettings::default()
-    };
+    let base = shapes_settings();
     let options = ParallelOptions {
         render_threads: 2,
         compositing_threads: 1,
