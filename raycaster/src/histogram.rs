@@ -82,7 +82,34 @@ impl Histogram {
         out
     }
 
-    /// A few lines for a terminal: summary figures and a bar chart of 16 bins.
+    /// The smallest and largest value counted (`[0, 0]` when empty).
+    pub fn value_range(&self) -> [u16; 2] {
+        let first = self.counts.iter().position(|&c| c > 0).unwrap_or(0);
+        let last = self.counts.iter().rposition(|&c| c > 0).unwrap_or(0);
+        [first as u16, last as u16]
+    }
+
+    /// Counts merged into at most `bins` equal-width bins over the values
+    /// present ([`Self::value_range`]): each bin's first value and count.
+    pub fn over_data(&self, bins: usize) -> Vec<(u16, u64)> {
+        let [lo, hi] = self.value_range();
+        let span = usize::from(hi - lo) + 1;
+        let width = span.div_ceil(bins.max(1));
+        let mut out: Vec<(u16, u64)> = (0..span.div_ceil(width))
+            .map(|i| (lo + (i * width) as u16, 0))
+            .collect();
+        for (v, &c) in self.counts[usize::from(lo)..=usize::from(hi)]
+            .iter()
+            .enumerate()
+        {
+            out[v / width].1 += c;
+        }
+        out
+    }
+
+    /// A few lines for a terminal: summary figures and a bar chart of 16 bins
+    /// over the values present (a CT scan's few thousand values of 65536 fill
+    /// the chart instead of one bar); `max_value` is the type's largest.
     pub fn summary(&self, max_value: u16) -> String {
         let zero = self.counts.first().copied().unwrap_or(0);
         let mut s = format!(
@@ -93,19 +120,19 @@ impl Histogram {
             self.percentile(0.99),
             100.0 * zero as f64 / self.total.max(1) as f64
         );
-        let bins = self.coarse(16, max_value);
-        let width = (usize::from(max_value) + 1).div_ceil(16);
-        let peak = bins.iter().copied().max().unwrap_or(1).max(1) as f64;
-        for (i, &c) in bins.iter().enumerate() {
+        let bins = self.over_data(16);
+        let [_, hi] = self.value_range();
+        s += &format!(
+            "            {} bins over the values present, {}..={hi} (of 0..={max_value})\n",
+            bins.len(),
+            self.value_range()[0]
+        );
+        let peak = bins.iter().map(|b| b.1).max().unwrap_or(1).max(1) as f64;
+        for (i, &(first, c)) in bins.iter().enumerate() {
+            let last = bins.get(i + 1).map_or(hi, |next| next.0 - 1);
             // Log scale: a few voxels of a rare value still show.
             let bar = ((c as f64).ln_1p() / peak.ln_1p() * 40.0).round() as usize;
-            s += &format!(
-                "  {:>5}..{:<5} {:>12} {}\n",
-                i * width,
-                ((i + 1) * width - 1).min(usize::from(max_value)),
-                c,
-                "#".repeat(bar)
-            );
+            s += &format!("  {first:>5}..{last:<5} {c:>12} {}\n", "#".repeat(bar));
         }
         s
     }
@@ -127,5 +154,26 @@ mod tests {
         assert_eq!(h.percentile(0.995), 200);
         assert!((h.mean() - (490.0 + 200.0) / 100.0).abs() < 1e-9);
         assert_eq!(h.coarse(2, 255), vec![99, 1]);
+        assert_eq!(h.value_range(), [0, 200]);
+        assert_eq!(h.over_data(2), vec![(0, 99), (101, 1)]);
+    }
+
+    #[test]
+    fn the_terminal_chart_spans_the_values_present() {
+        // A CT-like histogram: values 31000..=35000 of u16.
+        let mut counts = vec![0u64; 35001];
+        for v in 31000..=35000 {
+            counts[v] = 1 + (v as u64 % 7);
+        }
+        let h = Histogram::from_counts(counts);
+        let bins = h.over_data(16);
+        assert_eq!(bins.len(), 16);
+        assert_eq!(bins[0].0, 31000);
+        assert!(bins.iter().all(|b| b.1 > 0), "{bins:?}");
+        assert_eq!(bins.iter().map(|b| b.1).sum::<u64>(), h.total());
+        let text = h.summary(u16::MAX);
+        assert!(text.contains("31000..=35000 (of 0..=65535)"), "{text}");
+        assert!(text.contains("  31000..31250"), "{text}");
+        assert!(text.trim_end().ends_with('#'), "{text}");
     }
 }
