@@ -285,13 +285,17 @@ fn gather(
     let (rank, ranks) = (link.rank(), link.ranks().max(1));
     let (width, height) = (camera.width(), camera.height());
     if rank != 0 {
-        let mut message = Vec::new();
-        for (rect, rows) in finals.iter().filter(|(r, _)| r.y0 < r.y1) {
+        // One message per band (a whole image could pass MPI's 2 GiB count
+        // limit), then an empty one.
+        let mut sent = Ok(());
+        for (rect, rows) in finals.into_iter().filter(|(r, _)| r.y0 < r.y1) {
+            let mut message = Vec::with_capacity(8 + rows.len());
             put_u32(&mut message, rect.y0);
             put_u32(&mut message, rect.y1);
-            message.extend_from_slice(rows);
+            message.extend_from_slice(&rows);
+            sent = sent.and_then(|()| link.send(0, FINAL_TAG, message));
         }
-        link.send(0, FINAL_TAG, message)
+        sent.and_then(|()| link.send(0, FINAL_TAG, Vec::new()))
             .and_then(|()| link.send(0, STATS_TAG, own.to_bytes()))
             .and_then(|()| link.flush())
             .map_err(|e| link_error(rank, &e))?;
@@ -314,22 +318,23 @@ fn gather(
     }
     let mut all = vec![own];
     for from in 1..ranks {
-        let message = link
-            .receive(from, FINAL_TAG)
-            .map_err(|e| link_error(rank, &e))?;
         let malformed = || RenderError::Distributed(format!("rank {from} sent malformed pixels"));
-        let mut at = 0;
-        while at < message.len() {
-            let mut header = Reader::new(message.get(at..at + 8).ok_or_else(malformed)?);
+        loop {
+            let message = link
+                .receive(from, FINAL_TAG)
+                .map_err(|e| link_error(rank, &e))?;
+            if message.is_empty() {
+                break;
+            }
+            let mut header = Reader::new(message.get(..8).ok_or_else(malformed)?);
             let (y0, y1) = (header.u32(), header.u32());
-            if !(y0 < y1 && y1 <= height) {
+            let rect = rows_rect(y0, y1);
+            if !(y0 < y1 && y1 <= height)
+                || message.len() != 8 + rect.area() as usize * BandPixels::BYTES_PER_PIXEL
+            {
                 return Err(malformed());
             }
-            let rect = rows_rect(y0, y1);
-            let len = rect.area() as usize * BandPixels::BYTES_PER_PIXEL;
-            let body = message.get(at + 8..at + 8 + len).ok_or_else(malformed)?;
-            BandPixels::decode(body, rect).write_into(&mut frame, rect);
-            at += 8 + len;
+            BandPixels::decode(&message[8..], rect).write_into(&mut frame, rect);
         }
         let stats = link
             .receive(from, STATS_TAG)
