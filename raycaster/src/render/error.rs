@@ -58,6 +58,10 @@ pub enum RenderError {
         available = super::simd::available().iter().map(|l| l.name()).collect::<Vec<_>>().join(", ")
     )]
     Simd(super::simd::SimdLevel),
+    /// A crop box or clipping plane that cuts nothing sensible (inverted box,
+    /// zero normal, not finite, too many planes).
+    #[error("clip region: {0}")]
+    Clip(String),
     /// The camera is invalid.
     #[error(transparent)]
     Camera(#[from] CameraError),

@@ -10,6 +10,7 @@
 
 mod camera;
 mod cells;
+mod clip;
 mod compositor;
 mod counters;
 mod error;
@@ -30,6 +31,7 @@ mod prepared;
 mod ray;
 mod renderer;
 mod runs;
+mod sabella;
 mod sampler;
 mod schedule;
 mod segments;
@@ -45,6 +47,7 @@ pub use camera::{Camera, CameraError, PixelRect, Projection};
 pub use cells::{
     BrickCells, CELL_CACHE_BYTES, CellRanges, MAX_CELLS, TARGET_CELL_STEP, target_cell_step,
 };
+pub use clip::{ClipPlane, ClipRegion, CropBox, MAX_CLIP_PLANES};
 pub use counters::{Counters, FrameStats};
 pub use error::RenderError;
 pub use frame::Frame;
@@ -63,6 +66,7 @@ pub use parallel::{
 pub use prepared::{LARGE_LINEAR_BRICKS, RenderVolume, default_linear_brick_side};
 pub use ray::Ray;
 pub use renderer::Renderer;
+pub use sabella::{SabellaChannels, SabellaDepth, SabellaMapping, SabellaOutput, hsv_to_rgb};
 pub use segments::{
     GlobalMode, ImportanceSource, LocalMode, Membership, ObjectStyle, SceneError, SegmentScene,
 };

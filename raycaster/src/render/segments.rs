@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 
+use super::sabella::{SabellaDepth, SabellaMapping, SabellaOutput};
 use super::transfer::{
     ControlPoint, TransferError, TransferFunction, check_domain, check_gradient_ramp,
 };
@@ -48,6 +49,12 @@ pub enum LocalMode {
     },
     /// Non-photorealistic: tone shading and silhouette darkening.
     Silhouette,
+    /// Sabella's colouring: peak value, its depth or the centroid, and
+    /// intensity as hue, saturation and value.
+    Sabella {
+        /// Colours by a mapping, or the raw channels.
+        output: SabellaOutput,
+    },
 }
 
 impl LocalMode {
@@ -62,6 +69,7 @@ impl LocalMode {
             LocalMode::Importance { .. } => "importance",
             LocalMode::ContextPreserving { .. } => "context",
             LocalMode::Silhouette => "silhouette",
+            LocalMode::Sabella { .. } => "sabella",
         }
     }
 
@@ -190,6 +198,7 @@ struct ObjectFile {
     importance: Option<String>,
     weight: Option<f32>,
     p: Option<[f32; 3]>,
+    depth: Option<String>,
 }
 
 /// An object's transfer function: a preset name or file, or written inline.
@@ -438,7 +447,16 @@ impl SegmentScene {
                         let _ = writeln!(out, "p = [{a:?}, {b:?}, {c:?}]");
                     }
                 }
-                LocalMode::Dvr | LocalMode::Mip | LocalMode::Average | LocalMode::Silhouette => {}
+                LocalMode::Sabella {
+                    output: SabellaOutput::Colours(mapping),
+                } => {
+                    let _ = writeln!(out, "depth = {}", quote(mapping.depth.name()));
+                }
+                LocalMode::Dvr
+                | LocalMode::Mip
+                | LocalMode::Average
+                | LocalMode::Silhouette
+                | LocalMode::Sabella { .. } => {}
             }
         }
         out
@@ -478,6 +496,17 @@ fn local_mode(o: &ObjectFile) -> Result<LocalMode, String> {
             ks: unit("ks", o.ks, 0.4)?,
         },
         "silhouette" => LocalMode::Silhouette,
+        "sabella" => {
+            let name = o.depth.as_deref().unwrap_or("peak");
+            let depth = SabellaDepth::parse(name)
+                .ok_or_else(|| format!("unknown depth {name:?} (peak, centroid)"))?;
+            LocalMode::Sabella {
+                output: SabellaOutput::Colours(SabellaMapping {
+                    depth,
+                    ..SabellaMapping::default()
+                }),
+            }
+        }
         "importance" => {
             let w = unit("weight", o.weight, 1.0)?;
             let p = o.p.unwrap_or([1.0, 0.3, 0.9]);
@@ -503,7 +532,7 @@ fn local_mode(o: &ObjectFile) -> Result<LocalMode, String> {
         }
         other => {
             return Err(format!(
-                "unknown mode {other:?} (dvr, mip, average, xray, first-hit, importance, context, silhouette)"
+                "unknown mode {other:?} (dvr, mip, average, xray, first-hit, importance, context, silhouette, sabella)"
             ));
         }
     })
