@@ -6,8 +6,10 @@
 mod args;
 mod bench;
 mod compare;
+mod output;
 mod plot;
 mod render;
+mod slice;
 mod stats;
 
 use clap::{Parser, Subcommand};
@@ -25,6 +27,7 @@ enum Command {
     Render(Box<render::RenderArgs>),
     Bench(Box<bench::BenchArgs>),
     Compare(compare::CompareArgs),
+    Slice(slice::SliceArgs),
 }
 
 fn main() {
@@ -35,6 +38,7 @@ fn main() {
         Command::Render(a) => render::run(*a),
         Command::Bench(a) => bench::run(*a),
         Command::Compare(a) => compare::run(a),
+        Command::Slice(a) => slice::run(a),
     };
     if let Err(e) = result {
         eprintln!("error: {}", raycaster::errors::error_text(e.as_ref()));
