@@ -52,7 +52,7 @@ fn write_volume(dir: &Path, name: &str, sample: SampleType, layout: Layout) {
         &raycaster::job::Job::silent(),
     )
     .unwrap();
-    let volume = Volume::open(&dir.join(name)).unwrap();
+    let volume = Volume::open(dir.join(name)).unwrap();
     assert_eq!(
         volume.voxel([7, 5, 4]),
         if sample == SampleType::U16 {

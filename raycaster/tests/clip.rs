@@ -141,7 +141,7 @@ fn field(x: u32, y: u32, z: u32) -> u8 {
         .wrapping_mul(73_856_093)
         .wrapping_add(y.wrapping_mul(19_349_663))
         .wrapping_add(z.wrapping_mul(83_492_791));
-    (((h >> 7) % 200) as u8).saturating_add(if (x + y + z) % 5 == 0 { 55 } else { 0 })
+    (((h >> 7) % 200) as u8).saturating_add(if (x + y + z).is_multiple_of(5) { 55 } else { 0 })
 }
 
 #[test]
