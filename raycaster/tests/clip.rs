@@ -294,3 +294,73 @@ fn bad_regions_are_refused() {
     let e = render_sequential(&prepared, &camera, &settings).unwrap_err();
     assert!(e.to_string().contains("zero normal"), "{e}");
 }
+
+#[test]
+fn an_objects_own_region_cuts_only_that_object() {
+    use raycaster::render::{GlobalMode, LocalMode, Membership, ObjectStyle, SegmentScene};
+    // Two value layers along x: 100 for x < 8, 200 from x = 8 (voxels), each its
+    // own object with the same constant opacity; object 2 keeps only x ≥ 12.
+    let volume = volume_u8(
+        [17, 9, 9],
+        [1.0; 3],
+        |x, _, _| if x < 8 { 100 } else { 200 },
+    );
+    let camera = along_x(Vec3::new(-10.0, 4.0, 4.0));
+    let alpha0 = 0.05;
+    let tf = white_tf(&[(0.0, alpha0), (1.0, alpha0)]);
+    let object = |id: u8, clip: ClipRegion| ObjectStyle {
+        name: format!("layer {id}"),
+        id,
+        visible: true,
+        transfer: tf.clone(),
+        mode: LocalMode::Dvr,
+        clip,
+    };
+    let cut = ClipRegion {
+        crop: None,
+        planes: vec![plane([12.0, 0.0, 0.0], [1.0, 0.0, 0.0])],
+    };
+    let scene = SegmentScene {
+        membership: Membership::Layers(vec![[0.0, 140.0 / 255.0], [140.0 / 255.0, 1.0]]),
+        objects: vec![object(1, ClipRegion::default()), object(2, cut)],
+        global: GlobalMode::Dvr,
+    };
+    let settings = RenderSettings {
+        segments: Some(scene.clone()),
+        ..plain_settings(tf.clone())
+    };
+    let frame = render(&volume, &camera, &settings);
+    // Samples at x = 0, 0.5, …, 15.5, each a full step: object 1 holds those
+    // below 140 (the value crosses it at x = 7.4: x ≤ 7, 15 samples), object 2
+    // those from x = 12 (8 samples); x = 7.5 … 11.5 belong to no object.
+    let expected = 1.0 - (1.0f32 - alpha0).powf((15.0 + 8.0) * 0.5);
+    for (x, y) in slab_pixels() {
+        let a = frame.rgba[frame.index(x, y)][3];
+        assert!(
+            (a - expected).abs() < 1e-4,
+            "alpha {a}, expected {expected}"
+        );
+    }
+    // The parallel renderer agrees; the scene file keeps the regions.
+    let prepared = RenderVolume::new(&volume, Some(4)).unwrap();
+    let options = ParallelOptions {
+        render_threads: 2,
+        compositing_threads: 1,
+        tile_size: 5,
+    };
+    let parallel = render_parallel(&prepared, &camera, &settings, &options).unwrap();
+    let sequential = render_sequential(&prepared, &camera, &settings).unwrap();
+    assert_eq!(parallel.rgba, sequential.rgba);
+    let text = scene.to_toml();
+    assert!(
+        text.contains("clip = [[12.0, 0.0, 0.0, 1.0, 0.0, 0.0]]"),
+        "{text}"
+    );
+    assert_eq!(
+        SegmentScene::parse(&text, std::path::Path::new(".")).unwrap(),
+        scene
+    );
+    let bad = text.replace("1.0, 0.0, 0.0]]", "0.0, 0.0, 0.0]]");
+    let e = SegmentScene::parse(&bad, std::path::Path::new(".")).unwrap_err();
+    assert!(e.to_string().contains("zero normal"), "{e}");
+}

@@ -89,6 +89,7 @@ fn one_object(tf: &TransferFunction, mode: LocalMode) -> SegmentScene {
             visible: true,
             transfer: tf.clone(),
             mode,
+            clip: Default::default(),
         }],
         global: GlobalMode::Dvr,
     }

@@ -146,6 +146,19 @@ impl ClipRegion {
         (t0 <= t1).then_some((t0, t1))
     }
 
+    /// Whether voxel position `p` lies in the region (on its boundary included).
+    #[inline]
+    pub fn contains(&self, p: Vec3) -> bool {
+        if let Some(CropBox { lo, hi }) = self.crop
+            && (p.cmplt(lo).any() || p.cmpgt(hi).any())
+        {
+            return false;
+        }
+        self.planes
+            .iter()
+            .all(|plane| (p - plane.point).dot(plane.normal) >= 0.0)
+    }
+
     /// Whether the voxel box `[lo, hi]` lies entirely outside the region (by more
     /// than a rounding margin): outside the crop box, or wholly on the cut side of
     /// one plane. Conservative: a box cut away only by several planes together is

@@ -299,6 +299,7 @@ impl FramePlan {
                     step_ratio,
                     settings.shading,
                     settings.preintegrated,
+                    volume.volume().level_scale(),
                 ))
             }
             None => {
