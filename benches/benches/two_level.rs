@@ -21,6 +21,7 @@ fn ten_layers(plain: &RenderSettings) -> SegmentScene {
             visible: true,
             transfer: plain.transfer.clone(),
             mode: LocalMode::Dvr,
+            clip: Default::default(),
         })
         .collect();
     SegmentScene {

@@ -88,9 +88,120 @@ pub fn parse_positive(s: &str) -> Result<f32, String> {
         .ok_or_else(|| format!("{s:?} must be a positive number"))
 }
 
+/// A coordinate along one axis of the volume: voxels, or a percentage of the
+/// volume's extent along that axis (`50%`: the middle; 0% the first voxel,
+/// 100% the last).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Coord {
+    /// Voxel coordinates (voxel centres at whole numbers).
+    Voxels(f32),
+    /// Percent of `dims − 1`.
+    Percent(f32),
+}
+
+impl Coord {
+    /// The coordinate in voxels along an axis whose last voxel is `last`.
+    pub fn voxels(self, last: u32) -> f32 {
+        match self {
+            Coord::Voxels(v) => v,
+            Coord::Percent(p) => p / 100.0 * last as f32,
+        }
+    }
+}
+
+/// One coordinate: a finite number, optionally followed by `%`.
+fn parse_coord(s: &str) -> Option<Coord> {
+    let s = s.trim();
+    let (number, percent) = match s.strip_suffix('%') {
+        Some(n) => (n.trim(), true),
+        None => (s, false),
+    };
+    let v = number.parse::<f32>().ok().filter(|v| v.is_finite())?;
+    Some(if percent {
+        Coord::Percent(v)
+    } else {
+        Coord::Voxels(v)
+    })
+}
+
+/// `--crop X0,Y0,Z0,X1,Y1,Z1`: six coordinates, voxels or percentages.
+pub fn parse_crop(s: &str) -> Result<[Coord; 6], String> {
+    s.split(',')
+        .map(parse_coord)
+        .collect::<Option<Vec<Coord>>>()
+        .and_then(|v| <[Coord; 6]>::try_from(v).ok())
+        .ok_or_else(|| {
+            format!(
+                "{s:?} is not a crop box; expected X0,Y0,Z0,X1,Y1,Z1 in voxels or percentages of the volume (e.g. 0,0,0,127,127,64 or 0%,0%,0%,100%,100%,50%)"
+            )
+        })
+}
+
+/// A clipping plane on the command line: a point (voxels or percentages) and a
+/// normal.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ClipArg {
+    /// A point on the plane.
+    pub point: [Coord; 3],
+    /// The normal, pointing into the kept half-space (not checked for zero here).
+    pub normal: [f32; 3],
+}
+
+/// `--clip PX,PY,PZ,NX,NY,NZ`.
+pub fn parse_clip(s: &str) -> Result<ClipArg, String> {
+    let bad = || {
+        format!(
+            "{s:?} is not a clipping plane; expected PX,PY,PZ,NX,NY,NZ: a point (voxels or percentages) and a normal pointing into the part kept (e.g. 50%,50%,50%,0,0,1)"
+        )
+    };
+    let parts: Vec<&str> = s.split(',').collect();
+    if parts.len() != 6 {
+        return Err(bad());
+    }
+    let point = parts[..3]
+        .iter()
+        .map(|p| parse_coord(p))
+        .collect::<Option<Vec<Coord>>>()
+        .ok_or_else(bad)?;
+    let normal = parts[3..]
+        .iter()
+        .map(|p| p.trim().parse::<f32>().ok().filter(|v| v.is_finite()))
+        .collect::<Option<Vec<f32>>>()
+        .ok_or_else(bad)?;
+    Ok(ClipArg {
+        point: [point[0], point[1], point[2]],
+        normal: [normal[0], normal[1], normal[2]],
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn crop_boxes_and_planes() {
+        assert_eq!(
+            parse_crop("0, 1.5,2,10%,100%,3"),
+            Ok([
+                Coord::Voxels(0.0),
+                Coord::Voxels(1.5),
+                Coord::Voxels(2.0),
+                Coord::Percent(10.0),
+                Coord::Percent(100.0),
+                Coord::Voxels(3.0)
+            ])
+        );
+        assert_eq!(Coord::Percent(50.0).voxels(30), 15.0);
+        assert!(parse_crop("1,2,3,4,5").is_err());
+        assert!(parse_crop("1,2,3,4,5,nan").is_err());
+        assert!(parse_crop("1,2,3,4,5,6%%").is_err());
+        let plane = parse_clip("50%,1,2,0,0,-1").unwrap();
+        assert_eq!(plane.point[0], Coord::Percent(50.0));
+        assert_eq!(plane.normal, [0.0, 0.0, -1.0]);
+        assert!(parse_clip("1,2,3,0,0,1%").is_err());
+        assert!(parse_clip("1,2,3,0,0").is_err());
+        assert!(parse_clip("1,2,3,0,inf,1").is_err());
+    }
 
     #[test]
     fn sizes_vectors_and_colours() {

@@ -38,9 +38,8 @@ mod mpi_rank {
         DistributedOptions, Link, LinkError, RankStats, RenderError, Renderer, render_distributed,
     };
 
-    use crate::render::{
-        RenderArgs, Setup, check_arguments, check_output, finish, parallel_options,
-    };
+    use crate::output::check_output;
+    use crate::render::{RenderArgs, Setup, check_arguments, finish, parallel_options};
 
     /// An error another rank has already reported: exit quietly with failure.
     #[derive(Debug)]

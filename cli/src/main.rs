@@ -7,8 +7,10 @@ mod args;
 mod bench;
 mod compare;
 mod distributed;
+mod output;
 mod plot;
 mod render;
+mod slice;
 mod stats;
 
 use clap::{Parser, Subcommand};
@@ -26,6 +28,7 @@ enum Command {
     Render(Box<render::RenderArgs>),
     Bench(Box<bench::BenchArgs>),
     Compare(compare::CompareArgs),
+    Slice(slice::SliceArgs),
 }
 
 fn main() {
@@ -36,6 +39,7 @@ fn main() {
         Command::Render(a) => render::run(*a),
         Command::Bench(a) => bench::run(*a),
         Command::Compare(a) => compare::run(a),
+        Command::Slice(a) => slice::run(a),
     };
     if let Err(e) = result {
         if distributed::reported_elsewhere(&e) {

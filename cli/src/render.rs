@@ -9,16 +9,18 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use raycaster::render::{
-    Camera, LevelChoice, Light, Membership, Mode, ModeParameters, Orbit, PRESETS, ParallelOptions,
-    Projection, RenderSettings, RenderVolume, SegmentScene, Shading, SimdLevel, TileSink,
-    TransferFunction, closest_preset, render_parallel_into, render_sequential,
+    Camera, ClipPlane, ClipRegion, CropBox, LevelChoice, Light, MAX_CLIP_PLANES, Membership, Mode,
+    ModeParameters, Orbit, PRESETS, ParallelOptions, Projection, RenderSettings, RenderVolume,
+    SabellaDepth, SabellaMapping, SabellaOutput, SegmentScene, Shading, SimdLevel, TileSink,
+    TransferFunction, Vec3, closest_preset, render_parallel_into, render_sequential,
 };
 use raycaster::source;
 use raycaster::synth::{SceneKind, synthesize, synthesize_labels};
 use raycaster::volume::{Access, Content, OpenOptions, SampleType, Volume};
 
 use crate::args::{
-    parse_color, parse_domain, parse_positive, parse_size, parse_threshold, parse_vec3,
+    ClipArg, Coord, parse_clip, parse_color, parse_crop, parse_domain, parse_positive, parse_size,
+    parse_threshold, parse_vec3,
 };
 use crate::stats;
 
@@ -82,6 +84,27 @@ pub struct RenderArgs {
     /// Iso-value for first-hit mode, 0..1 over the transfer function's domain.
     #[arg(long, default_value_t = 0.5, value_name = "V")]
     iso: f32,
+
+    /// Sabella mode: which depth sets the saturation — `peak` (where the ray
+    /// meets its largest value) or `centroid` (the value-weighted mean depth).
+    /// Hue comes from the peak value (blue low, red high), value from the
+    /// intensity accumulated with the transfer function's opacities.
+    #[arg(long, value_enum, default_value_t = SabellaDepthArg::Peak, value_name = "DEPTH")]
+    sabella_depth: SabellaDepthArg,
+
+    /// Crop box: show only X0..X1 × Y0..Y1 × Z0..Z1. Each coordinate is in voxels
+    /// (voxel centres at whole numbers, 0 to size − 1) or, with a `%` suffix, a
+    /// percentage of the volume along its axis: `--crop 0%,0%,0%,100%,100%,50%`
+    /// keeps the lower half in z. Samples keep their places along each ray.
+    #[arg(long, value_parser = parse_crop, allow_hyphen_values = true, value_name = "X0,Y0,Z0,X1,Y1,Z1")]
+    crop: Option<[Coord; 6]>,
+
+    /// Clipping plane through the point PX,PY,PZ (voxels, or percentages with
+    /// `%`) keeping the side its normal NX,NY,NZ points into:
+    /// `--clip 50%,50%,50%,0,0,-1` keeps the lower half in z. Repeatable, at
+    /// most 6 planes; with --crop, the part inside the box and every plane shows.
+    #[arg(long, value_parser = parse_clip, allow_hyphen_values = true, value_name = "PX,PY,PZ,NX,NY,NZ")]
+    clip: Vec<ClipArg>,
 
     /// Gain of xray mode: opacity 1 − exp(−gain·Σ normalised value × step).
     #[arg(long, default_value_t = 1.0, value_parser = parse_positive, value_name = "G")]
@@ -276,7 +299,10 @@ Examples:
   raycaster render -o shapes.png
   raycaster render lung1.vol --tf ct-bone --domain 31768,34768 --size 800x800 --stats
   raycaster render lung1.vol --mode mip --azimuth 0 --elevation 0 -o mip.png --force
-  raycaster render ch2.nii.gz --tf ct-skin -o head.png   # NRRD, NIfTI, MetaImage open directly";
+  raycaster render ch2.nii.gz --tf ct-skin -o head.png   # NRRD, NIfTI, MetaImage open directly
+  raycaster render lung1.vol --crop 0%,0%,0%,100%,50%,100% -o half.png   # y up to the middle
+  raycaster render lung1.vol --clip 50%,50%,50%,1,1,0 --clip 0,0,40%,0,0,1 -o cut.png
+  raycaster render shapes.vol --mode sabella --sabella-depth centroid -o sabella.png";
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
 enum SceneArg {
@@ -333,6 +359,19 @@ pub(crate) enum ModeArg {
     Context,
     /// Tone shading and silhouette darkening.
     Silhouette,
+    /// Sabella's colouring (1988): hue from the peak value along the ray,
+    /// saturation from its depth (`--sabella-depth`), value from the
+    /// accumulated intensity.
+    Sabella,
+}
+
+/// `--sabella-depth`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum SabellaDepthArg {
+    /// The depth of the peak value.
+    Peak,
+    /// The value-weighted mean depth.
+    Centroid,
 }
 
 impl From<ModeArg> for Mode {
@@ -346,6 +385,7 @@ impl From<ModeArg> for Mode {
             ModeArg::Importance => Mode::Importance,
             ModeArg::Context => Mode::ContextPreserving,
             ModeArg::Silhouette => Mode::Silhouette,
+            ModeArg::Sabella => Mode::Sabella,
         }
     }
 }
@@ -356,7 +396,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         return crate::distributed::run(args);
     }
     check_arguments(&args)?;
-    check_output(&args.output, args.force)?;
+    crate::output::check_output(&args.output, args.force)?;
     let setup = Setup::new(&args)?;
     let prepared = setup.prepared(&args)?;
     let frame = if args.sequential {
@@ -513,35 +553,6 @@ pub(crate) fn finish(
     Ok(())
 }
 
-/// Refuses, before any rendering, an output that could not be written: not a
-/// `.png` name, a missing or unwritable folder, or an existing file without
-/// `--force`.
-pub(crate) fn check_output(output: &Path, force: bool) -> Result<()> {
-    let is_png = output
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("png"));
-    if !is_png {
-        bail!(
-            "{}: only PNG images are written; name the output with .png",
-            output.display()
-        );
-    }
-    if output.is_dir() {
-        bail!("{}: is a directory; name an image file", output.display());
-    }
-    if output.exists() && !force {
-        bail!(
-            "{}: already exists (pass --force to replace it)",
-            output.display()
-        );
-    }
-    // Creating (and dropping) the temporary file the image will be written to
-    // checks that the folder exists and is writable, before a long render.
-    raycaster::files::temp_file_beside(output)
-        .map_err(|e| anyhow::anyhow!("{}: cannot write there: {e}", output.display()))?;
-    Ok(())
-}
-
 /// Opens a label volume, checking that it holds labels.
 fn open_labels(path: &Path) -> Result<Volume> {
     let labels = Volume::open(path)?;
@@ -664,6 +675,13 @@ fn settings(args: &RenderArgs, volume: &Volume) -> Result<RenderSettings> {
         mode: args.mode.into(),
         mode_parameters: ModeParameters {
             xray_gain: args.xray_gain,
+            sabella: SabellaOutput::Colours(SabellaMapping {
+                depth: match args.sabella_depth {
+                    SabellaDepthArg::Peak => SabellaDepth::Peak,
+                    SabellaDepthArg::Centroid => SabellaDepth::Centroid,
+                },
+                ..SabellaMapping::default()
+            }),
             ..ModeParameters::default()
         },
         step: args.step,
@@ -680,7 +698,63 @@ fn settings(args: &RenderArgs, volume: &Volume) -> Result<RenderSettings> {
         simd: args.simd.0,
         preintegrated: args.preintegrate,
         jitter: args.jitter,
+        clip: clip_region(args, volume.dims())?,
     })
+}
+
+/// The crop box and clipping planes of `--crop` and `--clip` in voxels of a
+/// volume of `dims`, refused with the flag's name when they make no sense.
+fn clip_region(args: &RenderArgs, dims: [u32; 3]) -> Result<ClipRegion> {
+    let last = dims.map(|d| d - 1);
+    let crop = match args.crop {
+        None => None,
+        Some(c) => {
+            let lo = [0, 1, 2].map(|a| c[a].voxels(last[a]));
+            let hi = [0, 1, 2].map(|a| c[a + 3].voxels(last[a]));
+            for (a, name) in ["x", "y", "z"].iter().enumerate() {
+                if lo[a] >= hi[a] {
+                    bail!(
+                        "--crop: the box is empty or inverted along {name} ({name}0 = {} is not below {name}1 = {})",
+                        lo[a],
+                        hi[a]
+                    );
+                }
+                if hi[a] < 0.0 || lo[a] > last[a] as f32 {
+                    bail!(
+                        "--crop: the box {}..{} along {name} lies outside the volume (0..{} voxels)",
+                        lo[a],
+                        hi[a],
+                        last[a]
+                    );
+                }
+            }
+            Some(CropBox {
+                lo: Vec3::from(lo),
+                hi: Vec3::from(hi),
+            })
+        }
+    };
+    if args.clip.len() > MAX_CLIP_PLANES {
+        bail!(
+            "--clip given {} times: at most {MAX_CLIP_PLANES} clipping planes",
+            args.clip.len()
+        );
+    }
+    let mut planes = Vec::with_capacity(args.clip.len());
+    for plane in &args.clip {
+        if plane.normal == [0.0; 3] {
+            bail!(
+                "--clip: the plane's normal is zero; give the direction of the part kept, e.g. 0,0,1"
+            );
+        }
+        planes.push(ClipPlane {
+            point: Vec3::from([0, 1, 2].map(|a| plane.point[a].voxels(last[a]))),
+            normal: Vec3::from(plane.normal),
+        });
+    }
+    let region = ClipRegion { crop, planes };
+    region.validate()?;
+    Ok(region)
 }
 
 /// `--simd`: `auto` (`None`) or a kernel level.

@@ -106,6 +106,7 @@ fn distributed_images_equal_the_single_process_image() {
         "importance",
         "context",
         "silhouette",
+        "sabella",
     ] {
         cases.push((format!("perspective {mode}"), vec!["--mode", mode], vec![3]));
     }

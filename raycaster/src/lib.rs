@@ -28,6 +28,7 @@ pub mod import;
 pub mod io;
 pub mod job;
 pub mod render;
+pub mod slice;
 pub mod source;
 pub mod synth;
 pub mod volume;

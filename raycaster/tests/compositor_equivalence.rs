@@ -1,4 +1,4 @@
-//! One compositing interface: for every mode, a two-level scene of ONE object
+//! One compositing interface: for every mode (Sabella too), a two-level scene of ONE object
 //! covering every value (`layers = [[0.0, 1.0]]`) in that mode's local form renders
 //! the plain mode's image — ≤ 1/255 with early ray termination off, ≤ 3/255 with
 //! it on — on two generated scenes, both sample types, sequential and parallel.
@@ -7,8 +7,8 @@ mod render_support;
 
 use raycaster::render::{
     Frame, GlobalMode, ImportanceSource, LocalMode, Membership, Mode, ModeParameters, ObjectStyle,
-    ParallelOptions, RenderSettings, RenderVolume, RgbImage, SegmentScene, TransferFunction,
-    render_parallel, render_sequential,
+    ParallelOptions, RenderSettings, RenderVolume, RgbImage, SabellaDepth, SabellaMapping,
+    SabellaOutput, SegmentScene, TransferFunction, render_parallel, render_sequential,
 };
 use raycaster::synth::SceneKind;
 use raycaster::volume::{SampleType, Volume};
@@ -23,6 +23,11 @@ fn parameters() -> ModeParameters {
         xray_gain: 2.5,
         context: [2.0, 0.5],
         importance: ImportanceSource::Gradient(2.0),
+        sabella: SabellaOutput::Colours(SabellaMapping {
+            depth: SabellaDepth::Centroid,
+            hue: [200.0, 20.0],
+            saturation: [0.9, 0.3],
+        }),
     }
 }
 
@@ -51,6 +56,7 @@ fn modes() -> Vec<(Mode, LocalMode)> {
             },
         ),
         (Mode::Silhouette, LocalMode::Silhouette),
+        (Mode::Sabella, LocalMode::Sabella { output: p.sabella }),
     ]
 }
 
@@ -83,6 +89,7 @@ fn one_object(tf: &TransferFunction, mode: LocalMode) -> SegmentScene {
             visible: true,
             transfer: tf.clone(),
             mode,
+            clip: Default::default(),
         }],
         global: GlobalMode::Dvr,
     }
@@ -150,7 +157,7 @@ fn one_object_covering_every_value_renders_the_plain_mode() {
             }
         }
     }
-    assert_eq!(checked, 2 * 2 * 8 * 2 * 2);
+    assert_eq!(checked, 2 * 2 * 9 * 2 * 2);
 }
 
 #[test]

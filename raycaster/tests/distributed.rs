@@ -10,10 +10,10 @@ mod render_support;
 use std::time::Duration;
 
 use raycaster::render::{
-    Camera, Compositing, DistributedFrame, DistributedOptions, GlobalMode, LocalMode, Membership,
-    Mode, ObjectStyle, ParallelOptions, Partition, Projection, RenderError, RenderSettings,
-    RenderVolume, Renderer, SegmentScene, Vec3, channel_links, render_distributed, render_parallel,
-    render_sequential,
+    Camera, ClipPlane, ClipRegion, Compositing, CropBox, DistributedFrame, DistributedOptions,
+    GlobalMode, LocalMode, Membership, Mode, ObjectStyle, ParallelOptions, Partition, Projection,
+    RenderError, RenderSettings, RenderVolume, Renderer, SegmentScene, Vec3, channel_links,
+    render_distributed, render_parallel, render_sequential,
 };
 use raycaster::synth::SceneKind;
 use raycaster::volume::Volume;
@@ -143,6 +143,18 @@ fn layers_scene() -> SegmentScene {
                 visible: true,
                 transfer: tf.clone(),
                 mode,
+                // The second layer cut by a plane: per-object clipping crosses parts too.
+                clip: if i == 1 {
+                    ClipRegion {
+                        crop: None,
+                        planes: vec![ClipPlane {
+                            point: Vec3::splat(18.0),
+                            normal: Vec3::new(0.2, 1.0, 0.0),
+                        }],
+                    }
+                } else {
+                    ClipRegion::default()
+                },
             })
             .collect(),
         global: GlobalMode::Dvr,
@@ -188,6 +200,22 @@ fn every_rank_count_camera_and_mode_gives_the_single_process_image() {
             early_termination: None,
             empty_space_skipping: false,
             jitter: true,
+            ..base.clone()
+        },
+    ));
+    cases.push((
+        "dvr-crop-and-clip".into(),
+        RenderSettings {
+            clip: ClipRegion {
+                crop: Some(CropBox {
+                    lo: Vec3::new(3.0, 5.5, 2.0),
+                    hi: Vec3::new(36.0, 30.0, 33.0),
+                }),
+                planes: vec![ClipPlane {
+                    point: Vec3::splat(20.0),
+                    normal: Vec3::new(1.0, -0.5, 0.3),
+                }],
+            },
             ..base.clone()
         },
     ));
@@ -248,7 +276,7 @@ fn every_rank_count_camera_and_mode_gives_the_single_process_image() {
             }
         }
     }
-    assert_eq!(checked, 3 * 11 * 5);
+    assert_eq!(checked, 3 * (Mode::ALL.len() + 4) * 5);
 }
 
 #[test]
@@ -350,3 +378,4 @@ fn direct_send_of_partial_images_matches_for_dvr_and_refuses_other_modes() {
         assert!(error.to_string().contains("DVR only"), "{error}");
     }
 }
+

@@ -7,8 +7,8 @@
 mod render_support;
 
 use raycaster::render::{
-    Camera, Mode, ParallelOptions, Projection, RenderSettings, RenderVolume, Renderer, Vec3,
-    render_parallel, render_sequential, simd_levels,
+    Camera, ClipPlane, ClipRegion, CropBox, Mode, ParallelOptions, Projection, RenderSettings,
+    RenderVolume, Renderer, Vec3, render_parallel, render_sequential, simd_levels,
 };
 use raycaster::synth::SceneKind;
 use raycaster::volume::{Access, Layout, SampleType, Volume};
@@ -77,6 +77,42 @@ impl Picker {
     }
 }
 
+/// Variant `i` of the cut regions the matrix renders with (0: none), in voxels
+/// of the `N³` volume.
+fn clip_region(i: usize) -> ClipRegion {
+    let n = (N - 1) as f32;
+    let crop = Some(CropBox {
+        lo: Vec3::new(0.15, 0.3, 0.1) * n,
+        hi: Vec3::new(0.8, 0.95, 0.7) * n,
+    });
+    let planes = vec![
+        ClipPlane {
+            point: Vec3::splat(0.5 * n),
+            normal: Vec3::new(1.0, -0.4, 0.3),
+        },
+        ClipPlane {
+            point: Vec3::new(0.2, 0.6, 0.45) * n,
+            normal: Vec3::new(-0.2, -1.0, 0.1),
+        },
+    ];
+    match i {
+        0 => ClipRegion::default(),
+        1 => ClipRegion {
+            crop,
+            planes: Vec::new(),
+        },
+        2 => ClipRegion { crop: None, planes },
+        3 => ClipRegion {
+            crop,
+            planes: planes[..1].to_vec(),
+        },
+        _ => ClipRegion {
+            crop: None,
+            planes: planes[1..].to_vec(),
+        },
+    }
+}
+
 #[test]
 fn parallel_equals_sequential_over_the_parameter_matrix() {
     let dir = tempfile::tempdir().unwrap();
@@ -119,14 +155,16 @@ fn parallel_equals_sequential_over_the_parameter_matrix() {
         } else if round % 7 == 5 {
             Mode::Mip
         } else if round % 7 == 1 {
-            // The other modes in turn: average, xray, importance, context, silhouette.
+            // The other modes in turn: average, xray, importance, context,
+            // silhouette, sabella.
             [
                 Mode::Average,
                 Mode::XRay,
                 Mode::Importance,
                 Mode::ContextPreserving,
                 Mode::Silhouette,
-            ][(round / 7) % 5]
+                Mode::Sabella,
+            ][(round / 7) % 6]
         } else {
             Mode::Dvr
         };
@@ -148,6 +186,8 @@ fn parallel_equals_sequential_over_the_parameter_matrix() {
         // turn, without disturbing the picks above.
         let preintegrated = round % 3 == 0;
         let jitter = round % 4 < 2;
+        // A crop box, clipping planes, both or neither in turn.
+        let clip = clip_region(round % 5);
         let settings = RenderSettings {
             mode,
             early_termination: ert.then_some(0.99),
@@ -156,6 +196,7 @@ fn parallel_equals_sequential_over_the_parameter_matrix() {
             simd: Some(simd),
             preintegrated,
             jitter,
+            clip,
             ..RenderSettings::default()
         };
         let cam = camera(view, volume);
@@ -174,8 +215,9 @@ fn parallel_equals_sequential_over_the_parameter_matrix() {
             render_parallel(&prepared, &cam, &settings, &options).unwrap()
         };
         let name = format!(
-            "par-{round}-b{brick}-t{tile}-r{threads}-{view:?}-{}-ert{ert}-ess{ess}-bricked{bricked}-{access:?}-{simd}-pre{preintegrated}-jitter{jitter}",
-            mode.name()
+            "par-{round}-b{brick}-t{tile}-r{threads}-{view:?}-{}-ert{ert}-ess{ess}-bricked{bricked}-{access:?}-{simd}-pre{preintegrated}-jitter{jitter}-clip{}",
+            mode.name(),
+            round % 5
         );
         assert_images_match(&name, &parallel.to_image(), &reference.to_image(), 1);
         let (s, p) = (

@@ -27,6 +27,7 @@ fn layers_scene(
                 visible: true,
                 transfer,
                 mode,
+                clip: Default::default(),
             }
         })
         .collect();
@@ -271,6 +272,7 @@ fn mixed_label_scene() -> SegmentScene {
         visible: true,
         transfer: tf.clone(),
         mode,
+        clip: Default::default(),
     };
     SegmentScene {
         membership: Membership::Labels("labels.vol".into()),

@@ -777,6 +777,7 @@ impl Controller {
                             Some(Mode::FirstHit) => LocalMode::FirstHit { iso: 0.5 },
                             _ => LocalMode::Dvr,
                         },
+                        clip: Default::default(),
                     }],
                     global: GlobalMode::Dvr,
                 }

@@ -136,6 +136,7 @@ mod tests {
             visible: true,
             transfer,
             mode: LocalMode::ContextPreserving { kt: 2.0, ks: 0.3 },
+            clip: Default::default(),
         }
     }
 

@@ -138,15 +138,33 @@ impl<T: Sample> SamplePoint<'_, T> {
         (self.t() / self.ray.t(self.ray.samples).max(1e-6)).min(1.0)
     }
 
+    /// Where the sample lies between the ray's first sample (0) and the end of
+    /// its last (1): the depth inside the (cut) volume along this ray.
+    #[inline]
+    pub fn relative_depth(&self) -> f32 {
+        let ray = self.ray;
+        let start = ray.t(ray.first);
+        let end = ray.t(ray.samples - 1) + ray.last_fraction * ray.dt;
+        if end > start {
+            ((self.t() - start) / (end - start)).clamp(0.0, 1.0)
+        } else {
+            0.0
+        }
+    }
+
     /// The object id of the label volume at the sample (0 without labels).
     #[inline]
     pub fn label(&self) -> u16 {
         self.brick.label_at(self.position)
     }
 
-    /// The value of the sample before this one on the ray, if there is one.
+    /// The value of the sample before this one on the ray, if the ray takes one
+    /// (not before its first sample, nor before the front of a clip region).
     pub fn value_before(&self) -> Option<f32> {
-        let k = self.index.checked_sub(1)?;
+        if self.index <= self.ray.first {
+            return None;
+        }
+        let k = self.index - 1;
         Some(self.value_at(self.ray.position(k, self.volume.last())))
     }
 

@@ -67,6 +67,10 @@ pub enum RenderError {
         "direct-send compositing composites partial images with \"over\": plain DVR only (the relay serves every mode)"
     )]
     DirectSendMode,
+    /// A crop box or clipping plane that cuts nothing sensible (inverted box,
+    /// zero normal, not finite, too many planes).
+    #[error("clip region: {0}")]
+    Clip(String),
     /// The camera is invalid.
     #[error(transparent)]
     Camera(#[from] CameraError),

@@ -11,6 +11,7 @@ use super::optics::{
     importance_composite, light_vectors, over, partial_step, shading_intensity, smoothstep,
 };
 use super::packet::{DvrLanes, PacketWork, march_dvr};
+use super::sabella::SabellaOutput;
 use super::segments::{ImportanceSource, LocalMode};
 use super::shading::Shading;
 use super::simd::SimdLevel;
@@ -37,6 +38,12 @@ pub(crate) struct Accumulation {
     /// folded, or where it starts (pre-integrated DVR notices skipped samples
     /// by it).
     pub next_index: u32,
+    /// Sabella: the relative depth of the peak value.
+    pub peak_depth: f32,
+    /// Sabella: the sum of normalised values.
+    pub weight: f32,
+    /// Sabella: the sum of normalised values times relative depths.
+    pub weighted_depth: f32,
 }
 
 impl Accumulation {
@@ -50,6 +57,9 @@ impl Accumulation {
             importance: 0.0,
             depth: f32::INFINITY,
             next_index: 0,
+            peak_depth: 0.0,
+            weight: 0.0,
+            weighted_depth: 0.0,
         }
     }
 
@@ -60,7 +70,7 @@ impl Accumulation {
 }
 
 impl StateCodec for Accumulation {
-    const BYTES: usize = 36;
+    const BYTES: usize = 48;
 
     fn encode(&self, out: &mut Vec<u8>) {
         for v in [
@@ -76,6 +86,9 @@ impl StateCodec for Accumulation {
         put_f32(out, self.importance);
         put_f32(out, self.depth);
         put_u32(out, self.next_index);
+        for v in [self.peak_depth, self.weight, self.weighted_depth] {
+            put_f32(out, v);
+        }
     }
 
     fn decode(r: &mut Reader<'_>) -> Self {
@@ -87,6 +100,9 @@ impl StateCodec for Accumulation {
             importance: r.f32(),
             depth: r.f32(),
             next_index: r.u32(),
+            peak_depth: r.f32(),
+            weight: r.f32(),
+            weighted_depth: r.f32(),
         }
     }
 }
@@ -627,6 +643,65 @@ impl Compositor for Silhouette {
     }
 }
 
+/// Sabella's colouring: the peak value `M` and its relative depth `D`, the
+/// value-weighted centroid depth `C` and the intensity `I` accumulated with the
+/// transfer function's opacities; resolved to colours by a
+/// [`SabellaMapping`](super::sabella::SabellaMapping) or kept as channels
+/// ([`super::sabella::SabellaChannels`]). Every sample counts (`M` and `C` are
+/// over the whole ray): no skipping, no early termination.
+#[derive(Clone, Debug)]
+pub(crate) struct Sabella {
+    table: Arc<TransferTable>,
+    domain: [f32; 2],
+    output: SabellaOutput,
+}
+
+impl Sabella {
+    /// `[M, D, C, I]` of a state (zero for a ray that took no sample).
+    fn channels(&self, st: &Accumulation) -> [f32; 4] {
+        if !st.value.is_finite() {
+            return [0.0; 4];
+        }
+        let m = ((st.value - self.domain[0]) / (self.domain[1] - self.domain[0])).clamp(0.0, 1.0);
+        let c = if st.weight > 0.0 {
+            (st.weighted_depth / st.weight).clamp(0.0, 1.0)
+        } else {
+            st.peak_depth
+        };
+        [m, st.peak_depth, c, st.alpha]
+    }
+}
+
+impl Compositor for Sabella {
+    type State = Accumulation;
+    fn start(&self) -> Accumulation {
+        Accumulation::starting_at(f32::NEG_INFINITY)
+    }
+    fn range_empty(&self, _lo: u16, _hi: u16) -> bool {
+        false
+    }
+    #[inline]
+    fn sample<T: Sample>(&self, st: &mut Accumulation, s: &SamplePoint<'_, T>) {
+        let depth = s.relative_depth();
+        if s.value > st.value {
+            st.value = s.value;
+            st.peak_depth = depth;
+        }
+        let v = ((s.value - self.domain[0]) / (self.domain[1] - self.domain[0])).clamp(0.0, 1.0);
+        st.weight += v;
+        st.weighted_depth += v * depth;
+        let a = partial_step(self.table.lookup(s.value)[3], s.fraction);
+        st.alpha += (1.0 - st.alpha) * a;
+    }
+    fn resolve(&self, st: &Accumulation) -> [f32; 4] {
+        let channels = self.channels(st);
+        match &self.output {
+            SabellaOutput::Colours(mapping) => mapping.rgba(channels),
+            SabellaOutput::Channels => channels,
+        }
+    }
+}
+
 /// One of the local modes, chosen per object (two-level compositing).
 #[derive(Clone, Debug)]
 pub(crate) enum LocalCompositor {
@@ -646,6 +721,8 @@ pub(crate) enum LocalCompositor {
     ContextPreserving(ContextPreserving),
     /// Tone shading and silhouettes.
     Silhouette(Silhouette),
+    /// Sabella's colouring.
+    Sabella(Sabella),
 }
 
 /// Calls `$body` with `$c` bound to the concrete compositor of `$local`.
@@ -660,6 +737,7 @@ macro_rules! with_local {
             LocalCompositor::Importance($c) => $body,
             LocalCompositor::ContextPreserving($c) => $body,
             LocalCompositor::Silhouette($c) => $body,
+            LocalCompositor::Sabella($c) => $body,
         }
     };
 }
@@ -704,6 +782,11 @@ impl LocalCompositor {
                 })
             }
             LocalMode::Silhouette => LocalCompositor::Silhouette(Silhouette { table }),
+            LocalMode::Sabella { output } => LocalCompositor::Sabella(Sabella {
+                table,
+                domain,
+                output,
+            }),
         }
     }
 }

@@ -10,6 +10,7 @@
 
 mod camera;
 mod cells;
+mod clip;
 mod compositor;
 mod counters;
 mod direct_send;
@@ -33,6 +34,7 @@ mod ray;
 mod relay;
 mod renderer;
 mod runs;
+mod sabella;
 mod sampler;
 mod schedule;
 mod segments;
@@ -49,6 +51,7 @@ pub use camera::{Camera, CameraError, PixelRect, Projection};
 pub use cells::{
     BrickCells, CELL_CACHE_BYTES, CellRanges, MAX_CELLS, TARGET_CELL_STEP, target_cell_step,
 };
+pub use clip::{ClipPlane, ClipRegion, CropBox, MAX_CLIP_PLANES};
 pub use counters::{Counters, FrameStats};
 pub use error::RenderError;
 pub use frame::Frame;
@@ -72,6 +75,7 @@ pub use relay::{
     channel_links, default_bands, render_distributed,
 };
 pub use renderer::Renderer;
+pub use sabella::{SabellaChannels, SabellaDepth, SabellaMapping, SabellaOutput, hsv_to_rgb};
 pub use segments::{
     GlobalMode, ImportanceSource, LocalMode, Membership, ObjectStyle, SceneError, SegmentScene,
 };

@@ -14,18 +14,21 @@ use super::geometry::VolumeGeometry;
 use super::pixel::PixelRay;
 use super::runs::ceil;
 
-/// The first and last sample index of `ray` that brick `b` owns, if any.
+/// The first and last sample index of `ray` that brick `b` owns, if any, among
+/// the samples the ray takes (`ray.first..ray.samples`: a clip region may cut
+/// its front).
 #[inline]
 pub(crate) fn owned_samples(
     ray: &PixelRay,
     geometry: &VolumeGeometry,
     b: [u32; 3],
 ) -> Option<(u32, u32)> {
-    match guess(ray, geometry, b) {
-        Guess::Owned(first, last) => Some((first, last)),
-        Guess::Missed => None,
-        Guess::Unsure => owned_per_axis(ray, geometry, b),
-    }
+    let (first, last) = match guess(ray, geometry, b) {
+        Guess::Owned(first, last) => (first, last),
+        Guess::Missed => return None,
+        Guess::Unsure => owned_per_axis(ray, geometry, b)?,
+    };
+    (last >= ray.first).then(|| (first.max(ray.first), last))
 }
 
 /// How far outside a brick's box a computed sample position can be while the
@@ -212,6 +215,7 @@ mod tests {
     use glam::Vec3;
 
     use super::*;
+    use crate::render::clip::{ClipPlane, ClipRegion, CropBox};
     use crate::render::ray::Ray;
     use crate::volume::BlockGrid;
 
@@ -223,13 +227,35 @@ mod tests {
     }
 
     fn check_jittered(geometry: &VolumeGeometry, ray: &Ray, dt: f32, jitter: f32) {
-        let Some(pixel) = PixelRay::new(ray, geometry, dt, jitter) else {
+        let last = geometry.last_voxel();
+        let cut = ClipRegion {
+            crop: Some(CropBox {
+                lo: last * 0.2,
+                hi: last * 0.9,
+            }),
+            planes: vec![ClipPlane {
+                point: last * 0.5,
+                normal: Vec3::new(0.3, -1.0, 0.5),
+            }],
+        };
+        check_clipped(geometry, ray, dt, jitter, &ClipRegion::default());
+        check_clipped(geometry, ray, dt, jitter, &cut);
+    }
+
+    fn check_clipped(
+        geometry: &VolumeGeometry,
+        ray: &Ray,
+        dt: f32,
+        jitter: f32,
+        clip: &ClipRegion,
+    ) {
+        let Some(pixel) = PixelRay::new(ray, geometry, dt, jitter, clip) else {
             return;
         };
         let last = geometry.last_voxel();
         let grid = geometry.grid();
         for b in grid.iter() {
-            let owned: Vec<u32> = (0..pixel.samples)
+            let owned: Vec<u32> = (pixel.first..pixel.samples)
                 .filter(|&k| geometry.owner(pixel.position(k, last)) == b)
                 .collect();
             let expected = owned.first().map(|&f| (f, *owned.last().unwrap()));

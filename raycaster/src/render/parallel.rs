@@ -301,6 +301,7 @@ impl FrameJob<'_> {
                     geometry,
                     self.plan.dt,
                     self.plan.jitter,
+                    &self.plan.clip,
                     &volume_rect,
                 );
                 let scheduled = self.schedule.bricks[brick as usize];

@@ -92,12 +92,7 @@ impl Partition {
             .map(|i| !plan.brick_droppable(i))
             .collect();
         let counts = grid.counts();
-        let weight_of = |b: [u32; 3]| -> u64 {
-            let i = (u64::from(b[2]) * u64::from(counts[1]) + u64::from(b[1]))
-                * u64::from(counts[0])
-                + u64::from(b[0]);
-            u64::from(rendered[i as usize])
-        };
+        let weight_of = |b: [u32; 3]| -> u64 { u64::from(rendered[grid.index(b) as usize]) };
         let mut partition = Partition {
             parts: vec![
                 BrickBox {

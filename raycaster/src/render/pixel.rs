@@ -7,6 +7,7 @@
 
 use glam::Vec3;
 
+use super::clip::ClipRegion;
 use super::geometry::VolumeGeometry;
 use super::ray::Ray;
 
@@ -24,7 +25,11 @@ pub struct PixelRay {
     pub t_enter: f32,
     /// World distance between samples.
     pub dt: f32,
-    /// Number of samples inside the box: sample `k` stands for the segment
+    /// The first sample the ray takes: 0, or with a [`ClipRegion`] the first
+    /// whose `t` lies in the kept region.
+    pub first: u32,
+    /// One past the last sample the ray takes (the number of samples inside the
+    /// box, or the end of the kept region's): sample `k` stands for the segment
     /// `[t_k, t_k + dt)`, clipped at the exit.
     pub samples: u32,
     /// The last sample's segment length as a fraction of `dt`, in `(0, 1]`
@@ -47,7 +52,19 @@ impl PixelRay {
     /// is not sampled (it is shorter than a step, and sample `k` at
     /// `t_enter + (jitter + k)·dt` stands for the step after it as always). A ray
     /// shorter than its jitter is not jittered.
-    pub fn new(ray: &Ray, geometry: &VolumeGeometry, dt: f32, jitter: f32) -> Option<PixelRay> {
+    ///
+    /// With a non-empty `clip` region (voxel coordinates of `geometry`), the ray
+    /// keeps the samples whose `t` lies in the part `[c0, c1)` of the ray inside
+    /// the region, at their places: `first..samples`; the last kept one stands
+    /// for the rest of the region, `(c1 − t_last)/dt` of a step. A ray keeping no
+    /// sample is `None`, like one that misses the box.
+    pub fn new(
+        ray: &Ray,
+        geometry: &VolumeGeometry,
+        dt: f32,
+        jitter: f32,
+        clip: &ClipRegion,
+    ) -> Option<PixelRay> {
         let (lo, hi) = geometry.world_bounds();
         let (t_box, t_exit) = ray.intersect_box(lo, hi)?;
         let offset = jitter * dt;
@@ -66,18 +83,61 @@ impl PixelRay {
         let origin = (ray.origin - geometry.origin()) * inv_spacing;
         let direction = ray.direction * inv_spacing;
         let step = direction * dt;
-        Some(PixelRay {
+        let whole = PixelRay {
             origin,
             direction,
             view_dir: ray.direction,
             t_enter,
             dt,
+            first: 0,
             samples,
             last_fraction,
             start: origin + direction * t_enter,
             step,
             inv_step: Vec3::select(step.cmpeq(Vec3::ZERO), Vec3::ZERO, step.recip()),
+        };
+        if clip.is_empty() {
+            return Some(whole);
+        }
+        let voxel_ray = Ray { origin, direction };
+        let (c0, c1) = clip.interval(&voxel_ray, t_box, t_exit)?;
+        let first = whole.first_at_or_after(c0);
+        let (samples, last_fraction) = if c1 >= t_exit {
+            (samples, last_fraction)
+        } else {
+            let end = whole.first_at_or_after(c1);
+            let fraction = if end > 0 {
+                ((c1 - whole.t(end - 1)) / dt).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            (end, fraction)
+        };
+        (first < samples).then_some(PixelRay {
+            first,
+            samples,
+            last_fraction,
+            ..whole
         })
+    }
+
+    /// The first sample index `k` in `0..=samples` with `t(k) ≥ t` (`samples`
+    /// when none): estimated, then corrected with [`Self::t`] itself, which is
+    /// monotone in `k`.
+    fn first_at_or_after(&self, t: f32) -> u32 {
+        let estimate = ((t - self.t_enter) / self.dt).ceil();
+        let mut k = if estimate.is_nan() {
+            0
+        } else {
+            estimate.clamp(0.0, self.samples as f32) as u32
+        };
+        while k > 0 && self.t(k - 1) >= t {
+            k -= 1;
+        }
+        while k < self.samples && self.t(k) < t {
+            k += 1;
+        }
+        k
     }
 
     /// The parameter of sample `k`.
@@ -135,6 +195,16 @@ impl<S> PixelState<S> {
         PixelState {
             acc: start,
             next_sample: 0,
+            done: false,
+        }
+    }
+
+    /// The state of a pixel whose ray has not started: `start`, expecting `ray`'s
+    /// first sample.
+    pub fn starting(start: S, ray: &PixelRay) -> Self {
+        PixelState {
+            acc: start,
+            next_sample: ray.first,
             done: false,
         }
     }

@@ -8,6 +8,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::cells::{BrickCells, CellRanges};
+use super::clip::ClipRegion;
 use super::compositor::FrameCompositor;
 use super::error::RenderError;
 use super::geometry::VolumeGeometry;
@@ -231,6 +232,12 @@ pub(crate) struct FramePlan {
     pub simd: SimdLevel,
     /// Per-pixel ray-start jitter ([`RenderSettings::jitter`]).
     pub jitter: bool,
+    /// The part of the volume shown ([`RenderSettings::clip`]), in voxel
+    /// coordinates of the level rendered.
+    pub clip: ClipRegion,
+    /// Per brick (file order): entirely outside the clip region (empty without
+    /// one).
+    pub cut_away: Vec<bool>,
 }
 
 /// The smallest extent, in voxels, of a small cell of `volume`'s bricks along an
@@ -263,6 +270,7 @@ impl FramePlan {
         if !(0.0..=1.0).contains(&settings.iso_value) {
             return Err(RenderError::IsoValue(settings.iso_value));
         }
+        settings.clip.validate()?;
         let simd = match settings.simd {
             None => SimdLevel::automatic(),
             Some(level) if level.is_available() => level,
@@ -291,6 +299,7 @@ impl FramePlan {
                     step_ratio,
                     settings.shading,
                     settings.preintegrated,
+                    volume.volume().level_scale(),
                 ))
             }
             None => {
@@ -319,7 +328,19 @@ impl FramePlan {
             gradient_scale: Vec3::splat(geometry.min_spacing() / (d1 - d0)) / geometry.spacing(),
             transparent: Vec::new(),
             simd,
+            clip: settings.clip.at_level(volume.volume().level_scale()),
+            cut_away: Vec::new(),
         };
+        if !plan.clip.is_empty() {
+            plan.cut_away = geometry
+                .grid()
+                .iter()
+                .map(|b| {
+                    let (lo, hi) = geometry.brick_voxel_box(b);
+                    plan.clip.cuts_away(lo, hi)
+                })
+                .collect();
+        }
         plan.transparent = volume
             .ranges()
             .as_slice()
@@ -337,9 +358,10 @@ impl FramePlan {
     }
 
     /// Whether brick number `index` can be left out of the frame: nothing in it can
-    /// change a pixel, whatever came before.
+    /// change a pixel, whatever came before, or it lies outside the clip region.
     pub fn brick_droppable(&self, index: usize) -> bool {
-        self.empty_space_skipping && self.transparent[index]
+        (self.empty_space_skipping && self.transparent[index])
+            || self.cut_away.get(index).copied().unwrap_or(false)
     }
 
     /// Bricks that no sample of can change a pixel.

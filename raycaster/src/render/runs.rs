@@ -212,6 +212,7 @@ impl<C: Compositor> Iterator for SampleRuns<'_, C> {
 mod tests {
     use super::*;
     use crate::render::cells::CellRanges;
+    use crate::render::clip::ClipRegion;
     use crate::render::compositor::SamplePoint;
     use crate::render::geometry::VolumeGeometry;
     use crate::render::ownership::owned_samples;
@@ -263,7 +264,13 @@ mod tests {
                 origin,
                 direction: (target - origin).normalize_or(Vec3::Z),
             };
-            let Some(pixel) = PixelRay::new(&ray, &geometry, 0.37, (i % 5) as f32 * 0.2) else {
+            let Some(pixel) = PixelRay::new(
+                &ray,
+                &geometry,
+                0.37,
+                (i % 5) as f32 * 0.2,
+                &ClipRegion::default(),
+            ) else {
                 continue;
             };
             for b in grid.iter() {

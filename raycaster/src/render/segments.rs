@@ -9,8 +9,11 @@
 
 use std::path::{Path, PathBuf};
 
+use glam::Vec3;
 use serde::Deserialize;
 
+use super::clip::{ClipPlane, ClipRegion, CropBox};
+use super::sabella::{SabellaDepth, SabellaMapping, SabellaOutput};
 use super::transfer::{
     ControlPoint, TransferError, TransferFunction, check_domain, check_gradient_ramp,
 };
@@ -48,6 +51,12 @@ pub enum LocalMode {
     },
     /// Non-photorealistic: tone shading and silhouette darkening.
     Silhouette,
+    /// Sabella's colouring: peak value, its depth or the centroid, and
+    /// intensity as hue, saturation and value.
+    Sabella {
+        /// Colours by a mapping, or the raw channels.
+        output: SabellaOutput,
+    },
 }
 
 impl LocalMode {
@@ -62,6 +71,7 @@ impl LocalMode {
             LocalMode::Importance { .. } => "importance",
             LocalMode::ContextPreserving { .. } => "context",
             LocalMode::Silhouette => "silhouette",
+            LocalMode::Sabella { .. } => "sabella",
         }
     }
 
@@ -119,6 +129,10 @@ pub struct ObjectStyle {
     pub transfer: TransferFunction,
     /// Local compositing.
     pub mode: LocalMode,
+    /// The part of the volume where the object shows (level-0 voxel
+    /// coordinates; everything by default): its samples outside belong to no
+    /// object.
+    pub clip: ClipRegion,
 }
 
 /// A segmented scene: membership, objects, global compositing.
@@ -190,6 +204,12 @@ struct ObjectFile {
     importance: Option<String>,
     weight: Option<f32>,
     p: Option<[f32; 3]>,
+    depth: Option<String>,
+    /// `[x0, y0, z0, x1, y1, z1]` in voxels.
+    crop: Option<[f32; 6]>,
+    /// `[[px, py, pz, nx, ny, nz], ...]` in voxels.
+    #[serde(default)]
+    clip: Vec<[f32; 6]>,
 }
 
 /// An object's transfer function: a preset name or file, or written inline.
@@ -348,6 +368,22 @@ impl SegmentScene {
             })?;
             let mode =
                 local_mode(&o).map_err(|e| SceneError::Invalid(format!("object {name:?}: {e}")))?;
+            let clip = ClipRegion {
+                crop: o.crop.map(|c| CropBox {
+                    lo: Vec3::new(c[0], c[1], c[2]),
+                    hi: Vec3::new(c[3], c[4], c[5]),
+                }),
+                planes: o
+                    .clip
+                    .iter()
+                    .map(|p| ClipPlane {
+                        point: Vec3::new(p[0], p[1], p[2]),
+                        normal: Vec3::new(p[3], p[4], p[5]),
+                    })
+                    .collect(),
+            };
+            clip.validate()
+                .map_err(|e| SceneError::Invalid(format!("object {name:?}: {e}")))?;
             if objects.iter().any(|s: &ObjectStyle| s.id == id) {
                 return Err(SceneError::Invalid(format!(
                     "object id {id} is defined twice"
@@ -359,6 +395,7 @@ impl SegmentScene {
                 visible: o.visible,
                 transfer,
                 mode,
+                clip,
             });
         }
         Ok(SegmentScene {
@@ -438,7 +475,35 @@ impl SegmentScene {
                         let _ = writeln!(out, "p = [{a:?}, {b:?}, {c:?}]");
                     }
                 }
-                LocalMode::Dvr | LocalMode::Mip | LocalMode::Average | LocalMode::Silhouette => {}
+                LocalMode::Sabella {
+                    output: SabellaOutput::Colours(mapping),
+                } => {
+                    let _ = writeln!(out, "depth = {}", quote(mapping.depth.name()));
+                }
+                LocalMode::Dvr
+                | LocalMode::Mip
+                | LocalMode::Average
+                | LocalMode::Silhouette
+                | LocalMode::Sabella { .. } => {}
+            }
+            let six = |v: [f32; 6]| {
+                let items: Vec<String> = v.iter().map(|x| format!("{x:?}")).collect();
+                format!("[{}]", items.join(", "))
+            };
+            if let Some(CropBox { lo, hi }) = o.clip.crop {
+                let _ = writeln!(out, "crop = {}", six([lo.x, lo.y, lo.z, hi.x, hi.y, hi.z]));
+            }
+            if !o.clip.planes.is_empty() {
+                let planes: Vec<String> = o
+                    .clip
+                    .planes
+                    .iter()
+                    .map(|p| {
+                        let (q, n) = (p.point, p.normal);
+                        six([q.x, q.y, q.z, n.x, n.y, n.z])
+                    })
+                    .collect();
+                let _ = writeln!(out, "clip = [{}]", planes.join(", "));
             }
         }
         out
@@ -478,6 +543,17 @@ fn local_mode(o: &ObjectFile) -> Result<LocalMode, String> {
             ks: unit("ks", o.ks, 0.4)?,
         },
         "silhouette" => LocalMode::Silhouette,
+        "sabella" => {
+            let name = o.depth.as_deref().unwrap_or("peak");
+            let depth = SabellaDepth::parse(name)
+                .ok_or_else(|| format!("unknown depth {name:?} (peak, centroid)"))?;
+            LocalMode::Sabella {
+                output: SabellaOutput::Colours(SabellaMapping {
+                    depth,
+                    ..SabellaMapping::default()
+                }),
+            }
+        }
         "importance" => {
             let w = unit("weight", o.weight, 1.0)?;
             let p = o.p.unwrap_or([1.0, 0.3, 0.9]);
@@ -503,7 +579,7 @@ fn local_mode(o: &ObjectFile) -> Result<LocalMode, String> {
         }
         other => {
             return Err(format!(
-                "unknown mode {other:?} (dvr, mip, average, xray, first-hit, importance, context, silhouette)"
+                "unknown mode {other:?} (dvr, mip, average, xray, first-hit, importance, context, silhouette, sabella)"
             ));
         }
     })
@@ -512,6 +588,41 @@ fn local_mode(o: &ObjectFile) -> Result<LocalMode, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn sabella_objects_and_object_regions_parse_and_read_back() {
+        let text = r#"
+            layers = [[0.0, 1.0]]
+            [[object]]
+            mode = "sabella"
+            depth = "centroid"
+            crop = [1, 2, 3, 10, 20, 30]
+            clip = [[5, 5, 5, 0, 0, -1], [1, 1, 1, 1, 0, 0]]
+        "#;
+        let s = SegmentScene::parse(text, Path::new(".")).unwrap();
+        let o = &s.objects[0];
+        assert_eq!(
+            o.mode,
+            LocalMode::Sabella {
+                output: SabellaOutput::Colours(SabellaMapping {
+                    depth: SabellaDepth::Centroid,
+                    ..SabellaMapping::default()
+                })
+            }
+        );
+        assert_eq!(o.clip.planes.len(), 2);
+        assert_eq!(o.clip.crop.unwrap().hi, Vec3::new(10.0, 20.0, 30.0));
+        assert_eq!(
+            SegmentScene::parse(&s.to_toml(), Path::new(".")).unwrap(),
+            s
+        );
+        let bad = text.replace("\"centroid\"", "\"middle\"");
+        let e = SegmentScene::parse(&bad, Path::new(".")).unwrap_err();
+        assert!(e.to_string().contains("unknown depth \"middle\""), "{e}");
+        let inverted = text.replace("[1, 2, 3, 10, 20, 30]", "[1, 2, 3, 10, 0, 30]");
+        let e = SegmentScene::parse(&inverted, Path::new(".")).unwrap_err();
+        assert!(e.to_string().contains("inverted"), "{e}");
+    }
 
     #[test]
     fn a_scene_parses_with_defaults_and_paths_relative_to_it() {

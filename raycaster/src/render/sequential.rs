@@ -87,11 +87,13 @@ impl<T: Sample> CompositorJob for SequentialPass<'_, '_, '_, T> {
         for y in rect.y0..rect.y1 {
             for x in rect.x0..rect.x1 {
                 let jitter = if plan.jitter { ray_jitter(x, y) } else { 0.0 };
-                let Some(ray) = PixelRay::new(&camera.ray(x, y), geometry, plan.dt, jitter) else {
+                let Some(ray) =
+                    PixelRay::new(&camera.ray(x, y), geometry, plan.dt, jitter, &plan.clip)
+                else {
                     continue;
                 };
                 counters.rays += 1;
-                let mut state = PixelState::new(c.start());
+                let mut state = PixelState::starting(c.start(), &ray);
                 while !state.done {
                     let k = state.next_sample;
                     let b = geometry.owner(ray.position(k, last_voxel));

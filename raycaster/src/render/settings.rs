@@ -1,5 +1,7 @@
 //! What a frame is rendered with, besides the camera.
 
+use super::clip::ClipRegion;
+use super::sabella::SabellaOutput;
 use super::segments::{ImportanceSource, LocalMode, SegmentScene};
 use super::shading::Shading;
 use super::simd::SimdLevel;
@@ -26,11 +28,15 @@ pub enum Mode {
     ContextPreserving,
     /// Tone shading and silhouette darkening.
     Silhouette,
+    /// Sabella's colouring: the peak value, its depth (or the centroid) and the
+    /// accumulated intensity as hue, saturation and value
+    /// ([`ModeParameters::sabella`]).
+    Sabella,
 }
 
 impl Mode {
     /// Every mode, in the order `--help` lists them.
-    pub const ALL: [Mode; 8] = [
+    pub const ALL: [Mode; 9] = [
         Mode::Dvr,
         Mode::Mip,
         Mode::Average,
@@ -39,6 +45,7 @@ impl Mode {
         Mode::Importance,
         Mode::ContextPreserving,
         Mode::Silhouette,
+        Mode::Sabella,
     ];
 
     /// The mode's name on the command line.
@@ -52,6 +59,7 @@ impl Mode {
             Mode::Importance => "importance",
             Mode::ContextPreserving => "context",
             Mode::Silhouette => "silhouette",
+            Mode::Sabella => "sabella",
         }
     }
 
@@ -74,6 +82,9 @@ impl Mode {
                 ks: parameters.context[1],
             },
             Mode::Silhouette => LocalMode::Silhouette,
+            Mode::Sabella => LocalMode::Sabella {
+                output: parameters.sabella,
+            },
         }
     }
 }
@@ -87,6 +98,8 @@ pub struct ModeParameters {
     pub context: [f32; 2],
     /// Where importance-aware compositing takes a sample's importance.
     pub importance: ImportanceSource,
+    /// Sabella's colouring: the mapping to colours (or raw channels).
+    pub sabella: SabellaOutput,
 }
 
 impl Default for ModeParameters {
@@ -95,6 +108,7 @@ impl Default for ModeParameters {
             xray_gain: 1.0,
             context: [1.5, 0.4],
             importance: ImportanceSource::Constant(1.0),
+            sabella: SabellaOutput::default(),
         }
     }
 }
@@ -139,6 +153,10 @@ pub struct RenderSettings {
     /// deterministic per-pixel fraction of a step (interleaved gradient noise),
     /// trading the stripe and ring moiré of fixed sample positions for fine noise.
     pub jitter: bool,
+    /// The part of the volume shown: a crop box and clipping planes (in voxel
+    /// coordinates); everything by default. Rays keep their samples inside it at
+    /// their global places; bricks entirely outside are left out.
+    pub clip: ClipRegion,
 }
 
 /// The default early-ray-termination threshold.
@@ -160,6 +178,7 @@ impl Default for RenderSettings {
             simd: None,
             preintegrated: false,
             jitter: false,
+            clip: ClipRegion::default(),
         }
     }
 }

@@ -239,6 +239,7 @@ mod tests {
                 acc.count = i as u32 * 7;
                 acc.depth = if i % 2 == 0 { f32::INFINITY } else { 2.5 };
                 acc.next_index = u32::MAX - i as u32;
+                acc.weighted_depth = -(i as f32);
                 PixelState {
                     acc,
                     next_sample: i as u32,

@@ -2,6 +2,7 @@
 //! by value between the compositing and render threads (never shared).
 
 use super::camera::{Camera, PixelRect};
+use super::clip::ClipRegion;
 use super::counters::Counters;
 use super::geometry::VolumeGeometry;
 use super::pixel::{PixelRay, PixelState, ray_jitter};
@@ -48,13 +49,15 @@ impl<S: Copy> Tile<S> {
     }
 
     /// Computes the pixels' rays (once); pixels outside `volume_rect` get none.
-    /// With `jitter`, each ray starts [`ray_jitter`] of a step later.
+    /// With `jitter`, each ray starts [`ray_jitter`] of a step later; rays keep
+    /// their samples inside `clip`.
     pub fn prepare_rays(
         &mut self,
         camera: &Camera,
         geometry: &VolumeGeometry,
         dt: f32,
         jitter: bool,
+        clip: &ClipRegion,
         volume_rect: &PixelRect,
     ) {
         if !self.rays.is_empty() {
@@ -71,7 +74,7 @@ impl<S: Copy> Tile<S> {
                 let ray = inside
                     .then(|| {
                         let j = if jitter { ray_jitter(x, y) } else { 0.0 };
-                        PixelRay::new(&camera.ray(x, y), geometry, dt, j)
+                        PixelRay::new(&camera.ray(x, y), geometry, dt, j, clip)
                     })
                     .flatten();
                 self.counters.rays += u64::from(ray.is_some());
@@ -79,7 +82,10 @@ impl<S: Copy> Tile<S> {
             }
         }
         for (state, ray) in self.states.iter_mut().zip(&self.rays) {
-            state.done |= ray.is_none();
+            match ray {
+                Some(ray) => state.next_sample = state.next_sample.max(ray.first),
+                None => state.done = true,
+            }
         }
     }
 

@@ -8,6 +8,7 @@
 
 use std::sync::Arc;
 
+use super::clip::ClipRegion;
 use super::compositor::{Compositor, SamplePoint};
 use super::local::{Accumulation, LocalCompositor};
 use super::optics::over_premultiplied;
@@ -80,12 +81,16 @@ pub(crate) struct TwoLevel {
     /// Every visible object composites by emission–absorption: transparent
     /// samples contribute nothing, so empty space may be skipped.
     all_dvr: bool,
+    /// Per object id: where the object shows (voxels of the level rendered),
+    /// `None` everywhere; empty when no object has a region.
+    clips: Vec<Option<ClipRegion>>,
 }
 
 impl TwoLevel {
     /// Prepares `scene` for samples of `type_max` with the data's raw `domain`,
     /// opacities corrected for `step_ratio` reference steps; `preintegrate` gives
-    /// the tables of DVR objects pre-integrated segments.
+    /// the tables of DVR objects pre-integrated segments; objects' clip regions
+    /// are moved to a level whose voxels span `level_scale` level-0 voxels.
     pub fn new(
         scene: &SegmentScene,
         type_max: u16,
@@ -93,6 +98,7 @@ impl TwoLevel {
         step_ratio: f32,
         shading: Option<Shading>,
         preintegrate: bool,
+        level_scale: f32,
     ) -> TwoLevel {
         let mut objects = vec![None; 256];
         let mut tables: Vec<(&TransferFunction, Arc<TransferTable>)> = Vec::new();
@@ -142,7 +148,15 @@ impl TwoLevel {
                 .enumerate()
                 .all(|(i, a)| l[i + 1..].iter().all(|b| a[1] <= b[0] || b[1] <= a[0]))
         });
+        let mut clips = Vec::new();
+        if scene.objects.iter().any(|o| !o.clip.is_empty()) {
+            clips = vec![None; 256];
+            for o in scene.objects.iter().filter(|o| !o.clip.is_empty()) {
+                clips[o.id as usize] = Some(o.clip.at_level(level_scale));
+            }
+        }
         TwoLevel {
+            clips,
             objects,
             tables: tables.into_iter().map(|(_, t)| t).collect(),
             layers,
@@ -221,11 +235,18 @@ impl Compositor for TwoLevel {
     /// object closes the segment (composited globally).
     #[inline]
     fn sample<T: Sample>(&self, st: &mut SegmentedState, s: &SamplePoint<'_, T>) {
-        let id = if self.uses_labels() {
+        let mut id = if self.uses_labels() {
             s.label()
         } else {
             self.layer_of(s.value, st.object)
         };
+        // An object shows only inside its region: elsewhere its samples belong
+        // to no object.
+        if let Some(Some(region)) = self.clips.get(id as usize)
+            && !region.contains(s.position)
+        {
+            id = NO_OBJECT;
+        }
         if id != st.object {
             self.close(st);
             st.object = id;

@@ -1,0 +1,105 @@
+//! `raycaster slice`: one axis-aligned slice of a volume as a greyscale PNG.
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::{Args, ValueEnum};
+use raycaster::slice::{Axis, Slice};
+use raycaster::volume::{Access, OpenOptions, Volume};
+
+use crate::args::parse_domain;
+
+/// Write one slice of a volume as a greyscale PNG.
+///
+/// The slice is read through the volume's samples (a mapped .vol file reads only
+/// the pages of that plane), linear or bricked, u8 or u16; NRRD, NIfTI-1,
+/// MetaImage files and DICOM series are converted in memory first. Columns run
+/// along x (along y for x slices), rows along y for z slices and along z
+/// otherwise, the highest coordinate at the top. The output is checked before
+/// reading (a .png name, an existing folder; an existing file only with
+/// `--force`) and written atomically.
+#[derive(Args, Debug)]
+#[command(after_help = SLICE_HELP, allow_negative_numbers = true)]
+pub struct SliceArgs {
+    /// The volume: a .vol file, or a file or folder `raycaster render` opens.
+    file: PathBuf,
+
+    /// The axis the slice is perpendicular to.
+    #[arg(long, value_enum)]
+    axis: AxisArg,
+
+    /// The slice's index along the axis, 0 to size − 1.
+    #[arg(long, value_name = "N")]
+    index: u32,
+
+    /// Output PNG (the name must end in .png).
+    #[arg(short, long, value_name = "PNG")]
+    output: PathBuf,
+
+    /// Replace the output image if it exists.
+    #[arg(long)]
+    force: bool,
+
+    /// Raw values shown black and white, LO,HI (default: the slice's own value
+    /// range). CT in i16 is stored as HU + 32768: a soft-tissue window of
+    /// −160..240 HU is `--window 32608,33008`.
+    #[arg(long, value_parser = parse_domain, allow_hyphen_values = true, value_name = "LO,HI")]
+    window: Option<[f32; 2]>,
+
+    /// Print nothing on success.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+const SLICE_HELP: &str = "Examples:
+  raycaster slice lung1.vol --axis z --index 60 -o axial.png
+  raycaster slice lung1.vol --axis y --index 256 --window 31768,34768 -o coronal.png --force";
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum AxisArg {
+    X,
+    Y,
+    Z,
+}
+
+/// Runs the slice command.
+pub fn run(args: SliceArgs) -> Result<()> {
+    crate::output::check_output(&args.output, args.force)?;
+    raycaster::files::guard_mapped_file(&args.file);
+    let volume = if raycaster::import::detect(&args.file).is_some() {
+        raycaster::import::open(&args.file)?.to_volume_with(
+            raycaster::import::DEFAULT_IN_MEMORY_LIMIT,
+            &raycaster::job::Job::silent(),
+        )?
+    } else {
+        let options = OpenOptions {
+            access: Access::Mapped,
+            ..OpenOptions::default()
+        };
+        Volume::open_with(&args.file, options)?
+    };
+    let axis = match args.axis {
+        AxisArg::X => Axis::X,
+        AxisArg::Y => Axis::Y,
+        AxisArg::Z => Axis::Z,
+    };
+    let slice = Slice::extract(&volume, axis, args.index)
+        .map_err(|e| anyhow::anyhow!("--index {}: {e}", args.index))?;
+    let image = slice
+        .to_image(args.window)
+        .map_err(|e| anyhow::anyhow!("--window: {e}"))?;
+    image.save_png(&args.output)?;
+    if !args.quiet {
+        let [lo, hi] = slice.range();
+        eprintln!(
+            "wrote {} ({}×{}, slice {} = {} of {}, values {lo}..{hi})",
+            args.output.display(),
+            slice.width,
+            slice.height,
+            axis,
+            args.index,
+            args.file.display()
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,299 @@
+//! `raycaster render --crop/--clip/--mode sabella` and `raycaster slice`, driven
+//! as a user would: real binary, real files.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use raycaster::render::RgbImage;
+use raycaster::volume::{Content, Format, Header, Layout, SampleType, Volume};
+
+fn raycaster(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_raycaster"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("the binary runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Voxel (x, y, z) = `100·x + 10·y + z` (u16) or that modulo 256 (u8).
+struct Formula(SampleType);
+
+impl raycaster::synth::Scene for Formula {
+    fn fill_row(&self, x: u32, y: u32, out: &mut [f32]) {
+        for (z, o) in out.iter_mut().enumerate() {
+            let v = 100 * x + 10 * y + z as u32;
+            *o = match self.0 {
+                SampleType::U8 => (v % 256) as f32 / 255.0,
+                SampleType::U16 => v as f32 / 65535.0,
+            };
+        }
+    }
+}
+
+/// Writes `name`: 20 × 12 × 9 voxels of [`Formula`] in `layout`.
+fn write_volume(dir: &Path, name: &str, sample: SampleType, layout: Layout) {
+    let header = Header::new(
+        [20, 12, 9],
+        [1.0; 3],
+        layout,
+        sample,
+        Content::Scalar,
+        Format::Extended,
+    );
+    raycaster::generate::generate(
+        &Formula(sample),
+        &header,
+        &dir.join(name),
+        &Default::default(),
+        &raycaster::job::Job::silent(),
+    )
+    .unwrap();
+    let volume = Volume::open(dir.join(name)).unwrap();
+    assert_eq!(
+        volume.voxel([7, 5, 4]),
+        if sample == SampleType::U16 {
+            754
+        } else {
+            754 % 256
+        }
+    );
+}
+
+#[test]
+fn slices_of_linear_and_bricked_u8_and_u16_files_show_the_plane() {
+    let dir = tempfile::tempdir().unwrap();
+    for (sample, layout) in [
+        (SampleType::U16, Layout::Linear),
+        (SampleType::U16, Layout::Bricked { side: 8 }),
+        (SampleType::U8, Layout::Bricked { side: 16 }),
+        (SampleType::U8, Layout::Linear),
+    ] {
+        let name = format!("v-{sample:?}-{layout:?}.vol");
+        write_volume(dir.path(), &name, sample, layout);
+        // z = 4: columns x (20), rows y (12) from y = 11 at the top.
+        let out = raycaster(
+            &[
+                "slice", &name, "--axis", "z", "--index", "4", "-o", "z.png", "--force",
+            ],
+            dir.path(),
+        );
+        assert!(out.status.success(), "{name}: {}", stderr(&out));
+        let image = RgbImage::load_png(&dir.path().join("z.png")).unwrap();
+        assert_eq!((image.width(), image.height()), (20, 12), "{name}");
+        if sample == SampleType::U16 {
+            // The default window is the slice's range, 4..=2014: the top right
+            // (x 19, y 11) is white, the bottom left (0, 0) black, grey between
+            // by value.
+            assert_eq!(image.pixel(19, 0), [255; 3], "{name}");
+            assert_eq!(image.pixel(0, 11), [0; 3], "{name}");
+            let grey = |v: f32| ((v - 4.0) / 2010.0 * 255.0 + 0.5) as u8;
+            assert_eq!(image.pixel(7, 6), [grey(700.0 + 50.0 + 4.0); 3], "{name}");
+        }
+        // A window: x slice 3 holds 300..=413 (u16); 350..400 clamps the rest.
+        let out = raycaster(
+            &[
+                "slice", &name, "--axis", "x", "--index", "3", "--window", "350,400", "-o",
+                "x.png", "--force", "-q",
+            ],
+            dir.path(),
+        );
+        assert!(out.status.success(), "{name}: {}", stderr(&out));
+        assert!(stderr(&out).is_empty());
+        let image = RgbImage::load_png(&dir.path().join("x.png")).unwrap();
+        assert_eq!((image.width(), image.height()), (12, 9), "{name}");
+        if sample == SampleType::U16 {
+            // Top row: z = 8; column y. y = 4 → 348 (black), y = 5 → 358.
+            assert_eq!(image.pixel(4, 0), [0; 3]);
+            assert_eq!(
+                image.pixel(5, 0),
+                [((8.0f32 / 50.0) * 255.0 + 0.5) as u8; 3]
+            );
+            assert_eq!(image.pixel(10, 0), [255; 3]);
+        }
+    }
+}
+
+#[test]
+fn slice_refuses_bad_indices_windows_and_outputs_clearly() {
+    let dir = tempfile::tempdir().unwrap();
+    write_volume(dir.path(), "v.vol", SampleType::U16, Layout::Linear);
+    let fail = |args: &[&str], needle: &str| {
+        let out = raycaster(args, dir.path());
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {}", stderr(&out));
+        let e = stderr(&out);
+        assert!(e.contains(needle), "{args:?}: {e}");
+        assert!(!e.contains("panicked"), "{e}");
+    };
+    fail(
+        &[
+            "slice", "v.vol", "--axis", "y", "--index", "12", "-o", "s.png",
+        ],
+        "outside the volume along y (0..=11)",
+    );
+    assert!(!dir.path().join("s.png").exists());
+    fail(
+        &[
+            "slice",
+            "missing.vol",
+            "--axis",
+            "z",
+            "--index",
+            "0",
+            "-o",
+            "s.png",
+        ],
+        "missing.vol",
+    );
+    fail(
+        &[
+            "slice", "v.vol", "--axis", "z", "--index", "0", "-o", "s.jpg",
+        ],
+        "only PNG",
+    );
+    std::fs::write(dir.path().join("s.png"), b"keep").unwrap();
+    fail(
+        &[
+            "slice", "v.vol", "--axis", "z", "--index", "0", "-o", "s.png",
+        ],
+        "already exists (pass --force",
+    );
+    assert_eq!(std::fs::read(dir.path().join("s.png")).unwrap(), b"keep");
+    let out = raycaster(
+        &[
+            "slice", "v.vol", "--axis", "z", "--index", "0", "--window", "5,5", "-o", "t.png",
+        ],
+        dir.path(),
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("lo < hi"), "{}", stderr(&out));
+}
+
+#[test]
+fn crop_and_clip_cut_the_picture_and_bad_values_name_the_flag() {
+    let dir = tempfile::tempdir().unwrap();
+    let render = |extra: &[&str], out_name: &str| {
+        let mut args = vec![
+            "render",
+            "--scene-size",
+            "48",
+            "--size",
+            "64",
+            "--azimuth",
+            "-90",
+            "--elevation",
+            "0",
+            "--orthographic",
+            "--force",
+            "-o",
+            out_name,
+        ];
+        args.extend_from_slice(extra);
+        raycaster(&args, dir.path())
+    };
+    let lit = |name: &str, columns: std::ops::Range<u32>| {
+        let image = RgbImage::load_png(&dir.path().join(name)).unwrap();
+        columns
+            .flat_map(|x| (0..64).map(move |y| (x, y)))
+            .filter(|&(x, y)| image.pixel(x, y) != [0, 0, 0])
+            .count()
+    };
+    let out = render(&[], "whole.png");
+    assert!(out.status.success(), "{}", stderr(&out));
+    // Looking along +y: x runs left to right. Keeping x ≥ 50 % (a plane) or
+    // x ≤ 40 % (a box) empties the other side of the picture.
+    for (extra, dark) in [
+        (vec!["--clip", "50%,0,0,1,0,0"], 0..24),
+        (vec!["--crop", "0,0,0,40%,100%,100%"], 36..64),
+        (
+            vec![
+                "--crop",
+                "0%,0%,0%,100%,100%,100%",
+                "--clip",
+                "0,0,0,-1,0,0",
+            ],
+            0..64,
+        ),
+    ] {
+        let out = render(&extra, "cut.png");
+        assert!(out.status.success(), "{extra:?}: {}", stderr(&out));
+        assert!(lit("whole.png", dark.clone()) > 50, "{extra:?}");
+        assert_eq!(lit("cut.png", dark), 0, "{extra:?}");
+    }
+    for (extra, needle) in [
+        (
+            vec!["--crop", "10,0,0,5,47,47"],
+            "--crop: the box is empty or inverted along x",
+        ),
+        (
+            vec!["--crop", "0,0,9,47,47,9"],
+            "--crop: the box is empty or inverted along z",
+        ),
+        (
+            vec!["--crop", "0,0,60,47,47,70"],
+            "--crop: the box 60..70 along z lies outside",
+        ),
+        (
+            vec!["--clip", "1,1,1,0,0,0"],
+            "--clip: the plane's normal is zero",
+        ),
+        (
+            vec!["--clip", "1,1,1,0,nan,0"],
+            "--clip <PX,PY,PZ,NX,NY,NZ>",
+        ),
+        (vec!["--crop", "1,2,3,4"], "--crop <X0,Y0,Z0,X1,Y1,Z1>"),
+    ] {
+        let out = render(&extra, "bad.png");
+        assert!(!out.status.success(), "{extra:?}");
+        let e = stderr(&out);
+        assert!(e.contains(needle), "{extra:?}: {e}");
+        assert!(!e.contains("panicked"), "{e}");
+        assert!(!dir.path().join("bad.png").exists());
+    }
+    let seven: Vec<&str> = (0..7).flat_map(|_| ["--clip", "1,1,1,0,0,1"]).collect();
+    let out = render(&seven, "bad.png");
+    assert!(
+        stderr(&out).contains("--clip given 7 times"),
+        "{}",
+        stderr(&out)
+    );
+}
+
+#[test]
+fn sabella_mode_colours_by_depth_or_centroid() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |depth: &str, name: &str| {
+        let out = raycaster(
+            &[
+                "render",
+                "--scene-size",
+                "48",
+                "--size",
+                "48",
+                "--mode",
+                "sabella",
+                "--sabella-depth",
+                depth,
+                "-o",
+                name,
+            ],
+            dir.path(),
+        );
+        assert!(out.status.success(), "{}", stderr(&out));
+        RgbImage::load_png(&dir.path().join(name)).unwrap()
+    };
+    let peak = run("peak", "peak.png");
+    let centroid = run("centroid", "centroid.png");
+    let lit = peak.data().chunks(3).filter(|p| p != &[0, 0, 0]).count();
+    assert!(lit > 200, "{lit} lit pixels");
+    assert!(peak.max_difference(&centroid).is_some_and(|d| d > 0));
+    let out = raycaster(
+        &["render", "--mode", "sabella", "--sabella-depth", "middle"],
+        dir.path(),
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("--sabella-depth"));
+}

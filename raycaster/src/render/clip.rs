@@ -1,0 +1,305 @@
+//! Cutting a volume open: an axis-aligned crop box and clipping planes.
+//!
+//! The kept part of the volume is the crop box intersected with the half-spaces the
+//! planes keep: a convex region. A pixel's ray therefore crosses it in one interval
+//! of its parameter `t`, found once when the ray is made
+//! ([`super::pixel::PixelRay::new`]); the ray keeps the samples whose `t` lies in
+//! that interval, at their global places (sample `k` stays at `t_enter + k·dt`),
+//! and nothing per sample tests the region. Bricks entirely outside it are left
+//! out of the frame.
+
+use glam::Vec3;
+
+use super::error::RenderError;
+use super::ray::Ray;
+
+/// The most clipping planes a [`ClipRegion`] takes.
+pub const MAX_CLIP_PLANES: usize = 6;
+
+/// A clipping plane: keeps the half-space its normal points into,
+/// `(p − point)·normal ≥ 0`, in volume voxel coordinates.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ClipPlane {
+    /// A point on the plane (voxel coordinates).
+    pub point: Vec3,
+    /// The plane's normal (voxel coordinates, any non-zero length), pointing
+    /// into the kept half-space.
+    pub normal: Vec3,
+}
+
+/// An axis-aligned box in volume voxel coordinates: the part of the volume a crop
+/// keeps (voxel centres sit at integer coordinates; the whole volume is
+/// `[0, dims − 1]`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CropBox {
+    /// The lower corner.
+    pub lo: Vec3,
+    /// The upper corner (at least `lo` on every axis).
+    pub hi: Vec3,
+}
+
+/// What of a volume a frame shows: everything by default, or the part inside a
+/// crop box and on the kept side of every clipping plane.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ClipRegion {
+    /// The crop box, if any.
+    pub crop: Option<CropBox>,
+    /// Up to [`MAX_CLIP_PLANES`] clipping planes.
+    pub planes: Vec<ClipPlane>,
+}
+
+/// How far outside the kept region a sample's computed position can be while its
+/// ray parameter is inside, in voxels: rounding of positions for coordinates up to
+/// 2^14, with a wide margin (bricks are left out of a frame only beyond it).
+const CUT_MARGIN: f32 = 0.05;
+
+impl ClipRegion {
+    /// Whether the region keeps the whole volume (no box, no planes).
+    pub fn is_empty(&self) -> bool {
+        self.crop.is_none() && self.planes.is_empty()
+    }
+
+    /// Checks the region: finite numbers, a box with `lo ≤ hi`, at most
+    /// [`MAX_CLIP_PLANES`] planes with non-zero normals.
+    pub fn validate(&self) -> Result<(), RenderError> {
+        let bad = |why: String| Err(RenderError::Clip(why));
+        if let Some(CropBox { lo, hi }) = self.crop {
+            if !(lo.is_finite() && hi.is_finite()) {
+                return bad(format!("crop box {lo} – {hi} is not finite"));
+            }
+            if lo.cmpgt(hi).any() {
+                return bad(format!("crop box {lo} – {hi} is inverted (lo > hi)"));
+            }
+        }
+        if self.planes.len() > MAX_CLIP_PLANES {
+            return bad(format!(
+                "{} clipping planes (at most {MAX_CLIP_PLANES})",
+                self.planes.len()
+            ));
+        }
+        for p in &self.planes {
+            if !(p.point.is_finite() && p.normal.is_finite()) {
+                return bad(format!(
+                    "clipping plane through {} with normal {} is not finite",
+                    p.point, p.normal
+                ));
+            }
+            if p.normal == Vec3::ZERO {
+                return bad(format!(
+                    "clipping plane through {} has a zero normal",
+                    p.point
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The region in the voxel coordinates of a pyramid level whose voxels span
+    /// `scale` (`2^k`) level-0 voxels, the region being in level-0 voxels: level
+    /// `k`'s voxel `(0, 0, 0)` sits at `(scale − 1)/2` level-0 voxels.
+    pub fn at_level(&self, scale: f32) -> ClipRegion {
+        if scale == 1.0 {
+            return self.clone();
+        }
+        let map = |p: Vec3| (p - (scale - 1.0) / 2.0) / scale;
+        ClipRegion {
+            crop: self.crop.map(|c| CropBox {
+                lo: map(c.lo),
+                hi: map(c.hi),
+            }),
+            planes: self
+                .planes
+                .iter()
+                .map(|p| ClipPlane {
+                    point: map(p.point),
+                    normal: p.normal,
+                })
+                .collect(),
+        }
+    }
+
+    /// The parameter interval `[t0, t1]` of `ray` (voxel coordinates, `t` as the
+    /// caller measures it) inside the region, clipped to `[t_min, t_max]`; `None`
+    /// when it is empty.
+    pub(crate) fn interval(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<(f32, f32)> {
+        let (mut t0, mut t1) = (t_min, t_max);
+        if let Some(CropBox { lo, hi }) = self.crop {
+            // `intersect_box` starts at t = 0: the ray's box interval is within.
+            let (b0, b1) = ray.intersect_box(lo, hi)?;
+            t0 = t0.max(b0);
+            t1 = t1.min(b1);
+        }
+        for p in &self.planes {
+            // (o + t·d − q)·n ≥ 0  ⇔  a + t·b ≥ 0.
+            let a = (ray.origin - p.point).dot(p.normal);
+            let b = ray.direction.dot(p.normal);
+            if b == 0.0 {
+                if a < 0.0 {
+                    return None;
+                }
+            } else if b > 0.0 {
+                t0 = t0.max(-a / b);
+            } else {
+                t1 = t1.min(-a / b);
+            }
+        }
+        (t0 <= t1).then_some((t0, t1))
+    }
+
+    /// Whether voxel position `p` lies in the region (on its boundary included).
+    #[inline]
+    pub fn contains(&self, p: Vec3) -> bool {
+        if let Some(CropBox { lo, hi }) = self.crop
+            && (p.cmplt(lo).any() || p.cmpgt(hi).any())
+        {
+            return false;
+        }
+        self.planes
+            .iter()
+            .all(|plane| (p - plane.point).dot(plane.normal) >= 0.0)
+    }
+
+    /// Whether the voxel box `[lo, hi]` lies entirely outside the region (by more
+    /// than a rounding margin): outside the crop box, or wholly on the cut side of
+    /// one plane. Conservative: a box cut away only by several planes together is
+    /// kept.
+    pub(crate) fn cuts_away(&self, lo: Vec3, hi: Vec3) -> bool {
+        if let Some(crop) = self.crop
+            && (hi.cmplt(crop.lo - CUT_MARGIN).any() || lo.cmpgt(crop.hi + CUT_MARGIN).any())
+        {
+            return true;
+        }
+        self.planes.iter().any(|p| {
+            let n = p.normal.normalize_or_zero();
+            // The box corner farthest along the normal.
+            let corner = Vec3::select(n.cmpge(Vec3::ZERO), hi, lo);
+            (corner - p.point).dot(n) < -CUT_MARGIN
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ray_x() -> Ray {
+        Ray {
+            origin: Vec3::new(-10.0, 2.0, 2.0),
+            direction: Vec3::X,
+        }
+    }
+
+    #[test]
+    fn box_and_planes_cut_one_interval() {
+        let region = ClipRegion {
+            crop: Some(CropBox {
+                lo: Vec3::new(2.0, 0.0, 0.0),
+                hi: Vec3::new(12.0, 5.0, 5.0),
+            }),
+            planes: vec![ClipPlane {
+                point: Vec3::new(8.0, 0.0, 0.0),
+                normal: Vec3::new(-2.0, 0.0, 0.0),
+            }],
+        };
+        assert_eq!(region.interval(&ray_x(), 10.0, 30.0), Some((12.0, 18.0)));
+        // A plane keeping nothing of the ray, and one parallel to it.
+        let mut away = region.clone();
+        away.planes.push(ClipPlane {
+            point: Vec3::new(20.0, 0.0, 0.0),
+            normal: Vec3::X,
+        });
+        assert_eq!(away.interval(&ray_x(), 10.0, 30.0), None);
+        let parallel = ClipRegion {
+            crop: None,
+            planes: vec![ClipPlane {
+                point: Vec3::new(0.0, 3.0, 0.0),
+                normal: Vec3::Y,
+            }],
+        };
+        assert_eq!(parallel.interval(&ray_x(), 10.0, 30.0), None);
+        let parallel_kept = ClipRegion {
+            crop: None,
+            planes: vec![ClipPlane {
+                point: Vec3::new(0.0, 1.0, 0.0),
+                normal: Vec3::Y,
+            }],
+        };
+        assert_eq!(
+            parallel_kept.interval(&ray_x(), 10.0, 30.0),
+            Some((10.0, 30.0))
+        );
+    }
+
+    #[test]
+    fn bricks_outside_are_cut_away() {
+        let region = ClipRegion {
+            crop: Some(CropBox {
+                lo: Vec3::splat(8.0),
+                hi: Vec3::splat(16.0),
+            }),
+            planes: vec![ClipPlane {
+                point: Vec3::splat(12.0),
+                normal: Vec3::new(1.0, 1.0, 0.0),
+            }],
+        };
+        assert!(region.cuts_away(Vec3::ZERO, Vec3::splat(7.0)));
+        // Touching the box, but behind the plane; then in front of it.
+        assert!(region.cuts_away(Vec3::ZERO, Vec3::splat(8.0)));
+        assert!(!region.cuts_away(Vec3::new(0.0, 15.0, 0.0), Vec3::new(8.0, 30.0, 8.0)));
+        // Inside the box but behind the plane.
+        assert!(region.cuts_away(Vec3::splat(8.0), Vec3::new(11.0, 12.0, 16.0)));
+        assert!(!region.cuts_away(Vec3::splat(8.0), Vec3::new(12.0, 12.0, 16.0)));
+        assert!(!ClipRegion::default().cuts_away(Vec3::ZERO, Vec3::ONE));
+    }
+
+    #[test]
+    fn validation_names_the_problem() {
+        let inverted = ClipRegion {
+            crop: Some(CropBox {
+                lo: Vec3::splat(3.0),
+                hi: Vec3::new(5.0, 2.0, 5.0),
+            }),
+            planes: Vec::new(),
+        };
+        assert!(
+            inverted
+                .validate()
+                .unwrap_err()
+                .to_string()
+                .contains("inverted")
+        );
+        let zero = ClipRegion {
+            crop: None,
+            planes: vec![ClipPlane {
+                point: Vec3::ZERO,
+                normal: Vec3::ZERO,
+            }],
+        };
+        assert!(
+            zero.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("zero normal")
+        );
+        let nan = ClipRegion {
+            crop: None,
+            planes: vec![ClipPlane {
+                point: Vec3::new(f32::NAN, 0.0, 0.0),
+                normal: Vec3::X,
+            }],
+        };
+        assert!(nan.validate().is_err());
+        let many = ClipRegion {
+            crop: None,
+            planes: vec![
+                ClipPlane {
+                    point: Vec3::ZERO,
+                    normal: Vec3::X
+                };
+                7
+            ],
+        };
+        assert!(many.validate().is_err());
+        assert!(ClipRegion::default().validate().is_ok());
+    }
+}

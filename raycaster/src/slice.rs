@@ -1,0 +1,242 @@
+//! Axis-aligned slices of a volume (multi-planar reformatting, MPR): one plane of
+//! voxels read through the volume's samples — mapped or in RAM, linear or
+//! bricked — and its greyscale image under a value window.
+//!
+//! Only the slice's voxels are read: a slice of a mapped 30 GB file touches the
+//! pages holding that plane, nothing else.
+
+use std::fmt;
+
+use crate::render::RgbImage;
+use crate::volume::{Sample, TypedVolume, Volume, VolumeData};
+
+/// An axis of the volume's voxel grid.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Axis {
+    /// The first axis (the slowest in linear files).
+    X,
+    /// The second axis.
+    Y,
+    /// The third (the slice axis of CT-like data; world up).
+    Z,
+}
+
+impl Axis {
+    /// Every axis.
+    pub const ALL: [Axis; 3] = [Axis::X, Axis::Y, Axis::Z];
+
+    /// The axis's index (x 0, y 1, z 2).
+    pub fn index(self) -> usize {
+        match self {
+            Axis::X => 0,
+            Axis::Y => 1,
+            Axis::Z => 2,
+        }
+    }
+
+    /// The axis's name (`x`, `y`, `z`).
+    pub fn name(self) -> &'static str {
+        ["x", "y", "z"][self.index()]
+    }
+
+    /// The two other axes: the slice's columns and rows.
+    pub fn in_plane(self) -> [usize; 2] {
+        match self {
+            Axis::X => [1, 2],
+            Axis::Y => [0, 2],
+            Axis::Z => [0, 1],
+        }
+    }
+}
+
+/// Why a slice cannot be taken.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum SliceError {
+    /// The index lies outside the volume along the axis.
+    #[error("slice index {index} is outside the volume along {axis} (0..={last})", axis = axis.name())]
+    Index {
+        /// The axis.
+        axis: Axis,
+        /// The index asked for.
+        index: u32,
+        /// The last index along the axis.
+        last: u32,
+    },
+    /// A window whose low end is not below its high end, or not finite.
+    #[error("window {0},{1} must have finite lo < hi")]
+    Window(f32, f32),
+}
+
+/// One slice of a volume: its raw values (u8 samples widened to u16), row by row.
+///
+/// Columns run along the first in-plane axis ([`Axis::in_plane`]: y for x
+/// slices, x otherwise), rows along the second (z for x and y slices, y for z
+/// slices), its largest coordinate in the top row, so that +z (world up) points
+/// up in x and y slices.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Slice {
+    /// The axis the slice is perpendicular to.
+    pub axis: Axis,
+    /// Its index along that axis.
+    pub index: u32,
+    /// Columns.
+    pub width: u32,
+    /// Rows.
+    pub height: u32,
+    /// Raw values, `width × height`, rows from the top.
+    pub values: Vec<u16>,
+}
+
+impl fmt::Display for Axis {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl Slice {
+    /// Slice `index` of `volume` perpendicular to `axis`.
+    pub fn extract(volume: &Volume, axis: Axis, index: u32) -> Result<Slice, SliceError> {
+        let dims = volume.dims();
+        let a = axis.index();
+        if index >= dims[a] {
+            return Err(SliceError::Index {
+                axis,
+                index,
+                last: dims[a] - 1,
+            });
+        }
+        let values = match volume.data() {
+            VolumeData::U8(data) => plane(&data, axis, index),
+            VolumeData::U16(data) => plane(&data, axis, index),
+        };
+        let [u, v] = axis.in_plane();
+        Ok(Slice {
+            axis,
+            index,
+            width: dims[u],
+            height: dims[v],
+            values,
+        })
+    }
+
+    /// The smallest and largest value in the slice.
+    pub fn range(&self) -> [u16; 2] {
+        self.values
+            .iter()
+            .fold([u16::MAX, 0], |[lo, hi], &v| [lo.min(v), hi.max(v)])
+    }
+
+    /// The slice as a greyscale image: `window` `[lo, hi]` (raw values) maps to
+    /// black..white, values outside it clamp; `None` windows the slice's own
+    /// value range (a flat slice shows mid-grey).
+    pub fn to_image(&self, window: Option<[f32; 2]>) -> Result<RgbImage, SliceError> {
+        let [lo, hi] = match window {
+            Some([lo, hi]) => {
+                if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+                    return Err(SliceError::Window(lo, hi));
+                }
+                [lo, hi]
+            }
+            None => self.range().map(f32::from),
+        };
+        let grey = |v: u16| -> u8 {
+            if hi > lo {
+                let g = (f32::from(v) - lo) / (hi - lo);
+                (g.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
+            } else {
+                128
+            }
+        };
+        let data = self
+            .values
+            .iter()
+            .flat_map(|&v| {
+                let g = grey(v);
+                [g, g, g]
+            })
+            .collect();
+        Ok(RgbImage::new(self.width, self.height, data))
+    }
+}
+
+/// The plane's values, rows from the top (see [`Slice`]).
+fn plane<T: Sample>(data: &TypedVolume<'_, T>, axis: Axis, index: u32) -> Vec<u16> {
+    let dims = data.dims();
+    let [u, v] = axis.in_plane();
+    let a = axis.index();
+    let mut out = Vec::with_capacity(dims[u] as usize * dims[v] as usize);
+    for row in (0..dims[v]).rev() {
+        for col in 0..dims[u] {
+            let mut voxel = [0u32; 3];
+            voxel[a] = index;
+            voxel[u] = col;
+            voxel[v] = row;
+            out.push(data.voxel(voxel).to_u16());
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::volume::{Content, Format, Header, Layout, SampleType};
+
+    fn volume() -> Volume {
+        let dims = [5, 4, 3];
+        let header = Header::new(
+            dims,
+            [1.0; 3],
+            Layout::Linear,
+            SampleType::U16,
+            Content::Scalar,
+            Format::Extended,
+        );
+        let mut samples = Vec::new();
+        for x in 0..5u16 {
+            for y in 0..4u16 {
+                for z in 0..3u16 {
+                    samples.push(100 * x + 10 * y + z);
+                }
+            }
+        }
+        Volume::from_samples("slices", &header, &samples).unwrap()
+    }
+
+    #[test]
+    fn slices_put_columns_and_rows_on_the_other_axes_top_row_highest() {
+        let v = volume();
+        let z = Slice::extract(&v, Axis::Z, 2).unwrap();
+        assert_eq!((z.width, z.height), (5, 4));
+        // Top row: y = 3; column x.
+        assert_eq!(&z.values[..5], &[32, 132, 232, 332, 432]);
+        let x = Slice::extract(&v, Axis::X, 4).unwrap();
+        assert_eq!((x.width, x.height), (4, 3));
+        assert_eq!(&x.values[..4], &[402, 412, 422, 432]);
+        let y = Slice::extract(&v, Axis::Y, 1).unwrap();
+        assert_eq!(y.values[y.values.len() - 1], 410);
+        assert_eq!(y.range(), [10, 412]);
+        assert_eq!(
+            Slice::extract(&v, Axis::Y, 4),
+            Err(SliceError::Index {
+                axis: Axis::Y,
+                index: 4,
+                last: 3
+            })
+        );
+    }
+
+    #[test]
+    fn windows_map_to_grey_and_clamp() {
+        let v = volume();
+        let z = Slice::extract(&v, Axis::Z, 0).unwrap();
+        let image = z.to_image(Some([0.0, 100.0])).unwrap();
+        // Top row, x = 0: value 30 → 77; x ≥ 1: ≥ 130 → white.
+        assert_eq!(image.pixel(0, 0), [77; 3]);
+        assert_eq!(image.pixel(1, 0), [255; 3]);
+        let own = z.to_image(None).unwrap();
+        assert_eq!(own.pixel(0, 3), [0; 3]);
+        assert_eq!(own.pixel(4, 0), [255; 3]);
+        assert!(z.to_image(Some([5.0, 5.0])).is_err());
+    }
+}
