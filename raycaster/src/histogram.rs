@@ -161,10 +161,9 @@ mod tests {
     #[test]
     fn the_terminal_chart_spans_the_values_present() {
         // A CT-like histogram: values 31000..=35000 of u16.
-        let mut counts = vec![0u64; 35001];
-        for v in 31000..=35000 {
-            counts[v] = 1 + (v as u64 % 7);
-        }
+        let counts: Vec<u64> = (0..=35000u64)
+            .map(|v| if v >= 31000 { 1 + v % 7 } else { 0 })
+            .collect();
         let h = Histogram::from_counts(counts);
         let bins = h.over_data(16);
         assert_eq!(bins.len(), 16);

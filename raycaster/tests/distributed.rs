@@ -378,4 +378,3 @@ fn direct_send_of_partial_images_matches_for_dvr_and_refuses_other_modes() {
         assert!(error.to_string().contains("DVR only"), "{error}");
     }
 }
-
