@@ -53,6 +53,16 @@ pub struct PixelRect {
 }
 
 impl PixelRect {
+    /// Rows `y0..y1` of an image `width` pixels wide.
+    pub(crate) fn rows(width: u32, y0: u32, y1: u32) -> PixelRect {
+        PixelRect {
+            x0: 0,
+            y0,
+            x1: width,
+            y1,
+        }
+    }
+
     /// Number of pixels inside.
     pub fn area(&self) -> u64 {
         u64::from(self.x1 - self.x0) * u64::from(self.y1 - self.y0)

@@ -60,12 +60,7 @@ impl DirectSend<'_> {
         let partial = match self.partition.screen_rect(rank, self.camera, geometry) {
             Some(r) => {
                 let rows = r.y0 / tile..r.y1.div_ceil(tile);
-                let band = PixelRect {
-                    x0: 0,
-                    y0: rows.start * tile,
-                    x1: width,
-                    y1: (rows.end * tile).min(height),
-                };
+                let band = PixelRect::rows(width, rows.start * tile, (rows.end * tile).min(height));
                 let schedule = FrameSchedule::new(
                     self.volume,
                     self.plan,
@@ -104,15 +99,7 @@ impl DirectSend<'_> {
             let (band, pixels) = partial.as_ref()?;
             let (y0, y1) = strip(owner, ranks, height);
             let (y0, y1) = (y0.max(band.y0), y1.min(band.y1));
-            (y0 < y1).then_some((
-                PixelRect {
-                    x0: 0,
-                    y0,
-                    x1: width,
-                    y1,
-                },
-                pixels,
-            ))
+            (y0 < y1).then_some((PixelRect::rows(width, y0, y1), pixels))
         };
         for owner in (0..ranks).filter(|&o| o != rank) {
             let mut message = Vec::new();
@@ -127,20 +114,13 @@ impl DirectSend<'_> {
         }
         // The strip this rank owns: every rank's rows, over in visibility order.
         let (y0, y1) = strip(rank, ranks, height);
-        let mine = PixelRect {
-            x0: 0,
-            y0,
-            x1: width,
-            y1,
-        };
+        let mine = PixelRect::rows(width, y0, y1);
         let mut layers: Vec<Option<(PixelRect, BandPixels)>> = (0..ranks).map(|_| None).collect();
         for (from, layer) in layers.iter_mut().enumerate() {
             if from == rank {
                 *layer = rows_in(rank).map(|(rect, pixels)| {
                     let band = partial.as_ref().expect("rows imply a partial image").0;
-                    let mut bytes = Vec::new();
-                    pixels.encode_rows(&mut bytes, band, rect);
-                    (rect, BandPixels::decode(&bytes, rect))
+                    (rect, pixels.rows(band, rect))
                 });
                 continue;
             }
@@ -158,12 +138,7 @@ impl DirectSend<'_> {
             if !(y0 <= a && a < b && b <= y1) {
                 return Err(malformed());
             }
-            let rect = PixelRect {
-                x0: 0,
-                y0: a,
-                x1: width,
-                y1: b,
-            };
+            let rect = PixelRect::rows(width, a, b);
             if message.len() != 8 + rect.area() as usize * BandPixels::BYTES_PER_PIXEL {
                 return Err(malformed());
             }

@@ -88,11 +88,9 @@ impl Partition {
     /// every axis is not cut further; the parts it cannot give are empty.
     pub(crate) fn balanced(geometry: &VolumeGeometry, plan: &FramePlan, parts: usize) -> Partition {
         let grid = geometry.grid();
-        let rendered: Vec<bool> = (0..grid.block_count() as usize)
-            .map(|i| !plan.brick_droppable(i))
-            .collect();
         let counts = grid.counts();
-        let weight_of = |b: [u32; 3]| -> u64 { u64::from(rendered[grid.index(b) as usize]) };
+        let weight_of =
+            |b: [u32; 3]| -> u64 { u64::from(!plan.brick_droppable(grid.index(b) as usize)) };
         let mut partition = Partition {
             parts: vec![
                 BrickBox {
@@ -110,7 +108,7 @@ impl Partition {
             hi: counts,
         };
         partition.split(whole, 0, parts.max(1), &weight_of);
-        for (p, part) in partition.parts.clone().iter().enumerate() {
+        for (p, part) in partition.parts.iter().enumerate() {
             let mut occupied: Option<BrickBox> = None;
             let mut weight = 0;
             for_each_brick(part, |b| {

@@ -152,9 +152,6 @@ pub fn render_distributed(
     let geometry = volume.geometry();
     let partition = Partition::balanced(geometry, &plan, ranks);
     let order = partition.visibility_order(camera, geometry);
-    let rects: Vec<Option<PixelRect>> = (0..ranks)
-        .map(|p| partition.screen_rect(p, camera, geometry))
-        .collect();
     let part = partition.parts()[rank];
     let mut own = RankStats {
         rank: rank as u32,
@@ -178,13 +175,21 @@ pub fn render_distributed(
             options: &options.parallel,
         }
         .run(&mut own)?;
-        let mut rows = Vec::new();
-        pixels.encode_rows(&mut rows, rect, rect);
-        let finals = vec![(rect, rows)];
         return gather(
-            link, own, finals, &plan, volume, camera, settings, options, start,
+            link,
+            own,
+            vec![(rect, pixels)],
+            &plan,
+            volume,
+            camera,
+            settings,
+            options,
+            start,
         );
     }
+    let rects: Vec<Option<PixelRect>> = (0..ranks)
+        .map(|p| partition.screen_rect(p, camera, geometry))
+        .collect();
     let tile = options.parallel.tile_size.max(1);
     let schedule = FrameSchedule::new(volume, &plan, camera, tile, Some(&part));
     let tiles_per_row = width.div_ceil(tile) as usize;
@@ -195,14 +200,9 @@ pub fn render_distributed(
     let record = plan.compositor.run(StateBytes);
     let workers = renderer.workers_for(&options.parallel);
     // Resolved bands: their rows and pixels, for rank 0.
-    let mut finals: Vec<(PixelRect, Vec<u8>)> = Vec::new();
+    let mut finals: Vec<(PixelRect, BandPixels)> = Vec::new();
     for (b, rows) in bands.iter().enumerate() {
-        let rect = PixelRect {
-            x0: 0,
-            y0: rows.start * tile,
-            x1: width,
-            y1: (rows.end * tile).min(height),
-        };
+        let rect = PixelRect::rows(width, rows.start * tile, (rows.end * tile).min(height));
         let chain = chain(&order, &rects, &rect);
         let Some(position) = chain.iter().position(|&r| r == rank) else {
             continue;
@@ -256,11 +256,7 @@ pub fn render_distributed(
                 .map_err(|e| link_error(rank, &e))?;
                 own.relay += sending.elapsed();
             }
-            None => {
-                let mut rows = Vec::new();
-                sink.pixels.into_inner().encode_rows(&mut rows, rect, rect);
-                finals.push((rect, rows));
-            }
+            None => finals.push((rect, sink.pixels.into_inner())),
         }
     }
     gather(
@@ -274,7 +270,7 @@ pub fn render_distributed(
 fn gather(
     link: &dyn Link,
     own: RankStats,
-    finals: Vec<(PixelRect, Vec<u8>)>,
+    finals: Vec<(PixelRect, BandPixels)>,
     plan: &FramePlan,
     volume: &RenderVolume<'_>,
     camera: &Camera,
@@ -288,11 +284,11 @@ fn gather(
         // One message per band (a whole image could pass MPI's 2 GiB count
         // limit), then an empty one.
         let mut sent = Ok(());
-        for (rect, rows) in finals.into_iter().filter(|(r, _)| r.y0 < r.y1) {
-            let mut message = Vec::with_capacity(8 + rows.len());
+        for (rect, pixels) in finals.iter().filter(|(r, _)| r.y0 < r.y1) {
+            let mut message = Vec::new();
             put_u32(&mut message, rect.y0);
             put_u32(&mut message, rect.y1);
-            message.extend_from_slice(&rows);
+            pixels.encode_rows(&mut message, *rect, *rect);
             sent = sent.and_then(|()| link.send(0, FINAL_TAG, message));
         }
         sent.and_then(|()| link.send(0, FINAL_TAG, Vec::new()))
@@ -307,14 +303,8 @@ fn gather(
     }
     let gathering = Instant::now();
     let mut frame = Frame::empty(width, height, settings.background);
-    let rows_rect = |y0, y1| PixelRect {
-        x0: 0,
-        y0,
-        x1: width,
-        y1,
-    };
-    for (rect, rows) in finals.iter().filter(|(r, _)| r.y0 < r.y1) {
-        BandPixels::decode(rows, *rect).write_into(&mut frame, *rect);
+    for (rect, pixels) in &finals {
+        pixels.write_into(&mut frame, *rect);
     }
     let mut all = vec![own];
     for from in 1..ranks {
@@ -328,7 +318,7 @@ fn gather(
             }
             let mut header = Reader::new(message.get(..8).ok_or_else(malformed)?);
             let (y0, y1) = (header.u32(), header.u32());
-            let rect = rows_rect(y0, y1);
+            let rect = PixelRect::rows(width, y0, y1);
             if !(y0 < y1 && y1 <= height)
                 || message.len() != 8 + rect.area() as usize * BandPixels::BYTES_PER_PIXEL
             {
@@ -421,6 +411,18 @@ impl BandPixels {
         }
     }
 
+    /// The pixels of full-width `rows` (inside `band`, which these pixels
+    /// cover).
+    pub fn rows(&self, band: PixelRect, rows: PixelRect) -> BandPixels {
+        let w = (band.x1 - band.x0) as usize;
+        let range = (rows.y0 - band.y0) as usize * w..(rows.y1 - band.y0) as usize * w;
+        BandPixels {
+            rgba: self.rgba[range.clone()].to_vec(),
+            depth: self.depth[range].to_vec(),
+        }
+    }
+
+    /// Pixels of `rect` from bytes of [`Self::encode_rows`].
     pub fn decode(bytes: &[u8], rect: PixelRect) -> BandPixels {
         let mut r = Reader::new(bytes);
         let n = rect.area() as usize;
@@ -435,6 +437,7 @@ impl BandPixels {
         pixels
     }
 
+    /// Writes the pixels (of `rect`) into `frame`.
     pub fn write_into(&self, frame: &mut Frame, rect: PixelRect) {
         let w = (rect.x1 - rect.x0) as usize;
         for (row, y) in (rect.y0..rect.y1).enumerate() {
@@ -478,7 +481,7 @@ impl TileSink for BandSink {
 }
 
 impl RankStats {
-    const WORDS: usize = 18;
+    const WORDS: usize = 17;
 
     fn to_bytes(self) -> Vec<u8> {
         let c = self.counters;
@@ -501,7 +504,6 @@ impl RankStats {
             c.tasks_skipped_occluded,
             c.tasks,
             u64::from(self.bands),
-            0,
         ];
         for w in words {
             out.extend_from_slice(&w.to_le_bytes());
@@ -535,8 +537,8 @@ impl RankStats {
                 tasks: w[15],
             },
             bands: w[16] as u32,
-            render: Duration::from_nanos(w[18]),
-            relay: Duration::from_nanos(w[19]),
+            render: Duration::from_nanos(w[17]),
+            relay: Duration::from_nanos(w[18]),
         })
     }
 
