@@ -1,23 +1,14 @@
 //! `raycaster render --crop/--clip/--mode sabella` and `raycaster slice`, driven
 //! as a user would: real binary, real files.
 
+mod support;
+
+use support::{raycaster, stderr};
+
 use std::path::Path;
-use std::process::{Command, Output};
 
 use raycaster::render::RgbImage;
 use raycaster::volume::{Content, Format, Header, Layout, SampleType, Volume};
-
-fn raycaster(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_raycaster"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("the binary runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
 
 /// Voxel (x, y, z) = `100·x + 10·y + z` (u16) or that modulo 256 (u8).
 struct Formula(SampleType);

@@ -1,21 +1,12 @@
 //! The `raycaster render` command driven as a user would: real binary, real files.
 
+mod support;
+
+use support::{raycaster, stderr};
+
 use std::path::Path;
-use std::process::{Command, Output};
 
 use raycaster::render::RgbImage;
-
-fn raycaster(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_raycaster"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("the binary runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
 
 #[test]
 fn renders_the_built_in_scene_without_arguments_but_the_output() {

@@ -2,23 +2,15 @@
 //! rendering, no overwrite without --force, PNG only, a label volume given as data,
 //! near-miss presets, negative values, a closed stdout, absurd spacings.
 
+mod support;
+
+use support::{raycaster, stderr};
+
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
 use raycaster::volume::{Content, Format, Header, Layout, SampleType};
-
-fn raycaster(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_raycaster"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("the binary runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
 
 const SMALL: [&str; 4] = ["--scene-size", "16", "--size", "24"];
 
