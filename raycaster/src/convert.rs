@@ -7,7 +7,8 @@ use std::path::Path;
 use crate::io::{Input, InputType, WriteOptions, WriteSummary, write_volume};
 use crate::job::Job;
 use crate::volume::{
-    AtPath, Content, Format, Header, Layout, Sample, SampleType, VolumeError, VolumeErrorKind,
+    AtPath, Content, Format, Header, Layout, Sample, SampleType, ValueUnits, VolumeError,
+    VolumeErrorKind,
 };
 
 /// What the output of a conversion looks like.
@@ -42,6 +43,28 @@ pub enum ValueMap {
 pub const I16_OFFSET: f32 = 32768.0;
 
 impl ValueMap {
+    /// What samples stored with this map mean, for input values meaning
+    /// `input`: the map inverted (a window's step per stored unit) and composed
+    /// with the input's units; the unit name carries over.
+    pub fn output_units(self, input: &ValueUnits, sample: SampleType) -> ValueUnits {
+        // value = input.scale × v + input.offset, with v = a × stored + b.
+        let (a, b) = match self {
+            ValueMap::Copy => (1.0, 0.0),
+            ValueMap::Offset => (1.0, -f64::from(I16_OFFSET)),
+            ValueMap::Window(lo, hi) if hi > lo => (
+                (f64::from(hi) - f64::from(lo)) / f64::from(sample.max_value()),
+                f64::from(lo),
+            ),
+            // A collapsed window stores one value: keep the values' origin.
+            ValueMap::Window(lo, _) => (1.0, f64::from(lo)),
+        };
+        ValueUnits {
+            scale: input.scale * a,
+            offset: input.scale * b + input.offset,
+            unit: input.unit.clone(),
+        }
+    }
+
     /// The function from an input value to a stored sample of type `T`.
     pub fn to_sample<T: Sample>(self) -> impl Fn(f32) -> T + Copy {
         move |v: f32| match self {
@@ -71,7 +94,11 @@ pub fn plan_values(
         _ => SampleType::U16,
     });
     let map = match window {
-        Some((lo, hi)) => ValueMap::Window(lo, hi),
+        // The window is given in the input's units.
+        Some((lo, hi)) => {
+            let [lo, hi] = input.units().stored_range([lo, hi]);
+            ValueMap::Window(lo, hi)
+        }
         None if value_type.fits_in(sample_type) => ValueMap::Copy,
         None if value_type == InputType::I16 && sample_type == SampleType::U16 => ValueMap::Offset,
         None => {
@@ -132,6 +159,14 @@ pub fn convert(
     // The header is checked before the (possibly long) value-range pass.
     header.validate().at(output)?;
     let (_, values) = plan_values(input, Some(sample_type), options.window, job)?;
+    // Units need the extended header; a thesis file of a windowed input keeps
+    // stored values only (the summary's value map says how they were made).
+    let header = match (content, options.format) {
+        (Content::Scalar, Format::Extended) => {
+            header.with_units(Some(values.output_units(input.units(), sample_type)))
+        }
+        _ => header,
+    };
     let written = match sample_type {
         SampleType::U8 => copy_slabs::<u8>(input, output, &header, values, write, job)?,
         SampleType::U16 => copy_slabs::<u16>(input, output, &header, values, write, job)?,

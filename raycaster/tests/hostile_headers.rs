@@ -14,9 +14,9 @@ use std::path::{Path, PathBuf};
 use proptest::prelude::*;
 use proptest::sample::Index;
 use raycaster::volume::{
-    Access, BlockGrid, BrickRanges, Content, EXTENDED_HEADER_LEN, Format, Header, HeaderError,
-    LINEAR_RANGE_SIDE, Layout, MAX_AXIS, OpenOptions, SampleType, THESIS_HEADER_LEN, TypedVolume,
-    Volume, VolumeError, VolumeErrorKind, ranges_sidecar_path,
+    Access, BlockGrid, BrickRanges, Content, Format, Header, HeaderError, LINEAR_RANGE_SIDE,
+    Layout, MAX_AXIS, OpenOptions, SampleType, THESIS_HEADER_LEN, TypedVolume, Volume, VolumeError,
+    VolumeErrorKind, ranges_sidecar_path,
 };
 use tempfile::TempDir;
 
@@ -735,7 +735,7 @@ fn extended_bad_magic() {
 #[test]
 fn extended_unsupported_version() {
     let dir = TempDir::new().unwrap();
-    for version in [0u16, 3, 0x100, u16::MAX] {
+    for version in [0u16, 4, 0x100, u16::MAX] {
         extended_case(
             &dir,
             &format!("v{version}.vol"),
@@ -1057,7 +1057,7 @@ fn parse_and_check(bytes: &[u8], file_len: u64) -> Result<Option<Header>, TestCa
             prop_assert_eq!(h.content, Content::Scalar);
             prop_assert_eq!(h.ranges_offset, None);
         }
-        Format::Extended => prop_assert_eq!(h.data_offset, EXTENDED_HEADER_LEN),
+        Format::Extended => prop_assert_eq!(h.data_offset, h.standard_data_offset()),
     }
     prop_assert!(bytes.len() as u64 >= h.data_offset);
     let side = match h.layout {

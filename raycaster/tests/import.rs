@@ -625,3 +625,118 @@ fn broken_dicom_series_give_clear_errors() {
     let err = import::open(empty.path()).unwrap_err().to_string();
     assert!(err.contains("no DICOM files"), "{err}");
 }
+
+/// The value a sample of `v` stands for, in the file's units.
+fn value_at(v: &Volume, [x, y, z]: [u32; 3]) -> f64 {
+    v.value_units().value(f64::from(v.voxel([x, y, z])))
+}
+
+#[test]
+fn every_fixture_gives_back_its_own_values_in_memory_and_converted() {
+    let dir = tempfile::tempdir().unwrap();
+    for &(name, _, ty, _) in FIXTURES {
+        let mem = import::open_volume_any(&fixtures().join(name), 1 << 20).unwrap();
+        let out = dir.path().join(format!("{name}.vol"));
+        convert_to(&import::open(&fixtures().join(name)).unwrap(), &out, Layout::Linear);
+        let file = Volume::open(&out).unwrap();
+        assert_eq!(file.value_units(), mem.value_units(), "{name}");
+        // u16 samples of a float window are within half a step of the value.
+        let tolerance = match ty {
+            RawType::F32 => mem.value_units().scale / 2.0 + 1e-6,
+            _ => 0.0,
+        };
+        each_voxel(|x, y, z| {
+            let want = f64::from(expected(ty, x, y, z));
+            for v in [&mem, &file] {
+                let got = value_at(v, [x, y, z]);
+                assert!(
+                    (got - want).abs() <= tolerance,
+                    "{name} at {x},{y},{z}: {got} != {want}"
+                );
+            }
+        });
+        // Integer types are stored as they are or offset: no unit is invented.
+        assert_eq!(mem.value_units().unit, "", "{name}");
+    }
+}
+
+/// A MetaImage CT scan: `Modality = MET_MOD_CT`, i16 values in HU.
+fn write_ct_metaimage(path: &Path, values: &[i16]) {
+    let mut bytes = format!(
+        "ObjectType = Image\nNDims = 3\nDimSize = {} 1 1\nElementSpacing = 1 1 1\n\
+         Modality = MET_MOD_CT\nElementType = MET_SHORT\nElementDataFile = LOCAL\n",
+        values.len()
+    )
+    .into_bytes();
+    for v in values {
+        bytes.extend_from_slice(&v.to_le_bytes());
+    }
+    std::fs::write(path, bytes).unwrap();
+}
+
+#[test]
+fn a_ct_scan_keeps_hounsfield_units_through_conversion_and_windows_in_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let scan = dir.path().join("ct.mha");
+    let hu: [i16; 6] = [-1024, -1000, -500, 0, 400, 3071];
+    write_ct_metaimage(&scan, &hu);
+    let imported = import::open(&scan).unwrap();
+    assert!(imported.units().is_hounsfield());
+    let mem = imported.to_volume(1 << 20).unwrap();
+    let units = mem.value_units();
+    assert!(units.is_hounsfield());
+    assert_eq!((units.scale, units.offset), (1.0, -32768.0));
+    for (x, &want) in hu.iter().enumerate() {
+        assert_eq!(value_at(&mem, [x as u32, 0, 0]), f64::from(want));
+    }
+    // Converted to a file, the header's value block (version 3) keeps them; the
+    // file opens, and a .vol → .vol conversion with a window in HU maps that
+    // window onto u8 and still knows what the samples mean.
+    let vol = dir.path().join("ct.vol");
+    convert_to(&imported, &vol, Layout::Bricked { side: 4 });
+    let bytes = std::fs::read(&vol).unwrap();
+    assert_eq!(u16::from_le_bytes([bytes[30], bytes[31]]), 3);
+    assert_eq!(Volume::open(&vol).unwrap().value_units(), units);
+    let windowed = dir.path().join("ct-u8.vol");
+    let input = raycaster::io::Input::open_vol(&vol).unwrap();
+    let options = ConvertOptions {
+        layout: Layout::Linear,
+        sample_type: Some(SampleType::U8),
+        format: Format::Extended,
+        spacing: None,
+        window: Some((-1000.0, 3080.0)),
+    };
+    let done = convert(
+        &input,
+        &windowed,
+        &options,
+        &WriteOptions::default(),
+        &Job::silent(),
+    )
+    .unwrap();
+    assert_eq!(done.values, ValueMap::Window(31768.0, 35848.0));
+    let u8_volume = Volume::open(&windowed).unwrap();
+    let u8_units = u8_volume.value_units();
+    assert!(u8_units.is_hounsfield());
+    assert!((u8_units.scale - 16.0).abs() < 1e-9 && u8_units.offset == -1000.0);
+    assert_eq!(u8_volume.voxel([0, 0, 0]), 0, "below the window clamps");
+    for (x, &want) in hu.iter().enumerate().skip(1) {
+        let got = value_at(&u8_volume, [x as u32, 0, 0]);
+        assert!((got - f64::from(want)).abs() <= 8.0, "{got} vs {want}");
+    }
+    // The thesis header has no room: such a conversion stores values only.
+    let thesis = dir.path().join("ct-thesis.vol");
+    let options = ConvertOptions {
+        format: Format::Thesis,
+        ..options
+    };
+    convert(
+        &input,
+        &thesis,
+        &options,
+        &WriteOptions::default(),
+        &Job::silent(),
+    )
+    .unwrap();
+    assert!(Volume::open(&thesis).unwrap().value_units().is_identity());
+}

@@ -46,6 +46,8 @@ struct Slice {
     pixel_spacing: Option<[f64; 2]>,
     between: Option<f64>,
     scaling: Option<(f32, f32)>,
+    /// "HU" for a CT slice (Modality CT), else empty.
+    unit: String,
 }
 
 fn has_dicm_marker(path: &Path) -> bool {
@@ -154,6 +156,16 @@ fn read_slice(path: &Path) -> Result<Slice, ImportErrorKind> {
                 .map(|s| s.trim_end_matches('\0').trim().to_string())
         })
         .unwrap_or_default();
+    // Rescaled CT values are Hounsfield units.
+    let modality = obj.element(tags::MODALITY).ok().and_then(|e| {
+        e.to_str()
+            .ok()
+            .map(|s| s.trim_end_matches('\0').trim().to_string())
+    });
+    let unit = match modality.as_deref() {
+        Some("CT") => crate::volume::HOUNSFIELD.to_string(),
+        _ => String::new(),
+    };
     Ok(Slice {
         path: path.to_path_buf(),
         pixel_offset,
@@ -170,6 +182,7 @@ fn read_slice(path: &Path) -> Result<Slice, ImportErrorKind> {
             .or_else(|| floats(tags::SLICE_THICKNESS))
             .and_then(|v| v.first().copied()),
         scaling,
+        unit,
     })
 }
 
@@ -346,6 +359,7 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
         skip_after_decode: 0,
         encoding: Encoding::Slices,
         scaling: first.scaling,
+        unit: first.unit.clone(),
         slices: slices
             .into_iter()
             .map(|s| (s.path, s.pixel_offset))

@@ -50,6 +50,8 @@ pub struct MetaHeader {
     pub header_size: Option<u64>,
     /// Bytes up to and including the `ElementDataFile` line (attached data offset).
     pub header_len: usize,
+    /// "HU" for `Modality = MET_MOD_CT`, else empty.
+    pub unit: String,
 }
 
 fn parse_bool(key: &str, v: &str) -> Result<bool, ImportErrorKind> {
@@ -223,6 +225,10 @@ pub fn parse_header(bytes: &[u8]) -> Result<MetaHeader, ImportErrorKind> {
         data_file,
         header_size,
         header_len: header_len.unwrap_or(bytes.len()),
+        unit: match get("Modality") {
+            Some("MET_MOD_CT") => crate::volume::HOUNSFIELD.to_string(),
+            _ => String::new(),
+        },
     })
 }
 
@@ -259,6 +265,7 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
             Encoding::Raw
         },
         scaling: None,
+        unit: h.unit,
         slices: Vec::new(),
     })
 }

@@ -26,7 +26,8 @@ use crate::convert::{ValueMap, plan_values};
 use crate::io::{Endian, Input, RawData, RawOrder, RawSpec, RawType};
 use crate::job::Job;
 use crate::volume::{
-    Content, Format as VolFormat, Header, Layout, MAX_AXIS, Sample, SampleType, Volume, VolumeError,
+    Content, Format as VolFormat, Header, Layout, MAX_AXIS, Sample, SampleType, ValueUnits, Volume,
+    VolumeError,
 };
 
 /// Default limit of [`open_volume_any`] on the samples built in memory: 1 GiB.
@@ -100,8 +101,12 @@ pub struct Imported {
     /// Raw or compressed.
     pub encoding: Encoding,
     /// The linear value scaling the file declares (`value = slope · stored +
-    /// intercept`), reported but not applied.
+    /// intercept`): samples are converted unscaled and the scaling is kept as the
+    /// volume's [`ValueUnits`], so values are given and shown in the file's units.
     pub scaling: Option<(f32, f32)>,
+    /// The values' unit where the file says: "HU" for a CT scan (DICOM or
+    /// MetaImage modality CT); empty when unknown.
+    pub unit: String,
     /// For [`Encoding::Slices`]: each z-slice's file and the offset of its samples,
     /// in z order.
     pub slices: Vec<(PathBuf, u64)>,
@@ -419,6 +424,27 @@ impl Imported {
         memory_max: u64,
         job: &Job,
     ) -> Result<Input, ImportError> {
+        let input = self.unscaled_input(scratch_dir, memory_max, job)?;
+        Ok(input.with_units(self.units()))
+    }
+
+    /// What the file's stored values mean: its rescale slope and intercept (or
+    /// none) and its unit.
+    pub fn units(&self) -> ValueUnits {
+        let (slope, intercept) = self.scaling.unwrap_or((1.0, 0.0));
+        ValueUnits {
+            scale: f64::from(slope),
+            offset: f64::from(intercept),
+            unit: self.unit.clone(),
+        }
+    }
+
+    fn unscaled_input(
+        &self,
+        scratch_dir: Option<&Path>,
+        memory_max: u64,
+        job: &Job,
+    ) -> Result<Input, ImportError> {
         let spec = RawSpec {
             dims: self.dims,
             sample: self.sample,
@@ -698,6 +724,7 @@ impl Imported {
             ));
         }
         let input = self.input_with(None, u64::MAX, job)?;
+        let units = input.units().clone();
         let (sample_type, values) = plan_values(&input, Some(sample_type), None, &Job::silent())
             .map_err(|e| ImportError::new(&self.path, e))?;
         let header = Header::new(
@@ -707,7 +734,8 @@ impl Imported {
             sample_type,
             Content::Scalar,
             VolFormat::Extended,
-        );
+        )
+        .with_units(Some(values.output_units(&units, sample_type)));
         let volume = match sample_type {
             SampleType::U8 => build::<u8>(&input, &header, values),
             SampleType::U16 => build::<u16>(&input, &header, values),

@@ -255,6 +255,7 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
         skip_after_decode,
         encoding,
         scaling: h.scaling,
+        unit: String::new(),
         slices: Vec::new(),
     })
 }

@@ -350,6 +350,7 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
         skip_after_decode,
         encoding: h.encoding,
         scaling: None,
+        unit: String::new(),
         slices: Vec::new(),
     })
 }

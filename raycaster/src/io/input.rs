@@ -7,8 +7,8 @@ use std::path::{Path, PathBuf};
 use super::decode::{Endian, RawType, decode_into};
 use crate::job::Job;
 use crate::volume::{
-    AtPath, BlockGrid, Content, Header, Layout, MAX_AXIS, SampleType, VolumeError, VolumeErrorKind,
-    read_header,
+    AtPath, BlockGrid, Content, Header, Layout, MAX_AXIS, SampleType, ValueUnits, VolumeError,
+    VolumeErrorKind, read_header,
 };
 
 /// Bytes read per positioned read when streaming.
@@ -108,6 +108,8 @@ pub struct Input {
     file: RawData,
     source: Source,
     spacing: Option<[f32; 3]>,
+    /// What raw input values mean (raw files: set by the importer that knows).
+    units: ValueUnits,
 }
 
 impl Input {
@@ -157,6 +159,7 @@ impl Input {
             file,
             source: Source::Raw(spec),
             spacing,
+            units: ValueUnits::IDENTITY,
         })
     }
 
@@ -166,6 +169,7 @@ impl Input {
         Ok(Input {
             path: path.to_path_buf(),
             file: RawData::File(file),
+            units: header.value_units(),
             source: Source::Vol(header),
             spacing: None,
         })
@@ -192,6 +196,19 @@ impl Input {
             crate::volume::BrickRanges::decode(&table, header.dims)
                 .is_some_and(|r| r.grid() == &grid),
         )
+    }
+
+    /// This input with `units` saying what its values mean (a foreign file's
+    /// rescale slope and intercept, and its unit when known).
+    pub fn with_units(mut self, units: ValueUnits) -> Input {
+        self.units = units;
+        self
+    }
+
+    /// What the values this input delivers mean (a `.vol` input: its header's
+    /// units; raw files: identity unless an importer said otherwise).
+    pub fn units(&self) -> &ValueUnits {
+        &self.units
     }
 
     /// The file being read.

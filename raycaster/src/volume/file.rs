@@ -5,10 +5,7 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use super::error::{AtPath, VolumeError, VolumeErrorKind};
-use super::header::{
-    Content, EXTENDED_HEADER_LEN, Format, Header, HeaderError, Layout, SampleType,
-    THESIS_HEADER_LEN,
-};
+use super::header::{Content, Format, Header, HeaderError, Layout, MAX_HEADER_LEN, SampleType};
 use super::pyramid::{
     PyramidLayout, SIDECAR_HEAD_LEN, level_dims, pyramid_sidecar_path, sidecar_head,
     sidecar_is_fresh, write_block,
@@ -16,6 +13,7 @@ use super::pyramid::{
 use super::ranges::{BrickRanges, LINEAR_RANGE_SIDE};
 use super::sample::Sample;
 use super::storage::{Access, Storage};
+use super::units::ValueUnits;
 use super::view::TypedVolume;
 
 /// How to open a volume.
@@ -65,9 +63,9 @@ pub fn read_header(path: &Path) -> Result<(Header, File, u64), VolumeError> {
     // Regular files only: a named pipe would block the read below forever.
     let file = crate::files::open_regular(path).at(path)?;
     let len = file.metadata().at(path)?.len();
-    let mut head = Vec::with_capacity(EXTENDED_HEADER_LEN as usize);
+    let mut head = Vec::with_capacity(MAX_HEADER_LEN as usize);
     (&file)
-        .take(EXTENDED_HEADER_LEN)
+        .take(MAX_HEADER_LEN)
         .read_to_end(&mut head)
         .at(path)?;
     let header = Header::parse(&head, len).at(path)?;
@@ -122,10 +120,7 @@ impl Volume {
         let mut header = header.clone();
         header.ranges_offset = None;
         header.pyramid_offset = None;
-        header.data_offset = match header.format {
-            Format::Thesis => THESIS_HEADER_LEN,
-            Format::Extended => EXTENDED_HEADER_LEN,
-        };
+        header.data_offset = header.standard_data_offset();
         if header.sample_type != T::TYPE {
             let kind = VolumeErrorKind::Header(HeaderError::SampleTypeMismatch {
                 header: header.sample_type,
@@ -267,6 +262,11 @@ impl Volume {
     /// Voxel counts on x, y, z.
     pub fn dims(&self) -> [u32; 3] {
         self.header.dims
+    }
+
+    /// What stored samples mean (identity for files without a value block).
+    pub fn value_units(&self) -> ValueUnits {
+        self.header.value_units()
     }
 
     /// Voxel spacing on x, y, z.

@@ -4,6 +4,7 @@
 //! bytes and the file length, so it can be property-tested on random bytes.
 
 use super::grid::BlockGrid;
+use super::units::{UNITS_BLOCK_LEN, ValueUnits};
 
 /// Length of the thesis header (format version 0).
 pub const THESIS_HEADER_LEN: u64 = 26;
@@ -12,8 +13,15 @@ pub const EXTENDED_HEADER_LEN: u64 = 64;
 /// Magic bytes that open the extension block at byte 26.
 pub const EXTENSION_MAGIC: [u8; 4] = *b"RCVX";
 /// The newest extension version this build writes and reads: version 2 adds a
-/// resolution pyramid; files without one are written as version 1.
-pub const EXTENSION_VERSION: u16 = 2;
+/// resolution pyramid, version 3 a value block (what samples mean: units). Files
+/// are written with the oldest version that holds what they carry.
+pub const EXTENSION_VERSION: u16 = 3;
+/// The extension version of files with a pyramid and no value block.
+const EXTENSION_VERSION_PYRAMID: u16 = 2;
+/// The header length of version 3: the extended header and the value block.
+pub const UNITS_HEADER_LEN: u64 = EXTENDED_HEADER_LEN + UNITS_BLOCK_LEN;
+/// The longest header of any version (what a reader reads before parsing).
+pub const MAX_HEADER_LEN: u64 = UNITS_HEADER_LEN;
 
 /// The extension version of files without a pyramid (older readers open them).
 pub const EXTENSION_VERSION_PLAIN: u16 = 1;
@@ -111,6 +119,9 @@ pub struct Header {
     pub ranges_offset: Option<u64>,
     /// Byte offset of the embedded resolution pyramid (extension version 2), if any.
     pub pyramid_offset: Option<u64>,
+    /// What samples mean (extension version 3); `None`: values are the samples.
+    /// Set it with [`Header::with_units`], which moves the data offset.
+    pub units: Option<ValueUnits>,
 }
 
 /// What is wrong with a header.
@@ -169,8 +180,13 @@ pub enum HeaderError {
     #[error("unknown content code {0} (0 = scalar, 1 = labels)")]
     UnknownContent(u8),
     /// The data offset is not where this version puts data.
-    #[error("data offset {0} is not valid for extended header version 1 (must be 64)")]
+    #[error(
+        "data offset {0} is not valid for this extended header (64, or 128 with a value block)"
+    )]
     BadDataOffset(u64),
+    /// The value block is malformed, or units are given where they cannot be.
+    #[error("value units: {0}")]
+    BadUnits(String),
     /// The declared data length does not match the dimensions.
     #[error("header declares {declared} bytes of samples but the sizes need {expected}")]
     DataLengthMismatch {
@@ -253,7 +269,31 @@ impl Header {
             data_offset,
             ranges_offset: None,
             pyramid_offset: None,
+            units: None,
         }
+    }
+
+    /// This header with `units` (identity units are dropped), its data offset
+    /// moved to where the header's version puts samples.
+    pub fn with_units(mut self, units: Option<ValueUnits>) -> Header {
+        self.units = units.filter(|u| !u.is_identity());
+        self.data_offset = self.standard_data_offset();
+        self
+    }
+
+    /// Where samples start for this header's format and contents: 26 (thesis), 64
+    /// (extended), 128 (extended with a value block).
+    pub fn standard_data_offset(&self) -> u64 {
+        match (self.format, &self.units) {
+            (Format::Thesis, _) => THESIS_HEADER_LEN,
+            (Format::Extended, None) => EXTENDED_HEADER_LEN,
+            (Format::Extended, Some(_)) => UNITS_HEADER_LEN,
+        }
+    }
+
+    /// What stored samples mean (identity when the file says nothing).
+    pub fn value_units(&self) -> ValueUnits {
+        self.units.clone().unwrap_or_default()
     }
 
     /// Checks the fields that do not depend on a file: sizes, spacing, brick side,
@@ -285,6 +325,17 @@ impl Header {
         }
         if self.content == Content::Labels && self.sample_type != SampleType::U8 {
             return Err(HeaderError::LabelsNotU8(self.sample_type));
+        }
+        if let Some(units) = &self.units {
+            if self.format == Format::Thesis {
+                return Err(HeaderError::BadUnits(
+                    "the thesis header has no room for value units".into(),
+                ));
+            }
+            if self.content == Content::Labels {
+                return Err(HeaderError::BadUnits("label ids have no units".into()));
+            }
+            units.validate()?;
         }
         self.data_len().map(|_| ())
     }
@@ -382,7 +433,14 @@ impl Header {
                 code => return Err(HeaderError::UnknownContent(code)),
             };
             header.data_offset = u64_at(40);
-            if header.data_offset != EXTENDED_HEADER_LEN {
+            if version >= 3 {
+                if bytes.len() < UNITS_HEADER_LEN as usize || file_len < UNITS_HEADER_LEN {
+                    return Err(too_short(UNITS_HEADER_LEN));
+                }
+                let block = &bytes[EXTENDED_HEADER_LEN as usize..UNITS_HEADER_LEN as usize];
+                header.units = Some(ValueUnits::decode(block)?);
+            }
+            if header.data_offset != header.standard_data_offset() {
                 return Err(HeaderError::BadDataOffset(header.data_offset));
             }
             let declared = u64_at(48);
@@ -433,7 +491,10 @@ impl Header {
     /// Encodes the header; the result is `data_offset` bytes long.
     pub fn encode(&self) -> Result<Vec<u8>, HeaderError> {
         self.validate()?;
-        let mut out = Vec::with_capacity(EXTENDED_HEADER_LEN as usize);
+        if self.data_offset != self.standard_data_offset() {
+            return Err(HeaderError::BadDataOffset(self.data_offset));
+        }
+        let mut out = Vec::with_capacity(MAX_HEADER_LEN as usize);
         for d in self.dims {
             out.extend_from_slice(&d.to_le_bytes());
         }
@@ -453,9 +514,10 @@ impl Header {
                 out.push(order | ORDER_EXTENDED_BIT);
                 out.push(side);
                 out.extend_from_slice(&EXTENSION_MAGIC);
-                let version = match self.pyramid_offset {
-                    Some(_) => EXTENSION_VERSION,
-                    None => EXTENSION_VERSION_PLAIN,
+                let version = match (&self.units, self.pyramid_offset) {
+                    (Some(_), _) => EXTENSION_VERSION,
+                    (None, Some(_)) => EXTENSION_VERSION_PYRAMID,
+                    (None, None) => EXTENSION_VERSION_PLAIN,
                 };
                 out.extend_from_slice(&version.to_le_bytes());
                 out.push(self.sample_type.code());
@@ -471,6 +533,9 @@ impl Header {
                 out.extend_from_slice(&self.data_offset.to_le_bytes());
                 out.extend_from_slice(&self.data_len()?.to_le_bytes());
                 out.extend_from_slice(&self.ranges_offset.unwrap_or(0).to_le_bytes());
+                if let Some(units) = &self.units {
+                    out.extend_from_slice(&units.encode());
+                }
             }
         }
         debug_assert_eq!(out.len() as u64, self.data_offset);
@@ -518,6 +583,50 @@ mod tests {
                 assert_eq!(Header::parse(&bytes, file_len).unwrap(), h);
             }
         }
+    }
+
+    #[test]
+    fn value_block_is_version_3_with_samples_at_128_and_refused_where_it_cannot_be() {
+        let units = ValueUnits::new(1.0, -32768.0, "HU").unwrap();
+        let plain = sample_header(Format::Extended, SampleType::U16, Layout::Linear);
+        let h = plain.clone().with_units(Some(units.clone()));
+        assert_eq!(h.data_offset, UNITS_HEADER_LEN);
+        let bytes = h.encode().unwrap();
+        assert_eq!(bytes.len(), 128);
+        assert_eq!(u16::from_le_bytes([bytes[30], bytes[31]]), 3);
+        let file_len = h.data_end().unwrap();
+        let parsed = Header::parse(&bytes, file_len).unwrap();
+        assert_eq!(parsed.value_units(), units);
+        assert_eq!(parsed, h);
+        // Identity units are no units: such files stay version 1.
+        let identity = plain.clone().with_units(Some(ValueUnits::IDENTITY));
+        assert_eq!(identity, plain);
+        assert_eq!(identity.encode().unwrap().len(), 64);
+        // A version-3 header cut short, or claiming samples at 64.
+        assert!(matches!(
+            Header::parse(&bytes[..100], file_len),
+            Err(HeaderError::TooShort { needed: 128, .. })
+        ));
+        let mut at_64 = bytes.clone();
+        at_64[40..48].copy_from_slice(&64u64.to_le_bytes());
+        assert_eq!(
+            Header::parse(&at_64, file_len),
+            Err(HeaderError::BadDataOffset(64))
+        );
+        let mut bad_block = bytes.clone();
+        bad_block[72..80].copy_from_slice(&f64::NAN.to_le_bytes());
+        assert!(matches!(
+            Header::parse(&bad_block, file_len),
+            Err(HeaderError::BadUnits(_))
+        ));
+        // Units on a thesis header or on labels are refused.
+        let thesis = sample_header(Format::Thesis, SampleType::U8, Layout::Linear)
+            .with_units(Some(units.clone()));
+        assert!(matches!(thesis.encode(), Err(HeaderError::BadUnits(_))));
+        let mut labels = sample_header(Format::Extended, SampleType::U8, Layout::Linear);
+        labels.content = Content::Labels;
+        let labels = labels.with_units(Some(units));
+        assert!(matches!(labels.encode(), Err(HeaderError::BadUnits(_))));
     }
 
     #[test]

@@ -14,6 +14,7 @@ pub mod pyramid;
 mod ranges;
 mod sample;
 mod storage;
+mod units;
 mod view;
 
 pub use error::{VolumeError, VolumeErrorKind};
@@ -23,12 +24,13 @@ pub use file::{
 pub use grid::BlockGrid;
 pub use header::{
     Content, EXTENDED_HEADER_LEN, EXTENSION_MAGIC, EXTENSION_VERSION, Format, Header, HeaderError,
-    Layout, MAX_AXIS, SampleType, THESIS_HEADER_LEN,
+    Layout, MAX_AXIS, MAX_HEADER_LEN, SampleType, THESIS_HEADER_LEN, UNITS_HEADER_LEN,
 };
 pub use pyramid::{COARSEST_EDGE, level_dims, pyramid_sidecar_path, pyramid_voxels};
 pub use ranges::{BrickRanges, LINEAR_RANGE_SIDE};
 pub use sample::Sample;
 pub use storage::Access;
+pub use units::{HOUNSFIELD, MAX_UNIT_LEN, ValueUnits};
 pub use view::{BrickView, TypedVolume};
 
 pub(crate) use error::AtPath;

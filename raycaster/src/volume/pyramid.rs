@@ -217,6 +217,8 @@ fn level_header(base: &Header, dims: [u32; 3], spacing: [f32; 3]) -> Header {
         base.content,
         Format::Extended,
     );
+    // A level's samples are means of level 0's: they mean the same.
+    h.units = base.units.clone();
     h.data_offset = 0;
     h
 }
