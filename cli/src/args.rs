@@ -48,6 +48,68 @@ pub fn parse_domain(s: &str) -> Result<[f32; 2], String> {
     }
 }
 
+/// A value window given on the command line: two values or a named CT window.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum WindowArg {
+    /// `lo,hi` in the file's units.
+    Values([f32; 2]),
+    /// A named window in Hounsfield units (`lung`, `bone`, ...).
+    Named(&'static raycaster::windows::NamedWindow),
+}
+
+impl WindowArg {
+    /// The window in the file's units (a named window's HU).
+    pub fn values(self) -> [f32; 2] {
+        match self {
+            WindowArg::Values(v) => v,
+            WindowArg::Named(w) => w.range(),
+        }
+    }
+}
+
+/// `lo,hi` (values in the file's units) or the name of a CT window.
+pub fn parse_window(s: &str) -> Result<WindowArg, String> {
+    if let Some(named) = raycaster::windows::named_window(s.trim()) {
+        return Ok(WindowArg::Named(named));
+    }
+    if s.contains(',') {
+        return parse_domain(s).map(WindowArg::Values);
+    }
+    Err(format!(
+        "{s:?} is neither lo,hi nor a named window ({})",
+        raycaster::windows::named_window_list()
+    ))
+}
+
+/// An iso-value: a value in the file's units, or `P%` of the transfer
+/// function's domain.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum IsoArg {
+    /// A value in the file's units.
+    Value(f32),
+    /// A fraction 0..=1 of the domain (given as a percentage).
+    Fraction(f32),
+}
+
+/// `V` (finite) or `P%` with P in 0..=100.
+pub fn parse_iso(s: &str) -> Result<IsoArg, String> {
+    let s = s.trim();
+    if let Some(percent) = s.strip_suffix('%') {
+        return match percent.trim().parse::<f32>() {
+            Ok(p) if (0.0..=100.0).contains(&p) => Ok(IsoArg::Fraction(p / 100.0)),
+            _ => Err(format!(
+                "{s:?}: a percentage of the domain lies in 0%..100%"
+            )),
+        };
+    }
+    match s.parse::<f32>() {
+        Ok(v) if v.is_finite() => Ok(IsoArg::Value(v)),
+        _ => Err(format!(
+            "{s:?} is not an iso-value; give a value in the file's units or a percentage of the domain (40%)"
+        )),
+    }
+}
+
 /// A colour: `#rrggbb`, `r,g,b` in 0..255, or black/white/grey.
 pub fn parse_color(s: &str) -> Result<[f32; 3], String> {
     let bad =
@@ -218,6 +280,20 @@ mod tests {
         assert!(parse_color("#12345").is_err());
         assert!(parse_color("300,0,0").is_err());
         assert_eq!(parse_domain("0,4095"), Ok([0.0, 4095.0]));
+        assert_eq!(
+            parse_window("-1000,2000").map(WindowArg::values),
+            Ok([-1000.0, 2000.0])
+        );
+        assert_eq!(
+            parse_window("lung").map(WindowArg::values),
+            Ok([-1350.0, 150.0])
+        );
+        assert!(parse_window("lungs").unwrap_err().contains("soft-tissue"));
+        assert_eq!(parse_iso("40%"), Ok(IsoArg::Fraction(0.4)));
+        assert_eq!(parse_iso("-500"), Ok(IsoArg::Value(-500.0)));
+        for bad in ["101%", "-1%", "nan", "x", "inf"] {
+            assert!(parse_iso(bad).is_err(), "{bad}");
+        }
         assert!(parse_domain("5,5").is_err());
         assert!(parse_threshold("0").is_err());
         assert!(parse_positive("-1").is_err());

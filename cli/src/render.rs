@@ -19,8 +19,8 @@ use raycaster::synth::{SceneKind, synthesize, synthesize_labels};
 use raycaster::volume::{Access, Content, OpenOptions, SampleType, Volume};
 
 use crate::args::{
-    ClipArg, Coord, parse_clip, parse_color, parse_crop, parse_domain, parse_positive, parse_size,
-    parse_threshold, parse_vec3,
+    ClipArg, Coord, IsoArg, WindowArg, parse_clip, parse_color, parse_crop, parse_iso,
+    parse_positive, parse_size, parse_threshold, parse_vec3, parse_window,
 };
 use crate::stats;
 
@@ -70,20 +70,25 @@ pub struct RenderArgs {
     #[arg(long, value_name = "PRESET|FILE")]
     tf: Option<String>,
 
-    /// Stored sample values the transfer function spans, lo,hi (default: the whole
-    /// u8 range; the data's range for u16 volumes). CT scans in i16 (Hounsfield
-    /// units) are stored as HU + 32768, opened directly or converted: −1000..2000 HU
-    /// is `--domain 31768,34768`. A domain outside the data's values gets a warning.
-    #[arg(long, value_parser = parse_domain, allow_hyphen_values = true, value_name = "LO,HI")]
-    domain: Option<[f32; 2]>,
+    /// Values the transfer function spans, LO,HI in the file's units
+    /// (Hounsfield units for CT: `--domain -1000,2000`), or a named CT window:
+    /// ct, bone, soft-tissue, lung, brain. Default: what fits the data — the
+    /// whole range of u8 data, −1000..2000 HU for CT, the 0.5th to 99.5th
+    /// percentile of other 16-bit data. Files converted before value units were
+    /// kept take stored sample values. A domain outside the data's values gets a
+    /// warning.
+    #[arg(long, value_parser = parse_window, allow_hyphen_values = true, value_name = "LO,HI|NAME")]
+    domain: Option<WindowArg>,
 
     /// Compositing mode.
     #[arg(long, value_enum, default_value_t = ModeArg::Dvr)]
     mode: ModeArg,
 
-    /// Iso-value for first-hit mode, 0..1 over the transfer function's domain.
-    #[arg(long, default_value_t = 0.5, value_name = "V")]
-    iso: f32,
+    /// Iso-value of first-hit mode: a value in the file's units (HU for CT:
+    /// `--iso 300` for bone) or a percentage of the transfer function's domain
+    /// (`--iso 45%`).
+    #[arg(long, default_value = "50%", value_parser = parse_iso, allow_hyphen_values = true, value_name = "V|P%")]
+    iso: IsoArg,
 
     /// Sabella mode: which depth sets the saturation — `peak` (where the ray
     /// meets its largest value) or `centroid` (the value-weighted mean depth).
@@ -297,7 +302,7 @@ A transfer-function file holds lines `point VALUE R G B ALPHA` (all 0..1), optio
 
 Examples:
   raycaster render -o shapes.png
-  raycaster render lung1.vol --tf ct-bone --domain 31768,34768 --size 800x800 --stats
+  raycaster render lung1.vol --tf ct-bone --domain -1000,2000 --size 800x800 --stats
   raycaster render lung1.vol --mode mip --azimuth 0 --elevation 0 -o mip.png --force
   raycaster render ch2.nii.gz --tf ct-skin -o head.png   # NRRD, NIfTI, MetaImage open directly
   raycaster render lung1.vol --crop 0%,0%,0%,100%,50%,100% -o half.png   # y up to the middle
@@ -420,9 +425,6 @@ pub(crate) fn check_arguments(args: &RenderArgs) -> Result<()> {
             "--fov {} must lie strictly between 0 and 180 degrees",
             args.fov
         );
-    }
-    if !(0.0..=1.0).contains(&args.iso) {
-        bail!("--iso {} must lie in [0, 1]", args.iso);
     }
     Ok(())
 }
@@ -632,12 +634,12 @@ fn built_in_labels(args: &RenderArgs) -> Result<Volume> {
 }
 
 fn settings(args: &RenderArgs, volume: &Volume) -> Result<RenderSettings> {
+    // The preset and domain that fit the data (the viewer's defaults too).
+    let fit = raycaster::windows::fit(volume);
     let tf_name = match (&args.tf, &args.file) {
         (Some(tf), _) => tf.clone(),
         (None, None) => source::scene_preset(args.scene.kind()).to_string(),
-        // u16 files are mostly CT scans (the viewer's rule too).
-        (None, Some(_)) if volume.sample_type() == SampleType::U16 => "ct-bone".to_string(),
-        (None, Some(_)) => "shapes".to_string(),
+        (None, Some(_)) => fit.preset.to_string(),
     };
     let tf_path = Path::new(&tf_name);
     let is_preset = PRESETS.iter().any(|(p, _)| *p == tf_name);
@@ -657,13 +659,30 @@ fn settings(args: &RenderArgs, volume: &Volume) -> Result<RenderSettings> {
     } else {
         TransferFunction::preset(&tf_name).context("--tf")?
     };
+    let units = volume.value_units();
     if let Some(domain) = args.domain {
-        let warning = domain_warning(domain, volume.ranges().overall(), volume.sample_type());
+        let warning = domain_warning(domain, volume);
         if let Some(warning) = warning.filter(|_| !args.quiet) {
             eprintln!("{warning}");
         }
-        transfer.domain = Some(domain);
+        transfer.domain = Some(units.stored_range(domain.values()));
+    } else if transfer.domain.is_none() {
+        transfer.domain = fit.domain;
     }
+    let iso_value = match args.iso {
+        IsoArg::Fraction(f) => f,
+        IsoArg::Value(v) => {
+            let [lo, hi] = transfer
+                .domain
+                .unwrap_or([0.0, f32::from(volume.sample_type().max_value())]);
+            let stored = units.stored(f64::from(v)) as f32;
+            if !(lo..=hi).contains(&stored) {
+                let [a, b] = [lo, hi].map(|s| units.format(units.value(f64::from(s))));
+                bail!("--iso {v} lies outside the transfer function's domain {a} to {b}");
+            }
+            (stored - lo) / (hi - lo)
+        }
+    };
     let shading = (!args.no_shading).then(|| Shading {
         light: match args.light {
             Some(d) => Light::Fixed(glam_vec(d)),
@@ -688,7 +707,7 @@ fn settings(args: &RenderArgs, volume: &Volume) -> Result<RenderSettings> {
         early_termination: (!args.no_ert).then_some(args.ert_threshold),
         empty_space_skipping: !args.no_ess,
         shading,
-        iso_value: args.iso,
+        iso_value,
         background: args.background,
         transfer,
         segments: match &args.segments {
@@ -774,20 +793,27 @@ pub(crate) fn parse_simd(text: &str) -> Result<SimdChoice, String> {
         })
 }
 
-/// A warning when `--domain` misses the data's stored values `lo..=hi` entirely
-/// (the image would be empty or flat), with the CT hint for i16 scans.
-fn domain_warning([a, b]: [f32; 2], [lo, hi]: [u16; 2], sample: SampleType) -> Option<String> {
-    let (lo, hi) = (f32::from(lo), f32::from(hi));
+/// A warning when `--domain` misses the data's values entirely (the image would
+/// be empty or flat); values and the data's range in the file's units, with a
+/// hint when a CT scan's file has no units (converted before they were kept).
+fn domain_warning(domain: WindowArg, volume: &Volume) -> Option<String> {
+    let units = volume.value_units();
+    let [a, b] = domain.values();
+    let [lo, hi] = volume
+        .ranges()
+        .overall()
+        .map(|s| units.value(f64::from(s)) as f32);
     if b >= lo && a <= hi {
         return None;
     }
-    let hint = if sample == SampleType::U16 && a < 0.0 {
-        " (CT scans store HU + 32768: −1000..2000 HU is 31768,34768)"
+    let hint = if units.is_identity() && volume.sample_type() == SampleType::U16 && a < 0.0 {
+        " (this file keeps no value units: a CT scan converted by an older volgen stores HU + 32768; convert it again to give HU)"
     } else {
         ""
     };
+    let [a, b, lo, hi] = [a, b, lo, hi].map(|v| units.format(f64::from(v)));
     Some(format!(
-        "warning: --domain {a},{b} lies outside the data's values {lo}..{hi}; the image will be empty or flat{hint}"
+        "warning: --domain {a} to {b} lies outside the data's values {lo} to {hi}; the image will be empty or flat{hint}"
     ))
 }
 

@@ -7,7 +7,7 @@ use clap::{Args, ValueEnum};
 use raycaster::slice::{Axis, Slice};
 use raycaster::volume::{Access, OpenOptions, Volume};
 
-use crate::args::parse_domain;
+use crate::args::{WindowArg, parse_window};
 
 /// Write one slice of a volume as a greyscale PNG.
 ///
@@ -40,11 +40,12 @@ pub struct SliceArgs {
     #[arg(long)]
     force: bool,
 
-    /// Raw values shown black and white, LO,HI (default: the slice's own value
-    /// range). CT in i16 is stored as HU + 32768: a soft-tissue window of
-    /// −160..240 HU is `--window 32608,33008`.
-    #[arg(long, value_parser = parse_domain, allow_hyphen_values = true, value_name = "LO,HI")]
-    window: Option<[f32; 2]>,
+    /// Values shown black and white, LO,HI in the file's units (Hounsfield
+    /// units for CT: `--window -160,240`), or a named CT window: ct, bone,
+    /// soft-tissue, lung, brain. Default: the slice's own value range. Files
+    /// converted before value units were kept take stored sample values.
+    #[arg(long, value_parser = parse_window, allow_hyphen_values = true, value_name = "LO,HI|NAME")]
+    window: Option<WindowArg>,
 
     /// Print nothing on success.
     #[arg(short, long)]
@@ -53,7 +54,8 @@ pub struct SliceArgs {
 
 const SLICE_HELP: &str = "Examples:
   raycaster slice lung1.vol --axis z --index 60 -o axial.png
-  raycaster slice lung1.vol --axis y --index 256 --window 31768,34768 -o coronal.png --force";
+  raycaster slice lung1.vol --axis y --index 256 --window -1000,2000 -o coronal.png --force
+  raycaster slice lung1.vol --axis z --index 60 --window lung -o lung.png";
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
 enum AxisArg {
@@ -85,14 +87,17 @@ pub fn run(args: SliceArgs) -> Result<()> {
     };
     let slice = Slice::extract(&volume, axis, args.index)
         .map_err(|e| anyhow::anyhow!("--index {}: {e}", args.index))?;
+    let units = volume.value_units();
     let image = slice
-        .to_image(args.window)
+        .to_image(args.window.map(|w| units.stored_range(w.values())))
         .map_err(|e| anyhow::anyhow!("--window: {e}"))?;
     image.save_png(&args.output)?;
     if !args.quiet {
-        let [lo, hi] = slice.range();
+        let [lo, hi] = slice
+            .range()
+            .map(|v| units.format(units.value(f64::from(v))));
         eprintln!(
-            "wrote {} ({}×{}, slice {} = {} of {}, values {lo}..{hi})",
+            "wrote {} ({}×{}, slice {} = {} of {}, values {lo} to {hi})",
             args.output.display(),
             slice.width,
             slice.height,

@@ -143,7 +143,7 @@ fn bad_inputs_fail_with_a_clear_message_and_no_output() {
     )
     .unwrap();
     std::fs::write(dir.path().join("short.vol"), [1u8, 2, 3]).unwrap();
-    let cases: [(&[&str], &str); 9] = [
+    let cases: [(&[&str], &str); 10] = [
         (&["render", "missing.vol"], "missing.vol"),
         (&["render", "short.vol"], "short.vol"),
         (&["render", "--size", "0x10"], "image size"),
@@ -154,7 +154,11 @@ fn bad_inputs_fail_with_a_clear_message_and_no_output() {
         (&["render", "--tf", "bad.tf"], "line 2"),
         (&["render", "--step", "0"], "positive"),
         (&["render", "--ert-threshold", "1.5"], "(0, 1]"),
-        (&["render", "--iso", "2"], "--iso"),
+        (&["render", "--iso", "101%"], "--iso"),
+        (
+            &["render", "--mode", "first-hit", "--iso", "300"],
+            "outside the transfer function's domain",
+        ),
         (&["render", "--fov", "190"], "--fov"),
     ];
     for (args, needle) in cases {

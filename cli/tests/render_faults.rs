@@ -365,7 +365,7 @@ fn a_domain_outside_the_data_warns() {
     let o = render(d, &["--domain", "300,400", "-o", "a.png"]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(
-        stderr(&o).contains("warning: --domain 300,400 lies outside the data's values 0..254"),
+        stderr(&o).contains("warning: --domain 300 to 400 lies outside the data's values 0 to 254"),
         "{}",
         stderr(&o)
     );

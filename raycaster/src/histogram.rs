@@ -2,7 +2,7 @@
 
 use crate::io::Input;
 use crate::job::Job;
-use crate::volume::VolumeError;
+use crate::volume::{ValueUnits, VolumeError};
 
 /// Exact counts of every sample value (one bin per value, up to 65536).
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -109,30 +109,51 @@ impl Histogram {
 
     /// A few lines for a terminal: summary figures and a bar chart of 16 bins
     /// over the values present (a CT scan's few thousand values of 65536 fill
-    /// the chart instead of one bar); `max_value` is the type's largest.
-    pub fn summary(&self, max_value: u16) -> String {
+    /// the chart instead of one bar), values in `units` (the file's: HU for CT);
+    /// `max_value` is the type's largest sample.
+    pub fn summary(&self, max_value: u16, units: &ValueUnits) -> String {
+        let value = |s: f64| units.format(units.value(s));
+        let stored = |s: u16| value(f64::from(s));
         let zero = self.counts.first().copied().unwrap_or(0);
         let mut s = format!(
-            "histogram   mean {:.2}, p1 {}, median {}, p99 {}, zero {:.1} %\n",
-            self.mean(),
-            self.percentile(0.01),
-            self.percentile(0.5),
-            self.percentile(0.99),
+            "histogram   mean {}, p1 {}, median {}, p99 {}, {} {:.1} %\n",
+            units.format((units.value(self.mean()) * 100.0).round() / 100.0),
+            stored(self.percentile(0.01)),
+            stored(self.percentile(0.5)),
+            stored(self.percentile(0.99)),
+            if units.is_identity() {
+                "zero".to_string()
+            } else {
+                format!("at {}", stored(0))
+            },
             100.0 * zero as f64 / self.total.max(1) as f64
         );
         let bins = self.over_data(16);
-        let [_, hi] = self.value_range();
+        let [lo, hi] = self.value_range();
         s += &format!(
-            "            {} bins over the values present, {}..={hi} (of 0..={max_value})\n",
+            "            {} bins over the values present, {} to {} (of {} to {})\n",
             bins.len(),
-            self.value_range()[0]
+            stored(lo),
+            stored(hi),
+            stored(0),
+            stored(max_value)
         );
         let peak = bins.iter().map(|b| b.1).max().unwrap_or(1).max(1) as f64;
+        let plain = ValueUnits {
+            unit: String::new(),
+            ..units.clone()
+        };
+        let label = |v: u16| plain.format(plain.value(f64::from(v)));
         for (i, &(first, c)) in bins.iter().enumerate() {
             let last = bins.get(i + 1).map_or(hi, |next| next.0 - 1);
             // Log scale: a few voxels of a rare value still show.
             let bar = ((c as f64).ln_1p() / peak.ln_1p() * 40.0).round() as usize;
-            s += &format!("  {first:>5}..{last:<5} {c:>12} {}\n", "#".repeat(bar));
+            s += &format!(
+                "  {:>7}..{:<7} {c:>12} {}\n",
+                label(first),
+                label(last),
+                "#".repeat(bar)
+            );
         }
         s
     }
@@ -170,9 +191,19 @@ mod tests {
         assert_eq!(bins[0].0, 31000);
         assert!(bins.iter().all(|b| b.1 > 0), "{bins:?}");
         assert_eq!(bins.iter().map(|b| b.1).sum::<u64>(), h.total());
-        let text = h.summary(u16::MAX);
-        assert!(text.contains("31000..=35000 (of 0..=65535)"), "{text}");
-        assert!(text.contains("  31000..31250"), "{text}");
+        let text = h.summary(u16::MAX, &ValueUnits::IDENTITY);
+        assert!(text.contains("31000 to 35000 (of 0 to 65535)"), "{text}");
+        assert!(text.contains("    31000..31250"), "{text}");
+        assert!(text.contains(", zero "), "{text}");
         assert!(text.trim_end().ends_with('#'), "{text}");
+        // In Hounsfield units (i16 stored as HU + 32768).
+        let hu = ValueUnits::new(1.0, -32768.0, "HU").unwrap();
+        let text = h.summary(u16::MAX, &hu);
+        assert!(
+            text.contains("-1768 HU to 2232 HU (of -32768 HU to 32767 HU)"),
+            "{text}"
+        );
+        assert!(text.contains("    -1768..-1518"), "{text}");
+        assert!(text.contains("at -32768 HU 0.0 %"), "{text}");
     }
 }

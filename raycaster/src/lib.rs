@@ -32,3 +32,4 @@ pub mod slice;
 pub mod source;
 pub mod synth;
 pub mod volume;
+pub mod windows;

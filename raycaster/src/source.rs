@@ -75,8 +75,10 @@ pub struct OpenedVolume {
     pub labels: Option<Volume>,
     /// A name for people (the path, or the built-in scene and its size).
     pub name: String,
-    /// The transfer-function preset that suits it.
+    /// The transfer-function preset that suits it ([`crate::windows::fit`]).
     pub preset: &'static str,
+    /// The stored-value domain that suits it; see [`Self::default_domain`].
+    pub domain: Option<[f32; 2]>,
 }
 
 /// The preset that suits a built-in scene.
@@ -105,19 +107,18 @@ pub fn open(source: &VolumeSource) -> Result<OpenedVolume, SourceError> {
                 labels,
                 name,
                 preset: scene_preset(*kind),
+                domain: None,
             })
         }
         VolumeSource::File { path, access } => {
             let volume = open_file(path, *access)?;
-            let preset = match volume.sample_type() {
-                SampleType::U8 => "shapes",
-                SampleType::U16 => "ct-bone",
-            };
+            let fit = crate::windows::fit(&volume);
             Ok(OpenedVolume {
                 volume,
                 labels: None,
                 name: path.display().to_string(),
-                preset,
+                preset: fit.preset,
+                domain: fit.domain,
             })
         }
     }
@@ -151,11 +152,11 @@ fn open_file(path: &Path, access: Access) -> Result<Volume, SourceError> {
 }
 
 impl OpenedVolume {
-    /// The raw value domain a transfer function without its own maps to 0..1:
-    /// the data range of u16 volumes (which rarely use the whole type), `None`
-    /// (the type's range) for u8.
+    /// The stored-value domain a transfer function without its own maps to 0..1
+    /// ([`crate::windows::fit`]): −1000..2000 HU for CT, the 0.5th..99.5th
+    /// percentile of other u16 data, `None` (the type's range) for u8.
     pub fn default_domain(&self) -> Option<[f32; 2]> {
-        default_domain(&self.volume)
+        self.domain
     }
 
     /// The suiting preset over the default domain.
@@ -194,13 +195,7 @@ impl OpenedVolume {
 
 /// See [`OpenedVolume::default_domain`].
 pub fn default_domain(volume: &Volume) -> Option<[f32; 2]> {
-    match volume.sample_type() {
-        SampleType::U8 => None,
-        SampleType::U16 => {
-            let [lo, hi] = volume.ranges().overall();
-            (hi > lo).then(|| [f32::from(lo), f32::from(hi)])
-        }
-    }
+    crate::windows::fit(volume).domain
 }
 
 /// The world box of `volume`'s voxel centres, from the origin; an axis of one

@@ -637,7 +637,11 @@ fn every_fixture_gives_back_its_own_values_in_memory_and_converted() {
     for &(name, _, ty, _) in FIXTURES {
         let mem = import::open_volume_any(&fixtures().join(name), 1 << 20).unwrap();
         let out = dir.path().join(format!("{name}.vol"));
-        convert_to(&import::open(&fixtures().join(name)).unwrap(), &out, Layout::Linear);
+        convert_to(
+            &import::open(&fixtures().join(name)).unwrap(),
+            &out,
+            Layout::Linear,
+        );
         let file = Volume::open(&out).unwrap();
         assert_eq!(file.value_units(), mem.value_units(), "{name}");
         // u16 samples of a float window are within half a step of the value.

@@ -99,6 +99,12 @@ struct State {
     last_stats: Option<(FrameStats, bool)>,
     /// The id of the newest request that ended (done or failed).
     ended: Option<u64>,
+    /// The camera moved while a moving frame was in flight: the newest view is
+    /// requested when that frame ends (moving frames are never dropped
+    /// unfinished, so a picture keeps up with a drag).
+    pending_move: bool,
+    /// Frames superseded before they finished.
+    superseded: u64,
     busy: bool,
     /// No frame of the newly opened volume is done yet: frames sample the coarsest
     /// pyramid level, so a picture shows at once, and refine when the view rests.
@@ -144,6 +150,8 @@ impl Viewer {
                 shown: (0, 0),
                 last_stats: None,
                 ended: None,
+                pending_move: false,
+                superseded: 0,
                 busy: false,
                 first_frame: false,
             }),
@@ -201,6 +209,7 @@ impl Viewer {
     pub fn idle(&self) -> bool {
         let st = self.controller.state.borrow();
         !st.busy
+            && !st.pending_move
             && st
                 .latest
                 .is_some_and(|(id, _)| st.ended == Some(id) && st.shown.0 == id)
@@ -223,6 +232,12 @@ impl Viewer {
     /// The statistics of the last finished frame and whether it was interactive.
     pub fn last_stats(&self) -> Option<(FrameStats, bool)> {
         self.controller.state.borrow().last_stats
+    }
+
+    /// How many frame requests were superseded before they finished (a still
+    /// frame cut short by a new move; never a moving frame by a newer move).
+    pub fn frames_superseded(&self) -> u64 {
+        self.controller.state.borrow().superseded
     }
 }
 
@@ -479,6 +494,17 @@ impl Controller {
     fn request_frame(&self, moving: bool) {
         let Some(ui) = self.ui() else { return };
         let mut st = self.state.borrow_mut();
+        // Pacing: a moving frame in flight finishes; the newest view follows it.
+        let moving_in_flight = st
+            .latest
+            .is_some_and(|(id, was_moving)| was_moving && st.ended != Some(id));
+        if moving && moving_in_flight {
+            st.pending_move = true;
+            drop(st);
+            self.settle_later();
+            return;
+        }
+        st.pending_move = false;
         // Until a new volume's first frame is done: its coarsest level at
         // interactive quality, refined like any moving frame once the view rests.
         let first_levels = st
@@ -554,16 +580,21 @@ impl Controller {
         st.latest = Some((id, moving));
         drop(st);
         if moving {
-            let weak = ACTIVE.with(|a| a.borrow().clone());
-            self.settle
-                .start(slint::TimerMode::SingleShot, SETTLE, move || {
-                    if let Some(c) = weak.upgrade() {
-                        c.request_frame(false);
-                    }
-                });
+            self.settle_later();
         } else {
             self.settle.stop();
         }
+    }
+
+    /// (Re)starts the timer of the full-quality frame once the view rests.
+    fn settle_later(&self) {
+        let weak = ACTIVE.with(|a| a.borrow().clone());
+        self.settle
+            .start(slint::TimerMode::SingleShot, SETTLE, move || {
+                if let Some(c) = weak.upgrade() {
+                    c.request_frame(false);
+                }
+            });
     }
 
     fn pump(&self) {
@@ -573,6 +604,19 @@ impl Controller {
         }
         self.take_events();
         self.show_frame();
+        // The moving frame in flight ended: render the view the camera moved to.
+        let follow = {
+            let mut st = self.state.borrow_mut();
+            let ended = st.latest.is_some_and(|(id, _)| st.ended == Some(id));
+            let follow = st.pending_move && ended;
+            if follow {
+                st.pending_move = false;
+            }
+            follow
+        };
+        if follow {
+            self.request_frame(true);
+        }
     }
 
     fn take_events(&self) {
@@ -601,7 +645,7 @@ impl Controller {
                         }
                         failures.push(error);
                     }
-                    FrameEvent::Superseded { .. } => {}
+                    FrameEvent::Superseded { .. } => st.superseded += 1,
                 }
             }
         }

@@ -68,6 +68,7 @@ fn finish(opened: OpenedVolume) -> LoadedVolume {
         labels,
         name,
         preset,
+        ..
     } = opened;
     let labels = labels.map(Arc::new);
     let [x, y, z] = volume.dims();

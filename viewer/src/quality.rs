@@ -3,20 +3,20 @@
 
 use std::time::Duration;
 
-/// Frame time an adaptive interactive frame aims for.
-const INTERACTIVE_TARGET: Duration = Duration::from_millis(50);
-/// Coarsening range of adaptive interactive frames.
-const ADAPTIVE_LEVELS: (f32, f32) = (1.0, 4.0);
+/// Frame time a moving frame aims for (the pacing budget).
+pub const MOVING_BUDGET: Duration = Duration::from_millis(50);
+/// Range of the pacing factor P: moving frames are rendered at resolution 0.5/P
+/// and twice the still step × P, so P = 0.5 is the still quality.
+const PACING_RANGE: (f32, f32) = (0.5, 4.0);
 
 /// The step presets of the settings panel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum StepPreset {
-    /// Half-voxel steps when still; moving frames at half resolution, step 1.
+    /// Half-voxel steps.
     Fine,
-    /// 1.5-voxel steps; moving frames at half resolution, step 3.
+    /// 1.5-voxel steps.
     Coarse,
-    /// Unit steps when still; moving frames coarsened (resolution and step
-    /// together) so they take about 50 ms, learnt from the previous moving frame.
+    /// Unit steps.
     Adaptive,
 }
 
@@ -40,15 +40,19 @@ pub struct FrameQuality {
     pub step: f32,
 }
 
-/// Chooses the quality of still and moving frames.
+/// Chooses the quality of still and moving frames, and paces moving frames:
+/// their resolution and step follow a factor learnt from the moving frames
+/// before, so that they take about [`MOVING_BUDGET`] — coarser on a slow machine
+/// or a large volume, up to the still quality on a fast one.
 #[derive(Clone, Debug)]
 pub struct QualityPolicy {
     /// The step preset.
     pub preset: StepPreset,
-    /// Render moving frames at full quality too.
+    /// Render moving frames at full quality too (no pacing).
     pub full_quality_only: bool,
-    /// Coarsening of adaptive moving frames (resolution 1/level, step level).
-    adaptive_level: f32,
+    /// The pacing factor P (see [`PACING_RANGE`]); 1 at the start: half
+    /// resolution and twice the still step.
+    pacing: f32,
 }
 
 impl Default for QualityPolicy {
@@ -56,7 +60,7 @@ impl Default for QualityPolicy {
         QualityPolicy {
             preset: StepPreset::Fine,
             full_quality_only: false,
-            adaptive_level: 2.0,
+            pacing: 1.0,
         }
     }
 }
@@ -80,32 +84,22 @@ impl QualityPolicy {
         if self.full_quality_only {
             return self.still();
         }
-        match self.preset {
-            StepPreset::Fine => FrameQuality {
-                resolution: 0.5,
-                step: 1.0,
-            },
-            StepPreset::Coarse => FrameQuality {
-                resolution: 0.5,
-                step: 3.0,
-            },
-            StepPreset::Adaptive => FrameQuality {
-                resolution: 1.0 / self.adaptive_level,
-                step: self.adaptive_level,
-            },
+        FrameQuality {
+            resolution: 0.5 / self.pacing,
+            step: 2.0 * self.still().step * self.pacing,
         }
     }
 
     /// Learns from a finished moving frame: its cost scales with pixels × samples
-    /// per ray, i.e. with `level⁻³`, so the level moves by the cube root of the
-    /// time ratio.
+    /// per ray, i.e. with `factor⁻³`, so the factor moves by the cube root of the
+    /// time ratio to the budget.
     pub fn moving_frame_took(&mut self, time: Duration) {
-        if self.preset != StepPreset::Adaptive || time.is_zero() {
+        if self.full_quality_only || time.is_zero() {
             return;
         }
-        let ratio = time.as_secs_f32() / INTERACTIVE_TARGET.as_secs_f32();
-        let (lo, hi) = ADAPTIVE_LEVELS;
-        self.adaptive_level = (self.adaptive_level * ratio.cbrt()).clamp(lo, hi);
+        let ratio = time.as_secs_f32() / MOVING_BUDGET.as_secs_f32();
+        let (lo, hi) = PACING_RANGE;
+        self.pacing = (self.pacing * ratio.cbrt()).clamp(lo, hi);
     }
 
     /// The size of a frame for a canvas of `width × height` physical pixels.
@@ -137,22 +131,36 @@ mod tests {
     }
 
     #[test]
-    fn adaptive_frames_coarsen_when_slow_and_refine_when_fast() {
-        let mut q = QualityPolicy {
-            preset: StepPreset::Adaptive,
-            ..QualityPolicy::default()
-        };
-        let start = q.moving().step;
-        q.moving_frame_took(Duration::from_millis(400));
-        assert!(q.moving().step > start);
-        for _ in 0..20 {
+    fn every_preset_paces_moving_frames_coarser_when_slow_and_back_when_fast() {
+        for preset in [StepPreset::Fine, StepPreset::Coarse, StepPreset::Adaptive] {
+            let mut q = QualityPolicy {
+                preset,
+                ..QualityPolicy::default()
+            };
+            let base = q.moving();
             q.moving_frame_took(Duration::from_millis(400));
+            // 8× the budget: twice as coarse on both counts (cost ÷ 8).
+            let paced = q.moving();
+            assert!((paced.step / base.step - 2.0).abs() < 1e-4, "{preset:?}");
+            assert!((base.resolution / paced.resolution - 2.0).abs() < 1e-4);
+            for _ in 0..20 {
+                q.moving_frame_took(Duration::from_millis(400));
+            }
+            assert_eq!(q.moving().step, base.step * PACING_RANGE.1);
+            for _ in 0..20 {
+                q.moving_frame_took(Duration::from_millis(5));
+            }
+            assert_eq!(q.moving(), q.still(), "never finer than a still frame");
+            // Frames on budget leave the pacing where it is.
+            q.moving_frame_took(Duration::from_millis(400));
+            let settled = q.moving();
+            q.moving_frame_took(MOVING_BUDGET);
+            assert_eq!(q.moving(), settled);
+            // Full quality only: no pacing.
+            q.full_quality_only = true;
+            q.moving_frame_took(Duration::from_millis(400));
+            assert_eq!(q.moving(), q.still());
         }
-        assert_eq!(q.moving().step, ADAPTIVE_LEVELS.1);
-        for _ in 0..20 {
-            q.moving_frame_took(Duration::from_millis(5));
-        }
-        assert_eq!(q.moving().step, ADAPTIVE_LEVELS.0);
     }
 
     #[test]

@@ -173,6 +173,27 @@ fn the_viewer_runs_headless() {
         "zoomed in, the scene fills more"
     );
 
+    // Pacing: a burst of wheel steps while a moving frame renders. No moving
+    // frame is dropped unfinished (each shows whole); the newest view follows
+    // the one in flight, and full quality once the view rests.
+    let superseded = v.frames_superseded();
+    for _ in 0..10 {
+        canvas.scroll(0.0, 24.0);
+    }
+    wait_for_frame(&v);
+    assert_eq!(
+        v.frames_superseded(),
+        superseded,
+        "moving frames were dropped before they finished"
+    );
+    let (_, moving) = v.last_stats().unwrap();
+    assert!(moving);
+    i_slint_backend_testing::mock_elapsed_time(Duration::from_millis(300));
+    slint::platform::update_timers_and_animations();
+    wait_for_frame(&v);
+    assert_eq!(v.last_stats().map(|(_, m)| m), Some(false));
+    assert_eq!(frame(&v).0, w);
+
     // "Full quality only": moving frames are full size too.
     v.ui().set_full_quality_only(true);
     canvas.scroll(0.0, -120.0);

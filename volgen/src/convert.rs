@@ -24,8 +24,9 @@ use crate::progress::{CANCEL, voxel_bar};
 /// Inputs: .vol; NRRD (.nrrd, .nhdr; raw or gzip); NIfTI-1 (.nii, .nii.gz, .hdr/.img);
 /// MetaImage (.mha, .mhd; raw or zlib); a folder (or .dcm file) of an uncompressed
 /// DICOM series; headerless raw with --raw. Foreign files
-/// keep their spacing and axis order (first axis fastest = x); orientation and
-/// value scaling are not applied (docs/import.md).
+/// keep their spacing and axis order (first axis fastest = x); orientation is not
+/// applied; what stored values mean (rescale slope and intercept, HU for CT) is
+/// kept in the output's header (docs/import.md).
 ///
 /// Streams in bounded memory (slabs of whole x-planes; about 64 MiB at most plus one
 /// row of bricks), so inputs larger than RAM convert; compressed inputs larger than
@@ -202,8 +203,12 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
             ValueMap::Offset => ", i16 values stored as value + 32768".to_string(),
             ValueMap::Copy => ", values copied".to_string(),
         };
+        let unit = match done.header.units.as_ref().map(|u| u.unit.as_str()) {
+            Some(unit) if !unit.is_empty() => format!(" (values in {unit})"),
+            _ => String::new(),
+        };
         println!(
-            "wrote {}: {} {}{}, {} bytes in {:.2} s{window}",
+            "wrote {}: {} {}{}, {} bytes in {:.2} s{window}{unit}",
             a.output.display(),
             describe_size(done.header.dims),
             describe_layout(&done.header),

@@ -13,8 +13,8 @@ use crate::progress::{CANCEL, voxel_bar};
 /// Show a volume file's header, layout, value histogram and brick statistics.
 ///
 /// Reads .vol files and every importable format (NRRD, NIfTI-1, MetaImage, a DICOM
-/// series folder); values of foreign files are shown in the file's own units (CT:
-/// the stored Hounsfield values) over their data range. The histogram needs a
+/// series folder); values are shown in the file's own units (Hounsfield units for
+/// CT) over their data range. The histogram needs a
 /// streaming pass over the samples (bounded memory); --no-histogram skips it for a
 /// quick look at a huge file. Example:
 ///
@@ -51,9 +51,19 @@ pub fn run(a: InfoArgs) -> anyhow::Result<()> {
     match h.format {
         Format::Thesis => println!("header      26 bytes (reference thesis format)"),
         Format::Extended => println!(
-            "header      64 bytes (extension version {})",
-            if h.pyramid_offset.is_some() { 2 } else { 1 }
+            "header      {} bytes (extension version {})",
+            h.data_offset,
+            match (&h.units, h.pyramid_offset) {
+                (Some(_), _) => 3,
+                (None, Some(_)) => 2,
+                (None, None) => 1,
+            }
         ),
+    }
+    let units = h.value_units();
+    let value = |s: u16| units.format(units.value(f64::from(s)));
+    if !units.is_identity() {
+        println!("units       {}", units.describe());
     }
     println!(
         "file bytes  {file_bytes} ({} of samples, {:.3}x the voxel count)",
@@ -78,7 +88,7 @@ pub fn run(a: InfoArgs) -> anyhow::Result<()> {
     let constant = all.iter().filter(|r| r[0] == r[1]).count();
     let mean_width =
         all.iter().map(|r| f64::from(r[1] - r[0])).sum::<f64>() / all.len().max(1) as f64;
-    println!("values      min {lo}, max {hi}");
+    println!("values      min {}, max {}", value(lo), value(hi));
     println!(
         "brick stats {zero} all-zero ({:.1} %), {constant} constant ({:.1} %), mean value range {mean_width:.1}",
         100.0 * zero as f64 / all.len() as f64,
@@ -100,12 +110,14 @@ pub fn run(a: InfoArgs) -> anyhow::Result<()> {
             let level = volume.level(k);
             let [lo, hi] = level.ranges().overall();
             println!(
-                "  level {k}   {} spacing {} x {} x {}, {} bytes, values {lo}..={hi}",
+                "  level {k}   {} spacing {} x {} x {}, {} bytes, values {} to {}",
                 describe_size(level.dims()),
                 level.spacing()[0],
                 level.spacing()[1],
                 level.spacing()[2],
-                level.data_bytes()
+                level.data_bytes(),
+                value(lo),
+                value(hi)
             );
         }
     } else if !raycaster::volume::level_dims(h.dims).is_empty() {
@@ -123,7 +135,7 @@ pub fn run(a: InfoArgs) -> anyhow::Result<()> {
             .with_cancel(&CANCEL);
         let hist = raycaster::histogram::Histogram::of_input(&input, &job)?;
         bar.finish_and_clear();
-        print!("{}", hist.summary(h.sample_type.max_value()));
+        print!("{}", hist.summary(h.sample_type.max_value(), &units));
     }
     Ok(())
 }
@@ -152,9 +164,7 @@ fn run_foreign(a: &InfoArgs) -> anyhow::Result<()> {
         crate::convert::encoding_name(imported.encoding)
     );
     if let Some((slope, inter)) = imported.scaling {
-        println!(
-            "scaling     value = {slope} * stored + {inter} (declared; values below are stored)"
-        );
+        println!("scaling     value = {slope} * stored + {inter} (the values below are scaled)");
     }
     if a.no_histogram {
         return Ok(());
@@ -167,8 +177,10 @@ fn run_foreign(a: &InfoArgs) -> anyhow::Result<()> {
     let job = Job::silent()
         .with_progress(&on_progress)
         .with_cancel(&CANCEL);
+    let units = imported.units();
+    let to_value = |v: f32| units.value(f64::from(v)) as f32;
     let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-    input.for_each_slab(8 << 20, &|v| v, &job, |slab| {
+    input.for_each_slab(8 << 20, &to_value, &job, |slab| {
         for &v in slab {
             if v.is_finite() {
                 lo = lo.min(v);
@@ -184,7 +196,7 @@ fn run_foreign(a: &InfoArgs) -> anyhow::Result<()> {
     const BINS: usize = 16;
     let mut counts = [0u64; BINS];
     let width = f64::from(hi - lo) / BINS as f64;
-    input.for_each_slab(8 << 20, &|v| v, &job, |slab| {
+    input.for_each_slab(8 << 20, &to_value, &job, |slab| {
         for &v in slab {
             if v.is_finite() {
                 let i = if width > 0.0 {
@@ -197,7 +209,11 @@ fn run_foreign(a: &InfoArgs) -> anyhow::Result<()> {
         }
     })?;
     bar.finish_and_clear();
-    println!("values      min {lo}, max {hi} (the file's units)");
+    println!(
+        "values      min {}, max {} (the file's units)",
+        units.format(f64::from(lo)),
+        units.format(f64::from(hi))
+    );
     println!("histogram   {BINS} bins over min..max");
     let peak = counts.iter().copied().max().unwrap_or(1).max(1) as f64;
     for (i, &c) in counts.iter().enumerate() {

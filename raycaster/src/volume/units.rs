@@ -120,6 +120,23 @@ impl ValueUnits {
         }
     }
 
+    /// The map as people read it: `value = stored − 32768 (HU)`,
+    /// `value = stored × 16 − 1000`.
+    pub fn describe(&self) -> String {
+        let mut text = "value = stored".to_string();
+        if self.scale != 1.0 {
+            text += &format!(" × {}", self.scale);
+        }
+        if self.offset != 0.0 {
+            let sign = if self.offset < 0.0 { '−' } else { '+' };
+            text += &format!(" {sign} {}", self.offset.abs());
+        }
+        if !self.unit.is_empty() {
+            text += &format!(" ({})", self.unit);
+        }
+        text
+    }
+
     /// The value block's bytes (see `docs/format.md`).
     pub(crate) fn encode(&self) -> [u8; UNITS_BLOCK_LEN as usize] {
         let mut out = [0u8; UNITS_BLOCK_LEN as usize];
@@ -175,6 +192,11 @@ mod tests {
         assert_eq!(reversed.stored_range([0.0, 10.0]), [0.0, 20.0]);
         assert_eq!(reversed.format(0.25), "0.25");
         assert!(ValueUnits::IDENTITY.is_identity());
+        assert_eq!(ct.describe(), "value = stored − 32768 (HU)");
+        assert_eq!(
+            ValueUnits::new(16.0, 1000.0, "").unwrap().describe(),
+            "value = stored × 16 + 1000"
+        );
     }
 
     #[test]
