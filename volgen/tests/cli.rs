@@ -256,7 +256,9 @@ fn raw_conversion_with_window_and_skip() {
     );
     let info = stdout(&volgen(d, &["info", "ct.vol"]));
     assert!(info.contains("spacing     0.5 x 0.5 x 2"), "{info}");
-    assert!(info.contains("min 0, max 255"), "{info}");
+    // Values in the input's units: the window's ends.
+    assert!(info.contains("min -500, max 1000"), "{info}");
+    assert!(info.contains("extension version 3"), "{info}");
 }
 
 #[test]
