@@ -1273,7 +1273,7 @@ mod tests {
                     out += "\n";
                     done = true;
                 }
-                current = l.trim_matches(|c| c == '[' || c == ']').to_string();
+                current = l[1..l.find(']').unwrap()].to_string();
             } else if current == table && l.split('=').next().unwrap().trim() == key {
                 out += line;
                 out += "\n";
