@@ -148,7 +148,10 @@ fn a_session_renders_the_pixels_of_the_equivalent_flags() {
         let mut sequential = session_args.clone();
         sequential.push("--sequential".into());
         let reference = render(dir.path(), &sequential, "sequential.png");
-        assert!(reference.data() == from_session.data(), "{name}: sequential");
+        assert!(
+            reference.data() == from_session.data(),
+            "{name}: sequential"
+        );
     }
     // A changed session field changes the picture (the comparison can fail).
     let mut other = session(Mode::Dvr);
@@ -172,7 +175,12 @@ fn size_overrides_a_session_and_picture_flags_are_refused() {
     let s = path.display().to_string();
     let big = render(
         dir.path(),
-        &["--session".into(), s.clone(), "--size".into(), "100x80".into()],
+        &[
+            "--session".into(),
+            s.clone(),
+            "--size".into(),
+            "100x80".into(),
+        ],
         "big.png",
     );
     assert_eq!((big.width(), big.height()), (100, 80));

@@ -344,10 +344,11 @@ impl Session {
     /// Reads a session file; relative paths in it are relative to its folder.
     /// The volume and label files must exist.
     pub fn load(path: &Path) -> Result<Session, SessionError> {
-        let text = crate::files::read_text(path, SESSION_MAX).map_err(|source| SessionError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let text =
+            crate::files::read_text(path, SESSION_MAX).map_err(|source| SessionError::Io {
+                path: path.to_path_buf(),
+                source,
+            })?;
         let session = Session::parse(&text, path.parent().unwrap_or(Path::new("")))?;
         if let VolumeSource::File { path, .. } = &session.source
             && !path.exists()
@@ -378,7 +379,9 @@ impl Session {
             Some(v) => {
                 return Err(invalid(
                     "version",
-                    format!("version {v} is not known (this raycaster reads version {SESSION_VERSION})"),
+                    format!(
+                        "version {v} is not known (this raycaster reads version {SESSION_VERSION})"
+                    ),
                 ));
             }
             None => return Err(invalid("version", "missing: write `version = 1`")),
@@ -568,11 +571,7 @@ impl Session {
         if !s.clip.is_empty() {
             out += "\n[clip]   # voxel coordinates\n";
             if let Some(CropBox { lo, hi }) = s.clip.crop {
-                let _ = writeln!(
-                    out,
-                    "crop = {}",
-                    list([lo.x, lo.y, lo.z, hi.x, hi.y, hi.z])
-                );
+                let _ = writeln!(out, "crop = {}", list([lo.x, lo.y, lo.z, hi.x, hi.y, hi.z]));
             }
             if !s.clip.planes.is_empty() {
                 let planes: Vec<String> = s
@@ -647,7 +646,9 @@ fn volume_source(v: &VolumeFile, base: &Path) -> Result<VolumeSource, SessionErr
                 .ok_or_else(|| {
                     invalid(
                         "volume.scene",
-                        format!("unknown built-in scene {name:?} (shapes, shells, noise, gradient)"),
+                        format!(
+                            "unknown built-in scene {name:?} (shapes, shells, noise, gradient)"
+                        ),
                     )
                 })?;
             let size = v
@@ -766,8 +767,9 @@ fn transfer(t: &TransferFile, base: &Path) -> Result<TransferFunction, SessionEr
         (Some(name), None) if base.join(name).is_file() => {
             TransferFunction::load(&base.join(name)).map_err(tf_error)?
         }
-        (Some(name), None) => TransferFunction::preset(name)
-            .map_err(|e| invalid("transfer.preset", e.to_string()))?,
+        (Some(name), None) => {
+            TransferFunction::preset(name).map_err(|e| invalid("transfer.preset", e.to_string()))?
+        }
         (None, Some(points)) => {
             let points = points
                 .iter()
@@ -777,8 +779,7 @@ fn transfer(t: &TransferFile, base: &Path) -> Result<TransferFunction, SessionEr
                     alpha,
                 })
                 .collect();
-            TransferFunction::new(points)
-                .map_err(|e| invalid("transfer.points", e.to_string()))?
+            TransferFunction::new(points).map_err(|e| invalid("transfer.points", e.to_string()))?
         }
     };
     if let Some(d) = t.domain {
@@ -920,7 +921,10 @@ fn importance(r: &RenderFile) -> Result<ImportanceSource, SessionError> {
                 format!("importance {name:?} takes `importance_weight`, not `importance_p`"),
             ));
         }
-        non_negative("render.importance_weight", r.importance_weight.unwrap_or(1.0))
+        non_negative(
+            "render.importance_weight",
+            r.importance_weight.unwrap_or(1.0),
+        )
     };
     let p = || {
         if r.importance_weight.is_some() {
@@ -949,7 +953,9 @@ fn importance(r: &RenderFile) -> Result<ImportanceSource, SessionError> {
         other => {
             return Err(invalid(
                 "render.importance",
-                format!("unknown importance {other:?} (constant, intensity, gradient, silhouette, lighting)"),
+                format!(
+                    "unknown importance {other:?} (constant, intensity, gradient, silhouette, lighting)"
+                ),
             ));
         }
     })
@@ -1242,7 +1248,10 @@ mod tests {
         };
         f.save(&path).unwrap();
         let e = Session::load(&path).unwrap_err().to_string();
-        assert!(e.contains("volume.file") && e.contains("missing.vol"), "{e}");
+        assert!(
+            e.contains("volume.file") && e.contains("missing.vol"),
+            "{e}"
+        );
         let e = Session::load(&dir.path().join("none.toml"))
             .unwrap_err()
             .to_string();
@@ -1300,7 +1309,11 @@ mod tests {
             ("render", "xray_gain = 0.0", "render.xray_gain"),
             ("render", "ert_threshold = 1.5", "render.ert_threshold"),
             ("render", "sabella_depth = \"deep\"", "render.sabella_depth"),
-            ("render", "background = [0.0, 2.0, 0.0]", "render.background"),
+            (
+                "render",
+                "background = [0.0, 2.0, 0.0]",
+                "render.background",
+            ),
             ("render", "level = \"coarse\"", "render.level"),
             ("render", "importance = \"random\"", "render.importance"),
             ("camera", "distance = -3.0", "camera.distance"),
@@ -1313,7 +1326,11 @@ mod tests {
             ("volume", "file = \"a.vol\"", "volume"),
             ("transfer", "domain = [5.0, 1.0]", "transfer.domain"),
             ("transfer", "points = []", "transfer.points"),
-            ("transfer", "points = [[0.5, 1.0, 1.0, 1.0, 2.0]]", "transfer.points"),
+            (
+                "transfer",
+                "points = [[0.5, 1.0, 1.0, 1.0, 2.0]]",
+                "transfer.points",
+            ),
             ("shading", "light = [0.0, 0.0, 0.0]", "shading.light"),
             ("shading", "ambient = -1.0", "shading.ambient"),
             ("clip", "planes = [[1.0, 1.0, 1.0, 0.0, 0.0, 0.0]]", "clip"),
@@ -1338,7 +1355,10 @@ mod tests {
             );
         }
         let e = Session::parse(
-            &sample().to_toml().unwrap().replace("version = 1", "version = 2"),
+            &sample()
+                .to_toml()
+                .unwrap()
+                .replace("version = 1", "version = 2"),
             Path::new(""),
         )
         .unwrap_err();
