@@ -14,7 +14,8 @@ use raycaster::render::{
     SabellaDepth, SabellaMapping, SabellaOutput, SegmentScene, Shading, SimdLevel, TileSink,
     TransferFunction, Vec3, closest_preset, render_parallel_into, render_sequential,
 };
-use raycaster::source;
+use raycaster::session::{Session, SessionCamera};
+use raycaster::source::{self, VolumeSource};
 use raycaster::synth::{SceneKind, synthesize, synthesize_labels};
 use raycaster::volume::{Access, Content, OpenOptions, SampleType, Volume};
 
@@ -28,7 +29,9 @@ use crate::stats;
 ///
 /// With no FILE, renders a built-in generated scene (`--scene`), so one command
 /// shows a picture. The camera frames the whole volume from `--azimuth` and
-/// `--elevation` unless `--position` is given. The output (PNG only) is checked
+/// `--elevation` unless `--position` is given. With `--session S.toml` (saved by
+/// the viewer), renders exactly what the session describes: the flags that
+/// describe the picture are refused with it. The output (PNG only) is checked
 /// before rendering: its folder must exist and an existing file is only replaced
 /// with `--force` (written to a temporary file and renamed, never left half-written).
 #[derive(Args, Debug)]
@@ -41,6 +44,15 @@ pub struct RenderArgs {
     /// convert with `volgen convert` first).
     file: Option<PathBuf>,
 
+    /// Render a session (TOML, saved by the viewer's "Save session"): its volume,
+    /// image size, camera, transfer function, mode and settings, crop box and
+    /// clipping planes, level and two-level scene, pixel for pixel as the viewer
+    /// showed it. Flags that describe the picture are refused with it; `--size`
+    /// overrides the session's image size (the same view at another resolution);
+    /// output, renderer and statistics flags apply as usual.
+    #[arg(long, value_name = "S.toml", conflicts_with_all = SESSION_CONFLICTS)]
+    session: Option<PathBuf>,
+
     /// Output PNG (the name must end in .png).
     #[arg(short, long, default_value = "render.png", value_name = "PNG")]
     pub(crate) output: PathBuf,
@@ -49,9 +61,10 @@ pub struct RenderArgs {
     #[arg(long)]
     pub(crate) force: bool,
 
-    /// Image size, WxH (or N for a square).
-    #[arg(long, default_value = "512x512", value_parser = parse_size, value_name = "WxH")]
-    size: [u32; 2],
+    /// Image size, WxH (or N for a square) [default: 512x512; with --session,
+    /// the session's size].
+    #[arg(long, value_parser = parse_size, value_name = "WxH")]
+    size: Option<[u32; 2]>,
 
     /// Built-in scene rendered when no FILE is given.
     #[arg(long, value_enum, default_value_t = SceneArg::Shapes)]
@@ -296,6 +309,47 @@ pub struct RenderArgs {
     progress: bool,
 }
 
+/// The flags that describe the picture, which a session describes instead.
+const SESSION_CONFLICTS: [&str; 34] = [
+    "file",
+    "scene",
+    "scene_size",
+    "seed",
+    "tf",
+    "domain",
+    "mode",
+    "iso",
+    "sabella_depth",
+    "crop",
+    "clip",
+    "xray_gain",
+    "step",
+    "no_ert",
+    "ert_threshold",
+    "no_ess",
+    "preintegrate",
+    "jitter",
+    "no_shading",
+    "light",
+    "background",
+    "azimuth",
+    "elevation",
+    "distance",
+    "zoom",
+    "fov",
+    "orthographic",
+    "position",
+    "target",
+    "up",
+    "level",
+    "lod_bias",
+    "segments",
+    "labels",
+];
+
+/// The image size without `--size`.
+const DEFAULT_SIZE: [u32; 2] = [512, 512];
+
 const AFTER_HELP: &str = "Transfer-function presets: shapes, ct-bone, ct-skin, shells, cloud, opaque, grayscale, rainbow.
 A transfer-function file holds lines `point VALUE R G B ALPHA` (all 0..1), optional
 `domain LO HI` (raw values) and `gradient G0 G1` (2D: opacity × smoothstep of |∇f|).
@@ -307,7 +361,14 @@ Examples:
   raycaster render ch2.nii.gz --tf ct-skin -o head.png   # NRRD, NIfTI, MetaImage open directly
   raycaster render lung1.vol --crop 0%,0%,0%,100%,50%,100% -o half.png   # y up to the middle
   raycaster render lung1.vol --clip 50%,50%,50%,1,1,0 --clip 0,0,40%,0,0,1 -o cut.png
-  raycaster render shapes.vol --mode sabella --sabella-depth centroid -o sabella.png";
+  raycaster render shapes.vol --mode sabella --sabella-depth centroid -o sabella.png
+  raycaster render --session view.toml -o view.png   # what the viewer showed (Save session)
+  raycaster render --session view.toml --size 2048x1536 -o poster.png
+
+With --session, the session file describes the picture: FILE, --scene, --tf, --mode,
+the camera, crop and clip, step and shading flags are refused with it; --size,
+-o/--force, --threads, --tile, --sequential, --simd, --brick, --ram, --stats and
+--progress apply.";
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
 enum SceneArg {
@@ -457,45 +518,65 @@ pub(crate) struct Setup {
 }
 
 impl Setup {
-    /// Opens the volume and labels and resolves the settings, camera and level.
+    /// Opens the volume and labels and resolves the settings, camera and level:
+    /// from `--session`, or from the flags (which become a session first, so both
+    /// make a frame the same way).
     pub(crate) fn new(args: &RenderArgs) -> Result<Setup> {
         let read_before = raycaster::io::process_bytes_read();
-        let volume = open_volume(args)?;
+        let (volume, session) = match &args.session {
+            Some(path) => {
+                let mut session = Session::load(path)?;
+                if let Some(size) = args.size {
+                    session.size = size;
+                }
+                // The kernel does not change the picture: a session leaves it to the flag.
+                session.settings.simd = args.simd.0;
+                let volume = open_volume(&session.source, args)?;
+                (volume, session)
+            }
+            None => {
+                let source = flags_source(args);
+                let volume = open_volume(&source, args)?;
+                let session = flags_session(args, source, &volume)?;
+                (volume, session)
+            }
+        };
+        Setup::from_session(volume, session, read_before)
+    }
+
+    /// The frame a session describes, its volume opened.
+    fn from_session(volume: Volume, session: Session, read_before: u64) -> Result<Setup> {
         if volume.content() == Content::Labels {
             bail!(
                 "{}: is a label volume (object ids, not values); render the data volume and give this file with --labels (and a --segments SCENE.toml)",
                 volume.path().display()
             );
         }
-        let settings = settings(args, &volume)?;
-        let labels = match (&settings.segments, &args.labels) {
+        let labels = match (&session.settings.segments, &session.labels) {
             (Some(_), Some(path)) => Some(open_labels(path)?),
-            (Some(scene), None) => match &scene.membership {
+            (Some(scene), None) => match (&scene.membership, &session.source) {
                 // A built-in scene brings its own segmentation, when it has one.
-                Membership::Labels(_) if args.file.is_none() => Some(built_in_labels(args)?),
-                Membership::Labels(path) => Some(open_labels(path)?),
-                Membership::Layers(_) => None,
+                (Membership::Labels(_), VolumeSource::BuiltIn { kind, size, seed }) => {
+                    Some(built_in_labels(*kind, *size, *seed)?)
+                }
+                (Membership::Labels(path), VolumeSource::File { .. }) => Some(open_labels(path)?),
+                (Membership::Layers(_), _) => None,
             },
             (None, _) => None,
         };
-        let choice = match args.level {
-            LevelChoice::Auto { .. } => LevelChoice::Auto {
-                bias: args.lod_bias,
-            },
-            fixed => fixed,
-        };
-        let camera = camera(args, source::world_box(&volume))?;
+        let camera = session.camera().context("invalid camera")?;
         // Two-level scenes with labels sample labels of the same level, when they have it.
         let level = match &labels {
-            Some(labels) => choice
+            Some(labels) => session
+                .level
                 .resolve(&volume, &camera)
                 .min(labels.level_count() - 1),
-            None => choice.resolve(&volume, &camera),
+            None => session.level.resolve(&volume, &camera),
         };
         Ok(Setup {
             volume,
             labels,
-            settings,
+            settings: session.settings,
             camera,
             level,
             read_before,
@@ -567,12 +648,52 @@ fn open_labels(path: &Path) -> Result<Volume> {
     Ok(labels)
 }
 
-fn open_volume(args: &RenderArgs) -> Result<Volume> {
-    if let Some(path) = &args.file {
+/// Where the flags say the volume comes from.
+fn flags_source(args: &RenderArgs) -> VolumeSource {
+    match &args.file {
+        Some(path) => VolumeSource::File {
+            path: path.clone(),
+            access: if args.ram {
+                Access::Ram
+            } else {
+                Access::Mapped
+            },
+        },
+        None => VolumeSource::BuiltIn {
+            kind: args.scene.kind(),
+            size: args.scene_size,
+            seed: args.seed,
+        },
+    }
+}
+
+/// The session the flags describe, for the opened `volume` (its type chooses
+/// the default transfer function, its size resolves percentages, its box the
+/// framing).
+fn flags_session(args: &RenderArgs, source: VolumeSource, volume: &Volume) -> Result<Session> {
+    let size = args.size.unwrap_or(DEFAULT_SIZE);
+    let level = match args.level {
+        LevelChoice::Auto { .. } => LevelChoice::Auto {
+            bias: args.lod_bias,
+        },
+        fixed => fixed,
+    };
+    Ok(Session {
+        source,
+        labels: args.labels.clone(),
+        size,
+        camera: camera(args, source::world_box(volume))?,
+        settings: settings(args, volume)?,
+        level,
+    })
+}
+
+fn open_volume(source: &VolumeSource, args: &RenderArgs) -> Result<Volume> {
+    if let VolumeSource::File { path, .. } = source {
         raycaster::files::guard_mapped_file(path);
     }
-    match &args.file {
-        Some(path) if raycaster::import::detect(path).is_some() => {
+    match source {
+        VolumeSource::File { path, .. } if raycaster::import::detect(path).is_some() => {
             // Decompressing a large scan takes seconds: progress as for frames.
             let limit = raycaster::import::DEFAULT_IN_MEMORY_LIMIT;
             let imported = raycaster::import::open(path)?;
@@ -591,7 +712,7 @@ fn open_volume(args: &RenderArgs) -> Result<Volume> {
             )?;
             Ok(volume)
         }
-        Some(path) => {
+        VolumeSource::File { path, .. } => {
             let access = if args.ram {
                 Access::Ram
             } else {
@@ -603,10 +724,9 @@ fn open_volume(args: &RenderArgs) -> Result<Volume> {
             };
             Ok(Volume::open_with(path, options)?)
         }
-        None => {
-            let kind = args.scene.kind();
-            let n = args.scene_size;
-            let scene = kind.build([n; 3], args.seed);
+        VolumeSource::BuiltIn { kind, size, seed } => {
+            let n = *size;
+            let scene = kind.build([n; 3], *seed);
             let name = format!("built-in {} scene {n}³", kind.name());
             Ok(synthesize(
                 scene.as_ref(),
@@ -620,10 +740,8 @@ fn open_volume(args: &RenderArgs) -> Result<Volume> {
 }
 
 /// The label volume of the built-in scene, for label scenes rendered without a file.
-fn built_in_labels(args: &RenderArgs) -> Result<Volume> {
-    let kind = args.scene.kind();
-    let n = args.scene_size;
-    let scene = kind.build([n; 3], args.seed);
+fn built_in_labels(kind: SceneKind, n: u32, seed: u64) -> Result<Volume> {
+    let scene = kind.build([n; 3], seed);
     let name = format!("built-in {} labels {n}³", kind.name());
     synthesize_labels(scene.as_ref(), &name, [n; 3], [1.0; 3])?.with_context(|| {
         format!(
@@ -821,11 +939,21 @@ fn glam_vec(v: [f32; 3]) -> raycaster::render::Vec3 {
     raycaster::render::Vec3::from(v)
 }
 
+/// The camera the flags describe (checked for an image of the flags' size).
 fn camera(
     args: &RenderArgs,
     (lo, hi): (raycaster::render::Vec3, raycaster::render::Vec3),
-) -> Result<Camera> {
-    let [w, h] = args.size;
+) -> Result<SessionCamera> {
+    let [w, h] = args.size.unwrap_or(DEFAULT_SIZE);
+    let spec = camera_spec(args, (lo, hi));
+    spec.camera(w, h).context("invalid camera")?;
+    Ok(spec)
+}
+
+fn camera_spec(
+    args: &RenderArgs,
+    (lo, hi): (raycaster::render::Vec3, raycaster::render::Vec3),
+) -> SessionCamera {
     let target = args.target.map(glam_vec).unwrap_or((lo + hi) / 2.0);
     let up = glam_vec(args.up);
     if let Some(position) = args.position {
@@ -836,8 +964,12 @@ fn camera(
         } else {
             Projection::Perspective { vfov_deg: args.fov }
         };
-        return Camera::look_at(glam_vec(position), target, up, projection, w, h)
-            .context("invalid camera");
+        return SessionCamera::LookAt {
+            position: glam_vec(position),
+            target,
+            up,
+            projection,
+        };
     }
     let vfov = (!args.orthographic).then_some(args.fov);
     let mut orbit = Orbit::framing(
@@ -860,9 +992,14 @@ fn camera(
                 height: orbit.ortho_height,
             },
         };
-        return Camera::look_at(position, target, up, projection, w, h).context("invalid camera");
+        return SessionCamera::LookAt {
+            position,
+            target,
+            up,
+            projection,
+        };
     }
-    orbit.camera(w, h).context("invalid camera")
+    SessionCamera::Orbit(orbit)
 }
 
 /// When progress shows: from the start with --progress, after

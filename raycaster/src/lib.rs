@@ -11,6 +11,8 @@
 //! - [`files`]: opening user-named files (regular files only, never blocking);
 //! - [`errors`]: error text for people, each cause said once;
 //! - [`render`]: cameras, transfer functions and the ray casters;
+//! - [`session`]: everything that makes one frame, as a readable TOML file
+//!   (what the viewer saves and `raycaster render --session` renders);
 //! - [`source`]: the front ends' façade: a built-in scene or a file, opened with
 //!   its labels, default transfer function, domain and framing.
 
@@ -28,6 +30,7 @@ pub mod import;
 pub mod io;
 pub mod job;
 pub mod render;
+pub mod session;
 pub mod slice;
 pub mod source;
 pub mod synth;

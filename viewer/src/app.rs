@@ -17,11 +17,13 @@ use anyhow::{Context, Result};
 use crossbeam_channel::{Receiver, Sender};
 use raycaster::render::{
     DEFAULT_ERT_THRESHOLD, FrameEvent, FrameRequest, FrameStats, GlobalMode, LevelChoice,
-    LocalMode, Membership, Mode, Notify, ObjectStyle, PRESETS, ParallelOptions, RenderFront,
-    RenderSettings, RgbImage, SegmentScene, Shading, TransferFunction,
+    Membership, Mode, Notify, ObjectStyle, PRESETS, ParallelOptions, RenderFront, RenderSettings,
+    RgbImage, SegmentScene, TransferFunction,
 };
+use raycaster::session::{Session, SessionCamera};
+use raycaster::source::VolumeSource;
 use raycaster::synth::SceneKind;
-use raycaster::volume::{Volume, write_file_atomically};
+use raycaster::volume::{Content, Volume, write_file_atomically};
 use slint::{
     ComponentHandle, Image, ModelRc, Rgba8Pixel, SharedPixelBuffer, SharedString, VecModel,
 };
@@ -44,11 +46,16 @@ const TILE_SIZES: [u32; 4] = [8, 16, 32, 64];
 /// What to open.
 #[derive(Clone, Debug)]
 pub enum Source {
-    /// A generated scene.
+    /// A generated scene (seed 1).
     BuiltIn(SceneKind, u32),
     /// A volume file.
     File(PathBuf),
+    /// A saved session: its volume, camera, transfer function and settings.
+    Session(PathBuf),
 }
+
+/// The step presets' still steps, in the panel's order (fine, coarse, adaptive).
+const STEP_PRESETS: [StepPreset; 3] = [StepPreset::Fine, StepPreset::Coarse, StepPreset::Adaptive];
 
 /// A volume with its renderer.
 struct Loaded {
@@ -61,8 +68,14 @@ struct Install {
     loaded: Loaded,
     /// A new volume (reset view, transfer function) or the same one with labels.
     new_volume: bool,
+    /// Where a new volume came from.
+    source: Option<VolumeSource>,
+    /// A label volume given by the session, not by its scene.
+    labels_path: Option<PathBuf>,
     /// A scene to switch to.
     scene: Option<SegmentScene>,
+    /// A session to restore once the volume is in place.
+    session: Option<Box<Session>>,
     message: String,
 }
 
@@ -109,6 +122,18 @@ struct State {
     /// No frame of the newly opened volume is done yet: frames sample the coarsest
     /// pyramid level, so a picture shows at once, and refine when the view rests.
     first_frame: bool,
+    /// Where the volume on screen came from (for sessions).
+    source: VolumeSource,
+    /// A label volume a session named (saved back into sessions).
+    labels_path: Option<PathBuf>,
+    /// The settings no panel edits (mode parameters, iso-value, crop and clip,
+    /// light, background, ...): the defaults, or what a session restored.
+    fixed: RenderSettings,
+    /// The level choice of still frames (a session may fix one).
+    level: LevelChoice,
+    /// A still step a session restored that no step preset has, with the
+    /// preset index it applies to (until another preset is picked).
+    step_override: Option<(i32, f32)>,
 }
 
 thread_local! {
@@ -125,12 +150,41 @@ impl Viewer {
         let scheduled = Arc::new(AtomicBool::new(false));
         let wake = wake_up(scheduled.clone());
         let installs = crossbeam_channel::unbounded();
-        let (first, error) = match &source {
-            Source::BuiltIn(kind, size) => (loader::built_in(*kind, *size)?, None),
+        let fallback = || -> Result<(LoadedVolume, VolumeSource)> {
+            let source = VolumeSource::BuiltIn {
+                kind: SceneKind::Shapes,
+                size: loader::BUILT_IN_SIZE,
+                seed: 1,
+            };
+            Ok((loader::open_source(&source)?, source))
+        };
+        let mut session = None;
+        let mut labels_path = None;
+        let ((first, first_source), error) = match &source {
+            Source::BuiltIn(kind, size) => {
+                let source = VolumeSource::BuiltIn {
+                    kind: *kind,
+                    size: *size,
+                    seed: 1,
+                };
+                ((loader::open_source(&source)?, source), None)
+            }
             Source::File(path) => match loader::open_file(path) {
-                Ok(v) => (v, None),
+                Ok(v) => ((v, loader::file_source(path)), None),
                 Err(e) => (
-                    loader::built_in(SceneKind::Shapes, loader::BUILT_IN_SIZE)?,
+                    fallback()?,
+                    Some(format!("{e:#} (showing the built-in scene)")),
+                ),
+            },
+            Source::Session(path) => match open_session_volume(path, None) {
+                Ok((s, v, labels)) => {
+                    let source = s.source.clone();
+                    session = Some(Box::new(s));
+                    labels_path = labels;
+                    ((v, source), None)
+                }
+                Err(e) => (
+                    fallback()?,
                     Some(format!("{e:#} (showing the built-in scene)")),
                 ),
             },
@@ -154,6 +208,11 @@ impl Viewer {
                 superseded: 0,
                 busy: false,
                 first_frame: false,
+                source: first_source.clone(),
+                labels_path: None,
+                fixed: RenderSettings::default(),
+                level: LevelChoice::default(),
+                step_override: None,
             }),
             scheduled,
             wake: wake.clone(),
@@ -171,14 +230,19 @@ impl Viewer {
                 front,
             },
             new_volume: true,
+            source: Some(first_source),
+            labels_path,
             scene: None,
+            session,
             message,
         }));
         if let Some(error) = error {
             controller.show_message(&error, true);
         }
-        if let Source::File(path) = &source {
-            ui.set_file_path(path.display().to_string().into());
+        match &source {
+            Source::File(path) => ui.set_file_path(path.display().to_string().into()),
+            Source::Session(path) => ui.set_session_path(path.display().to_string().into()),
+            Source::BuiltIn(..) => {}
         }
         connect(&ui, &controller);
         if let Some(path) = scene {
@@ -239,6 +303,57 @@ impl Viewer {
     pub fn frames_superseded(&self) -> u64 {
         self.controller.state.borrow().superseded
     }
+
+    /// The view on screen as a session: what "Save session" writes (the
+    /// full-quality frame the view settles on).
+    pub fn session(&self) -> Option<Session> {
+        self.controller.session()
+    }
+}
+
+/// Reads a session and opens what it needs: its volume (`current` when it is
+/// the same source) and the label volume it or its scene names, unless the
+/// volume brings labels. Refuses a camera the viewer cannot drive. Returns the
+/// session, the volume and the label path the session itself gave.
+fn open_session_volume(
+    path: &Path,
+    current: Option<(VolumeSource, LoadedVolume)>,
+) -> Result<(Session, LoadedVolume, Option<PathBuf>)> {
+    let session = Session::load(path)?;
+    if let SessionCamera::LookAt { .. } = session.camera {
+        anyhow::bail!(
+            "{}: the camera is a look-at camera (`position`); the viewer orbits about a target with +z up (render it with `raycaster render --session`)",
+            path.display()
+        );
+    }
+    let mut volume = match current {
+        Some((source, volume)) if source == session.source => volume,
+        _ => loader::open_source(&session.source)?,
+    };
+    let scene_labels = session
+        .settings
+        .segments
+        .as_ref()
+        .and_then(|s| match &s.membership {
+            Membership::Labels(p) => Some(p.clone()),
+            Membership::Layers(_) => None,
+        });
+    let wanted = match (&session.labels, scene_labels) {
+        (Some(p), _) => Some(p.clone()),
+        // Built-in scenes bring their labels.
+        (None, Some(p)) if volume.labels.is_none() => Some(p),
+        _ => None,
+    };
+    if let Some(labels) = wanted {
+        let label_volume = Volume::open(&labels)
+            .with_context(|| format!("cannot open labels {}", labels.display()))?;
+        if label_volume.content() != Content::Labels {
+            anyhow::bail!("{}: holds values, not labels", labels.display());
+        }
+        volume.labels = Some(Arc::new(label_volume));
+    }
+    let labels_path = session.labels.clone();
+    Ok((session, volume, labels_path))
 }
 
 fn init_models(ui: &App) {
@@ -274,6 +389,20 @@ fn wake_up(scheduled: Arc<AtomicBool>) -> Notify {
             }
         }
     })
+}
+
+/// The canvas in physical pixels (a fallback size before the window is laid out).
+fn canvas_size(ui: &App) -> (u32, u32) {
+    let scale = ui.window().scale_factor();
+    let canvas = (
+        (ui.get_canvas_width() * scale).round() as u32,
+        (ui.get_canvas_height() * scale).round() as u32,
+    );
+    if canvas.0 < 8 || canvas.1 < 8 {
+        FALLBACK_CANVAS
+    } else {
+        canvas
+    }
 }
 
 fn navigator_for(v: &LoadedVolume) -> Navigator {
@@ -341,6 +470,10 @@ fn connect(ui: &App, c: &Rc<Controller>) {
         .open(Source::File(PathBuf::from(path.as_str()))));
     on!(on_save_screenshot, |c, path| c
         .save_screenshot(Path::new(path.as_str())));
+    on!(on_open_session, |c, path| c
+        .open(Source::Session(PathBuf::from(path.as_str()))));
+    on!(on_save_session, |c, path| c
+        .save_session(Path::new(path.as_str())));
     on!(on_preset_selected, |c, index| c.select_preset(index));
     on!(on_tf_pressed, |c, x, y, right| {
         let (w, h) = c.tf_size();
@@ -401,11 +534,35 @@ impl Controller {
         let what = match &source {
             Source::File(p) => p.display().to_string(),
             Source::BuiltIn(kind, _) => format!("the built-in {} scene", kind.name()),
+            Source::Session(p) => format!("session {}", p.display()),
+        };
+        // A session of the volume on screen reuses it.
+        let current = {
+            let st = self.state.borrow();
+            st.current
+                .as_ref()
+                .map(|c| (st.source.clone(), c.volume.clone()))
         };
         self.in_background(format!("opening {what} …"), move |wake| {
-            let volume = match &source {
-                Source::BuiltIn(kind, size) => loader::built_in(*kind, *size)?,
-                Source::File(path) => loader::open_file(path)?,
+            let mut session = None;
+            let mut labels_path = None;
+            let (volume, volume_source) = match &source {
+                Source::BuiltIn(kind, size) => {
+                    let s = VolumeSource::BuiltIn {
+                        kind: *kind,
+                        size: *size,
+                        seed: 1,
+                    };
+                    (loader::open_source(&s)?, s)
+                }
+                Source::File(path) => (loader::open_file(path)?, loader::file_source(path)),
+                Source::Session(path) => {
+                    let (s, volume, labels) = open_session_volume(path, current)?;
+                    let volume_source = s.source.clone();
+                    session = Some(Box::new(s));
+                    labels_path = labels;
+                    (volume, volume_source)
+                }
             };
             let front = RenderFront::with_labels(
                 volume.volume.clone(),
@@ -414,11 +571,18 @@ impl Controller {
                 Some(wake),
             )
             .context("cannot prepare the volume for rendering")?;
+            let message = match &source {
+                Source::Session(path) => format!("opened session {}", path.display()),
+                _ => format!("opened {}", volume.description),
+            };
             Ok(Install {
-                message: format!("opened {}", volume.description),
+                message,
                 loaded: Loaded { volume, front },
                 new_volume: true,
+                source: Some(volume_source),
+                labels_path,
                 scene: None,
+                session,
             })
         });
     }
@@ -455,6 +619,13 @@ impl Controller {
             st.busy = false;
             if install.new_volume {
                 let v = &install.loaded.volume;
+                if let Some(source) = install.source {
+                    st.source = source;
+                }
+                st.labels_path = install.labels_path;
+                st.fixed = RenderSettings::default();
+                st.level = LevelChoice::default();
+                st.step_override = None;
                 st.nav = navigator_for(v);
                 let tf = preset_for(v, v.preset);
                 st.editor.set_transfer(&tf);
@@ -483,10 +654,124 @@ impl Controller {
             st.last_stats = None;
             st.first_frame = true;
         }
-        self.show_message(&install.message, false);
+        let mut message = install.message;
+        if let Some(session) = install.session {
+            message += &self.restore(*session);
+        }
+        self.show_message(&message, false);
         self.show_objects();
         self.redraw_tf();
         self.request_frame(false);
+    }
+
+    /// Sets the panels, camera, transfer function, scene and the settings no
+    /// panel shows from `session` (its volume is in place); returns a note for
+    /// the message line when the canvas differs from the session's image size.
+    fn restore(&self, session: Session) -> String {
+        let Some(ui) = self.ui() else {
+            return String::new();
+        };
+        let settings = session.settings;
+        {
+            let mut st = self.state.borrow_mut();
+            if let SessionCamera::Orbit(orbit) = session.camera {
+                st.nav.set_orbit(orbit);
+            }
+            st.editor.set_transfer(&settings.transfer);
+            st.scene = settings.segments.clone();
+            st.level = session.level;
+            let preset = STEP_PRESETS.iter().position(|&p| {
+                let mut q = QualityPolicy::default();
+                q.preset = p;
+                q.still().step == settings.step
+            });
+            match preset {
+                Some(i) => {
+                    ui.set_step_index(i as i32);
+                    st.step_override = None;
+                }
+                None => st.step_override = Some((ui.get_step_index(), settings.step)),
+            }
+            st.fixed = settings.clone();
+        }
+        ui.set_mode_index(
+            Mode::ALL
+                .iter()
+                .position(|&m| m == settings.mode)
+                .map_or(0, |i| i as i32),
+        );
+        ui.set_ert(settings.early_termination.is_some());
+        ui.set_ess(settings.empty_space_skipping);
+        ui.set_shading(settings.shading.is_some());
+        let preset = PRESETS.iter().position(|(name, _)| {
+            TransferFunction::preset(name).is_ok_and(|p| p.points() == settings.transfer.points())
+        });
+        ui.set_preset_index(preset.map_or(-1, |i| i as i32));
+        let canvas = canvas_size(&ui);
+        if [canvas.0, canvas.1] == session.size {
+            String::new()
+        } else {
+            format!(
+                " (saved at {}×{}; the canvas is {}×{})",
+                session.size[0], session.size[1], canvas.0, canvas.1
+            )
+        }
+    }
+
+    /// The render settings of the view: the panels over the fixed settings,
+    /// with sampling step `step`.
+    fn view_settings(ui: &App, st: &State, step: f32) -> RenderSettings {
+        let fixed = &st.fixed;
+        RenderSettings {
+            mode: Mode::ALL
+                .get(ui.get_mode_index().max(0) as usize)
+                .copied()
+                .unwrap_or(Mode::Dvr),
+            step,
+            early_termination: ui
+                .get_ert()
+                .then_some(fixed.early_termination.unwrap_or(DEFAULT_ERT_THRESHOLD)),
+            empty_space_skipping: ui.get_ess(),
+            shading: ui.get_shading().then(|| fixed.shading.unwrap_or_default()),
+            transfer: st.editor.transfer(),
+            segments: st.scene.clone(),
+            ..fixed.clone()
+        }
+    }
+
+    /// The step of still frames: the preset's, or the one a session restored.
+    fn still_step(ui: &App, st: &State) -> f32 {
+        match st.step_override {
+            Some((index, step)) if index == ui.get_step_index() => step,
+            _ => st.quality.still().step,
+        }
+    }
+
+    /// The view as a session: the full-quality frame it settles on.
+    fn session(&self) -> Option<Session> {
+        let ui = self.ui()?;
+        let mut st = self.state.borrow_mut();
+        st.quality.preset = StepPreset::from_index(ui.get_step_index());
+        let (w, h) = canvas_size(&ui);
+        let step = Self::still_step(&ui, &st);
+        Some(Session {
+            source: st.source.clone(),
+            labels: st.labels_path.clone(),
+            size: [w, h],
+            camera: SessionCamera::Orbit(*st.nav.orbit()),
+            settings: Self::view_settings(&ui, &st, step),
+            level: st.level,
+        })
+    }
+
+    fn save_session(&self, path: &Path) {
+        let Some(session) = self.session() else {
+            return;
+        };
+        match session.save(path) {
+            Ok(()) => self.show_message(&format!("saved session {}", path.display()), false),
+            Err(e) => self.show_message(&raycaster::errors::error_text(&e), true),
+        }
     }
 
     /// Requests a frame of the current view: interactive (coarser, followed by a
@@ -521,7 +806,7 @@ impl Controller {
             None if moving => LevelChoice::Auto {
                 bias: MOVING_LEVEL_BIAS,
             },
-            None => LevelChoice::default(),
+            None => st.level,
         };
         st.quality.preset = StepPreset::from_index(ui.get_step_index());
         st.quality.full_quality_only = ui.get_full_quality_only();
@@ -530,16 +815,7 @@ impl Controller {
         } else {
             st.quality.still()
         };
-        let scale = ui.window().scale_factor();
-        let canvas = (
-            (ui.get_canvas_width() * scale).round() as u32,
-            (ui.get_canvas_height() * scale).round() as u32,
-        );
-        let canvas = if canvas.0 < 8 || canvas.1 < 8 {
-            FALLBACK_CANVAS
-        } else {
-            canvas
-        };
+        let canvas = canvas_size(&ui);
         let (w, h) = QualityPolicy::frame_size(quality, canvas.0, canvas.1);
         let camera = match st.nav.orbit().camera(w, h) {
             Ok(camera) => camera,
@@ -549,19 +825,13 @@ impl Controller {
                 return;
             }
         };
-        let settings = RenderSettings {
-            mode: Mode::ALL
-                .get(ui.get_mode_index().max(0) as usize)
-                .copied()
-                .unwrap_or(Mode::Dvr),
-            step: quality.step,
-            early_termination: ui.get_ert().then_some(DEFAULT_ERT_THRESHOLD),
-            empty_space_skipping: ui.get_ess(),
-            shading: ui.get_shading().then(Shading::default),
-            transfer: st.editor.transfer(),
-            segments: st.scene.clone(),
-            ..RenderSettings::default()
+        // Still frames are what a saved session holds (one function makes both).
+        let step = if quality == st.quality.still() {
+            Self::still_step(&ui, &st)
+        } else {
+            quality.step
         };
+        let settings = Self::view_settings(&ui, &st, step);
         let options = ParallelOptions {
             render_threads: ui.get_threads().max(1) as usize,
             tile_size: TILE_SIZES
@@ -795,7 +1065,10 @@ impl Controller {
                     message: format!("labels {} attached", labels.display()),
                     loaded: Loaded { volume, front },
                     new_volume: false,
+                    source: None,
+                    labels_path: None,
                     scene: Some(scene),
+                    session: None,
                 })
             },
         );
@@ -808,6 +1081,10 @@ impl Controller {
             let st = self.state.borrow();
             st.scene.clone().unwrap_or_else(|| {
                 let mode = self.ui().map_or(0, |ui| ui.get_mode_index());
+                let mode = Mode::ALL
+                    .get(mode.max(0) as usize)
+                    .copied()
+                    .unwrap_or(Mode::Dvr);
                 SegmentScene {
                     membership: Membership::Layers(vec![[0.0, 1.0]]),
                     objects: vec![ObjectStyle {
@@ -815,12 +1092,8 @@ impl Controller {
                         id: 1,
                         visible: true,
                         transfer: st.editor.transfer(),
-                        mode: match Mode::ALL.get(mode.max(0) as usize) {
-                            Some(Mode::Mip) => LocalMode::Mip,
-                            Some(Mode::Average) => LocalMode::Average,
-                            Some(Mode::FirstHit) => LocalMode::FirstHit { iso: 0.5 },
-                            _ => LocalMode::Dvr,
-                        },
+                        // Every mode has its local counterpart (Sabella included).
+                        mode: mode.local(&st.fixed.mode_parameters, st.fixed.iso_value),
                         clip: Default::default(),
                     }],
                     global: GlobalMode::Dvr,

@@ -37,14 +37,18 @@ pub struct LoadedVolume {
     pub preset: &'static str,
 }
 
-/// The built-in `shapes` scene the viewer starts with.
+/// The built-in scene `kind` of `size³` voxels (seed 1), as the viewer starts with.
 pub fn built_in(kind: SceneKind, size: u32) -> Result<LoadedVolume> {
-    let source = VolumeSource::BuiltIn {
+    open_source(&VolumeSource::BuiltIn {
         kind,
         size,
         seed: 1,
-    };
-    Ok(finish(source::open(&source)?))
+    })
+}
+
+/// Opens a built-in scene or a file (see [`open_file`]).
+pub fn open_source(source: &VolumeSource) -> Result<LoadedVolume> {
+    Ok(finish(source::open(source)?))
 }
 
 /// Opens a `.vol` file (mapped, never read whole) or a scan in a foreign format
@@ -54,11 +58,15 @@ pub fn built_in(kind: SceneKind, size: u32) -> Result<LoadedVolume> {
 /// how, which preset suits it) is the library's [`raycaster::source`], shared with
 /// the `raycaster` command.
 pub fn open_file(path: &Path) -> Result<LoadedVolume> {
-    let source = VolumeSource::File {
+    open_source(&file_source(path))
+}
+
+/// The source of a file the viewer opens (mapped).
+pub fn file_source(path: &Path) -> VolumeSource {
+    VolumeSource::File {
         path: path.to_path_buf(),
         access: Access::Mapped,
-    };
-    Ok(finish(source::open(&source)?))
+    }
 }
 
 fn finish(opened: OpenedVolume) -> LoadedVolume {

@@ -10,7 +10,9 @@ use viewer::{Source, Viewer};
 /// Interactive CPU volume viewer for huge bricked, memory-mapped volumes.
 ///
 /// Left drag orbits, middle or shift + left drag pans, the wheel zooms. Without
-/// FILE it shows a generated scene at once.
+/// FILE it shows a generated scene at once. "Save session" writes the view as a
+/// TOML file that `viewer --session` restores and `raycaster render --session`
+/// renders pixel for pixel.
 #[derive(Parser)]
 #[command(version, about, long_about)]
 struct Args {
@@ -31,6 +33,11 @@ struct Args {
     /// A two-level scene description (TOML) to load at start.
     #[arg(long, value_name = "SCENE.toml")]
     segments: Option<PathBuf>,
+
+    /// A session to restore at start (saved with "Save session"): its volume,
+    /// camera, transfer function, mode, settings and scene.
+    #[arg(long, value_name = "S.toml", conflicts_with_all = ["file", "segments", "scene", "scene_size"])]
+    session: Option<PathBuf>,
 }
 
 fn parse_scene(s: &str) -> Result<SceneKind, String> {
@@ -42,9 +49,10 @@ fn parse_scene(s: &str) -> Result<SceneKind, String> {
 
 fn main() -> ExitCode {
     let args = Args::parse();
-    let source = match args.file {
-        Some(path) => Source::File(path),
-        None => Source::BuiltIn(args.scene, args.scene_size),
+    let source = match (args.session, args.file) {
+        (Some(session), _) => Source::Session(session),
+        (None, Some(path)) => Source::File(path),
+        (None, None) => Source::BuiltIn(args.scene, args.scene_size),
     };
     let result = Viewer::new(source, args.segments).and_then(|v| v.run());
     match result {

@@ -94,6 +94,13 @@ impl Navigator {
         &self.orbit
     }
 
+    /// Moves the camera to `orbit` (a restored session); reset still returns to
+    /// the framing of the volume.
+    pub fn set_orbit(&mut self, orbit: Orbit) {
+        self.orbit = orbit;
+        self.drag = None;
+    }
+
     /// Whether a drag is in progress.
     pub fn dragging(&self) -> bool {
         self.drag.is_some()

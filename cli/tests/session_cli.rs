@@ -1,0 +1,232 @@
+//! `raycaster render --session`: a session written by the library renders the
+//! same pixels as the equivalent flags; flags that describe the picture are
+//! refused with a session; bad sessions are refused by field.
+
+mod support;
+
+use support::{raycaster, stderr};
+
+use std::path::Path;
+
+use raycaster::render::{
+    ClipPlane, ClipRegion, CropBox, LevelChoice, Mode, ModeParameters, Orbit, RenderSettings,
+    RgbImage, SabellaDepth, SabellaMapping, SabellaOutput, Shading, TransferFunction, Vec3,
+};
+use raycaster::session::{Session, SessionCamera};
+use raycaster::source::VolumeSource;
+use raycaster::synth::SceneKind;
+
+/// The built-in shapes scene of 40³ voxels: voxel centres 0..39.
+const N: u32 = 40;
+
+/// The session the flags of `flags()` describe, built with the library.
+fn session(mode: Mode) -> Session {
+    let hi = Vec3::splat((N - 1) as f32);
+    let mut orbit = Orbit::framing(
+        Vec3::ZERO,
+        hi,
+        30f32.to_radians(),
+        20f32.to_radians(),
+        Some(35.0),
+    );
+    orbit.zoom(1.0 / 1.25);
+    Session {
+        source: VolumeSource::BuiltIn {
+            kind: SceneKind::Shapes,
+            size: N,
+            seed: 3,
+        },
+        labels: None,
+        size: [72, 56],
+        camera: SessionCamera::Orbit(orbit),
+        settings: RenderSettings {
+            mode,
+            mode_parameters: ModeParameters {
+                xray_gain: 2.0,
+                sabella: SabellaOutput::Colours(SabellaMapping {
+                    depth: SabellaDepth::Centroid,
+                    ..SabellaMapping::default()
+                }),
+                ..ModeParameters::default()
+            },
+            step: 0.75,
+            shading: Some(Shading::default()),
+            iso_value: 0.4,
+            transfer: TransferFunction::preset("shapes").unwrap(),
+            jitter: true,
+            clip: ClipRegion {
+                crop: Some(CropBox {
+                    lo: Vec3::new(0.0, 0.0, 0.0),
+                    hi: Vec3::new(39.0, 30.0, 39.0),
+                }),
+                planes: vec![ClipPlane {
+                    point: Vec3::new(19.5, 19.5, 19.5),
+                    normal: Vec3::new(1.0, 0.0, 1.0),
+                }],
+            },
+            ..RenderSettings::default()
+        },
+        level: LevelChoice::Auto { bias: 0.0 },
+    }
+}
+
+/// The same frame as flags.
+fn flags(mode: &str) -> Vec<String> {
+    [
+        "--scene",
+        "shapes",
+        "--scene-size",
+        "40",
+        "--seed",
+        "3",
+        "--size",
+        "72x56",
+        "--azimuth",
+        "30",
+        "--elevation",
+        "20",
+        "--fov",
+        "35",
+        "--zoom",
+        "1.25",
+        "--mode",
+        mode,
+        "--xray-gain",
+        "2",
+        "--sabella-depth",
+        "centroid",
+        "--iso",
+        "40%",
+        "--step",
+        "0.75",
+        "--jitter",
+        "--tf",
+        "shapes",
+        "--crop",
+        "0,0,0,39,30,39",
+        "--clip",
+        "19.5,19.5,19.5,1,0,1",
+    ]
+    .map(String::from)
+    .to_vec()
+}
+
+fn render(dir: &Path, args: &[String], out: &str) -> RgbImage {
+    let mut all: Vec<&str> = vec!["render", "-q", "--force", "-o", out];
+    all.extend(args.iter().map(String::as_str));
+    let run = raycaster(&all, dir);
+    assert!(run.status.success(), "{all:?}: {}", stderr(&run));
+    RgbImage::load_png(&dir.join(out)).unwrap()
+}
+
+#[test]
+fn a_session_renders_the_pixels_of_the_equivalent_flags() {
+    let dir = tempfile::tempdir().unwrap();
+    for (mode, name) in [
+        (Mode::Dvr, "dvr"),
+        (Mode::Sabella, "sabella"),
+        (Mode::FirstHit, "first-hit"),
+        (Mode::XRay, "xray"),
+    ] {
+        let path = dir.path().join(format!("{name}.toml"));
+        session(mode).save(&path).unwrap();
+        let from_flags = render(dir.path(), &flags(name), "flags.png");
+        let session_args = vec!["--session".to_string(), path.display().to_string()];
+        let from_session = render(dir.path(), &session_args, "session.png");
+        assert_eq!((from_session.width(), from_session.height()), (72, 56));
+        let lit = from_session
+            .data()
+            .chunks(3)
+            .filter(|p| p != &[0, 0, 0])
+            .count();
+        assert!(lit > 100, "{name}: the scene shows ({lit} lit pixels)");
+        assert!(
+            from_session.data() == from_flags.data(),
+            "{name}: the session's image differs from the flags' image"
+        );
+        // The sequential reference renderer agrees.
+        let mut sequential = session_args.clone();
+        sequential.push("--sequential".into());
+        let reference = render(dir.path(), &sequential, "sequential.png");
+        assert!(
+            reference.data() == from_session.data(),
+            "{name}: sequential"
+        );
+    }
+    // A changed session field changes the picture (the comparison can fail).
+    let mut other = session(Mode::Dvr);
+    other.settings.step = 0.5;
+    let path = dir.path().join("other.toml");
+    other.save(&path).unwrap();
+    let changed = render(
+        dir.path(),
+        &["--session".into(), path.display().to_string()],
+        "other.png",
+    );
+    let dvr = render(dir.path(), &flags("dvr"), "flags.png");
+    assert!(changed.data() != dvr.data(), "the step shows in the image");
+}
+
+#[test]
+fn size_overrides_a_session_and_picture_flags_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("s.toml");
+    session(Mode::Dvr).save(&path).unwrap();
+    let s = path.display().to_string();
+    let big = render(
+        dir.path(),
+        &[
+            "--session".into(),
+            s.clone(),
+            "--size".into(),
+            "100x80".into(),
+        ],
+        "big.png",
+    );
+    assert_eq!((big.width(), big.height()), (100, 80));
+    for extra in [
+        &["--mode", "mip"][..],
+        &["--azimuth", "10"],
+        &["--tf", "cloud"],
+        &["--crop", "0,0,0,5,5,5"],
+        &["--scene", "shells"],
+    ] {
+        let mut args = vec!["render", "--session", &s, "-o", "x.png"];
+        args.extend(extra);
+        let run = raycaster(&args, dir.path());
+        assert!(!run.status.success(), "{extra:?} is refused");
+        let e = stderr(&run);
+        assert!(e.contains("--session") && e.contains(extra[0]), "{e}");
+    }
+    let run = raycaster(&["render", "in.vol", "--session", &s], dir.path());
+    assert!(!run.status.success(), "a FILE with a session is refused");
+}
+
+#[test]
+fn bad_sessions_are_refused_by_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = session(Mode::Dvr).to_toml().unwrap();
+    for (from, to, word) in [
+        ("step = 0.75", "step = -1.0", "render.step"),
+        ("mode = \"dvr\"", "mode = \"glow\"", "render.mode"),
+        ("width = 72", "width = 0", "image.width"),
+        (
+            "scene = \"shapes\"\nsize = 40\nseed = 3",
+            "file = \"missing.vol\"",
+            "missing.vol",
+        ),
+        ("version = 1", "version = 9", "version"),
+    ] {
+        assert!(good.contains(from), "{from}");
+        std::fs::write(dir.path().join("bad.toml"), good.replace(from, to)).unwrap();
+        let run = raycaster(
+            &["render", "--session", "bad.toml", "-o", "x.png"],
+            dir.path(),
+        );
+        assert!(!run.status.success(), "{to}");
+        let e = stderr(&run);
+        assert!(e.contains(word), "{to}: {e}");
+        assert!(!e.contains("panicked"), "{e}");
+        assert!(!dir.path().join("x.png").exists());
+    }
+}

@@ -1,0 +1,1410 @@
+//! Sessions: everything that makes one frame, as a readable TOML file.
+//!
+//! A [`Session`] holds where the volume comes from (a file or a built-in scene),
+//! the label volume and two-level scene if any, the image size, the exact camera,
+//! the [`RenderSettings`] (mode and its parameters, transfer function, step,
+//! early ray termination, empty-space skipping, shading, pre-integration, jitter,
+//! crop box and clipping planes, background) and the pyramid level choice. The
+//! viewer saves what it shows as a session and `raycaster render --session`
+//! renders it: the same settings and camera give the same pixels.
+//!
+//! Floats are written so that they read back to the same `f32` bits, which is
+//! what makes a re-render pixel-identical. Relative paths in a session file are
+//! relative to the file's folder; paths are written as they are held.
+//!
+//! ```toml
+//! version = 1
+//!
+//! [volume]
+//! scene = "shapes"          # or: file = "lung1.vol"
+//! size = 128
+//! seed = 1
+//!
+//! [image]
+//! width = 640
+//! height = 480
+//!
+//! [camera]                  # an orbit about `target` (angles in radians) ...
+//! target = [63.5, 63.5, 63.5]
+//! distance = 350.0
+//! azimuth_rad = -1.0471976
+//! elevation_rad = 0.43633232
+//! fov = 40.0                # or: ortho_height = 240.0
+//! # ... or a look-at camera: position = [x, y, z], target, up = [0.0, 0.0, 1.0]
+//!
+//! [transfer]                # points = [[value, r, g, b, alpha], ...], or: preset = "shapes"
+//! points = [[0.0, 0.0, 0.0, 0.0, 0.0], [1.0, 1.0, 1.0, 1.0, 0.5]]
+//!
+//! [render]
+//! mode = "dvr"
+//! step = 0.5
+//! ```
+//!
+//! The whole format, with every key, is described in `docs/viewer.md`.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+use serde::Deserialize;
+
+use crate::render::{
+    Camera, CameraError, ClipPlane, ClipRegion, ControlPoint, CropBox, ImportanceSource,
+    LevelChoice, Light, Mode, ModeParameters, Orbit, Projection, RenderSettings, SabellaDepth,
+    SabellaMapping, SabellaOutput, SceneError, SegmentScene, Shading, TransferError,
+    TransferFunction, check_domain, check_gradient_ramp,
+};
+use crate::source::VolumeSource;
+use crate::synth::SceneKind;
+use crate::volume::{Access, write_file_atomically};
+
+/// The session format's version, written as `version = 1`.
+pub const SESSION_VERSION: u32 = 1;
+
+/// The largest session file read, in bytes (4 MiB).
+const SESSION_MAX: u64 = 4 << 20;
+
+/// The largest image side a session may ask for.
+pub const MAX_IMAGE_SIDE: u32 = 16384;
+
+/// Everything needed to reproduce one frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Session {
+    /// The volume: a file or a built-in scene. A file's `access` is not stored
+    /// (it does not change the picture); sessions read back with
+    /// [`Access::Mapped`].
+    pub source: VolumeSource,
+    /// A label volume for a label scene, overriding the scene's `labels`.
+    pub labels: Option<PathBuf>,
+    /// Image width and height in pixels.
+    pub size: [u32; 2],
+    /// The camera.
+    pub camera: SessionCamera,
+    /// Mode, transfer function, two-level scene, clipping and the rest. `simd`
+    /// (the marching kernel) is not stored: every kernel composites the same
+    /// image; sessions read back with `None` (automatic).
+    pub settings: RenderSettings,
+    /// Which level of the volume's resolution pyramid to sample.
+    pub level: LevelChoice,
+}
+
+/// The camera of a session.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum SessionCamera {
+    /// An orbit about a target, world up +z (what the viewer's mouse drives and
+    /// what `raycaster render --azimuth --elevation` frames).
+    Orbit(Orbit),
+    /// A camera at `position` looking at `target` with the given up vector.
+    LookAt {
+        /// Where the camera is (world units).
+        position: Vec3,
+        /// The point it looks at.
+        target: Vec3,
+        /// The up direction.
+        up: Vec3,
+        /// Perspective or orthographic.
+        projection: Projection,
+    },
+}
+
+impl SessionCamera {
+    /// The camera for an image of `width × height` pixels.
+    pub fn camera(&self, width: u32, height: u32) -> Result<Camera, CameraError> {
+        match *self {
+            SessionCamera::Orbit(orbit) => orbit.camera(width, height),
+            SessionCamera::LookAt {
+                position,
+                target,
+                up,
+                projection,
+            } => Camera::look_at(position, target, up, projection, width, height),
+        }
+    }
+}
+
+/// What is wrong with a session (or its file).
+#[derive(Debug, thiserror::Error)]
+pub enum SessionError {
+    /// The file cannot be read.
+    #[error("cannot read session {path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The error.
+        source: std::io::Error,
+    },
+    /// The file cannot be written.
+    #[error("cannot write session {path}: {source}")]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// The error.
+        source: std::io::Error,
+    },
+    /// TOML syntax, an unknown key or a value of the wrong type.
+    #[error("session: {0}")]
+    Syntax(String),
+    /// A value out of range, inconsistent or missing.
+    #[error("session: `{field}`: {what}")]
+    Invalid {
+        /// The key, with its table (`render.step`).
+        field: String,
+        /// What is wrong.
+        what: String,
+    },
+    /// The embedded two-level scene.
+    #[error("session: [scene]: {0}")]
+    Scene(#[source] SceneError),
+}
+
+fn invalid(field: &str, what: impl Into<String>) -> SessionError {
+    SessionError::Invalid {
+        field: field.to_string(),
+        what: what.into(),
+    }
+}
+
+// ---- the file as read ---------------------------------------------------------
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SessionFile {
+    version: Option<u32>,
+    volume: VolumeFile,
+    image: ImageFile,
+    camera: CameraFile,
+    transfer: TransferFile,
+    #[serde(default)]
+    render: RenderFile,
+    #[serde(default)]
+    shading: ShadingFile,
+    #[serde(default)]
+    clip: ClipFile,
+    scene: Option<toml::Table>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct VolumeFile {
+    file: Option<PathBuf>,
+    scene: Option<String>,
+    size: Option<u32>,
+    seed: Option<u64>,
+    labels: Option<PathBuf>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ImageFile {
+    width: u32,
+    height: u32,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CameraFile {
+    target: [f32; 3],
+    distance: Option<f32>,
+    azimuth_rad: Option<f32>,
+    elevation_rad: Option<f32>,
+    position: Option<[f32; 3]>,
+    up: Option<[f32; 3]>,
+    fov: Option<f32>,
+    ortho_height: Option<f32>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TransferFile {
+    preset: Option<String>,
+    points: Option<Vec<[f32; 5]>>,
+    domain: Option<[f32; 2]>,
+    gradient: Option<[f32; 2]>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RenderFile {
+    mode: Option<String>,
+    step: Option<f32>,
+    ert: Option<bool>,
+    ert_threshold: Option<f32>,
+    ess: Option<bool>,
+    iso: Option<f32>,
+    xray_gain: Option<f32>,
+    context: Option<[f32; 2]>,
+    importance: Option<String>,
+    importance_weight: Option<f32>,
+    importance_p: Option<[f32; 3]>,
+    sabella_depth: Option<String>,
+    sabella_hue: Option<[f32; 2]>,
+    sabella_saturation: Option<[f32; 2]>,
+    background: Option<[f32; 3]>,
+    preintegrate: Option<bool>,
+    jitter: Option<bool>,
+    level: Option<LevelFile>,
+    lod_bias: Option<f32>,
+}
+
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum LevelFile {
+    Number(u32),
+    Name(String),
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct ShadingFile {
+    enabled: Option<bool>,
+    /// `"headlight"` or a direction `[x, y, z]`.
+    light: Option<LightFile>,
+    ambient: Option<f32>,
+    diffuse: Option<f32>,
+    specular: Option<f32>,
+    shininess: Option<f32>,
+    gradient_threshold: Option<f32>,
+}
+
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum LightFile {
+    Direction([f32; 3]),
+    Name(String),
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct ClipFile {
+    crop: Option<[f32; 6]>,
+    #[serde(default)]
+    planes: Vec<[f32; 6]>,
+}
+
+// ---- checks --------------------------------------------------------------------
+
+fn finite(field: &str, v: f32) -> Result<f32, SessionError> {
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(invalid(field, format!("{v} is not a finite number")))
+    }
+}
+
+fn finite_all<const N: usize>(field: &str, v: [f32; N]) -> Result<[f32; N], SessionError> {
+    for x in v {
+        finite(field, x)?;
+    }
+    Ok(v)
+}
+
+fn positive(field: &str, v: f32) -> Result<f32, SessionError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(invalid(field, format!("{v} must be a positive number")))
+    }
+}
+
+fn non_negative(field: &str, v: f32) -> Result<f32, SessionError> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(v)
+    } else {
+        Err(invalid(field, format!("{v} must be a non-negative number")))
+    }
+}
+
+fn unit(field: &str, v: f32) -> Result<f32, SessionError> {
+    if (0.0..=1.0).contains(&v) {
+        Ok(v)
+    } else {
+        Err(invalid(field, format!("{v} must lie in [0, 1]")))
+    }
+}
+
+fn fov(field: &str, v: f32) -> Result<f32, SessionError> {
+    if v > 0.0 && v < 180.0 {
+        Ok(v)
+    } else {
+        Err(invalid(
+            field,
+            format!("{v} must lie strictly between 0 and 180 degrees"),
+        ))
+    }
+}
+
+fn path_field(field: &str, path: PathBuf, base: &Path) -> Result<PathBuf, SessionError> {
+    if path.as_os_str().is_empty() {
+        return Err(invalid(field, "the path is empty"));
+    }
+    Ok(base.join(path))
+}
+
+impl Session {
+    /// Reads a session file; relative paths in it are relative to its folder.
+    /// The volume and label files must exist.
+    pub fn load(path: &Path) -> Result<Session, SessionError> {
+        let text =
+            crate::files::read_text(path, SESSION_MAX).map_err(|source| SessionError::Io {
+                path: path.to_path_buf(),
+                source,
+            })?;
+        let session = Session::parse(&text, path.parent().unwrap_or(Path::new("")))?;
+        if let VolumeSource::File { path, .. } = &session.source
+            && !path.exists()
+        {
+            return Err(invalid(
+                "volume.file",
+                format!("{}: no such file or folder", path.display()),
+            ));
+        }
+        if let Some(labels) = &session.labels
+            && !labels.exists()
+        {
+            return Err(invalid(
+                "volume.labels",
+                format!("{}: no such file", labels.display()),
+            ));
+        }
+        Ok(session)
+    }
+
+    /// Parses a session; relative paths are joined to `base`. Nothing is read
+    /// from disk except transfer-function files an embedded scene names.
+    pub fn parse(text: &str, base: &Path) -> Result<Session, SessionError> {
+        let file: SessionFile =
+            toml::from_str(text).map_err(|e| SessionError::Syntax(e.to_string()))?;
+        match file.version {
+            Some(SESSION_VERSION) => {}
+            Some(v) => {
+                return Err(invalid(
+                    "version",
+                    format!(
+                        "version {v} is not known (this raycaster reads version {SESSION_VERSION})"
+                    ),
+                ));
+            }
+            None => return Err(invalid("version", "missing: write `version = 1`")),
+        }
+        let source = volume_source(&file.volume, base)?;
+        let labels = match &file.volume.labels {
+            Some(p) => Some(path_field("volume.labels", p.clone(), base)?),
+            None => None,
+        };
+        let size = [file.image.width, file.image.height];
+        for (name, side) in [("image.width", size[0]), ("image.height", size[1])] {
+            if !(1..=MAX_IMAGE_SIDE).contains(&side) {
+                return Err(invalid(
+                    name,
+                    format!("{side} pixels: must lie in 1..={MAX_IMAGE_SIDE}"),
+                ));
+            }
+        }
+        let camera = camera(&file.camera)?;
+        camera
+            .camera(size[0], size[1])
+            .map_err(|e| invalid("camera", e.to_string()))?;
+        let transfer = transfer(&file.transfer, base)?;
+        let (settings, level) = settings(&file, transfer, base)?;
+        Ok(Session {
+            source,
+            labels,
+            size,
+            camera,
+            settings,
+            level,
+        })
+    }
+
+    /// The session as TOML that [`Session::parse`] reads back to an equal session
+    /// (up to `simd` and a file's `access`, which are not stored). Refuses what a
+    /// session cannot describe (Sabella's raw channels).
+    pub fn to_toml(&self) -> Result<String, SessionError> {
+        let s = &self.settings;
+        let mut out = String::from("# raycaster session (docs/viewer.md)\n");
+        let _ = writeln!(out, "version = {SESSION_VERSION}");
+
+        out += "\n[volume]\n";
+        match &self.source {
+            VolumeSource::File { path, .. } => {
+                let _ = writeln!(out, "file = {}", quote(&path.to_string_lossy()));
+            }
+            VolumeSource::BuiltIn { kind, size, seed } => {
+                let _ = writeln!(out, "scene = {}", quote(kind.name()));
+                let _ = writeln!(out, "size = {size}\nseed = {seed}");
+            }
+        }
+        if let Some(labels) = &self.labels {
+            let _ = writeln!(out, "labels = {}", quote(&labels.to_string_lossy()));
+        }
+
+        let [w, h] = self.size;
+        let _ = writeln!(out, "\n[image]\nwidth = {w}\nheight = {h}");
+
+        out += "\n[camera]\n";
+        let projection = match self.camera {
+            SessionCamera::Orbit(o) => {
+                let _ = writeln!(out, "target = {}", list(o.target.to_array()));
+                let _ = writeln!(out, "distance = {}", num(o.distance));
+                let _ = writeln!(out, "azimuth_rad = {}", num(o.azimuth));
+                let _ = writeln!(out, "elevation_rad = {}", num(o.elevation));
+                match o.vfov_deg {
+                    Some(vfov_deg) => Projection::Perspective { vfov_deg },
+                    None => Projection::Orthographic {
+                        height: o.ortho_height,
+                    },
+                }
+            }
+            SessionCamera::LookAt {
+                position,
+                target,
+                up,
+                projection,
+            } => {
+                let _ = writeln!(out, "position = {}", list(position.to_array()));
+                let _ = writeln!(out, "target = {}", list(target.to_array()));
+                let _ = writeln!(out, "up = {}", list(up.to_array()));
+                projection
+            }
+        };
+        match projection {
+            Projection::Perspective { vfov_deg } => {
+                let _ = writeln!(out, "fov = {}", num(vfov_deg));
+            }
+            Projection::Orthographic { height } => {
+                let _ = writeln!(out, "ortho_height = {}", num(height));
+            }
+        }
+        // An orbit keeps its orthographic height for zooming even in perspective.
+        if let SessionCamera::Orbit(o) = self.camera
+            && o.vfov_deg.is_some()
+        {
+            let _ = writeln!(out, "ortho_height = {}", num(o.ortho_height));
+        }
+
+        out += "\n[transfer]\n";
+        let tf = &s.transfer;
+        if let Some(d) = tf.domain {
+            let _ = writeln!(out, "domain = {}", list(d));
+        }
+        if let Some(g) = tf.gradient_ramp {
+            let _ = writeln!(out, "gradient = {}", list(g));
+        }
+        out += "points = [\n";
+        for p in tf.points() {
+            let [r, g, b] = p.color;
+            let _ = writeln!(out, "  {},", list([p.value, r, g, b, p.alpha]));
+        }
+        out += "]\n";
+
+        out += "\n[render]\n";
+        let _ = writeln!(out, "mode = {}", quote(s.mode.name()));
+        let _ = writeln!(out, "step = {}", num(s.step));
+        let _ = writeln!(out, "ert = {}", s.early_termination.is_some());
+        let threshold = s
+            .early_termination
+            .unwrap_or(crate::render::DEFAULT_ERT_THRESHOLD);
+        let _ = writeln!(out, "ert_threshold = {}", num(threshold));
+        let _ = writeln!(out, "ess = {}", s.empty_space_skipping);
+        let _ = writeln!(out, "iso = {}", num(s.iso_value));
+        let m = &s.mode_parameters;
+        let _ = writeln!(out, "xray_gain = {}", num(m.xray_gain));
+        let _ = writeln!(out, "context = {}", list(m.context));
+        let (name, weight, p) = match m.importance {
+            ImportanceSource::Constant(w) => ("constant", Some(w), None),
+            ImportanceSource::Intensity(w) => ("intensity", Some(w), None),
+            ImportanceSource::Gradient(w) => ("gradient", Some(w), None),
+            ImportanceSource::Silhouette(p) => ("silhouette", None, Some(p)),
+            ImportanceSource::Lighting(p) => ("lighting", None, Some(p)),
+        };
+        let _ = writeln!(out, "importance = {}", quote(name));
+        if let Some(w) = weight {
+            let _ = writeln!(out, "importance_weight = {}", num(w));
+        }
+        if let Some(p) = p {
+            let _ = writeln!(out, "importance_p = {}", list(p));
+        }
+        match m.sabella {
+            SabellaOutput::Colours(mapping) => {
+                let _ = writeln!(out, "sabella_depth = {}", quote(mapping.depth.name()));
+                let _ = writeln!(out, "sabella_hue = {}", list(mapping.hue));
+                let _ = writeln!(out, "sabella_saturation = {}", list(mapping.saturation));
+            }
+            SabellaOutput::Channels => {
+                return Err(invalid(
+                    "render.sabella_depth",
+                    "Sabella's raw channels are not a picture; a session holds colours",
+                ));
+            }
+        }
+        let _ = writeln!(out, "background = {}", list(s.background));
+        let _ = writeln!(out, "preintegrate = {}", s.preintegrated);
+        let _ = writeln!(out, "jitter = {}", s.jitter);
+        match self.level {
+            LevelChoice::Auto { bias } => {
+                let _ = writeln!(out, "level = \"auto\"\nlod_bias = {}", num(bias));
+            }
+            LevelChoice::Fixed(k) => {
+                let _ = writeln!(out, "level = {k}");
+            }
+        }
+
+        out += "\n[shading]\n";
+        let shading = s.shading.unwrap_or_default();
+        let _ = writeln!(out, "enabled = {}", s.shading.is_some());
+        match shading.light {
+            Light::Headlight => out += "light = \"headlight\"\n",
+            Light::Fixed(d) => {
+                let _ = writeln!(out, "light = {}", list(d.to_array()));
+            }
+        }
+        let _ = writeln!(out, "ambient = {}", num(shading.ambient));
+        let _ = writeln!(out, "diffuse = {}", num(shading.diffuse));
+        let _ = writeln!(out, "specular = {}", num(shading.specular));
+        let _ = writeln!(out, "shininess = {}", num(shading.shininess));
+        let _ = writeln!(
+            out,
+            "gradient_threshold = {}",
+            num(shading.gradient_threshold)
+        );
+
+        if !s.clip.is_empty() {
+            out += "\n[clip]   # voxel coordinates\n";
+            if let Some(CropBox { lo, hi }) = s.clip.crop {
+                let _ = writeln!(out, "crop = {}", list([lo.x, lo.y, lo.z, hi.x, hi.y, hi.z]));
+            }
+            if !s.clip.planes.is_empty() {
+                let planes: Vec<String> = s
+                    .clip
+                    .planes
+                    .iter()
+                    .map(|p| {
+                        let (q, n) = (p.point, p.normal);
+                        list([q.x, q.y, q.z, n.x, n.y, n.z])
+                    })
+                    .collect();
+                let _ = writeln!(out, "planes = [{}]", planes.join(", "));
+            }
+        }
+
+        if let Some(scene) = &s.segments {
+            // The scene's own format, as the table `[scene]`.
+            let table: toml::Table = toml::from_str(&scene.to_toml())
+                .map_err(|e| invalid("scene", format!("cannot embed the scene: {e}")))?;
+            let mut wrapper = toml::Table::new();
+            wrapper.insert("scene".into(), toml::Value::Table(table));
+            let text = toml::to_string(&wrapper)
+                .map_err(|e| invalid("scene", format!("cannot embed the scene: {e}")))?;
+            out += "\n# The two-level scene (docs/segments.md).\n";
+            out += &text;
+        }
+        Ok(out)
+    }
+
+    /// Writes the session to `path` atomically (a temporary file renamed into
+    /// place: never half-written).
+    pub fn save(&self, path: &Path) -> Result<(), SessionError> {
+        let text = self.to_toml()?;
+        write_file_atomically(path, text.as_bytes()).map_err(|source| SessionError::Write {
+            path: path.to_path_buf(),
+            source,
+        })
+    }
+
+    /// The camera for the session's image size.
+    pub fn camera(&self) -> Result<Camera, CameraError> {
+        self.camera.camera(self.size[0], self.size[1])
+    }
+}
+
+fn volume_source(v: &VolumeFile, base: &Path) -> Result<VolumeSource, SessionError> {
+    match (&v.file, &v.scene) {
+        (Some(_), Some(_)) => Err(invalid(
+            "volume",
+            "give either `file` or `scene` (a built-in scene), not both",
+        )),
+        (None, None) => Err(invalid(
+            "volume",
+            "give `file = \"PATH\"` or `scene = \"shapes\"` (a built-in scene)",
+        )),
+        (Some(path), None) => {
+            if v.size.is_some() || v.seed.is_some() {
+                return Err(invalid(
+                    "volume",
+                    "`size` and `seed` belong to built-in scenes, not files",
+                ));
+            }
+            Ok(VolumeSource::File {
+                path: path_field("volume.file", path.clone(), base)?,
+                access: Access::Mapped,
+            })
+        }
+        (None, Some(name)) => {
+            let kind = SceneKind::ALL
+                .into_iter()
+                .find(|k| k.name() == name)
+                .ok_or_else(|| {
+                    invalid(
+                        "volume.scene",
+                        format!(
+                            "unknown built-in scene {name:?} (shapes, shells, noise, gradient)"
+                        ),
+                    )
+                })?;
+            let size = v
+                .size
+                .ok_or_else(|| invalid("volume.size", "missing: voxels per axis"))?;
+            if !(2..=1024).contains(&size) {
+                return Err(invalid(
+                    "volume.size",
+                    format!("{size} voxels: must lie in 2..=1024"),
+                ));
+            }
+            Ok(VolumeSource::BuiltIn {
+                kind,
+                size,
+                seed: v.seed.unwrap_or(1),
+            })
+        }
+    }
+}
+
+fn camera(c: &CameraFile) -> Result<SessionCamera, SessionError> {
+    let target = Vec3::from(finite_all("camera.target", c.target)?);
+    let projection = match (c.fov, c.ortho_height) {
+        (Some(f), _) => Projection::Perspective {
+            vfov_deg: fov("camera.fov", f)?,
+        },
+        (None, Some(h)) => Projection::Orthographic {
+            height: positive("camera.ortho_height", h)?,
+        },
+        (None, None) => {
+            return Err(invalid(
+                "camera",
+                "give `fov` (degrees, perspective) or `ortho_height` (orthographic)",
+            ));
+        }
+    };
+    match c.position {
+        Some(position) => {
+            if c.distance.is_some() || c.azimuth_rad.is_some() || c.elevation_rad.is_some() {
+                return Err(invalid(
+                    "camera",
+                    "a look-at camera (`position`) takes no `distance`, `azimuth_rad` or `elevation_rad`",
+                ));
+            }
+            Ok(SessionCamera::LookAt {
+                position: Vec3::from(finite_all("camera.position", position)?),
+                target,
+                up: Vec3::from(finite_all("camera.up", c.up.unwrap_or([0.0, 0.0, 1.0]))?),
+                projection,
+            })
+        }
+        None => {
+            if c.up.is_some_and(|u| u != [0.0, 0.0, 1.0]) {
+                return Err(invalid(
+                    "camera.up",
+                    "an orbit camera has +z up; give `position` for another up vector",
+                ));
+            }
+            let get = |name: &str, v: Option<f32>| {
+                v.ok_or_else(|| {
+                    invalid(
+                        &format!("camera.{name}"),
+                        "missing (an orbit camera needs distance, azimuth_rad and elevation_rad; a look-at camera, position)",
+                    )
+                })
+            };
+            let distance = positive("camera.distance", get("distance", c.distance)?)?;
+            let azimuth = finite("camera.azimuth_rad", get("azimuth_rad", c.azimuth_rad)?)?;
+            let elevation = finite(
+                "camera.elevation_rad",
+                get("elevation_rad", c.elevation_rad)?,
+            )?;
+            if elevation.abs() >= std::f32::consts::FRAC_PI_2 {
+                return Err(invalid(
+                    "camera.elevation_rad",
+                    format!("{elevation} must lie strictly between −π/2 and π/2"),
+                ));
+            }
+            let (vfov_deg, ortho_height) = match projection {
+                Projection::Perspective { vfov_deg } => (
+                    Some(vfov_deg),
+                    match c.ortho_height {
+                        Some(h) => positive("camera.ortho_height", h)?,
+                        None => distance,
+                    },
+                ),
+                Projection::Orthographic { height } => (None, height),
+            };
+            Ok(SessionCamera::Orbit(Orbit {
+                target,
+                distance,
+                azimuth,
+                elevation,
+                vfov_deg,
+                ortho_height,
+            }))
+        }
+    }
+}
+
+fn transfer(t: &TransferFile, base: &Path) -> Result<TransferFunction, SessionError> {
+    let tf_error = |e: TransferError| invalid("transfer", e.to_string());
+    let mut tf = match (&t.preset, &t.points) {
+        (Some(_), Some(_)) => {
+            return Err(invalid(
+                "transfer",
+                "give either `preset` (a name or a transfer-function file) or `points`, not both",
+            ));
+        }
+        (None, None) => {
+            return Err(invalid(
+                "transfer",
+                "give `points = [[value, r, g, b, alpha], ...]` or `preset = \"NAME\"`",
+            ));
+        }
+        (Some(name), None) if base.join(name).is_file() => {
+            TransferFunction::load(&base.join(name)).map_err(tf_error)?
+        }
+        (Some(name), None) => {
+            TransferFunction::preset(name).map_err(|e| invalid("transfer.preset", e.to_string()))?
+        }
+        (None, Some(points)) => {
+            let points = points
+                .iter()
+                .map(|&[value, r, g, b, alpha]| ControlPoint {
+                    value,
+                    color: [r, g, b],
+                    alpha,
+                })
+                .collect();
+            TransferFunction::new(points).map_err(|e| invalid("transfer.points", e.to_string()))?
+        }
+    };
+    if let Some(d) = t.domain {
+        check_domain(d).map_err(|e| invalid("transfer.domain", e))?;
+        tf.domain = Some(d);
+    }
+    if let Some(g) = t.gradient {
+        check_gradient_ramp(g).map_err(|e| invalid("transfer.gradient", e))?;
+        tf.gradient_ramp = Some(g);
+    }
+    Ok(tf)
+}
+
+fn settings(
+    file: &SessionFile,
+    transfer: TransferFunction,
+    base: &Path,
+) -> Result<(RenderSettings, LevelChoice), SessionError> {
+    let r = &file.render;
+    let defaults = RenderSettings::default();
+    let mode = match &r.mode {
+        None => Mode::Dvr,
+        Some(name) => Mode::ALL
+            .into_iter()
+            .find(|m| m.name() == name)
+            .ok_or_else(|| {
+                let names: Vec<&str> = Mode::ALL.iter().map(|m| m.name()).collect();
+                invalid(
+                    "render.mode",
+                    format!("unknown mode {name:?} ({})", names.join(", ")),
+                )
+            })?,
+    };
+    let step = positive("render.step", r.step.unwrap_or(defaults.step))?;
+    let threshold = r
+        .ert_threshold
+        .unwrap_or(crate::render::DEFAULT_ERT_THRESHOLD);
+    if !(threshold > 0.0 && threshold <= 1.0) {
+        return Err(invalid(
+            "render.ert_threshold",
+            format!("{threshold} must lie in (0, 1]"),
+        ));
+    }
+    let early_termination = r.ert.unwrap_or(true).then_some(threshold);
+    let iso = unit("render.iso", finite("render.iso", r.iso.unwrap_or(0.5))?)?;
+    let xray_gain = positive("render.xray_gain", r.xray_gain.unwrap_or(1.0))?;
+    let mut context = ModeParameters::default().context;
+    if let Some([kt, ks]) = r.context {
+        context = [
+            non_negative("render.context", kt)?,
+            non_negative("render.context", ks)?,
+        ];
+    }
+    let importance = importance(r)?;
+    let mut mapping = SabellaMapping::default();
+    if let Some(name) = &r.sabella_depth {
+        mapping.depth = SabellaDepth::parse(name).ok_or_else(|| {
+            invalid(
+                "render.sabella_depth",
+                format!("unknown depth {name:?} (peak, centroid)"),
+            )
+        })?;
+    }
+    if let Some(hue) = r.sabella_hue {
+        mapping.hue = finite_all("render.sabella_hue", hue)?;
+    }
+    if let Some(sat) = r.sabella_saturation {
+        for v in sat {
+            unit("render.sabella_saturation", v)?;
+        }
+        mapping.saturation = sat;
+    }
+    let background = r.background.unwrap_or([0.0; 3]);
+    for v in background {
+        unit("render.background", v)?;
+    }
+    let level = match &r.level {
+        None => LevelChoice::Auto { bias: 0.0 },
+        Some(LevelFile::Number(k)) => LevelChoice::Fixed(*k),
+        Some(LevelFile::Name(name)) if name == "auto" => LevelChoice::Auto { bias: 0.0 },
+        Some(LevelFile::Name(name)) => {
+            return Err(invalid(
+                "render.level",
+                format!("{name:?}: give \"auto\" or a level number (0 = full resolution)"),
+            ));
+        }
+    };
+    let level = match (level, r.lod_bias) {
+        (LevelChoice::Auto { .. }, Some(bias)) => LevelChoice::Auto {
+            bias: finite("render.lod_bias", bias)?,
+        },
+        (LevelChoice::Fixed(_), Some(_)) => {
+            return Err(invalid(
+                "render.lod_bias",
+                "shifts the automatic level only; it takes `level = \"auto\"`",
+            ));
+        }
+        (level, None) => level,
+    };
+    let shading = shading(&file.shading)?;
+    let clip = clip(&file.clip)?;
+    let segments = match &file.scene {
+        None => None,
+        Some(table) => {
+            let text = toml::to_string(table).map_err(|e| invalid("scene", e.to_string()))?;
+            Some(SegmentScene::parse(&text, base).map_err(SessionError::Scene)?)
+        }
+    };
+    let settings = RenderSettings {
+        mode,
+        mode_parameters: ModeParameters {
+            xray_gain,
+            context,
+            importance,
+            sabella: SabellaOutput::Colours(mapping),
+        },
+        step,
+        early_termination,
+        empty_space_skipping: file.render.ess.unwrap_or(true),
+        shading,
+        iso_value: iso,
+        background,
+        transfer,
+        segments,
+        simd: None,
+        preintegrated: r.preintegrate.unwrap_or(false),
+        jitter: r.jitter.unwrap_or(false),
+        clip,
+    };
+    Ok((settings, level))
+}
+
+fn importance(r: &RenderFile) -> Result<ImportanceSource, SessionError> {
+    let name = r.importance.as_deref().unwrap_or("constant");
+    let weight = || {
+        if r.importance_p.is_some() {
+            return Err(invalid(
+                "render.importance_p",
+                format!("importance {name:?} takes `importance_weight`, not `importance_p`"),
+            ));
+        }
+        non_negative(
+            "render.importance_weight",
+            r.importance_weight.unwrap_or(1.0),
+        )
+    };
+    let p = || {
+        if r.importance_weight.is_some() {
+            return Err(invalid(
+                "render.importance_weight",
+                format!("importance {name:?} takes `importance_p`, not `importance_weight`"),
+            ));
+        }
+        let p = r.importance_p.ok_or_else(|| {
+            invalid(
+                "render.importance_p",
+                format!("missing: importance {name:?} takes three parameters"),
+            )
+        })?;
+        for v in p {
+            non_negative("render.importance_p", v)?;
+        }
+        Ok(p)
+    };
+    Ok(match name {
+        "constant" => ImportanceSource::Constant(weight()?),
+        "intensity" => ImportanceSource::Intensity(weight()?),
+        "gradient" => ImportanceSource::Gradient(weight()?),
+        "silhouette" => ImportanceSource::Silhouette(p()?),
+        "lighting" => ImportanceSource::Lighting(p()?),
+        other => {
+            return Err(invalid(
+                "render.importance",
+                format!(
+                    "unknown importance {other:?} (constant, intensity, gradient, silhouette, lighting)"
+                ),
+            ));
+        }
+    })
+}
+
+fn shading(s: &ShadingFile) -> Result<Option<Shading>, SessionError> {
+    let d = Shading::default();
+    let light = match &s.light {
+        None => Light::Headlight,
+        Some(LightFile::Name(name)) if name == "headlight" => Light::Headlight,
+        Some(LightFile::Name(name)) => {
+            return Err(invalid(
+                "shading.light",
+                format!("{name:?}: give \"headlight\" or a direction [x, y, z]"),
+            ));
+        }
+        Some(LightFile::Direction(v)) => {
+            let v = Vec3::from(finite_all("shading.light", *v)?);
+            if v == Vec3::ZERO {
+                return Err(invalid("shading.light", "the direction is zero"));
+            }
+            Light::Fixed(v)
+        }
+    };
+    let shading = Shading {
+        light,
+        ambient: non_negative("shading.ambient", s.ambient.unwrap_or(d.ambient))?,
+        diffuse: non_negative("shading.diffuse", s.diffuse.unwrap_or(d.diffuse))?,
+        specular: non_negative("shading.specular", s.specular.unwrap_or(d.specular))?,
+        shininess: non_negative("shading.shininess", s.shininess.unwrap_or(d.shininess))?,
+        gradient_threshold: non_negative(
+            "shading.gradient_threshold",
+            s.gradient_threshold.unwrap_or(d.gradient_threshold),
+        )?,
+    };
+    Ok(s.enabled.unwrap_or(true).then_some(shading))
+}
+
+fn clip(c: &ClipFile) -> Result<ClipRegion, SessionError> {
+    let crop = match c.crop {
+        None => None,
+        Some(v) => {
+            let v = finite_all("clip.crop", v)?;
+            Some(CropBox {
+                lo: Vec3::new(v[0], v[1], v[2]),
+                hi: Vec3::new(v[3], v[4], v[5]),
+            })
+        }
+    };
+    let mut planes = Vec::with_capacity(c.planes.len());
+    for &p in &c.planes {
+        let p = finite_all("clip.planes", p)?;
+        planes.push(ClipPlane {
+            point: Vec3::new(p[0], p[1], p[2]),
+            normal: Vec3::new(p[3], p[4], p[5]),
+        });
+    }
+    let region = ClipRegion { crop, planes };
+    region
+        .validate()
+        .map_err(|e| invalid("clip", e.to_string()))?;
+    Ok(region)
+}
+
+// ---- writing -------------------------------------------------------------------
+
+fn quote(s: &str) -> String {
+    toml::Value::String(s.to_owned()).to_string()
+}
+
+/// `v` as a TOML float that reads back (as f64, then cast to f32) to the same
+/// bits: the shortest form when it does, else the exact f64 value.
+fn num(v: f32) -> String {
+    let short = format!("{v:?}");
+    let back = short.parse::<f64>().map(|x| x as f32);
+    if back.is_ok_and(|b| b.to_bits() == v.to_bits()) {
+        short
+    } else {
+        format!("{:?}", f64::from(v))
+    }
+}
+
+fn list<const N: usize>(v: [f32; N]) -> String {
+    let items: Vec<String> = v.iter().map(|&x| num(x)).collect();
+    format!("[{}]", items.join(", "))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::{GlobalMode, LocalMode, Membership, ObjectStyle};
+
+    fn sample() -> Session {
+        let mut transfer = TransferFunction::preset("shapes").unwrap();
+        transfer.domain = Some([3.0, 250.0]);
+        Session {
+            source: VolumeSource::BuiltIn {
+                kind: SceneKind::Shapes,
+                size: 48,
+                seed: 7,
+            },
+            labels: None,
+            size: [96, 64],
+            camera: SessionCamera::Orbit(Orbit {
+                target: Vec3::new(23.5, 23.1, 22.9),
+                distance: 101.37,
+                azimuth: 0.1_f32.mul_add(3.0, 1.0),
+                elevation: -0.3,
+                vfov_deg: Some(37.5),
+                ortho_height: 55.5,
+            }),
+            settings: RenderSettings {
+                mode: Mode::Sabella,
+                mode_parameters: ModeParameters {
+                    xray_gain: 2.5,
+                    context: [1.25, 0.5],
+                    importance: ImportanceSource::Lighting([1.0, 2.0, 0.5]),
+                    sabella: SabellaOutput::Colours(SabellaMapping {
+                        depth: SabellaDepth::Centroid,
+                        ..SabellaMapping::default()
+                    }),
+                },
+                step: 0.75,
+                early_termination: None,
+                empty_space_skipping: false,
+                shading: Some(Shading {
+                    light: Light::Fixed(Vec3::new(1.0, -2.0, 0.5)),
+                    ..Shading::default()
+                }),
+                iso_value: 0.35,
+                background: [0.1, 0.2, 0.3],
+                transfer,
+                segments: None,
+                simd: None,
+                preintegrated: true,
+                jitter: true,
+                clip: ClipRegion {
+                    crop: Some(CropBox {
+                        lo: Vec3::new(1.0, 2.0, 3.0),
+                        hi: Vec3::new(40.0, 41.5, 42.0),
+                    }),
+                    planes: vec![ClipPlane {
+                        point: Vec3::splat(24.0),
+                        normal: Vec3::new(0.0, 1.0, -1.0),
+                    }],
+                },
+            },
+            level: LevelChoice::Auto { bias: 0.5 },
+        }
+    }
+
+    fn round_trip(s: &Session) -> Session {
+        let text = s.to_toml().unwrap();
+        Session::parse(&text, Path::new("")).unwrap_or_else(|e| panic!("{e}\n{text}"))
+    }
+
+    #[test]
+    fn a_session_reads_back_equal() {
+        let s = sample();
+        assert_eq!(round_trip(&s), s);
+    }
+
+    #[test]
+    fn every_mode_camera_and_level_reads_back_equal() {
+        for mode in Mode::ALL {
+            let mut s = sample();
+            s.settings.mode = mode;
+            assert_eq!(round_trip(&s), s, "{mode:?}");
+        }
+        let mut s = sample();
+        s.camera = SessionCamera::LookAt {
+            position: Vec3::new(-50.0, 10.25, 70.0),
+            target: Vec3::splat(24.0),
+            up: Vec3::new(0.0, 1.0, 0.0),
+            projection: Projection::Orthographic { height: 80.0 },
+        };
+        s.level = LevelChoice::Fixed(2);
+        s.settings.shading = None;
+        s.settings.early_termination = Some(0.95);
+        s.settings.clip = ClipRegion::default();
+        s.source = VolumeSource::File {
+            path: PathBuf::from("/data/lung1.vol"),
+            access: Access::Mapped,
+        };
+        s.labels = Some(PathBuf::from("/data/lung1.labels.vol"));
+        assert_eq!(round_trip(&s), s);
+        if let SessionCamera::Orbit(mut o) = sample().camera {
+            o.vfov_deg = None;
+            let mut s = sample();
+            s.camera = SessionCamera::Orbit(o);
+            assert_eq!(round_trip(&s), s);
+        }
+        for importance in [
+            ImportanceSource::Constant(0.5),
+            ImportanceSource::Intensity(2.0),
+            ImportanceSource::Gradient(3.0),
+            ImportanceSource::Silhouette([1.0, 0.2, 0.8]),
+        ] {
+            let mut s = sample();
+            s.settings.mode_parameters.importance = importance;
+            assert_eq!(round_trip(&s), s, "{importance:?}");
+        }
+    }
+
+    #[test]
+    fn floats_keep_their_bits() {
+        // Values whose shortest decimal form is fine, and arbitrary bit patterns.
+        let mut x = 0x3f80_0001_u32;
+        for _ in 0..20_000 {
+            x = x.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            let v = f32::from_bits(x);
+            if !v.is_finite() {
+                continue;
+            }
+            let back = num(v).parse::<f64>().unwrap() as f32;
+            assert_eq!(back.to_bits(), v.to_bits(), "{v:?} written {}", num(v));
+        }
+        assert_eq!(num(0.5), "0.5");
+        assert_eq!(num(0.1), "0.1");
+    }
+
+    #[test]
+    fn a_two_level_scene_is_embedded_and_reads_back_equal() {
+        let mut s = sample();
+        s.settings.segments = Some(SegmentScene {
+            membership: Membership::Layers(vec![[0.05, 0.35], [0.35, 1.0]]),
+            objects: vec![
+                ObjectStyle {
+                    name: "glass".into(),
+                    id: 1,
+                    visible: true,
+                    transfer: TransferFunction::preset("cloud").unwrap(),
+                    mode: LocalMode::Sabella {
+                        output: SabellaOutput::default(),
+                    },
+                    clip: ClipRegion::default(),
+                },
+                ObjectStyle {
+                    name: "solid \"core\"".into(),
+                    id: 2,
+                    visible: false,
+                    transfer: TransferFunction::preset("opaque").unwrap(),
+                    mode: LocalMode::FirstHit { iso: 0.4 },
+                    clip: ClipRegion {
+                        crop: Some(CropBox {
+                            lo: Vec3::ZERO,
+                            hi: Vec3::splat(20.0),
+                        }),
+                        planes: vec![],
+                    },
+                },
+            ],
+            global: GlobalMode::Mip,
+        });
+        let text = s.to_toml().unwrap();
+        assert!(text.contains("[scene]"), "{text}");
+        assert_eq!(round_trip(&s), s);
+    }
+
+    #[test]
+    fn relative_paths_resolve_against_the_session_folder() {
+        let mut s = sample();
+        s.source = VolumeSource::File {
+            path: PathBuf::from("data/v.vol"),
+            access: Access::Mapped,
+        };
+        s.labels = Some(PathBuf::from("v.labels.vol"));
+        let back = Session::parse(&s.to_toml().unwrap(), Path::new("/sessions")).unwrap();
+        assert_eq!(
+            back.source,
+            VolumeSource::File {
+                path: PathBuf::from("/sessions/data/v.vol"),
+                access: Access::Mapped
+            }
+        );
+        assert_eq!(back.labels, Some(PathBuf::from("/sessions/v.labels.vol")));
+    }
+
+    #[test]
+    fn saving_writes_a_file_that_loads_and_missing_volumes_are_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("s.toml");
+        let s = sample();
+        s.save(&path).unwrap();
+        assert_eq!(Session::load(&path).unwrap(), s);
+        let mut f = sample();
+        f.source = VolumeSource::File {
+            path: PathBuf::from("missing.vol"),
+            access: Access::Mapped,
+        };
+        f.save(&path).unwrap();
+        let e = Session::load(&path).unwrap_err().to_string();
+        assert!(
+            e.contains("volume.file") && e.contains("missing.vol"),
+            "{e}"
+        );
+        let e = Session::load(&dir.path().join("none.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("none.toml"), "{e}");
+        let mut c = sample();
+        c.settings.mode_parameters.sabella = SabellaOutput::Channels;
+        assert!(c.save(&path).is_err(), "raw channels are refused");
+    }
+
+    /// The sample session with `line` (a `key = value` in `[table]`) replaced or
+    /// added, parsed.
+    fn with(table: &str, line: &str) -> Result<Session, SessionError> {
+        let text = sample().to_toml().unwrap();
+        let key = line.split('=').next().unwrap().trim();
+        let mut out = String::new();
+        let mut current = String::new();
+        let mut done = false;
+        let mut skipping = false;
+        for l in text.lines() {
+            if skipping {
+                // The rest of a multi-line value that was replaced.
+                skipping = l != "]";
+                continue;
+            }
+            if l.starts_with('[') {
+                if current == table && !done {
+                    out += line;
+                    out += "\n";
+                    done = true;
+                }
+                current = l[1..l.find(']').unwrap()].to_string();
+            } else if current == table && l.split('=').next().unwrap().trim() == key {
+                out += line;
+                out += "\n";
+                done = true;
+                skipping = l.ends_with('[');
+                continue;
+            }
+            out += l;
+            out += "\n";
+        }
+        if !done {
+            out += &format!("[{table}]\n{line}\n");
+        }
+        Session::parse(&out, Path::new(""))
+    }
+
+    #[test]
+    fn bad_fields_are_refused_by_name() {
+        for (table, line, field) in [
+            ("render", "step = nan", "render.step"),
+            ("render", "step = -0.5", "render.step"),
+            ("render", "mode = \"dvrr\"", "render.mode"),
+            ("render", "iso = 1.5", "render.iso"),
+            ("render", "xray_gain = 0.0", "render.xray_gain"),
+            ("render", "ert_threshold = 1.5", "render.ert_threshold"),
+            ("render", "sabella_depth = \"deep\"", "render.sabella_depth"),
+            (
+                "render",
+                "background = [0.0, 2.0, 0.0]",
+                "render.background",
+            ),
+            ("render", "level = \"coarse\"", "render.level"),
+            ("render", "importance = \"random\"", "render.importance"),
+            ("camera", "distance = -3.0", "camera.distance"),
+            ("camera", "fov = 180.0", "camera.fov"),
+            ("camera", "azimuth_rad = inf", "camera.azimuth_rad"),
+            ("camera", "elevation_rad = 2.0", "camera.elevation_rad"),
+            ("image", "width = 0", "image.width"),
+            ("volume", "scene = \"teapot\"", "volume.scene"),
+            ("volume", "size = 1", "volume.size"),
+            ("volume", "file = \"a.vol\"", "volume"),
+            ("transfer", "domain = [5.0, 1.0]", "transfer.domain"),
+            ("transfer", "points = []", "transfer.points"),
+            (
+                "transfer",
+                "points = [[0.5, 1.0, 1.0, 1.0, 2.0]]",
+                "transfer.points",
+            ),
+            ("shading", "light = [0.0, 0.0, 0.0]", "shading.light"),
+            ("shading", "ambient = -1.0", "shading.ambient"),
+            ("clip", "planes = [[1.0, 1.0, 1.0, 0.0, 0.0, 0.0]]", "clip"),
+            ("clip", "crop = [5.0, 0.0, 0.0, 1.0, 9.0, 9.0]", "clip"),
+        ] {
+            match with(table, line) {
+                Err(SessionError::Invalid { field: f, what }) => {
+                    assert_eq!(f, field, "{line}: {what}");
+                }
+                other => panic!("{table}: {line}: {other:?}"),
+            }
+        }
+        for (table, line, word) in [
+            ("render", "stpe = 0.5", "stpe"),
+            ("render", "step = \"fine\"", "step"),
+            ("camera", "target = [1.0, 2.0]", "target"),
+        ] {
+            let e = with(table, line).unwrap_err();
+            assert!(
+                matches!(e, SessionError::Syntax(_)) && e.to_string().contains(word),
+                "{line}: {e}"
+            );
+        }
+        let e = Session::parse(
+            &sample()
+                .to_toml()
+                .unwrap()
+                .replace("version = 1", "version = 2"),
+            Path::new(""),
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("version"), "{e}");
+        let e = Session::parse("", Path::new("")).unwrap_err();
+        assert!(matches!(e, SessionError::Syntax(_)), "{e}");
+        let e = Session::parse(
+            &format!(
+                "{}\n[scene]\nglobal = \"sideways\"\nlayers = [[0.0, 1.0]]\n",
+                sample().to_toml().unwrap()
+            ),
+            Path::new(""),
+        )
+        .unwrap_err();
+        assert!(
+            matches!(e, SessionError::Scene(_)) && e.to_string().contains("sideways"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_hand_written_session_takes_a_preset_and_defaults() {
+        let s = Session::parse(
+            "version = 1\n[volume]\nscene = \"shells\"\nsize = 32\n[image]\nwidth = 8\nheight = 8\n\
+             [camera]\ntarget = [15.5, 15.5, 15.5]\ndistance = 90.0\nazimuth_rad = 0.0\n\
+             elevation_rad = 0.0\nfov = 40.0\n[transfer]\npreset = \"shells\"\n",
+            Path::new(""),
+        )
+        .unwrap();
+        assert_eq!(
+            s.settings.transfer,
+            TransferFunction::preset("shells").unwrap()
+        );
+        let d = RenderSettings::default();
+        assert_eq!(s.settings.mode, Mode::Dvr);
+        assert_eq!(s.settings.step, d.step);
+        assert_eq!(s.settings.shading, d.shading);
+        assert_eq!(s.settings.early_termination, d.early_termination);
+        assert_eq!(s.level, LevelChoice::default());
+        let e = Session::parse(
+            "version = 1\n[volume]\nscene = \"shells\"\nsize = 32\n[image]\nwidth = 8\nheight = 8\n\
+             [camera]\ntarget = [15.5, 15.5, 15.5]\ndistance = 90.0\nazimuth_rad = 0.0\n\
+             elevation_rad = 0.0\nfov = 40.0\n[transfer]\npreset = \"shels\"\n",
+            Path::new(""),
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("transfer.preset"), "{e}");
+    }
+}

@@ -1,0 +1,260 @@
+//! Sessions driven headless: the viewer's camera, transfer function, mode and
+//! scene are changed through the UI, saved with "Save session", rendered by the
+//! library as `raycaster render --session` does, and restored into a fresh
+//! viewer — each time pixel for pixel.
+//!
+//! One test function: the platform can be set once per process.
+
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use i_slint_backend_testing::{ElementHandle, TestingBackend, TestingBackendOptions};
+use raycaster::render::{Mode, PRESETS, RenderVolume, RgbImage, render_sequential};
+use raycaster::session::Session;
+use raycaster::synth::SceneKind;
+use slint::platform::PointerEventButton;
+use slint::{ComponentHandle, LogicalPosition, Model};
+use viewer::{Source, Viewer};
+
+/// Pumps until the newest frame is on screen.
+fn wait_for_frame(v: &Viewer) {
+    let start = Instant::now();
+    loop {
+        v.pump();
+        if v.idle() {
+            return;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "no frame arrived; status: {:?}, message: {:?}",
+            v.ui().get_status(),
+            v.ui().get_message()
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+/// Lets the view rest (the settle timer fires) and waits for the full-quality
+/// frame, checking that it is one.
+fn settle(v: &Viewer) {
+    wait_for_frame(v);
+    i_slint_backend_testing::mock_elapsed_time(Duration::from_millis(300));
+    slint::platform::update_timers_and_animations();
+    wait_for_frame(v);
+    assert_eq!(
+        v.last_stats().map(|(_, moving)| moving),
+        Some(false),
+        "a settled, full-quality frame"
+    );
+}
+
+/// The canvas image as RGB bytes, with its size.
+fn frame(v: &Viewer) -> (u32, u32, Vec<u8>) {
+    let image = v.ui().get_frame();
+    let buffer = image.to_rgba8().expect("the canvas holds a pixel image");
+    let pixels = buffer
+        .as_bytes()
+        .chunks(4)
+        .flat_map(|p| [p[0], p[1], p[2]])
+        .collect();
+    (buffer.width(), buffer.height(), pixels)
+}
+
+fn element(v: &Viewer, id: &str) -> ElementHandle {
+    ElementHandle::find_by_element_id(v.ui(), id)
+        .next()
+        .unwrap_or_else(|| panic!("no element {id}"))
+}
+
+/// A viewer on `source` in a window of the test's size, its first frame settled.
+fn viewer(source: Source) -> Viewer {
+    let v = Viewer::new(source, None).unwrap();
+    v.ui()
+        .window()
+        .set_size(slint::LogicalSize::new(900.0, 640.0));
+    v.ui().show().unwrap();
+    v.pump();
+    // The laid-out canvas: a frame of its size.
+    v.ui().invoke_canvas_resized();
+    settle(&v);
+    v
+}
+
+/// Renders a session as `raycaster render --session` does: its volume opened
+/// through the library's façade, its level resolved for its camera, labels of
+/// the same level attached.
+fn render_like_the_cli(session: &Session) -> RgbImage {
+    let opened = raycaster::source::open(&session.source).unwrap();
+    let camera = session.camera().unwrap();
+    let level = session.level.resolve(&opened.volume, &camera);
+    let mut prepared = RenderVolume::new(opened.volume.level(level), None).unwrap();
+    if session.settings.segments.is_some()
+        && let Some(labels) = &opened.labels
+    {
+        prepared = prepared.with_labels(labels.level(level)).unwrap();
+    }
+    render_sequential(&prepared, &camera, &session.settings)
+        .unwrap()
+        .to_image()
+}
+
+fn save_session(v: &Viewer, path: &Path) {
+    v.ui().set_session_path(path.display().to_string().into());
+    element(v, "App::session-save").invoke_accessible_default_action();
+    let message = v.ui().get_message().to_string();
+    assert!(
+        !v.ui().get_message_is_error() && message.contains("saved session"),
+        "{message}"
+    );
+}
+
+fn lit(pixels: &[u8]) -> usize {
+    pixels
+        .chunks(3)
+        .filter(|p| p.iter().any(|&c| c > 8))
+        .count()
+}
+
+#[test]
+fn sessions_save_render_and_restore_the_picture() {
+    slint::platform::set_platform(Box::new(TestingBackend::new(TestingBackendOptions {
+        mock_time: true,
+        threading: false,
+        renderer_name: Some("software".into()),
+    })))
+    .expect("the first platform of this process");
+    let dir = tempfile::tempdir().unwrap();
+
+    // 1. Change the camera, transfer function, mode and settings through the UI.
+    let v = viewer(Source::BuiltIn(SceneKind::Shapes, 48));
+    let (_, _, start) = frame(&v);
+    let canvas = element(&v, "App::canvas");
+    let c = canvas.absolute_position();
+    let size = canvas.size();
+    let centre = LogicalPosition::new(c.x + size.width / 2.0, c.y + size.height / 2.0);
+    canvas.mock_drag(
+        LogicalPosition::new(centre.x + 90.0, centre.y - 40.0),
+        PointerEventButton::Left,
+    );
+    canvas.scroll(0.0, 120.0);
+    settle(&v);
+    let rainbow = PRESETS.iter().position(|(n, _)| *n == "rainbow").unwrap() as i32;
+    v.ui().set_preset_index(rainbow);
+    v.ui().invoke_preset_selected(rainbow);
+    // A click adds a control point: a transfer function no preset has.
+    element(&v, "App::tf-area").mock_single_click(PointerEventButton::Left);
+    settle(&v);
+    let sabella = Mode::ALL.iter().position(|&m| m == Mode::Sabella).unwrap() as i32;
+    v.ui().set_mode_index(sabella);
+    v.ui().set_step_index(1);
+    v.ui().set_ert(false);
+    v.ui().invoke_settings_changed();
+    settle(&v);
+    let (w, h, shown) = frame(&v);
+    assert_ne!(shown, start, "the view changed");
+    assert!(lit(&shown) > 500, "the scene shows");
+
+    // 2. Save it; the session renders the viewer's frame pixel for pixel.
+    let path = dir.path().join("view.toml");
+    save_session(&v, &path);
+    let session = Session::load(&path).unwrap();
+    assert_eq!(session.size, [w, h]);
+    assert_eq!(session.settings.mode, Mode::Sabella);
+    assert_eq!(session.settings.step, 1.5, "the coarse preset");
+    assert_eq!(session.settings.early_termination, None);
+    assert_eq!(Some(&session), v.session().as_ref());
+    assert!(
+        PRESETS.iter().all(|(name, _)| {
+            raycaster::render::TransferFunction::preset(name)
+                .unwrap()
+                .points()
+                != session.settings.transfer.points()
+        }),
+        "the edited transfer function is saved, not a preset"
+    );
+    let rendered = render_like_the_cli(&session);
+    assert_eq!((rendered.width(), rendered.height()), (w, h));
+    assert!(
+        rendered.data() == shown.as_slice(),
+        "the session renders the viewer's frame"
+    );
+    let orbit = v.orbit();
+    drop(v);
+
+    // 3. A fresh viewer restores the same state and picture.
+    let v = viewer(Source::Session(path.clone()));
+    assert!(!v.ui().get_message_is_error(), "{:?}", v.ui().get_message());
+    assert_eq!(v.orbit(), orbit);
+    assert_eq!(v.ui().get_mode_index(), sabella);
+    assert_eq!(v.ui().get_step_index(), 1);
+    assert!(!v.ui().get_ert());
+    assert_eq!(v.session().as_ref(), Some(&session));
+    assert!(
+        frame(&v).2 == shown,
+        "the restored picture is the saved one"
+    );
+
+    // 4. "Open session" in a viewer showing something else restores it too; a
+    // bad session is refused with its field and the view stays.
+    v.ui().invoke_reset_view();
+    v.ui().set_mode_index(0);
+    v.ui().invoke_settings_changed();
+    settle(&v);
+    assert!(frame(&v).2 != shown);
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(
+        &bad,
+        std::fs::read_to_string(&path)
+            .unwrap()
+            .replace("mode = \"sabella\"", "mode = \"glow\""),
+    )
+    .unwrap();
+    v.ui().set_session_path(bad.display().to_string().into());
+    element(&v, "App::session-open").invoke_accessible_default_action();
+    let start = Instant::now();
+    while !v.ui().get_message_is_error() {
+        v.pump();
+        assert!(start.elapsed() < Duration::from_secs(30), "no error shown");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let message = v.ui().get_message().to_string();
+    assert!(message.contains("render.mode"), "{message}");
+    assert_eq!(v.ui().get_mode_index(), 0, "the view stays");
+    v.ui().set_session_path(path.display().to_string().into());
+    element(&v, "App::session-open").invoke_accessible_default_action();
+    let start = Instant::now();
+    while v.orbit() != orbit {
+        v.pump();
+        assert!(start.elapsed() < Duration::from_secs(60), "not restored");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    settle(&v);
+    assert!(frame(&v).2 == shown, "Open session restores the picture");
+
+    // 5. A two-level scene with an edited object round-trips as well.
+    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../volumes/scenes");
+    v.ui()
+        .invoke_load_scene(scenes.join("shapes-npr.toml").display().to_string().into());
+    settle(&v);
+    let mut row = v.ui().get_objects().row_data(0).unwrap();
+    row.visible = false;
+    v.ui().invoke_object_changed(0, row);
+    settle(&v);
+    let (_, _, with_scene) = frame(&v);
+    assert!(with_scene != shown, "the scene renders differently");
+    let scene_path = dir.path().join("scene-view.toml");
+    save_session(&v, &scene_path);
+    let session = Session::load(&scene_path).unwrap();
+    let scene = session
+        .settings
+        .segments
+        .as_ref()
+        .expect("the scene is saved");
+    assert!(!scene.objects[0].visible, "with its edit");
+    assert!(render_like_the_cli(&session).data() == with_scene.as_slice());
+    drop(v);
+    let v = viewer(Source::Session(scene_path));
+    assert_eq!(v.ui().get_objects().row_count(), 2);
+    assert!(!v.ui().get_objects().row_data(0).unwrap().visible);
+    assert!(frame(&v).2 == with_scene, "the scene's picture is restored");
+}
