@@ -6,30 +6,15 @@
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use i_slint_backend_testing::{ElementHandle, TestingBackend, TestingBackendOptions};
+mod support;
+use support::{element, wait_for_frame};
+
+use i_slint_backend_testing::{TestingBackend, TestingBackendOptions};
 use raycaster::render::SegmentScene;
 use raycaster::synth::SceneKind;
 use slint::platform::PointerEventButton;
 use slint::{ComponentHandle, LogicalPosition};
 use viewer::{Source, Viewer};
-
-/// Pumps until the newest frame is on screen.
-fn wait_for_frame(v: &Viewer) {
-    let start = Instant::now();
-    loop {
-        v.pump();
-        if v.idle() {
-            return;
-        }
-        assert!(
-            start.elapsed() < Duration::from_secs(120),
-            "no frame arrived; status: {:?}, message: {:?}",
-            v.ui().get_status(),
-            v.ui().get_message()
-        );
-        std::thread::sleep(Duration::from_millis(5));
-    }
-}
 
 /// Pumps until `done` holds (a background open has landed), then until its frame
 /// is on screen.
@@ -82,12 +67,6 @@ fn frame(v: &Viewer) -> (u32, u32, Vec<[u8; 3]>) {
 
 fn lit(pixels: &[[u8; 3]]) -> usize {
     pixels.iter().filter(|p| p.iter().any(|&c| c > 8)).count()
-}
-
-fn element(v: &Viewer, id: &str) -> ElementHandle {
-    ElementHandle::find_by_element_id(v.ui(), id)
-        .next()
-        .unwrap_or_else(|| panic!("no element {id}"))
 }
 
 #[test]

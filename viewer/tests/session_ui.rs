@@ -8,31 +8,16 @@
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use i_slint_backend_testing::{ElementHandle, TestingBackend, TestingBackendOptions};
+mod support;
+use support::{element, wait_for_frame};
+
+use i_slint_backend_testing::{TestingBackend, TestingBackendOptions};
 use raycaster::render::{Mode, PRESETS, RenderVolume, RgbImage, render_sequential};
 use raycaster::session::Session;
 use raycaster::synth::SceneKind;
 use slint::platform::PointerEventButton;
 use slint::{ComponentHandle, LogicalPosition, Model};
 use viewer::{Source, Viewer};
-
-/// Pumps until the newest frame is on screen.
-fn wait_for_frame(v: &Viewer) {
-    let start = Instant::now();
-    loop {
-        v.pump();
-        if v.idle() {
-            return;
-        }
-        assert!(
-            start.elapsed() < Duration::from_secs(120),
-            "no frame arrived; status: {:?}, message: {:?}",
-            v.ui().get_status(),
-            v.ui().get_message()
-        );
-        std::thread::sleep(Duration::from_millis(5));
-    }
-}
 
 /// Lets the view rest (the settle timer fires) and waits for the full-quality
 /// frame, checking that it is one.
@@ -58,12 +43,6 @@ fn frame(v: &Viewer) -> (u32, u32, Vec<u8>) {
         .flat_map(|p| [p[0], p[1], p[2]])
         .collect();
     (buffer.width(), buffer.height(), pixels)
-}
-
-fn element(v: &Viewer, id: &str) -> ElementHandle {
-    ElementHandle::find_by_element_id(v.ui(), id)
-        .next()
-        .unwrap_or_else(|| panic!("no element {id}"))
 }
 
 /// A viewer on `source` in a window of the test's size, its first frame settled.
