@@ -193,11 +193,6 @@ impl OpenedVolume {
     }
 }
 
-/// See [`OpenedVolume::default_domain`].
-pub fn default_domain(volume: &Volume) -> Option<[f32; 2]> {
-    crate::windows::fit(volume).domain
-}
-
 /// The world box of `volume`'s voxel centres, from the origin; an axis of one
 /// voxel gets the extent of two, so that the box never collapses.
 pub fn world_box(volume: &Volume) -> (Vec3, Vec3) {
