@@ -167,6 +167,11 @@ pub fn convert(
         }
         _ => header,
     };
+    // The thesis header has no room for an orientation; such files lose it.
+    let header = match options.format {
+        Format::Extended => header.with_orientation(input.orientation().cloned()),
+        Format::Thesis => header,
+    };
     let written = match sample_type {
         SampleType::U8 => copy_slabs::<u8>(input, output, &header, values, write, job)?,
         SampleType::U16 => copy_slabs::<u16>(input, output, &header, values, write, job)?,

@@ -27,6 +27,7 @@ use super::{
     header_error, unsupported,
 };
 use crate::io::{Endian, RawType};
+use crate::volume::{Orientation, PatientSpace};
 
 const F: ImportFormat = ImportFormat::Dicom;
 
@@ -347,7 +348,25 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
         check_spacing(F, 1, row_spacing).map_err(at_dir)?,
         check_spacing(F, 2, dz.or(first.between).unwrap_or(1.0)).map_err(at_dir)?,
     ];
+    // Patient placement: x along the rows (Image Orientation's first cosine), y down
+    // the columns, z along the slice normal in sorted order; the origin is the
+    // first sorted slice's Image Position.
+    let placement = first
+        .orientation
+        .zip(normal)
+        .zip(slices[0].position)
+        .and_then(|((o, n), origin)| {
+            let step = |v: [f64; 3], s: f32| v.map(|c| c * f64::from(s));
+            let steps = [
+                step([o[0], o[1], o[2]], spacing[0]),
+                step([o[3], o[4], o[5]], spacing[1]),
+                step(n, spacing[2]),
+            ];
+            Orientation::from_steps(PatientSpace::Lps, steps, origin).ok()
+        })
+        .map(|(placed, _)| placed);
     Ok(Imported {
+        orientation: placement,
         path: dir.clone(),
         format: F,
         dims,

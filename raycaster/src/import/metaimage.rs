@@ -6,8 +6,10 @@
 //! `BinaryDataByteOrderMSB`/`ElementByteOrderMSB`, `CompressedData` (zlib),
 //! `HeaderSize` (bytes to skip in a detached file, `-1` = data at its end), and
 //! `ElementDataFile = LOCAL` or one file name (relative to the header's directory).
-//! `TransformMatrix`/`Orientation`, `Offset`/`Position` and `AnatomicalOrientation`
-//! are read past and not applied (see `docs/import.md`).
+//! `TransformMatrix` (or `Rotation`/`Orientation`: the directions of axes x, y, z one
+//! after the other, as ITK writes them) and `Offset` (or `Position`/`Origin`) give
+//! the orientation in ITK's patient space, LPS; `AnatomicalOrientation` is read
+//! past, as ITK does.
 
 use std::path::Path;
 
@@ -16,6 +18,7 @@ use super::{
     data_at_end, header_error, read_text_header, unsupported,
 };
 use crate::io::{Endian, RawType};
+use crate::volume::{Orientation, PatientSpace};
 
 const F: ImportFormat = ImportFormat::MetaImage;
 
@@ -52,6 +55,9 @@ pub struct MetaHeader {
     pub header_len: usize,
     /// "HU" for `Modality = MET_MOD_CT`, else empty.
     pub unit: String,
+    /// Where the volume lies in the patient (LPS): from `TransformMatrix` and
+    /// `Offset`, when the header has either.
+    pub orientation: Option<Orientation>,
 }
 
 fn parse_bool(key: &str, v: &str) -> Result<bool, ImportErrorKind> {
@@ -180,6 +186,7 @@ pub fn parse_header(bytes: &[u8]) -> Result<MetaHeader, ImportErrorKind> {
             spacing[axis] = check_spacing(F, axis, s)?;
         }
     }
+    let orientation = orientation(&get, spacing)?;
     let msb = match get("BinaryDataByteOrderMSB").or(get("ElementByteOrderMSB")) {
         Some(v) => parse_bool("BinaryDataByteOrderMSB", v)?,
         None => false,
@@ -225,6 +232,7 @@ pub fn parse_header(bytes: &[u8]) -> Result<MetaHeader, ImportErrorKind> {
         data_file,
         header_size,
         header_len: header_len.unwrap_or(bytes.len()),
+        orientation,
         unit: match get("Modality") {
             Some("MET_MOD_CT") => crate::volume::HOUNSFIELD.to_string(),
             _ => String::new(),
@@ -266,8 +274,46 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
         },
         scaling: None,
         unit: h.unit,
+        orientation: h.orientation,
         slices: Vec::new(),
     })
+}
+
+/// The orientation from `TransformMatrix` (axis directions, one after the other)
+/// and `Offset`, when the header gives either; a matrix that makes no volume is
+/// passed over (the file opens as before).
+fn orientation<'a>(
+    get: &dyn Fn(&str) -> Option<&'a str>,
+    spacing: [f32; 3],
+) -> Result<Option<Orientation>, ImportErrorKind> {
+    let matrix = get("TransformMatrix")
+        .or(get("Rotation"))
+        .or(get("Orientation"));
+    let offset = get("Offset").or(get("Position")).or(get("Origin"));
+    if matrix.is_none() && offset.is_none() {
+        return Ok(None);
+    }
+    let identity = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+    let m = match matrix {
+        Some(v) => parse_numbers("TransformMatrix", v)?,
+        None => identity.to_vec(),
+    };
+    let o = match offset {
+        Some(v) => parse_numbers("Offset", v)?,
+        None => vec![0.0; 3],
+    };
+    let (Ok(m), Ok(o)) = (<[f64; 9]>::try_from(m), <[f64; 3]>::try_from(o)) else {
+        return Err(header_error(
+            F,
+            "TransformMatrix needs 9 numbers and Offset 3 for 3 dimensions",
+        ));
+    };
+    let steps = std::array::from_fn(|axis| {
+        std::array::from_fn(|c| m[3 * axis + c] * f64::from(spacing[axis]))
+    });
+    Ok(Orientation::from_steps(PatientSpace::Lps, steps, o)
+        .ok()
+        .map(|(placed, _)| placed))
 }
 
 #[cfg(test)]

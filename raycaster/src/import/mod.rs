@@ -26,8 +26,8 @@ use crate::convert::{ValueMap, plan_values};
 use crate::io::{Endian, Input, RawData, RawOrder, RawSpec, RawType};
 use crate::job::Job;
 use crate::volume::{
-    Content, Format as VolFormat, Header, Layout, MAX_AXIS, Sample, SampleType, ValueUnits, Volume,
-    VolumeError,
+    Content, Format as VolFormat, Header, Layout, MAX_AXIS, Orientation, Sample, SampleType,
+    ValueUnits, Volume, VolumeError,
 };
 
 /// Default limit of [`open_volume_any`] on the samples built in memory: 1 GiB.
@@ -107,6 +107,9 @@ pub struct Imported {
     /// The values' unit where the file says: "HU" for a CT scan (DICOM or
     /// MetaImage modality CT); empty when unknown.
     pub unit: String,
+    /// Where the volume lies in the patient (direction cosines and origin, LPS),
+    /// when the file says; its spacing is then the length of each axis step.
+    pub orientation: Option<Orientation>,
     /// For [`Encoding::Slices`]: each z-slice's file and the offset of its samples,
     /// in z order.
     pub slices: Vec<(PathBuf, u64)>,
@@ -425,7 +428,9 @@ impl Imported {
         job: &Job,
     ) -> Result<Input, ImportError> {
         let input = self.unscaled_input(scratch_dir, memory_max, job)?;
-        Ok(input.with_units(self.units()))
+        Ok(input
+            .with_units(self.units())
+            .with_orientation(self.orientation.clone()))
     }
 
     /// What the file's stored values mean: its rescale slope and intercept (or
@@ -735,7 +740,8 @@ impl Imported {
             Content::Scalar,
             VolFormat::Extended,
         )
-        .with_units(Some(values.output_units(&units, sample_type)));
+        .with_units(Some(values.output_units(&units, sample_type)))
+        .with_orientation(self.orientation.clone());
         let volume = match sample_type {
             SampleType::U8 => build::<u8>(&input, &header, values),
             SampleType::U16 => build::<u16>(&input, &header, values),

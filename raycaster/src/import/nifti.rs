@@ -7,8 +7,10 @@
 //! `sizeof_hdr`), magic `n+1` (single file, data at `vox_offset`) and `ni1` (pair),
 //! `dim[0]` 3 (or 4..7 with every extra dimension 1), datatypes 2 (u8), 4 (i16),
 //! 512 (u16) and 16 (f32), spacing from `pixdim[1..=3]`. `scl_slope`/`scl_inter` are
-//! reported but not applied; qform/sform orientation is not applied (see
-//! `docs/import.md`). NIfTI-2 files are refused with a clear message.
+//! kept as the values' units. The orientation is the sform where `sform_code > 0`,
+//! else the qform where `qform_code > 0` (as nibabel's `affine`), converted from RAS
+//! to LPS; the spacing is then the length of each axis step. NIfTI-2 files are
+//! refused with a clear message.
 
 use std::io::Read;
 use std::path::{Path, PathBuf};
@@ -18,6 +20,7 @@ use super::{
     header_error, unsupported,
 };
 use crate::io::{Endian, RawType};
+use crate::volume::{Orientation, PatientSpace};
 
 const F: ImportFormat = ImportFormat::Nifti;
 
@@ -41,6 +44,8 @@ pub struct NiftiHeader {
     pub single_file: bool,
     /// `(scl_slope, scl_inter)` when the slope is set and not the identity.
     pub scaling: Option<(f32, f32)>,
+    /// From the sform or qform, when either has a code above 0.
+    pub orientation: Option<Orientation>,
 }
 
 /// Parses a NIfTI-1 header from the first bytes of a (decompressed) file.
@@ -184,6 +189,7 @@ pub fn parse_header(bytes: &[u8]) -> Result<NiftiHeader, ImportErrorKind> {
             format!("vox_offset {vox_offset} lies inside the 348-byte header"),
         ));
     }
+    let orientation = orientation(&i16_at, &f32_at, &mut spacing)?;
     let (slope, inter) = (f32_at(112), f32_at(116));
     let scaling = (slope.is_finite() && slope != 0.0 && (slope != 1.0 || inter != 0.0))
         .then_some((slope, inter));
@@ -195,7 +201,68 @@ pub fn parse_header(bytes: &[u8]) -> Result<NiftiHeader, ImportErrorKind> {
         vox_offset,
         single_file,
         scaling,
+        orientation,
     })
+}
+
+/// The voxel-to-patient map of the header: the sform (`sform_code > 0`), else the
+/// qform (`qform_code > 0`), else none; a form that makes no volume (zero or
+/// coplanar axes, NaN) is passed over, as files with a broken form still open as
+/// before. Where there is one, `spacing` becomes the length of its axis steps, so
+/// voxels land where the affine puts them.
+fn orientation(
+    i16_at: &dyn Fn(usize) -> i16,
+    f32_at: &dyn Fn(usize) -> f32,
+    spacing: &mut [f32; 3],
+) -> Result<Option<Orientation>, ImportErrorKind> {
+    let f = |o: usize| f64::from(f32_at(o));
+    let sform = || {
+        let row = |o: usize| [f(o), f(o + 4), f(o + 8), f(o + 12)];
+        let rows = [row(280), row(296), row(312)];
+        let steps: [[f64; 3]; 3] = std::array::from_fn(|c| std::array::from_fn(|r| rows[r][c]));
+        (steps, [rows[0][3], rows[1][3], rows[2][3]])
+    };
+    let qform = || {
+        let (b, c, d) = (f(256), f(260), f(264));
+        let a = (1.0 - (b * b + c * c + d * d)).max(0.0).sqrt();
+        let rotation = [
+            [
+                a * a + b * b - c * c - d * d,
+                2.0 * (b * c - a * d),
+                2.0 * (b * d + a * c),
+            ],
+            [
+                2.0 * (b * c + a * d),
+                a * a + c * c - b * b - d * d,
+                2.0 * (c * d - a * b),
+            ],
+            [
+                2.0 * (b * d - a * c),
+                2.0 * (c * d + a * b),
+                a * a + d * d - c * c - b * b,
+            ],
+        ];
+        let qfac = if f(76) < 0.0 { -1.0 } else { 1.0 };
+        let pixdim = [f(80), f(84), f(88) * qfac];
+        let steps =
+            std::array::from_fn(|col| std::array::from_fn(|row| rotation[row][col] * pixdim[col]));
+        (steps, [f(268), f(272), f(276)])
+    };
+    let forms = [(i16_at(254) > 0, sform()), (i16_at(252) > 0, qform())];
+    let Some((orientation, lengths)) =
+        forms
+            .into_iter()
+            .filter(|(set, _)| *set)
+            .find_map(|(_, (steps, origin))| {
+                Orientation::from_steps(PatientSpace::Ras, steps, origin).ok()
+            })
+    else {
+        return Ok(None);
+    };
+    for (axis, (s, len)) in spacing.iter_mut().zip(lengths).enumerate() {
+        *s = check_spacing(F, axis, len)?;
+    }
+    Ok(Some(orientation))
 }
 
 /// Whether `path` names a gzip-compressed file (by its first two bytes).
@@ -256,6 +323,7 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
         encoding,
         scaling: h.scaling,
         unit: String::new(),
+        orientation: h.orientation,
         slices: Vec::new(),
     })
 }

@@ -5,8 +5,9 @@
 //! `sizes`, `spacings` or `space directions` (spacing = length of each direction
 //! vector), `byte skip` (including `-1` for raw data at the end of the file),
 //! `line skip`, and `data file` naming one detached file (relative to the header's
-//! directory). Key/value pairs (`key:=value`) and comments are skipped; `space
-//! origin` and the directions' orientation are not applied (see `docs/import.md`).
+//! directory). Key/value pairs (`key:=value`) and comments are skipped. With an
+//! anatomical `space` (RAS, LAS, LPS), `space directions` and `space origin` give
+//! the volume's orientation in the patient.
 
 use std::path::Path;
 
@@ -15,6 +16,7 @@ use super::{
     data_at_end, header_error, read_text_header, unsupported,
 };
 use crate::io::{Endian, RawType};
+use crate::volume::{Orientation, PatientSpace};
 
 const F: ImportFormat = ImportFormat::Nrrd;
 
@@ -53,6 +55,9 @@ pub struct NrrdHeader {
     /// Length of the header in bytes, including the blank line that ends it (the
     /// offset of attached data).
     pub header_len: usize,
+    /// Where the volume lies in the patient: from an anatomical `space`, `space
+    /// directions` on every axis and `space origin`.
+    pub orientation: Option<Orientation>,
 }
 
 fn parse_type(s: &str) -> Result<RawType, ImportErrorKind> {
@@ -213,6 +218,7 @@ pub fn parse_header(bytes: &[u8]) -> Result<NrrdHeader, ImportErrorKind> {
         (None, _) => return Err(header_error(F, "multi-byte samples need an `endian` field")),
     };
     let mut spacing = [1f32; 3];
+    let mut orientation = None;
     if let Some(s) = get("spacings") {
         let values: Vec<&str> = s.split_whitespace().collect();
         if values.len() != 3 {
@@ -248,11 +254,29 @@ pub fn parse_header(bytes: &[u8]) -> Result<NrrdHeader, ImportErrorKind> {
                 ),
             ));
         }
+        let mut steps = Vec::with_capacity(3);
         for (axis, v) in vectors.iter().enumerate() {
             if let Some(v) = parse_vector(v)? {
                 let len = v.iter().map(|c| c * c).sum::<f64>().sqrt();
                 spacing[axis] = check_spacing(F, axis, len)?;
+                steps.extend(<[f64; 3]>::try_from(v).ok());
             }
+        }
+        // An anatomical space and a direction on every axis place the volume in
+        // the patient; `space origin` defaults to 0.
+        let space = get("space").and_then(PatientSpace::from_nrrd);
+        if let (Some(space), Ok(steps)) = (space, <[[f64; 3]; 3]>::try_from(steps)) {
+            let origin = match get("space origin") {
+                Some(o) => parse_vector(o)?
+                    .and_then(|o| <[f64; 3]>::try_from(o).ok())
+                    .ok_or_else(|| header_error(F, format!("space origin `{o}` is not (x,y,z)")))?,
+                None => [0.0; 3],
+            };
+            // Directions that make no volume (coplanar) are passed over: the file
+            // opens as it did before orientations were read.
+            orientation = Orientation::from_steps(space, steps, origin)
+                .ok()
+                .map(|(placed, _)| placed);
         }
     }
     let data_file = match get("data file").or(get("datafile")) {
@@ -295,6 +319,7 @@ pub fn parse_header(bytes: &[u8]) -> Result<NrrdHeader, ImportErrorKind> {
         }
     };
     Ok(NrrdHeader {
+        orientation,
         dims,
         spacing,
         sample,
@@ -351,6 +376,7 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
         encoding: h.encoding,
         scaling: None,
         unit: String::new(),
+        orientation: h.orientation,
         slices: Vec::new(),
     })
 }

@@ -7,8 +7,8 @@ use std::path::{Path, PathBuf};
 use super::decode::{Endian, RawType, decode_into};
 use crate::job::Job;
 use crate::volume::{
-    AtPath, BlockGrid, Content, Header, Layout, MAX_AXIS, SampleType, ValueUnits, VolumeError,
-    VolumeErrorKind, read_header,
+    AtPath, BlockGrid, Content, Header, Layout, MAX_AXIS, Orientation, SampleType, ValueUnits,
+    VolumeError, VolumeErrorKind, read_header,
 };
 
 /// Bytes read per positioned read when streaming.
@@ -110,6 +110,8 @@ pub struct Input {
     spacing: Option<[f32; 3]>,
     /// What raw input values mean (raw files: set by the importer that knows).
     units: ValueUnits,
+    /// Where the volume lies in the patient, when the source says.
+    orientation: Option<Orientation>,
 }
 
 impl Input {
@@ -160,6 +162,7 @@ impl Input {
             source: Source::Raw(spec),
             spacing,
             units: ValueUnits::IDENTITY,
+            orientation: None,
         })
     }
 
@@ -170,6 +173,7 @@ impl Input {
             path: path.to_path_buf(),
             file: RawData::File(file),
             units: header.value_units(),
+            orientation: header.orientation.clone(),
             source: Source::Vol(header),
             spacing: None,
         })
@@ -203,6 +207,18 @@ impl Input {
     pub fn with_units(mut self, units: ValueUnits) -> Input {
         self.units = units;
         self
+    }
+
+    /// This input placed in the patient by `orientation` (a foreign file's
+    /// direction cosines and origin).
+    pub fn with_orientation(mut self, orientation: Option<Orientation>) -> Input {
+        self.orientation = orientation;
+        self
+    }
+
+    /// Where the volume lies in the patient, when its file says.
+    pub fn orientation(&self) -> Option<&Orientation> {
+        self.orientation.as_ref()
     }
 
     /// What the values this input delivers mean (a `.vol` input: its header's

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use super::error::{AtPath, VolumeError, VolumeErrorKind};
 use super::header::{Content, Format, Header, HeaderError, Layout, MAX_HEADER_LEN, SampleType};
+use super::orientation::Orientation;
 use super::pyramid::{
     PyramidLayout, SIDECAR_HEAD_LEN, level_dims, pyramid_sidecar_path, sidecar_head,
     sidecar_is_fresh, write_block,
@@ -267,6 +268,11 @@ impl Volume {
     /// What stored samples mean (identity for files without a value block).
     pub fn value_units(&self) -> ValueUnits {
         self.header.value_units()
+    }
+
+    /// Where the volume lies in the patient, when the file says (format version 4).
+    pub fn orientation(&self) -> Option<&Orientation> {
+        self.header.orientation.as_ref()
     }
 
     /// Voxel spacing on x, y, z.

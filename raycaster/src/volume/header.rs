@@ -4,6 +4,7 @@
 //! bytes and the file length, so it can be property-tested on random bytes.
 
 use super::grid::BlockGrid;
+use super::orientation::{ORIENTATION_BLOCK_LEN, Orientation};
 use super::units::{UNITS_BLOCK_LEN, ValueUnits};
 
 /// Length of the thesis header (format version 0).
@@ -13,15 +14,20 @@ pub const EXTENDED_HEADER_LEN: u64 = 64;
 /// Magic bytes that open the extension block at byte 26.
 pub const EXTENSION_MAGIC: [u8; 4] = *b"RCVX";
 /// The newest extension version this build writes and reads: version 2 adds a
-/// resolution pyramid, version 3 a value block (what samples mean: units). Files
-/// are written with the oldest version that holds what they carry.
-pub const EXTENSION_VERSION: u16 = 3;
+/// resolution pyramid, version 3 a value block (what samples mean: units), version
+/// 4 an orientation block (where the volume lies in the patient). Files are written
+/// with the oldest version that holds what they carry.
+pub const EXTENSION_VERSION: u16 = 4;
+/// The extension version of files with a value block and no orientation.
+const EXTENSION_VERSION_UNITS: u16 = 3;
 /// The extension version of files with a pyramid and no value block.
 const EXTENSION_VERSION_PYRAMID: u16 = 2;
 /// The header length of version 3: the extended header and the value block.
 pub const UNITS_HEADER_LEN: u64 = EXTENDED_HEADER_LEN + UNITS_BLOCK_LEN;
+/// The header length of version 4: version 3's and the orientation block.
+pub const ORIENTED_HEADER_LEN: u64 = UNITS_HEADER_LEN + ORIENTATION_BLOCK_LEN;
 /// The longest header of any version (what a reader reads before parsing).
-pub const MAX_HEADER_LEN: u64 = UNITS_HEADER_LEN;
+pub const MAX_HEADER_LEN: u64 = ORIENTED_HEADER_LEN;
 
 /// The extension version of files without a pyramid (older readers open them).
 pub const EXTENSION_VERSION_PLAIN: u16 = 1;
@@ -122,6 +128,9 @@ pub struct Header {
     /// What samples mean (extension version 3); `None`: values are the samples.
     /// Set it with [`Header::with_units`], which moves the data offset.
     pub units: Option<ValueUnits>,
+    /// Where the volume lies in the patient (extension version 4); `None`: the
+    /// file does not say. Set it with [`Header::with_orientation`].
+    pub orientation: Option<Orientation>,
 }
 
 /// What is wrong with a header.
@@ -187,6 +196,10 @@ pub enum HeaderError {
     /// The value block is malformed, or units are given where they cannot be.
     #[error("value units: {0}")]
     BadUnits(String),
+    /// The orientation block is malformed, or an orientation is given where it
+    /// cannot be.
+    #[error("orientation: {0}")]
+    BadOrientation(String),
     /// The declared data length does not match the dimensions.
     #[error("header declares {declared} bytes of samples but the sizes need {expected}")]
     DataLengthMismatch {
@@ -270,6 +283,7 @@ impl Header {
             ranges_offset: None,
             pyramid_offset: None,
             units: None,
+            orientation: None,
         }
     }
 
@@ -281,13 +295,34 @@ impl Header {
         self
     }
 
+    /// This header with `orientation`, its data offset moved to where the
+    /// header's version puts samples.
+    pub fn with_orientation(mut self, orientation: Option<Orientation>) -> Header {
+        self.orientation = orientation;
+        self.data_offset = self.standard_data_offset();
+        self
+    }
+
     /// Where samples start for this header's format and contents: 26 (thesis), 64
-    /// (extended), 128 (extended with a value block).
+    /// (extended), 128 (extended with a value block), 256 (extended with an
+    /// orientation block).
     pub fn standard_data_offset(&self) -> u64 {
-        match (self.format, &self.units) {
-            (Format::Thesis, _) => THESIS_HEADER_LEN,
-            (Format::Extended, None) => EXTENDED_HEADER_LEN,
-            (Format::Extended, Some(_)) => UNITS_HEADER_LEN,
+        match (self.format, &self.units, &self.orientation) {
+            (Format::Thesis, _, _) => THESIS_HEADER_LEN,
+            (Format::Extended, _, Some(_)) => ORIENTED_HEADER_LEN,
+            (Format::Extended, Some(_), None) => UNITS_HEADER_LEN,
+            (Format::Extended, None, None) => EXTENDED_HEADER_LEN,
+        }
+    }
+
+    /// The extension version this header is written with: the oldest that holds
+    /// what it carries.
+    fn extension_version(&self) -> u16 {
+        match (&self.orientation, &self.units, self.pyramid_offset) {
+            (Some(_), _, _) => EXTENSION_VERSION,
+            (None, Some(_), _) => EXTENSION_VERSION_UNITS,
+            (None, None, Some(_)) => EXTENSION_VERSION_PYRAMID,
+            (None, None, None) => EXTENSION_VERSION_PLAIN,
         }
     }
 
@@ -336,6 +371,14 @@ impl Header {
                 return Err(HeaderError::BadUnits("label ids have no units".into()));
             }
             units.validate()?;
+        }
+        if let Some(orientation) = &self.orientation {
+            if self.format == Format::Thesis {
+                return Err(HeaderError::BadOrientation(
+                    "the thesis header has no room for an orientation".into(),
+                ));
+            }
+            orientation.validate()?;
         }
         self.data_len().map(|_| ())
     }
@@ -438,7 +481,15 @@ impl Header {
                     return Err(too_short(UNITS_HEADER_LEN));
                 }
                 let block = &bytes[EXTENDED_HEADER_LEN as usize..UNITS_HEADER_LEN as usize];
-                header.units = Some(ValueUnits::decode(block)?);
+                // Version 4 always has a value block; identity there means none.
+                header.units = Some(ValueUnits::decode(block)?).filter(|u| !u.is_identity());
+            }
+            if version >= 4 {
+                if bytes.len() < ORIENTED_HEADER_LEN as usize || file_len < ORIENTED_HEADER_LEN {
+                    return Err(too_short(ORIENTED_HEADER_LEN));
+                }
+                let block = &bytes[UNITS_HEADER_LEN as usize..ORIENTED_HEADER_LEN as usize];
+                header.orientation = Some(Orientation::decode(block)?);
             }
             if header.data_offset != header.standard_data_offset() {
                 return Err(HeaderError::BadDataOffset(header.data_offset));
@@ -514,12 +565,7 @@ impl Header {
                 out.push(order | ORDER_EXTENDED_BIT);
                 out.push(side);
                 out.extend_from_slice(&EXTENSION_MAGIC);
-                let version = match (&self.units, self.pyramid_offset) {
-                    (Some(_), _) => EXTENSION_VERSION,
-                    (None, Some(_)) => EXTENSION_VERSION_PYRAMID,
-                    (None, None) => EXTENSION_VERSION_PLAIN,
-                };
-                out.extend_from_slice(&version.to_le_bytes());
+                out.extend_from_slice(&self.extension_version().to_le_bytes());
                 out.push(self.sample_type.code());
                 out.push(match self.content {
                     Content::Scalar => 0,
@@ -533,8 +579,12 @@ impl Header {
                 out.extend_from_slice(&self.data_offset.to_le_bytes());
                 out.extend_from_slice(&self.data_len()?.to_le_bytes());
                 out.extend_from_slice(&self.ranges_offset.unwrap_or(0).to_le_bytes());
-                if let Some(units) = &self.units {
+                if self.units.is_some() || self.orientation.is_some() {
+                    let units = self.units.clone().unwrap_or_default();
                     out.extend_from_slice(&units.encode());
+                }
+                if let Some(orientation) = &self.orientation {
+                    out.extend_from_slice(&orientation.encode());
                 }
             }
         }

@@ -10,6 +10,7 @@ mod error;
 mod file;
 mod grid;
 mod header;
+mod orientation;
 pub mod pyramid;
 mod ranges;
 mod sample;
@@ -24,8 +25,10 @@ pub use file::{
 pub use grid::BlockGrid;
 pub use header::{
     Content, EXTENDED_HEADER_LEN, EXTENSION_MAGIC, EXTENSION_VERSION, Format, Header, HeaderError,
-    Layout, MAX_AXIS, MAX_HEADER_LEN, SampleType, THESIS_HEADER_LEN, UNITS_HEADER_LEN,
+    Layout, MAX_AXIS, MAX_HEADER_LEN, ORIENTED_HEADER_LEN, SampleType, THESIS_HEADER_LEN,
+    UNITS_HEADER_LEN,
 };
+pub use orientation::{ORIENTATION_BLOCK_LEN, Orientation, PatientSpace};
 pub use pyramid::{COARSEST_EDGE, level_dims, pyramid_sidecar_path, pyramid_voxels};
 pub use ranges::{BrickRanges, LINEAR_RANGE_SIDE};
 pub use sample::Sample;
