@@ -9,10 +9,11 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use raycaster::render::{
-    Camera, ClipPlane, ClipRegion, CropBox, LevelChoice, Light, MAX_CLIP_PLANES, Membership, Mode,
-    ModeParameters, Orbit, PRESETS, ParallelOptions, Projection, RenderSettings, RenderVolume,
-    SabellaDepth, SabellaMapping, SabellaOutput, SegmentScene, Shading, SimdLevel, TileSink,
-    TransferFunction, Vec3, closest_preset, render_parallel_into, render_sequential,
+    Camera, ClipPlane, ClipRegion, CropBox, LevelChoice, Light, MAX_CLIP_PLANES, Mat3, Membership,
+    Mode, ModeParameters, Orbit, PRESETS, ParallelOptions, Projection, RenderSettings,
+    RenderVolume, SabellaDepth, SabellaMapping, SabellaOutput, SegmentScene, Shading, SimdLevel,
+    TileSink, TransferFunction, Vec3, closest_preset, patient_axes, render_parallel_into,
+    render_sequential,
 };
 use raycaster::session::{Session, SessionCamera};
 use raycaster::source::{self, VolumeSource};
@@ -167,7 +168,10 @@ pub struct RenderArgs {
     #[arg(long, default_value = "black", value_parser = parse_color, value_name = "COLOUR")]
     background: [f32; 3],
 
-    /// Camera azimuth about the volume's vertical (z) axis, degrees.
+    /// Camera azimuth about the vertical, degrees: the volume's z axis, or for a file
+    /// placed in the patient (an orientation from NIfTI, NRRD, MetaImage or DICOM)
+    /// the patient's superior direction, with 0 looking from the patient's left and
+    /// −90 from the front (see --volume-axes).
     #[arg(long, default_value_t = -60.0, allow_negative_numbers = true, value_name = "DEG")]
     azimuth: f32,
 
@@ -204,9 +208,16 @@ pub struct RenderArgs {
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, value_name = "X,Y,Z")]
     target: Option<[f32; 3]>,
 
-    /// Camera up vector.
+    /// Camera up vector (world; with --position or instead of the vertical).
     #[arg(long, default_value = "0,0,1", value_parser = parse_vec3, allow_hyphen_values = true, value_name = "X,Y,Z")]
     up: [f32; 3],
+
+    /// Measure --azimuth and --elevation about the file's voxel axes with +z up,
+    /// even when the file says where the volume lies in the patient (by default
+    /// such a file is shown in patient directions: superior up, mirrored where its
+    /// axes are a mirror image of the patient's).
+    #[arg(long)]
+    volume_axes: bool,
 
     /// Render threads of the object-parallel renderer (default: one per core);
     /// `--sequential` uses the single-threaded reference renderer instead.
@@ -310,7 +321,7 @@ pub struct RenderArgs {
 }
 
 /// The flags that describe the picture, which a session describes instead.
-const SESSION_CONFLICTS: [&str; 34] = [
+const SESSION_CONFLICTS: [&str; 35] = [
     "file",
     "scene",
     "scene_size",
@@ -341,6 +352,7 @@ const SESSION_CONFLICTS: [&str; 34] = [
     "position",
     "target",
     "up",
+    "volume_axes",
     "level",
     "lod_bias",
     "segments",
@@ -682,7 +694,15 @@ fn flags_session(args: &RenderArgs, source: VolumeSource, volume: &Volume) -> Re
         source,
         labels: args.labels.clone(),
         size,
-        camera: camera(args, source::world_box(volume))?,
+        camera: camera(
+            args,
+            source::world_box(volume),
+            if args.volume_axes {
+                Mat3::IDENTITY
+            } else {
+                patient_axes(volume.orientation())
+            },
+        )?,
         settings: settings(args, volume)?,
         level,
     })
@@ -943,9 +963,10 @@ fn glam_vec(v: [f32; 3]) -> raycaster::render::Vec3 {
 fn camera(
     args: &RenderArgs,
     (lo, hi): (raycaster::render::Vec3, raycaster::render::Vec3),
+    axes: Mat3,
 ) -> Result<SessionCamera> {
     let [w, h] = args.size.unwrap_or(DEFAULT_SIZE);
-    let spec = camera_spec(args, (lo, hi));
+    let spec = camera_spec(args, (lo, hi), axes);
     spec.camera(w, h).context("invalid camera")?;
     Ok(spec)
 }
@@ -953,6 +974,7 @@ fn camera(
 fn camera_spec(
     args: &RenderArgs,
     (lo, hi): (raycaster::render::Vec3, raycaster::render::Vec3),
+    axes: Mat3,
 ) -> SessionCamera {
     let target = args.target.map(glam_vec).unwrap_or((lo + hi) / 2.0);
     let up = glam_vec(args.up);
@@ -978,7 +1000,8 @@ fn camera_spec(
         args.azimuth.to_radians(),
         args.elevation.to_radians(),
         vfov,
-    );
+    )
+    .with_axes(axes);
     orbit.target = target;
     if let Some(d) = args.distance {
         orbit.distance = d;

@@ -45,7 +45,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use glam::Vec3;
+use glam::{Mat3, Vec3};
 use serde::Deserialize;
 
 use crate::render::{
@@ -209,6 +209,8 @@ struct CameraFile {
     elevation_rad: Option<f32>,
     position: Option<[f32; 3]>,
     up: Option<[f32; 3]>,
+    /// An orbit's axes (x, y, up as columns), when not the volume's own.
+    axes: Option<[[f32; 3]; 3]>,
     fov: Option<f32>,
     ortho_height: Option<f32>,
 }
@@ -448,6 +450,10 @@ impl Session {
                 let _ = writeln!(out, "distance = {}", num(o.distance));
                 let _ = writeln!(out, "azimuth_rad = {}", num(o.azimuth));
                 let _ = writeln!(out, "elevation_rad = {}", num(o.elevation));
+                if o.axes != Mat3::IDENTITY {
+                    let columns = o.axes.to_cols_array_2d().map(list);
+                    let _ = writeln!(out, "axes = [{}]", columns.join(", "));
+                }
                 match o.vfov_deg {
                     Some(vfov_deg) => Projection::Perspective { vfov_deg },
                     None => Projection::Orthographic {
@@ -687,10 +693,14 @@ fn camera(c: &CameraFile) -> Result<SessionCamera, SessionError> {
     };
     match c.position {
         Some(position) => {
-            if c.distance.is_some() || c.azimuth_rad.is_some() || c.elevation_rad.is_some() {
+            if c.distance.is_some()
+                || c.azimuth_rad.is_some()
+                || c.elevation_rad.is_some()
+                || c.axes.is_some()
+            {
                 return Err(invalid(
                     "camera",
-                    "a look-at camera (`position`) takes no `distance`, `azimuth_rad` or `elevation_rad`",
+                    "a look-at camera (`position`) takes no `distance`, `azimuth_rad`, `elevation_rad` or `axes`",
                 ));
             }
             Ok(SessionCamera::LookAt {
@@ -737,6 +747,19 @@ fn camera(c: &CameraFile) -> Result<SessionCamera, SessionError> {
                 ),
                 Projection::Orthographic { height } => (None, height),
             };
+            let axes = match c.axes {
+                Some(columns) => {
+                    let axes = Mat3::from_cols_array_2d(&columns);
+                    if !(axes.is_finite() && axes.determinant().abs() > 1e-3) {
+                        return Err(invalid(
+                            "camera.axes",
+                            "must be three finite directions that are not coplanar",
+                        ));
+                    }
+                    axes
+                }
+                None => Mat3::IDENTITY,
+            };
             Ok(SessionCamera::Orbit(Orbit {
                 target,
                 distance,
@@ -744,6 +767,7 @@ fn camera(c: &CameraFile) -> Result<SessionCamera, SessionError> {
                 elevation,
                 vfov_deg,
                 ortho_height,
+                axes,
             }))
         }
     }
@@ -1066,6 +1090,7 @@ mod tests {
                 elevation: -0.3,
                 vfov_deg: Some(37.5),
                 ortho_height: 55.5,
+                axes: Mat3::from_cols(Vec3::X, -Vec3::Y, -Vec3::Z),
             }),
             settings: RenderSettings {
                 mode: Mode::Sabella,

@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use glam::Vec3;
 
 use crate::import::{DEFAULT_IN_MEMORY_LIMIT, ImportError};
-use crate::render::{Orbit, TransferError, TransferFunction};
+use crate::render::{Orbit, TransferError, TransferFunction, patient_axes};
 use crate::synth::{SceneKind, synthesize, synthesize_labels};
 use crate::volume::{Access, Content, OpenOptions, SampleType, Volume, VolumeError};
 
@@ -186,10 +186,11 @@ impl OpenedVolume {
         world_box(&self.volume)
     }
 
-    /// The default view framing the volume's box (with its margin).
+    /// The default view framing the volume's box (with its margin), in the
+    /// patient's directions when the file gives them.
     pub fn default_view(&self) -> Orbit {
         let (lo, hi) = self.world_box();
-        Orbit::default_view(lo, hi)
+        Orbit::default_view(lo, hi).with_axes(patient_axes(self.volume.orientation()))
     }
 }
 

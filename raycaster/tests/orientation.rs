@@ -2,7 +2,10 @@
 //! that wrote the fixtures say (nibabel, pynrrd, SimpleITK:
 //! `volumes/fixtures/make_oriented_fixtures.py` and its `oriented.toml`), the
 //! placement survives conversion to `.vol` (format version 4), and files without an
-//! orientation stay without one.
+//! orientation stay without one; a volume placed in the patient is shown upright,
+//! in patient directions and not mirrored.
+
+mod render_support;
 
 use std::path::{Path, PathBuf};
 
@@ -10,7 +13,9 @@ use raycaster::convert::{ConvertOptions, convert};
 use raycaster::import;
 use raycaster::io::WriteOptions;
 use raycaster::job::Job;
-use raycaster::volume::{Format, Layout, ORIENTED_HEADER_LEN, PatientSpace, Volume};
+use raycaster::render::{Mat3, Orbit, Vec3, patient_axes};
+use raycaster::volume::{Format, Layout, ORIENTED_HEADER_LEN, Orientation, PatientSpace, Volume};
+use render_support::{plain_settings, render, white_tf};
 
 fn fixtures() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../volumes/fixtures")
@@ -127,4 +132,75 @@ fn files_without_an_orientation_stay_without_one() {
     let volume = Volume::open(&out).unwrap();
     assert_eq!(volume.orientation(), None);
     assert_eq!(volume.header().data_offset, 64);
+}
+
+/// Where the bright pixels of a frame are: their mean (x, y) in pixels.
+fn bright_centroid(frame: &raycaster::render::Frame) -> [f32; 2] {
+    let (w, h) = (frame.width as usize, frame.height as usize);
+    let (mut sum, mut n) = ([0.0f32; 2], 0.0f32);
+    for y in 0..h {
+        for x in 0..w {
+            if frame.rgba[y * w + x][0] > 0.5 {
+                sum[0] += x as f32;
+                sum[1] += y as f32;
+                n += 1.0;
+            }
+        }
+    }
+    assert!(n > 0.0, "nothing bright in the frame");
+    [sum[0] / n, sum[1] / n]
+}
+
+#[test]
+fn anatomy_stands_upright_in_patient_directions_and_is_not_mirrored() {
+    // Voxel x grows towards the patient's right, y towards inferior, z towards
+    // posterior: a rotated mirror image of LPS, as files often are.
+    let orientation = Orientation {
+        axes: [[-1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]],
+        origin: [0.0; 3],
+    };
+    assert!(orientation.is_mirrored());
+    assert_eq!(orientation.axis_code(), "RIP");
+    // A marker in the patient's upper left (superior: low y; left: low x).
+    let marked =
+        render_support::volume_u8(
+            [16, 16, 16],
+            [1.0; 3],
+            |x, y, _| {
+                if x < 4 && y < 4 { 255 } else { 0 }
+            },
+        );
+    let header = marked
+        .header()
+        .clone()
+        .with_orientation(Some(orientation.clone()));
+    let mut samples = Vec::new();
+    for x in 0..16 {
+        for y in 0..16 {
+            for z in 0..16 {
+                samples.push(marked.voxel([x, y, z]) as u8);
+            }
+        }
+    }
+    let volume = Volume::from_samples("oriented", &header, &samples).unwrap();
+    assert_eq!(volume.orientation(), Some(&orientation));
+    let settings = plain_settings(white_tf(&[(0.0, 0.0), (0.8, 0.0), (1.0, 1.0)]));
+    let (lo, hi) = (Vec3::ZERO, Vec3::splat(15.0));
+    // From the front (azimuth −90° in patient axes), level.
+    let front = |axes: Mat3| {
+        let orbit = Orbit::framing(lo, hi, (-90f32).to_radians(), 0.0, None).with_axes(axes);
+        bright_centroid(&render(&volume, &orbit.camera(64, 64).unwrap(), &settings))
+    };
+    let [x, y] = front(patient_axes(volume.orientation()));
+    // Facing the patient: their left on the image's right, superior at the top.
+    assert!(x > 40.0 && y < 24.0, "marker at ({x}, {y}), not top right");
+    // The volume's own axes put it elsewhere: the test can fail.
+    let [x, y] = front(Mat3::IDENTITY);
+    assert!(!(x > 40.0 && y < 24.0), "voxel axes give ({x}, {y})");
+    // A session stores the axes; a mirrored camera stays mirrored when resized.
+    let orbit =
+        Orbit::framing(lo, hi, -1.0, 0.2, Some(30.0)).with_axes(patient_axes(volume.orientation()));
+    let camera = orbit.camera(32, 32).unwrap();
+    let resized = camera.with_size(64, 48).unwrap();
+    assert!(camera.right().dot(resized.right()) > 0.999);
 }

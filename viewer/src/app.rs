@@ -405,15 +405,12 @@ fn canvas_size(ui: &App) -> (u32, u32) {
     }
 }
 
+/// The navigator framing `v` from the default view, in the patient's directions
+/// when the file gives them (as `raycaster render` frames it).
 fn navigator_for(v: &LoadedVolume) -> Navigator {
-    let dims = v.volume.dims();
-    let spacing = v.volume.spacing();
-    let hi = raycaster::render::Vec3::new(
-        (dims[0].max(2) - 1) as f32 * spacing[0],
-        (dims[1].max(2) - 1) as f32 * spacing[1],
-        (dims[2].max(2) - 1) as f32 * spacing[2],
-    );
-    Navigator::new(raycaster::render::Vec3::ZERO, hi)
+    let (lo, hi) = raycaster::source::world_box(&v.volume);
+    let axes = raycaster::render::patient_axes(v.volume.orientation());
+    Navigator::from_home(raycaster::render::Orbit::default_view(lo, hi).with_axes(axes))
 }
 
 fn preset_for(v: &LoadedVolume, name: &str) -> TransferFunction {

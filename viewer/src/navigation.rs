@@ -81,7 +81,11 @@ pub struct Navigator {
 impl Navigator {
     /// Frames the box `[lo, hi]` from the default view.
     pub fn new(lo: Vec3, hi: Vec3) -> Navigator {
-        let home = Orbit::default_view(lo, hi);
+        Navigator::from_home(Orbit::default_view(lo, hi))
+    }
+
+    /// Starts at `home`, where reset returns.
+    pub fn from_home(home: Orbit) -> Navigator {
         Navigator {
             orbit: home,
             home,

@@ -53,12 +53,11 @@ pub fn run(a: InfoArgs) -> anyhow::Result<()> {
         Format::Extended => println!(
             "header      {} bytes (extension version {})",
             h.data_offset,
-            match (&h.units, h.pyramid_offset) {
-                (Some(_), _) => 3,
-                (None, Some(_)) => 2,
-                (None, None) => 1,
-            }
+            h.extension_version()
         ),
+    }
+    if let Some(orientation) = &h.orientation {
+        println!("orientation {}", orientation.describe());
     }
     let units = h.value_units();
     let value = |s: u16| units.format(units.value(f64::from(s)));
@@ -163,6 +162,9 @@ fn run_foreign(a: &InfoArgs) -> anyhow::Result<()> {
         },
         crate::convert::encoding_name(imported.encoding)
     );
+    if let Some(orientation) = &imported.orientation {
+        println!("orientation {}", orientation.describe());
+    }
     if let Some((slope, inter)) = imported.scaling {
         println!("scaling     value = {slope} * stored + {inter} (the values below are scaled)");
     }

@@ -191,14 +191,28 @@ impl Camera {
 
     /// The same camera for another image size (aspect follows the new size).
     pub fn with_size(&self, width: u32, height: u32) -> Result<Camera, CameraError> {
-        Camera::new(
+        let camera = Camera::new(
             self.position,
             self.direction,
             self.up,
             self.projection,
             width,
             height,
-        )
+        )?;
+        // A mirrored camera stays mirrored.
+        Ok(if camera.right.dot(self.right) < 0.0 {
+            camera.mirrored()
+        } else {
+            camera
+        })
+    }
+
+    /// This camera seeing the mirror image: its right vector reversed, so the
+    /// picture is flipped left to right (how a volume whose axes are a mirror
+    /// image of the patient's is shown as the anatomy is).
+    pub fn mirrored(mut self) -> Camera {
+        self.right = -self.right;
+        self
     }
 
     /// The ray through the centre of pixel `(x, y)` (y counts rows from the top),

@@ -59,11 +59,11 @@ pub use front::{FrameBuffer, FrameEvent, FrameRequest, Notify, RenderFront};
 pub use geometry::{
     MAX_SAMPLES_PER_FRAME, MAX_SAMPLES_PER_RAY, VolumeGeometry, check_sample_budget,
 };
-pub use glam::Vec3;
+pub use glam::{Mat3, Vec3};
 pub use image::{ImageError, RgbImage};
 pub use level::LevelChoice;
 pub use optics::corrected_alpha;
-pub use orbit::Orbit;
+pub use orbit::{Orbit, patient_axes};
 pub use parallel::{
     DEFAULT_TILE_SIZE, ParallelOptions, TileSink, render_parallel, render_parallel_into,
 };

@@ -1,15 +1,19 @@
 //! An orbit camera controller: rotate about a target, zoom, pan (what the viewer's
 //! mouse drives), and automatic framing of a box.
 //!
-//! World up is +z (the slice axis of CT-like data). The camera sits at
-//! `target + distance·(cos e·cos a, cos e·sin a, sin e)` for azimuth a and
-//! elevation e, looking at the target.
+//! The angles are measured in the orbit's axes: by default the volume's x, y, z,
+//! with up +z (the slice axis of CT-like data); for a volume placed in the patient
+//! ([`crate::volume::Orientation`]) the patient's L, P, S directions, so the anatomy
+//! stands upright and azimuth −90° looks at the patient's face. The camera sits at
+//! `target + distance·A·(cos e·cos a, cos e·sin a, sin e)` for azimuth a, elevation
+//! e and axes A, looking at the target.
 
 use std::f32::consts::FRAC_PI_2;
 
-use glam::Vec3;
+use glam::{Mat3, Vec3};
 
 use super::camera::{Camera, CameraError, Projection};
+use crate::volume::Orientation;
 
 /// Highest elevation, just short of the pole so the up vector stays defined.
 const MAX_ELEVATION: f32 = FRAC_PI_2 - 1e-3;
@@ -29,6 +33,24 @@ pub struct Orbit {
     pub vfov_deg: Option<f32>,
     /// Orthographic view height (world units), used when `vfov_deg` is `None`.
     pub ortho_height: f32,
+    /// The directions (world) in which azimuth 0, azimuth 90° and up point: the
+    /// columns of a rotation, or of a mirror image of one (a volume whose axes
+    /// are a mirror image of the patient's), whose pictures are then mirrored
+    /// so that they show the anatomy as it is. [`Mat3::IDENTITY`] by default.
+    pub axes: Mat3,
+}
+
+/// The orbit axes that put a volume's patient directions L, P, S where an orbit
+/// has x, y and up: the identity without an orientation.
+pub fn patient_axes(orientation: Option<&Orientation>) -> Mat3 {
+    match orientation {
+        Some(o) => Mat3::from_cols(
+            o.to_volume([1.0, 0.0, 0.0]),
+            o.to_volume([0.0, 1.0, 0.0]),
+            o.to_volume([0.0, 0.0, 1.0]),
+        ),
+        None => Mat3::IDENTITY,
+    }
 }
 
 impl Orbit {
@@ -55,7 +77,14 @@ impl Orbit {
             elevation: elevation.clamp(-MAX_ELEVATION, MAX_ELEVATION),
             vfov_deg,
             ortho_height: 2.0 * radius * margin,
+            axes: Mat3::IDENTITY,
         }
+    }
+
+    /// This orbit with its angles measured in `axes` (see [`patient_axes`]).
+    pub fn with_axes(mut self, axes: Mat3) -> Orbit {
+        self.axes = axes;
+        self
     }
 
     /// The default view of a box: from the front-right, a little above.
@@ -73,7 +102,7 @@ impl Orbit {
     pub fn position(&self) -> Vec3 {
         let (se, ce) = self.elevation.sin_cos();
         let (sa, ca) = self.azimuth.sin_cos();
-        self.target + self.distance * Vec3::new(ce * ca, ce * sa, se)
+        self.target + self.distance * (self.axes * Vec3::new(ce * ca, ce * sa, se))
     }
 
     /// The camera for an image of `width × height`.
@@ -84,14 +113,19 @@ impl Orbit {
                 height: self.ortho_height,
             },
         };
-        Camera::look_at(
+        let camera = Camera::look_at(
             self.position(),
             self.target,
-            Vec3::Z,
+            self.axes.z_axis,
             projection,
             width,
             height,
-        )
+        )?;
+        Ok(if self.axes.determinant() < 0.0 {
+            camera.mirrored()
+        } else {
+            camera
+        })
     }
 
     /// Rotates by `d_azimuth` and `d_elevation` radians (elevation stops short of

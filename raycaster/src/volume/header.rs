@@ -317,7 +317,7 @@ impl Header {
 
     /// The extension version this header is written with: the oldest that holds
     /// what it carries.
-    fn extension_version(&self) -> u16 {
+    pub fn extension_version(&self) -> u16 {
         match (&self.orientation, &self.units, self.pyramid_offset) {
             (Some(_), _, _) => EXTENSION_VERSION,
             (None, Some(_), _) => EXTENSION_VERSION_UNITS,
@@ -677,6 +677,46 @@ mod tests {
         labels.content = Content::Labels;
         let labels = labels.with_units(Some(units));
         assert!(matches!(labels.encode(), Err(HeaderError::BadUnits(_))));
+    }
+
+    #[test]
+    fn orientation_block_is_version_4_with_samples_at_256() {
+        let placed = Orientation {
+            axes: [[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]],
+            origin: [1.5, -2.0, 300.25],
+        };
+        let plain = sample_header(Format::Extended, SampleType::U16, Layout::Linear);
+        for units in [None, Some(ValueUnits::new(1.0, -32768.0, "HU").unwrap())] {
+            let h = plain
+                .clone()
+                .with_units(units.clone())
+                .with_orientation(Some(placed.clone()));
+            assert_eq!(h.data_offset, ORIENTED_HEADER_LEN);
+            let bytes = h.encode().unwrap();
+            assert_eq!(bytes.len(), 256);
+            assert_eq!(u16::from_le_bytes([bytes[30], bytes[31]]), 4);
+            let file_len = h.data_end().unwrap();
+            let parsed = Header::parse(&bytes, file_len).unwrap();
+            assert_eq!(parsed, h);
+            assert_eq!(parsed.orientation, Some(placed.clone()));
+            assert_eq!(parsed.units, units);
+            assert!(matches!(
+                Header::parse(&bytes[..200], file_len),
+                Err(HeaderError::TooShort { needed: 256, .. })
+            ));
+            let mut bad = bytes.clone();
+            bad[136..144].copy_from_slice(&2.0f64.to_le_bytes());
+            assert!(matches!(
+                Header::parse(&bad, file_len),
+                Err(HeaderError::BadOrientation(_))
+            ));
+        }
+        let thesis = sample_header(Format::Thesis, SampleType::U8, Layout::Linear)
+            .with_orientation(Some(placed));
+        assert!(matches!(
+            thesis.encode(),
+            Err(HeaderError::BadOrientation(_))
+        ));
     }
 
     #[test]

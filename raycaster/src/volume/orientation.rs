@@ -177,6 +177,40 @@ impl Orientation {
             .collect()
     }
 
+    /// One line for people: where the voxel axes grow and where voxel (0, 0, 0) lies,
+    /// e.g. `RAI (x right, y anterior, z inferior), voxel 0,0,0 at 10, -20, 30 mm LPS`,
+    /// with `oblique` when an axis is more than 1° off the patient axes, and
+    /// `mirrored` when the axes are a mirror image of the patient's.
+    pub fn describe(&self) -> String {
+        let word = |c: char| match c {
+            'L' => "left",
+            'R' => "right",
+            'P' => "posterior",
+            'A' => "anterior",
+            'S' => "superior",
+            _ => "inferior",
+        };
+        let code = self.axis_code();
+        let axes: Vec<String> = code
+            .chars()
+            .zip(["x", "y", "z"])
+            .map(|(c, axis)| format!("{axis} {}", word(c)))
+            .collect();
+        let largest = |a: &[f64; 3]| a.iter().fold(0f64, |m, c| m.max(c.abs()));
+        let oblique = self
+            .axes
+            .iter()
+            .any(|a| largest(a) < 1f64.to_radians().cos());
+        let [x, y, z] = self.origin;
+        format!(
+            "{code} ({}){}{}, voxel 0,0,0 at {x:.6}, {y:.6}, {z:.6} mm LPS",
+            axes.join(", "),
+            if oblique { ", oblique" } else { "" },
+            if self.is_mirrored() { ", mirrored" } else { "" },
+        )
+        .replace(".000000", "")
+    }
+
     /// The orientation block's bytes (see `docs/format.md`).
     pub(crate) fn encode(&self) -> [u8; ORIENTATION_BLOCK_LEN as usize] {
         let mut out = [0u8; ORIENTATION_BLOCK_LEN as usize];
