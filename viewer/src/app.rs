@@ -150,6 +150,8 @@ struct State {
     slice_level: usize,
     /// The recent files, newest first.
     recent: Vec<PathBuf>,
+    /// The canvas size (physical pixels) of the newest frame request.
+    canvas: (u32, u32),
     /// A recent-files error was shown (shown once, not on every open).
     recent_error_shown: bool,
 }
@@ -238,6 +240,7 @@ impl Viewer {
                     .map(|f| crate::recent::load(&f))
                     .unwrap_or_default(),
                 recent_error_shown: false,
+                canvas: (0, 0),
             }),
             scheduled,
             wake: wake.clone(),
@@ -562,7 +565,13 @@ fn connect(ui: &App, c: &Rc<Controller>) {
     });
     on!(on_object_changed, |c, index, row| c
         .edit_object(index, &row));
-    on!(on_canvas_resized, |c| c.request_frame(true));
+    on!(on_canvas_resized, |c| {
+        // Layout jitter below a pixel (366.99997 for 367) asks for no frame.
+        let size = c.ui().map(|ui| canvas_size(&ui));
+        if size != Some(c.state.borrow().canvas) {
+            c.request_frame(true);
+        }
+    });
     on!(on_cut_changed, |c, moving| {
         c.show_cut();
         c.request_frame(moving);
@@ -1181,6 +1190,7 @@ impl Controller {
             st.quality.still()
         };
         let canvas = canvas_size(&ui);
+        st.canvas = canvas;
         let (w, h) = QualityPolicy::frame_size(quality, canvas.0, canvas.1);
         let camera = match st.nav.orbit().camera(w, h) {
             Ok(camera) => camera,
