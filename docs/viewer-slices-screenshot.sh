@@ -21,12 +21,12 @@ size = 160
 seed = 1
 
 [image]
-width = 900
-height = 420
+width = 922
+height = 485
 
 [camera]
 target = [79.5, 79.5, 79.5]
-distance = 420.0
+distance = 290.0
 azimuth_rad = 5.5
 elevation_rad = 0.55
 fov = 40.0
