@@ -150,6 +150,9 @@ struct State {
     slice_level: usize,
     /// The recent files, newest first.
     recent: Vec<PathBuf>,
+    /// Per slice view (x, y, z): the shown part of the slice, first column
+    /// and row, width and height (level pixels).
+    slice_frames: [[u32; 4]; 3],
     /// The canvas size (physical pixels) of the newest frame request.
     canvas: (u32, u32),
     /// A recent-files error was shown (shown once, not on every open).
@@ -241,6 +244,7 @@ impl Viewer {
                     .unwrap_or_default(),
                 recent_error_shown: false,
                 canvas: (0, 0),
+                slice_frames: [[0; 4]; 3],
             }),
             scheduled,
             wake: wake.clone(),
@@ -588,6 +592,7 @@ fn connect(ui: &App, c: &Rc<Controller>) {
     on!(on_slice_scrolled, |c, axis, delta| c
         .scroll_slice(axis, delta));
     on!(on_slice_window_selected, |c, _index| c.update_slices());
+    on!(on_slice_zoom_changed, |c| c.update_slices());
     on!(on_recent_selected, |c, index| c.open_recent(index));
     let weak = Rc::downgrade(c);
     ui.on_shortcut(move |text, control| {
@@ -931,12 +936,23 @@ impl Controller {
             .unwrap_or([0.0, f32::from(volume.sample_type().max_value())]);
         let window =
             crate::slices::window(ui.get_slice_window_index().max(0) as usize, fitted, &units);
+        let zoom = ui.get_slice_zoom();
+        let mut frames = [[0u32; 4]; 3];
         let mut error = None;
         for axis in Axis::ALL {
-            let image =
-                crate::slices::slice_image(volume, st.slice_level, axis, &st.crosshair, window);
+            let image = crate::slices::slice_image(
+                volume,
+                st.slice_level,
+                axis,
+                &st.crosshair,
+                window,
+                zoom,
+            );
             let image = match image {
-                Ok(image) => image,
+                Ok((image, at)) => {
+                    frames[axis.index()] = [at[0], at[1], image.width(), image.height()];
+                    image
+                }
                 Err(e) => {
                     error = Some(format!("slice {axis}: {e}"));
                     continue;
@@ -969,6 +985,7 @@ impl Controller {
         }
         ui.set_slice_window_info(info.into());
         drop(st);
+        self.state.borrow_mut().slice_frames = frames;
         if let Some(error) = error {
             self.show_message(&error, true);
         }
@@ -986,10 +1003,12 @@ impl Controller {
             let Some(current) = &st.current else { return };
             let level = current.volume.volume.level(st.slice_level);
             let dims = level.dims();
-            let [u, v] = axis.in_plane();
-            let (iw, ih) = (dims[u] as f32, dims[v] as f32);
+            let [_, v] = axis.in_plane();
+            // The part of the slice shown (zoomed about the crosshair).
+            let [x0, y0, fw, fh] = st.slice_frames[axis.index()];
+            let (iw, ih) = (fw as f32, fh as f32);
             let scale = (w / iw).min(h / ih);
-            if scale.is_nan() || scale <= 0.0 {
+            if fw == 0 || fh == 0 || scale.is_nan() || scale <= 0.0 {
                 return;
             }
             let col = (x - (w - iw * scale) / 2.0) / scale;
@@ -997,8 +1016,13 @@ impl Controller {
             if !(0.0..iw).contains(&col) || !(0.0..ih).contains(&row) {
                 return;
             }
-            st.crosshair
-                .click(*axis, col, row, dims[v], 1 << st.slice_level);
+            st.crosshair.click(
+                *axis,
+                col + x0 as f32,
+                row + y0 as f32,
+                dims[v],
+                1 << st.slice_level,
+            );
         }
         self.update_slices();
     }

@@ -94,16 +94,30 @@ impl Crosshair {
     }
 }
 
+/// The part of an axis of `len` pixels a zoom of `zoom` shows, centred on
+/// `centre` as far as the ends allow: its first pixel and its length.
+pub(crate) fn zoom_span(len: u32, centre: u32, zoom: f32) -> (u32, u32) {
+    let zoom = if zoom.is_finite() { zoom.max(1.0) } else { 1.0 };
+    let count = ((len as f32 / zoom).round() as u32).clamp(1, len.max(1));
+    let start = centre
+        .saturating_sub(count / 2)
+        .min(len.saturating_sub(count));
+    (start, count)
+}
+
 /// The slice of `volume` (level `level` of it) perpendicular to `axis` through
 /// the crosshair, windowed by `window` (stored values), with the crosshair's two
-/// other slices drawn as lines in their axes' colours.
+/// other slices drawn as lines in their axes' colours, zoomed by `zoom` (≥ 1)
+/// about the crosshair. Returns the image and where its top-left pixel lies in
+/// the whole slice (column, row).
 pub(crate) fn slice_image(
     volume: &Volume,
     level: usize,
     axis: Axis,
     crosshair: &Crosshair,
     window: [f32; 2],
-) -> Result<RgbImage, SliceError> {
+    zoom: f32,
+) -> Result<(RgbImage, [u32; 2]), SliceError> {
     let data = volume.level(level);
     let scale = 1u32 << level;
     let at = |a: usize| (crosshair.voxel[a] / scale).min(data.dims()[a].saturating_sub(1));
@@ -122,7 +136,17 @@ pub(crate) fn slice_image(
         let i = ((row * w + x) * 3) as usize;
         rgb[i..i + 3].copy_from_slice(&AXIS_COLOURS[v]);
     }
-    Ok(RgbImage::new(w, h, rgb))
+    let (x0, cw) = zoom_span(w, col.min(w - 1), zoom);
+    let (y0, ch) = zoom_span(h, row, zoom);
+    if (cw, ch) == (w, h) {
+        return Ok((RgbImage::new(w, h, rgb), [0, 0]));
+    }
+    let mut cropped = Vec::with_capacity((cw * ch * 3) as usize);
+    for y in y0..y0 + ch {
+        let start = ((y * w + x0) * 3) as usize;
+        cropped.extend_from_slice(&rgb[start..start + (cw * 3) as usize]);
+    }
+    Ok((RgbImage::new(cw, ch, cropped), [x0, y0]))
 }
 
 #[cfg(test)]
@@ -180,7 +204,8 @@ mod tests {
         let volume = Volume::open(&path).unwrap();
         assert_eq!(slice_level(&volume), 0);
         let c = Crosshair::centre(volume.dims());
-        let image = slice_image(&volume, 0, Axis::Z, &c, [0.0, 255.0]).unwrap();
+        let (image, at) = slice_image(&volume, 0, Axis::Z, &c, [0.0, 255.0], 1.0).unwrap();
+        assert_eq!(at, [0, 0]);
         assert_eq!((image.width(), image.height()), (20, 16));
         let px = |x: u32, y: u32| {
             let i = ((y * 20 + x) * 3) as usize;
@@ -189,5 +214,21 @@ mod tests {
         // The x line (red) at column 9, the y line (green) at row 15 − 7.
         assert_eq!(px(9, 0), AXIS_COLOURS[0]);
         assert_eq!(px(0, 8), AXIS_COLOURS[1]);
+        // Zoomed 2×: 10 × 8 pixels about the crosshair (column 9, row 8).
+        let (zoomed, at) = slice_image(&volume, 0, Axis::Z, &c, [0.0, 255.0], 2.0).unwrap();
+        assert_eq!((zoomed.width(), zoomed.height()), (10, 8));
+        assert_eq!(at, [4, 4]);
+        let i = ((4 * 10 + 5) * 3) as usize;
+        assert_eq!(zoomed.data()[i..i + 3], AXIS_COLOURS[1]);
+    }
+
+    #[test]
+    fn zoom_spans_stay_inside() {
+        assert_eq!(zoom_span(100, 50, 1.0), (0, 100));
+        assert_eq!(zoom_span(100, 50, 4.0), (38, 25));
+        assert_eq!(zoom_span(100, 2, 4.0), (0, 25));
+        assert_eq!(zoom_span(100, 99, 4.0), (75, 25));
+        assert_eq!(zoom_span(3, 1, 100.0), (1, 1));
+        assert_eq!(zoom_span(10, 5, f32::NAN), (0, 10));
     }
 }
