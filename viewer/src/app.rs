@@ -15,12 +15,14 @@ use std::time::Duration;
 
 use anyhow::{Context, Result};
 use crossbeam_channel::{Receiver, Sender};
+use raycaster::render::ClipRegion;
 use raycaster::render::{
     DEFAULT_ERT_THRESHOLD, FrameEvent, FrameRequest, FrameStats, GlobalMode, LevelChoice,
     Membership, Mode, Notify, ObjectStyle, PRESETS, ParallelOptions, RenderFront, RenderSettings,
     RgbImage, SegmentScene, TransferFunction,
 };
 use raycaster::session::{Session, SessionCamera};
+use raycaster::slice::Axis;
 use raycaster::source::VolumeSource;
 use raycaster::synth::SceneKind;
 use raycaster::volume::{Content, Volume, write_file_atomically};
@@ -28,10 +30,13 @@ use slint::{
     ComponentHandle, Image, ModelRc, Rgba8Pixel, SharedPixelBuffer, SharedString, VecModel,
 };
 
+use crate::cut::CutValues;
 use crate::loader::{self, LoadedVolume};
 use crate::navigation::{AxisView, DragKind, Navigator};
 use crate::quality::{QualityPolicy, StepPreset};
 use crate::segments_panel::{self, LOCAL_MODES, ObjectRowData};
+use crate::shortcuts::Shortcut;
+use crate::slices::Crosshair;
 use crate::ui::{App, ObjectRow};
 
 /// Quiet time after the last camera change before the full-quality frame.
@@ -76,6 +81,8 @@ struct Install {
     scene: Option<SegmentScene>,
     /// A session to restore once the volume is in place.
     session: Option<Box<Session>>,
+    /// The file or session the user opened, for the recent files.
+    recent: Option<PathBuf>,
     message: String,
 }
 
@@ -134,6 +141,22 @@ struct State {
     /// A still step a session restored that no step preset has, with the
     /// preset index it applies to (until another preset is picked).
     step_override: Option<(i32, f32)>,
+    /// The cut a session restored, with the panel values that show it: used as
+    /// given (bit for bit) until a Cut control changes.
+    cut_restored: Option<(CutValues, ClipRegion)>,
+    /// The slice views' crosshair (full-resolution voxels).
+    crosshair: Crosshair,
+    /// The pyramid level the slice views read.
+    slice_level: usize,
+    /// The recent files, newest first.
+    recent: Vec<PathBuf>,
+    /// Per slice view (x, y, z): the shown part of the slice, first column
+    /// and row, width and height (level pixels).
+    slice_frames: [[u32; 4]; 3],
+    /// The canvas size (physical pixels) of the newest frame request.
+    canvas: (u32, u32),
+    /// A recent-files error was shown (shown once, not on every open).
+    recent_error_shown: bool,
 }
 
 thread_local! {
@@ -213,6 +236,15 @@ impl Viewer {
                 fixed: RenderSettings::default(),
                 level: LevelChoice::default(),
                 step_override: None,
+                cut_restored: None,
+                crosshair: Crosshair::centre(first.volume.dims()),
+                slice_level: 0,
+                recent: crate::recent::recent_file()
+                    .map(|f| crate::recent::load(&f))
+                    .unwrap_or_default(),
+                recent_error_shown: false,
+                canvas: (0, 0),
+                slice_frames: [[0; 4]; 3],
             }),
             scheduled,
             wake: wake.clone(),
@@ -224,6 +256,10 @@ impl Viewer {
             RenderFront::with_labels(first.volume.clone(), first.labels.clone(), None, Some(wake))
                 .context("cannot prepare the volume for rendering")?;
         let message = format!("opened {}", first.description);
+        let recent = match &source {
+            Source::File(p) | Source::Session(p) if error.is_none() => Some(p.clone()),
+            _ => None,
+        };
         controller.install(Ok(Install {
             loaded: Loaded {
                 volume: first,
@@ -234,6 +270,7 @@ impl Viewer {
             labels_path,
             scene: None,
             session,
+            recent,
             message,
         }));
         if let Some(error) = error {
@@ -245,6 +282,7 @@ impl Viewer {
             Source::BuiltIn(..) => {}
         }
         connect(&ui, &controller);
+        controller.show_recent();
         if let Some(path) = scene {
             ui.set_scene_path(path.display().to_string().into());
             controller.load_scene(&path);
@@ -309,6 +347,16 @@ impl Viewer {
     pub fn session(&self) -> Option<Session> {
         self.controller.session()
     }
+
+    /// The slice views' crosshair: a voxel of the full-resolution volume.
+    pub fn crosshair(&self) -> [u32; 3] {
+        self.controller.state.borrow().crosshair.voxel
+    }
+
+    /// The recent files the menu lists, newest first.
+    pub fn recent_files(&self) -> Vec<PathBuf> {
+        self.controller.state.borrow().recent.clone()
+    }
 }
 
 /// Reads a session and opens what it needs: its volume (`current` when it is
@@ -372,6 +420,14 @@ fn init_models(ui: &App) {
     ui.set_max_threads((cores * 2).max(4) as i32);
     ui.set_threads(cores as i32);
     ui.set_tile_index(1);
+    ui.set_help(crate::shortcuts::HELP.into());
+    ui.set_slice_windows(strings(
+        crate::slices::window_names()
+            .iter()
+            .map(String::as_str)
+            .collect(),
+    ));
+    ui.set_slice_labels(strings(crate::slices::VIEW_NAMES.to_vec()));
 }
 
 /// A wake-up the renderer threads may call: posts one pump to the event loop.
@@ -510,7 +566,93 @@ fn connect(ui: &App, c: &Rc<Controller>) {
     });
     on!(on_object_changed, |c, index, row| c
         .edit_object(index, &row));
-    on!(on_canvas_resized, |c| c.request_frame(true));
+    on!(on_canvas_resized, |c| {
+        // Layout jitter below a pixel (366.99997 for 367) asks for no frame.
+        let size = c.ui().map(|ui| canvas_size(&ui));
+        if size != Some(c.state.borrow().canvas) {
+            c.request_frame(true);
+        }
+    });
+    on!(on_cut_changed, |c, moving| {
+        c.show_cut();
+        c.request_frame(moving);
+    });
+    on!(on_cut_reset, |c| {
+        if let Some(ui) = c.ui() {
+            set_cut_values(&ui, &CutValues::default());
+        }
+        c.show_cut();
+        c.request_frame(false);
+    });
+    on!(on_slice_clicked, |c, axis, x, y, w, h| c
+        .click_slice(axis, x, y, w, h));
+    on!(on_slice_scrolled, |c, axis, delta| c
+        .scroll_slice(axis, delta));
+    on!(on_slice_window_selected, |c, _index| c.update_slices());
+    on!(on_slice_zoom_changed, |c| c.update_slices());
+    on!(on_recent_selected, |c, index| c.open_recent(index));
+    let weak = Rc::downgrade(c);
+    ui.on_shortcut(move |text, control| {
+        let Some(c) = weak.upgrade() else {
+            return false;
+        };
+        let Some(shortcut) = crate::shortcuts::shortcut(&text, control) else {
+            return false;
+        };
+        match shortcut {
+            Shortcut::Reset => {
+                c.state.borrow_mut().nav.reset();
+                c.request_frame(false);
+            }
+            Shortcut::Axis(view) => {
+                c.state.borrow_mut().nav.axis_view(view);
+                c.request_frame(false);
+            }
+            Shortcut::Screenshot => c.quick_screenshot(),
+        }
+        true
+    });
+}
+
+/// The Cut panel's values.
+fn cut_values(ui: &App) -> CutValues {
+    CutValues {
+        lo: [ui.get_crop_x0(), ui.get_crop_y0(), ui.get_crop_z0()],
+        hi: [ui.get_crop_x1(), ui.get_crop_y1(), ui.get_crop_z1()],
+        plane: ui.get_plane_enabled(),
+        offset: ui.get_plane_offset(),
+        azimuth: ui.get_plane_azimuth(),
+        elevation: ui.get_plane_elevation(),
+    }
+}
+
+/// Shows `v` in the Cut panel.
+fn set_cut_values(ui: &App, v: &CutValues) {
+    ui.set_crop_x0(v.lo[0]);
+    ui.set_crop_y0(v.lo[1]);
+    ui.set_crop_z0(v.lo[2]);
+    ui.set_crop_x1(v.hi[0]);
+    ui.set_crop_y1(v.hi[1]);
+    ui.set_crop_z1(v.hi[2]);
+    ui.set_plane_enabled(v.plane);
+    ui.set_plane_offset(v.offset);
+    ui.set_plane_azimuth(v.azimuth);
+    ui.set_plane_elevation(v.elevation);
+}
+
+/// The first free `STEM-N.EXT` beside `path` (`screenshot.png` → `screenshot-1.png`).
+fn numbered_path(path: &Path) -> PathBuf {
+    let stem = path
+        .file_stem()
+        .map_or("screenshot".into(), |s| s.to_string_lossy().into_owned());
+    let ext = path
+        .extension()
+        .map_or("png".into(), |s| s.to_string_lossy().into_owned());
+    let dir = path.parent().unwrap_or(Path::new(""));
+    (1u32..)
+        .map(|n| dir.join(format!("{stem}-{n}.{ext}")))
+        .find(|p| !p.exists())
+        .unwrap_or_else(|| path.to_path_buf())
 }
 
 impl Controller {
@@ -539,6 +681,10 @@ impl Controller {
             st.current
                 .as_ref()
                 .map(|c| (st.source.clone(), c.volume.clone()))
+        };
+        let recent = match &source {
+            Source::File(p) | Source::Session(p) => Some(p.clone()),
+            Source::BuiltIn(..) => None,
         };
         self.in_background(format!("opening {what} …"), move |wake| {
             let mut session = None;
@@ -580,6 +726,7 @@ impl Controller {
                 labels_path,
                 scene: None,
                 session,
+                recent,
             })
         });
     }
@@ -621,6 +768,9 @@ impl Controller {
                 }
                 st.labels_path = install.labels_path;
                 st.fixed = RenderSettings::default();
+                st.cut_restored = None;
+                st.crosshair = Crosshair::centre(v.volume.dims());
+                st.slice_level = crate::slices::slice_level(&v.volume);
                 st.level = LevelChoice::default();
                 st.step_override = None;
                 st.nav = navigator_for(v);
@@ -629,6 +779,11 @@ impl Controller {
                 st.editor.set_histogram(&v.histogram);
                 st.scene = None;
                 if let Some(ui) = self.ui() {
+                    let [x, y, z] = v.volume.dims();
+                    ui.set_dim_x(x as i32);
+                    ui.set_dim_y(y as i32);
+                    ui.set_dim_z(z as i32);
+                    set_cut_values(&ui, &CutValues::default());
                     ui.set_volume_info(v.description.clone().into());
                     ui.set_preset_index(
                         PRESETS
@@ -655,10 +810,245 @@ impl Controller {
         if let Some(session) = install.session {
             message += &self.restore(*session);
         }
+        if let Some(path) = install.recent
+            && let Some(note) = self.remember(&path)
+        {
+            message += &note;
+        }
         self.show_message(&message, false);
         self.show_objects();
+        self.show_cut();
+        self.update_slices();
         self.redraw_tf();
         self.request_frame(false);
+    }
+
+    /// Puts `path` first in the recent files; returns a note for the message
+    /// line the first time the list cannot be written.
+    fn remember(&self, path: &Path) -> Option<String> {
+        let file = crate::recent::recent_file()?;
+        let result = crate::recent::add(&file, path);
+        let note = {
+            let mut st = self.state.borrow_mut();
+            match result {
+                Ok(list) => {
+                    st.recent = list;
+                    None
+                }
+                Err(e) if !st.recent_error_shown => {
+                    st.recent_error_shown = true;
+                    Some(format!(
+                        " (cannot update the recent files {}: {e})",
+                        file.display()
+                    ))
+                }
+                Err(_) => None,
+            }
+        };
+        self.show_recent();
+        note
+    }
+
+    /// Fills the recent-files menu.
+    fn show_recent(&self) {
+        let Some(ui) = self.ui() else { return };
+        let st = self.state.borrow();
+        let items: Vec<SharedString> =
+            std::iter::once(format!("recent files ({})", st.recent.len()).into())
+                .chain(st.recent.iter().map(|p| p.display().to_string().into()))
+                .collect();
+        ui.set_recent_files(ModelRc::new(VecModel::from(items)));
+        ui.set_recent_index(0);
+    }
+
+    /// Reopens entry `index` of the recent-files menu (0 is its title): a
+    /// `.toml` file as a session, anything else as a volume.
+    fn open_recent(&self, index: i32) {
+        let Some(ui) = self.ui() else { return };
+        ui.set_recent_index(0);
+        let path = {
+            let st = self.state.borrow();
+            let Some(path) = usize::try_from(index - 1)
+                .ok()
+                .and_then(|i| st.recent.get(i))
+            else {
+                return;
+            };
+            path.clone()
+        };
+        if path.extension().is_some_and(|e| e == "toml") {
+            ui.set_session_path(path.display().to_string().into());
+            self.open(Source::Session(path));
+        } else {
+            ui.set_file_path(path.display().to_string().into());
+            self.open(Source::File(path));
+        }
+    }
+
+    /// The cut the view renders: the region a session restored while the
+    /// panel still shows it, else the panel's (with a session's planes beyond
+    /// the first, which the panel does not show).
+    fn clip(ui: &App, st: &State) -> ClipRegion {
+        let values = cut_values(ui);
+        if let Some((restored, region)) = &st.cut_restored
+            && *restored == values
+        {
+            return region.clone();
+        }
+        let dims = st
+            .current
+            .as_ref()
+            .map_or([1; 3], |c| c.volume.volume.dims());
+        let mut region = values.region(dims);
+        region
+            .planes
+            .extend(st.fixed.clip.planes.iter().skip(1).copied());
+        region
+    }
+
+    /// Describes the clipping plane under its sliders.
+    fn show_cut(&self) {
+        let Some(ui) = self.ui() else { return };
+        let region = Self::clip(&ui, &self.state.borrow());
+        let text = match region.planes.first() {
+            Some(p) => format!(
+                "plane through ({:.0}, {:.0}, {:.0}), normal ({:.2}, {:.2}, {:.2}) (voxels)",
+                p.point.x, p.point.y, p.point.z, p.normal.x, p.normal.y, p.normal.z
+            ),
+            None => "no clipping plane".into(),
+        };
+        ui.set_plane_info(text.into());
+    }
+
+    /// Redraws the three slice views through the crosshair.
+    fn update_slices(&self) {
+        let Some(ui) = self.ui() else { return };
+        let st = self.state.borrow();
+        let Some(current) = &st.current else { return };
+        let volume = &current.volume.volume;
+        let units = volume.value_units();
+        let fitted = current
+            .volume
+            .domain
+            .unwrap_or([0.0, f32::from(volume.sample_type().max_value())]);
+        let window =
+            crate::slices::window(ui.get_slice_window_index().max(0) as usize, fitted, &units);
+        let zoom = ui.get_slice_zoom();
+        let mut frames = [[0u32; 4]; 3];
+        let mut error = None;
+        for axis in Axis::ALL {
+            let image = crate::slices::slice_image(
+                volume,
+                st.slice_level,
+                axis,
+                &st.crosshair,
+                window,
+                zoom,
+            );
+            let image = match image {
+                Ok((image, at)) => {
+                    frames[axis.index()] = [at[0], at[1], image.width(), image.height()];
+                    image
+                }
+                Err(e) => {
+                    error = Some(format!("slice {axis}: {e}"));
+                    continue;
+                }
+            };
+            let rgba: Vec<u8> = image
+                .data()
+                .chunks(3)
+                .flat_map(|p| [p[0], p[1], p[2], 255])
+                .collect();
+            let buffer = SharedPixelBuffer::<Rgba8Pixel>::clone_from_slice(
+                &rgba,
+                image.width(),
+                image.height(),
+            );
+            let image = Image::from_rgba8(buffer);
+            match axis {
+                Axis::X => ui.set_slice_x(image),
+                Axis::Y => ui.set_slice_y(image),
+                Axis::Z => ui.set_slice_z(image),
+            }
+        }
+        let [x, y, z] = st.crosshair.voxel;
+        ui.set_cross_x(x as i32);
+        ui.set_cross_y(y as i32);
+        ui.set_cross_z(z as i32);
+        let mut info = format!("window {}", crate::slices::describe_window(window, &units));
+        if st.slice_level > 0 {
+            info += &format!(" · slices read from pyramid level {}", st.slice_level);
+        }
+        ui.set_slice_window_info(info.into());
+        drop(st);
+        self.state.borrow_mut().slice_frames = frames;
+        if let Some(error) = error {
+            self.show_message(&error, true);
+        }
+    }
+
+    /// Moves the crosshair to a click at `(x, y)` in the `axis` slice's area
+    /// of `w × h` (the image is fitted inside it, centred).
+    fn click_slice(&self, axis: i32, x: f32, y: f32, w: f32, h: f32) {
+        let Some(axis) = usize::try_from(axis).ok().and_then(|a| Axis::ALL.get(a)) else {
+            return;
+        };
+        {
+            let mut guard = self.state.borrow_mut();
+            let st = &mut *guard;
+            let Some(current) = &st.current else { return };
+            let level = current.volume.volume.level(st.slice_level);
+            let dims = level.dims();
+            let [_, v] = axis.in_plane();
+            // The part of the slice shown (zoomed about the crosshair).
+            let [x0, y0, fw, fh] = st.slice_frames[axis.index()];
+            let (iw, ih) = (fw as f32, fh as f32);
+            let scale = (w / iw).min(h / ih);
+            if fw == 0 || fh == 0 || scale.is_nan() || scale <= 0.0 {
+                return;
+            }
+            let col = (x - (w - iw * scale) / 2.0) / scale;
+            let row = (y - (h - ih * scale) / 2.0) / scale;
+            if !(0.0..iw).contains(&col) || !(0.0..ih).contains(&row) {
+                return;
+            }
+            st.crosshair.click(
+                *axis,
+                col + x0 as f32,
+                row + y0 as f32,
+                dims[v],
+                1 << st.slice_level,
+            );
+        }
+        self.update_slices();
+    }
+
+    /// Steps the `axis` slice by one (level) voxel per wheel notch direction.
+    fn scroll_slice(&self, axis: i32, delta: f32) {
+        let Some(axis) = usize::try_from(axis).ok().and_then(|a| Axis::ALL.get(a)) else {
+            return;
+        };
+        if delta == 0.0 {
+            return;
+        }
+        {
+            let mut st = self.state.borrow_mut();
+            let step = 1i64 << st.slice_level;
+            st.crosshair
+                .step(*axis, if delta > 0.0 { step } else { -step });
+        }
+        self.update_slices();
+    }
+
+    /// Saves the frame on screen as the first free `screenshot-N.png` beside the
+    /// *Save PNG* path (the S key).
+    fn quick_screenshot(&self) {
+        let Some(ui) = self.ui() else { return };
+        let base = PathBuf::from(ui.get_screenshot_path().as_str());
+        let path = numbered_path(&base);
+        let path = std::path::absolute(&path).unwrap_or(path);
+        self.save_screenshot(&path);
     }
 
     /// Sets the panels, camera, transfer function, scene and the settings no
@@ -690,6 +1080,13 @@ impl Controller {
                 None => st.step_override = Some((ui.get_step_index(), settings.step)),
             }
             st.fixed = settings.clone();
+            let dims = st
+                .current
+                .as_ref()
+                .map_or([1; 3], |c| c.volume.volume.dims());
+            let values = CutValues::from_region(&settings.clip, dims);
+            set_cut_values(&ui, &values);
+            st.cut_restored = Some((values, settings.clip.clone()));
         }
         ui.set_mode_index(
             Mode::ALL
@@ -732,6 +1129,7 @@ impl Controller {
             shading: ui.get_shading().then(|| fixed.shading.unwrap_or_default()),
             transfer: st.editor.transfer(),
             segments: st.scene.clone(),
+            clip: Self::clip(ui, st),
             ..fixed.clone()
         }
     }
@@ -813,6 +1211,7 @@ impl Controller {
             st.quality.still()
         };
         let canvas = canvas_size(&ui);
+        st.canvas = canvas;
         let (w, h) = QualityPolicy::frame_size(quality, canvas.0, canvas.1);
         let camera = match st.nav.orbit().camera(w, h) {
             Ok(camera) => camera,
@@ -1066,6 +1465,7 @@ impl Controller {
                     labels_path: None,
                     scene: Some(scene),
                     session: None,
+                    recent: None,
                 })
             },
         );

@@ -3,13 +3,18 @@
 //!
 //! [`Viewer`] builds the window and its controller; the modules below hold the
 //! pieces that need no window (navigation, quality policy, transfer-function
-//! editor, loading, the segments panel) so they are tested on their own.
+//! editor, loading, the segments panel, the cut panel, keyboard shortcuts, slice
+//! views, recent files) so they are tested on their own.
 
 pub mod app;
+pub(crate) mod cut;
 pub mod loader;
 pub mod navigation;
 pub mod quality;
+pub(crate) mod recent;
 pub mod segments_panel;
+pub(crate) mod shortcuts;
+pub(crate) mod slices;
 pub mod tf_editor;
 #[allow(missing_docs, clippy::all)]
 pub mod ui;

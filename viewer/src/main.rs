@@ -9,8 +9,10 @@ use viewer::{Source, Viewer};
 
 /// Interactive CPU volume viewer for huge bricked, memory-mapped volumes.
 ///
-/// Left drag orbits, middle or shift + left drag pans, the wheel zooms. Without
-/// FILE it shows a generated scene at once. "Save session" writes the view as a
+/// Left drag orbits, middle or shift + left drag pans, the wheel zooms; keys: R
+/// resets the view, 1/2/3 (or X/Y/Z; shift for the negative side) look along an
+/// axis, S (or Ctrl+S) saves a screenshot. Without FILE it shows a generated scene
+/// at once. "Save session" writes the view as a
 /// TOML file that `viewer --session` restores and `raycaster render --session`
 /// renders pixel for pixel.
 #[derive(Parser)]

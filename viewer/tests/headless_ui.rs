@@ -77,6 +77,8 @@ fn the_viewer_runs_headless() {
         renderer_name: Some("software".into()),
     })))
     .expect("the first platform of this process");
+    let config = tempfile::tempdir().unwrap();
+    support::private_config(config.path());
 
     let v = Viewer::new(Source::BuiltIn(SceneKind::Shapes, 64), None).unwrap();
     v.ui()

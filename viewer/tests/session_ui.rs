@@ -103,6 +103,7 @@ fn sessions_save_render_and_restore_the_picture() {
     })))
     .expect("the first platform of this process");
     let dir = tempfile::tempdir().unwrap();
+    support::private_config(dir.path());
 
     // 1. Change the camera, transfer function, mode and settings through the UI.
     let v = viewer(Source::BuiltIn(SceneKind::Shapes, 48));

@@ -1,5 +1,7 @@
-//! What the headless viewer tests share: waiting for frames and finding elements.
+//! What the headless viewer tests share: waiting for frames, finding elements
+//! and a private configuration folder.
 
+use std::path::Path;
 use std::time::{Duration, Instant};
 
 use i_slint_backend_testing::ElementHandle;
@@ -28,4 +30,15 @@ pub fn element(v: &Viewer, id: &str) -> ElementHandle {
     ElementHandle::find_by_element_id(v.ui(), id)
         .next()
         .unwrap_or_else(|| panic!("no element {id}"))
+}
+
+/// Points `XDG_CONFIG_HOME` at `dir`, so that the recent files the viewer
+/// remembers go there and not into the user's configuration. Call it first,
+/// before the viewer (or any thread of the test) starts.
+pub fn private_config(dir: &Path) {
+    // SAFETY: called before any other thread of the test process starts.
+    #[allow(unsafe_code)]
+    unsafe {
+        std::env::set_var("XDG_CONFIG_HOME", dir);
+    }
 }

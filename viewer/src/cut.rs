@@ -1,0 +1,178 @@
+//! The "Cut" panel: crop sliders per axis and one clipping plane set by an
+//! offset and two angles, turned into the library's [`ClipRegion`] and back.
+//!
+//! Crop bounds are fractions 0..1 of each axis, snapped to whole voxels (a
+//! slider at 0.5 on a 160-voxel axis cuts at voxel 80); with every bound at
+//! its end the region has no crop box. The plane keeps the half-space its
+//! normal points into: the normal has azimuth `a` (about +z, from +x) and
+//! elevation `e` (from the xy plane), `(cos e cos a, cos e sin a, sin e)`; the
+//! plane passes through the volume's centre moved `offset` × half its diagonal
+//! along the normal (offset −1..1: −1 keeps everything, 1 nothing).
+
+use glam::Vec3;
+use raycaster::render::{ClipPlane, ClipRegion, CropBox};
+
+/// What the Cut panel shows.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct CutValues {
+    /// Lower crop bound per axis, a fraction 0..1 of the axis.
+    pub lo: [f32; 3],
+    /// Upper crop bound per axis, a fraction 0..1 of the axis.
+    pub hi: [f32; 3],
+    /// Whether the clipping plane cuts.
+    pub plane: bool,
+    /// The plane's offset from the centre along its normal, in half diagonals (−1..1).
+    pub offset: f32,
+    /// The normal's azimuth, degrees (−180..180).
+    pub azimuth: f32,
+    /// The normal's elevation, degrees (−90..90).
+    pub elevation: f32,
+}
+
+impl Default for CutValues {
+    fn default() -> CutValues {
+        CutValues {
+            lo: [0.0; 3],
+            hi: [1.0; 3],
+            plane: false,
+            offset: 0.0,
+            azimuth: 0.0,
+            elevation: 0.0,
+        }
+    }
+}
+
+/// The last voxel index per axis as a float (at least 1, so fractions divide).
+fn extent(dims: [u32; 3]) -> Vec3 {
+    Vec3::from(dims.map(|d| d.saturating_sub(1).max(1) as f32))
+}
+
+/// The voxel a crop fraction cuts at on an axis whose last index is `last`.
+pub(crate) fn crop_voxel(fraction: f32, last: f32) -> f32 {
+    (fraction.clamp(0.0, 1.0) * last).round()
+}
+
+/// The unit normal of azimuth `azimuth` and elevation `elevation` (degrees).
+pub(crate) fn normal(azimuth: f32, elevation: f32) -> Vec3 {
+    let (a, e) = (azimuth.to_radians(), elevation.to_radians());
+    Vec3::new(e.cos() * a.cos(), e.cos() * a.sin(), e.sin())
+}
+
+impl CutValues {
+    /// The region these values keep in a volume of `dims` voxels (level 0).
+    pub(crate) fn region(&self, dims: [u32; 3]) -> ClipRegion {
+        let last = extent(dims);
+        let mut lo = Vec3::ZERO;
+        let mut hi = Vec3::ZERO;
+        for a in 0..3 {
+            let (l, h) = (
+                crop_voxel(self.lo[a], last[a]),
+                crop_voxel(self.hi[a], last[a]),
+            );
+            // Crossed sliders keep one plane of voxels, never an inverted box.
+            lo[a] = l.min(h);
+            hi[a] = l.max(h);
+        }
+        let crop = (lo != Vec3::ZERO || hi != last).then_some(CropBox { lo, hi });
+        let planes = if self.plane {
+            let n = normal(self.azimuth, self.elevation);
+            let centre = last / 2.0;
+            let half = last.length() / 2.0;
+            vec![ClipPlane {
+                point: centre + n * (self.offset.clamp(-1.0, 1.0) * half),
+                normal: n,
+            }]
+        } else {
+            Vec::new()
+        };
+        ClipRegion { crop, planes }
+    }
+
+    /// The panel's values for `region` in a volume of `dims` voxels: the crop
+    /// box as fractions and the region's first plane (others are not shown).
+    pub(crate) fn from_region(region: &ClipRegion, dims: [u32; 3]) -> CutValues {
+        let last = extent(dims);
+        let mut values = CutValues::default();
+        if let Some(CropBox { lo, hi }) = region.crop {
+            for a in 0..3 {
+                values.lo[a] = (lo[a] / last[a]).clamp(0.0, 1.0);
+                values.hi[a] = (hi[a] / last[a]).clamp(0.0, 1.0);
+            }
+        }
+        if let Some(p) = region.planes.first() {
+            let n = p.normal.normalize_or_zero();
+            if n != Vec3::ZERO {
+                values.plane = true;
+                values.azimuth = n.y.atan2(n.x).to_degrees();
+                values.elevation = n.z.clamp(-1.0, 1.0).asin().to_degrees();
+                let half = last.length() / 2.0;
+                values.offset = ((p.point - last / 2.0).dot(n) / half).clamp(-1.0, 1.0);
+            }
+        }
+        values
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn full_sliders_and_no_plane_cut_nothing() {
+        assert!(CutValues::default().region([160; 3]).is_empty());
+    }
+
+    #[test]
+    fn crop_fractions_snap_to_voxels() {
+        let v = CutValues {
+            lo: [0.0, 0.25, 0.0],
+            hi: [1.0, 0.5, 1.0],
+            ..CutValues::default()
+        };
+        let r = v.region([161, 161, 11]);
+        let crop = r.crop.unwrap();
+        assert_eq!(crop.lo, Vec3::new(0.0, 40.0, 0.0));
+        assert_eq!(crop.hi, Vec3::new(160.0, 80.0, 10.0));
+        assert!(r.planes.is_empty());
+        assert_eq!(CutValues::from_region(&r, [161, 161, 11]), v);
+    }
+
+    #[test]
+    fn crossed_sliders_keep_one_plane() {
+        let v = CutValues {
+            lo: [0.75, 0.0, 0.0],
+            hi: [0.25, 1.0, 1.0],
+            ..CutValues::default()
+        };
+        let crop = v.region([101; 3]).crop.unwrap();
+        assert_eq!((crop.lo.x, crop.hi.x), (25.0, 75.0));
+        assert!(v.region([101; 3]).validate().is_ok());
+    }
+
+    #[test]
+    fn the_plane_points_along_its_angles_and_round_trips() {
+        let v = CutValues {
+            plane: true,
+            offset: 0.5,
+            azimuth: 90.0,
+            elevation: 0.0,
+            ..CutValues::default()
+        };
+        let r = v.region([101; 3]);
+        let p = r.planes[0];
+        assert!((p.normal - Vec3::Y).length() < 1e-6, "{}", p.normal);
+        let half = Vec3::splat(100.0).length() / 2.0;
+        assert!(
+            (p.point.y - (50.0 + 0.5 * half)).abs() < 1e-3,
+            "{}",
+            p.point
+        );
+        let back = CutValues::from_region(&r, [101; 3]);
+        assert!(back.plane);
+        assert!((back.azimuth - 90.0).abs() < 1e-3);
+        assert!(back.elevation.abs() < 1e-3);
+        assert!((back.offset - 0.5).abs() < 1e-5);
+        let up = normal(10.0, 90.0);
+        assert!((up - Vec3::Z).length() < 1e-6);
+    }
+}

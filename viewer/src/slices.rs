@@ -1,0 +1,234 @@
+//! Slice views (MPR): three orthogonal slices through a crosshair point, read
+//! from the volume with [`raycaster::slice`] and drawn with the crosshair's lines.
+//!
+//! Slices of a large volume are read from the finest pyramid level whose slices
+//! are at most [`MAX_SLICE_EDGE`] voxels on a side (a slice of a 3072³ file reads
+//! a 384² plane of its level 3), so they show at once; the crosshair is kept in
+//! full-resolution voxels.
+
+use raycaster::render::RgbImage;
+use raycaster::slice::{Axis, Slice, SliceError};
+use raycaster::volume::{ValueUnits, Volume};
+use raycaster::windows::NAMED_WINDOWS;
+
+/// The largest slice side read (larger volumes use a coarser pyramid level).
+pub(crate) const MAX_SLICE_EDGE: u32 = 512;
+
+/// The colour of each axis's slice and of the crosshair line showing it: x red,
+/// y green, z blue.
+const AXIS_COLOURS: [[u8; 3]; 3] = [[230, 70, 70], [70, 200, 90], [80, 140, 255]];
+
+/// The slice views' names, by axis (x, y, z).
+pub(crate) const VIEW_NAMES: [&str; 3] = ["sagittal (x)", "coronal (y)", "axial (z)"];
+
+/// The window choices: the fitted window, then the named windows.
+pub(crate) fn window_names() -> Vec<String> {
+    std::iter::once("fitted".to_string())
+        .chain(NAMED_WINDOWS.iter().map(|w| w.name.to_string()))
+        .collect()
+}
+
+/// The stored-value window of choice `index` ([`window_names`]): 0 the fitted
+/// domain (`fitted`, else the sample type's range), then the named windows
+/// converted through the file's units.
+pub(crate) fn window(index: usize, fitted: [f32; 2], units: &ValueUnits) -> [f32; 2] {
+    match index.checked_sub(1).and_then(|i| NAMED_WINDOWS.get(i)) {
+        Some(w) => units.stored_range(w.range()),
+        None => fitted,
+    }
+}
+
+/// A window as people read it, in the file's units: `-1350 HU .. 150 HU`.
+pub(crate) fn describe_window([lo, hi]: [f32; 2], units: &ValueUnits) -> String {
+    format!(
+        "{} .. {}",
+        units.format(units.value(f64::from(lo))),
+        units.format(units.value(f64::from(hi)))
+    )
+}
+
+/// The pyramid level slices of `volume` are read from: the finest whose sides
+/// are all at most [`MAX_SLICE_EDGE`] (the coarsest when none is).
+pub(crate) fn slice_level(volume: &Volume) -> usize {
+    (0..volume.level_count())
+        .find(|&k| volume.level(k).dims().iter().all(|&d| d <= MAX_SLICE_EDGE))
+        .unwrap_or(volume.level_count() - 1)
+}
+
+/// The crosshair: a voxel of the full-resolution volume.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Crosshair {
+    /// The voxel.
+    pub voxel: [u32; 3],
+    dims: [u32; 3],
+}
+
+impl Crosshair {
+    /// The centre of a volume of `dims` voxels.
+    pub(crate) fn centre(dims: [u32; 3]) -> Crosshair {
+        Crosshair {
+            voxel: dims.map(|d| d.saturating_sub(1) / 2),
+            dims,
+        }
+    }
+
+    /// Moves along `axis` by `steps` voxels, staying inside the volume.
+    pub(crate) fn step(&mut self, axis: Axis, steps: i64) {
+        let a = axis.index();
+        let last = i64::from(self.dims[a].saturating_sub(1));
+        self.voxel[a] = (i64::from(self.voxel[a]) + steps).clamp(0, last) as u32;
+    }
+
+    /// Moves to the point clicked in the image of the `axis` slice, at image
+    /// pixel `(col, row)` of an image of `height` rows read from a level whose
+    /// voxels span `scale` full-resolution voxels; the slice's own index stays.
+    pub(crate) fn click(&mut self, axis: Axis, col: f32, row: f32, height: u32, scale: u32) {
+        let [u, v] = axis.in_plane();
+        let to_voxel = |i: f32, last: u32| -> u32 {
+            let i = i.floor().max(0.0) as u32;
+            (i * scale + scale / 2).min(last)
+        };
+        let flipped = (height as f32 - 1.0 - row.floor()).max(0.0);
+        self.voxel[u] = to_voxel(col, self.dims[u].saturating_sub(1));
+        self.voxel[v] = to_voxel(flipped, self.dims[v].saturating_sub(1));
+    }
+}
+
+/// The part of an axis of `len` pixels a zoom of `zoom` shows, centred on
+/// `centre` as far as the ends allow: its first pixel and its length.
+pub(crate) fn zoom_span(len: u32, centre: u32, zoom: f32) -> (u32, u32) {
+    let zoom = if zoom.is_finite() { zoom.max(1.0) } else { 1.0 };
+    let count = ((len as f32 / zoom).round() as u32).clamp(1, len.max(1));
+    let start = centre
+        .saturating_sub(count / 2)
+        .min(len.saturating_sub(count));
+    (start, count)
+}
+
+/// The slice of `volume` (level `level` of it) perpendicular to `axis` through
+/// the crosshair, windowed by `window` (stored values), with the crosshair's two
+/// other slices drawn as lines in their axes' colours, zoomed by `zoom` (≥ 1)
+/// about the crosshair. Returns the image and where its top-left pixel lies in
+/// the whole slice (column, row).
+pub(crate) fn slice_image(
+    volume: &Volume,
+    level: usize,
+    axis: Axis,
+    crosshair: &Crosshair,
+    window: [f32; 2],
+    zoom: f32,
+) -> Result<(RgbImage, [u32; 2]), SliceError> {
+    let data = volume.level(level);
+    let scale = 1u32 << level;
+    let at = |a: usize| (crosshair.voxel[a] / scale).min(data.dims()[a].saturating_sub(1));
+    let slice = Slice::extract(data, axis, at(axis.index()))?;
+    let image = slice.to_image(Some(window))?;
+    let (w, h) = (image.width(), image.height());
+    let mut rgb = image.data().to_vec();
+    let [u, v] = axis.in_plane();
+    let col = at(u);
+    let row = h - 1 - at(v).min(h - 1);
+    for y in 0..h {
+        let i = ((y * w + col.min(w - 1)) * 3) as usize;
+        rgb[i..i + 3].copy_from_slice(&AXIS_COLOURS[u]);
+    }
+    for x in 0..w {
+        let i = ((row * w + x) * 3) as usize;
+        rgb[i..i + 3].copy_from_slice(&AXIS_COLOURS[v]);
+    }
+    let (x0, cw) = zoom_span(w, col.min(w - 1), zoom);
+    let (y0, ch) = zoom_span(h, row, zoom);
+    if (cw, ch) == (w, h) {
+        return Ok((RgbImage::new(w, h, rgb), [0, 0]));
+    }
+    let mut cropped = Vec::with_capacity((cw * ch * 3) as usize);
+    for y in y0..y0 + ch {
+        let start = ((y * w + x0) * 3) as usize;
+        cropped.extend_from_slice(&rgb[start..start + (cw * 3) as usize]);
+    }
+    Ok((RgbImage::new(cw, ch, cropped), [x0, y0]))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn clicks_move_the_other_axes() {
+        let mut c = Crosshair::centre([100, 80, 60]);
+        assert_eq!(c.voxel, [49, 39, 29]);
+        // An axial (z) slice: columns x, rows y from the top.
+        c.click(Axis::Z, 10.0, 0.0, 80, 1);
+        assert_eq!(c.voxel, [10, 79, 29]);
+        // A coronal slice of level 1 (voxels of 2): columns x, rows z.
+        c.click(Axis::Y, 5.0, 29.0, 30, 2);
+        assert_eq!(c.voxel, [11, 79, 1]);
+        c.step(Axis::Z, -5);
+        assert_eq!(c.voxel[2], 0);
+        c.step(Axis::X, 1000);
+        assert_eq!(c.voxel[0], 99);
+    }
+
+    #[test]
+    fn windows_convert_through_the_units() {
+        let hu = ValueUnits::new(1.0, -32768.0, "HU").unwrap();
+        assert_eq!(window(0, [1.0, 2.0], &hu), [1.0, 2.0]);
+        let lung = NAMED_WINDOWS.iter().position(|w| w.name == "lung").unwrap();
+        let w = window(lung + 1, [1.0, 2.0], &hu);
+        assert_eq!(w, [32768.0 - 1350.0, 32768.0 + 150.0]);
+        assert_eq!(describe_window(w, &hu), "-1350 HU .. 150 HU");
+        assert_eq!(window_names().len(), NAMED_WINDOWS.len() + 1);
+    }
+
+    #[test]
+    fn slices_show_the_crosshair() {
+        let volume = raycaster::synth::SceneKind::Gradient.build([20, 16, 12], 1);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("g.vol");
+        let header = raycaster::volume::Header::new(
+            [20, 16, 12],
+            [1.0; 3],
+            raycaster::volume::Layout::Linear,
+            raycaster::volume::SampleType::U8,
+            raycaster::volume::Content::Scalar,
+            raycaster::volume::Format::Extended,
+        );
+        raycaster::generate::generate(
+            volume.as_ref(),
+            &header,
+            &path,
+            &Default::default(),
+            &raycaster::job::Job::silent(),
+        )
+        .unwrap();
+        let volume = Volume::open(&path).unwrap();
+        assert_eq!(slice_level(&volume), 0);
+        let c = Crosshair::centre(volume.dims());
+        let (image, at) = slice_image(&volume, 0, Axis::Z, &c, [0.0, 255.0], 1.0).unwrap();
+        assert_eq!(at, [0, 0]);
+        assert_eq!((image.width(), image.height()), (20, 16));
+        let px = |x: u32, y: u32| {
+            let i = ((y * 20 + x) * 3) as usize;
+            [image.data()[i], image.data()[i + 1], image.data()[i + 2]]
+        };
+        // The x line (red) at column 9, the y line (green) at row 15 − 7.
+        assert_eq!(px(9, 0), AXIS_COLOURS[0]);
+        assert_eq!(px(0, 8), AXIS_COLOURS[1]);
+        // Zoomed 2×: 10 × 8 pixels about the crosshair (column 9, row 8).
+        let (zoomed, at) = slice_image(&volume, 0, Axis::Z, &c, [0.0, 255.0], 2.0).unwrap();
+        assert_eq!((zoomed.width(), zoomed.height()), (10, 8));
+        assert_eq!(at, [4, 4]);
+        let i = ((4 * 10 + 5) * 3) as usize;
+        assert_eq!(zoomed.data()[i..i + 3], AXIS_COLOURS[1]);
+    }
+
+    #[test]
+    fn zoom_spans_stay_inside() {
+        assert_eq!(zoom_span(100, 50, 1.0), (0, 100));
+        assert_eq!(zoom_span(100, 50, 4.0), (38, 25));
+        assert_eq!(zoom_span(100, 2, 4.0), (0, 25));
+        assert_eq!(zoom_span(100, 99, 4.0), (75, 25));
+        assert_eq!(zoom_span(3, 1, 100.0), (1, 1));
+        assert_eq!(zoom_span(10, 5, f32::NAN), (0, 10));
+    }
+}

@@ -1,0 +1,347 @@
+//! Exploring a volume, driven headless: the Cut panel (crop sliders and the
+//! clipping plane) changes the picture and the settings sent to the renderer,
+//! a session saved after cutting restores the sliders; keyboard shortcuts reset
+//! the view, show axis views and save screenshots; the slice views follow the
+//! crosshair; recent files are remembered and reopened.
+//!
+//! One test function: the platform can be set once per process.
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+mod support;
+use support::{element, wait_for_frame};
+
+use i_slint_backend_testing::{TestingBackend, TestingBackendOptions};
+use raycaster::render::{CropBox, Vec3};
+use raycaster::session::Session;
+use raycaster::slice::{Axis, Slice};
+use raycaster::synth::SceneKind;
+use raycaster::volume::Volume;
+use slint::platform::{Key, PointerEventButton, WindowEvent};
+use slint::{ComponentHandle, Model};
+use viewer::{Source, Viewer};
+
+/// Lets the view rest and waits for the full-quality frame.
+fn settle(v: &Viewer) {
+    wait_for_frame(v);
+    i_slint_backend_testing::mock_elapsed_time(Duration::from_millis(300));
+    slint::platform::update_timers_and_animations();
+    wait_for_frame(v);
+}
+
+/// Pumps until `done` holds, then until the newest frame is on screen.
+fn wait_until(v: &Viewer, what: &str, done: impl Fn(&Viewer) -> bool) {
+    let start = Instant::now();
+    while !done(v) {
+        v.pump();
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "{what}: {:?}",
+            v.ui().get_message()
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    settle(v);
+}
+
+/// The RGBA bytes of an image.
+fn pixels(image: &slint::Image) -> (u32, u32, Vec<u8>) {
+    let buffer = image.to_rgba8().expect("a pixel image");
+    (buffer.width(), buffer.height(), buffer.as_bytes().to_vec())
+}
+
+fn frame(v: &Viewer) -> Vec<u8> {
+    pixels(&v.ui().get_frame()).2
+}
+
+/// Writes the built-in `kind` scene of `size³` voxels as a `.vol` file.
+fn generate_file(path: &Path, kind: SceneKind, size: u32) {
+    let header = raycaster::volume::Header::new(
+        [size; 3],
+        [1.0; 3],
+        raycaster::volume::Layout::Bricked { side: 16 },
+        raycaster::volume::SampleType::U8,
+        raycaster::volume::Content::Scalar,
+        raycaster::volume::Format::Extended,
+    );
+    raycaster::generate::generate(
+        kind.build([size; 3], 1).as_ref(),
+        &header,
+        path,
+        &Default::default(),
+        &raycaster::job::Job::silent(),
+    )
+    .unwrap();
+}
+
+/// Presses and releases a key with the given text.
+fn key(v: &Viewer, text: &str) {
+    let window = v.ui().window();
+    window.dispatch_event(WindowEvent::KeyPressed { text: text.into() });
+    window.dispatch_event(WindowEvent::KeyReleased { text: text.into() });
+}
+
+fn crop_of(v: &Viewer) -> Option<CropBox> {
+    v.session().unwrap().settings.clip.crop
+}
+
+#[test]
+fn the_viewer_cuts_slices_and_remembers_files() {
+    slint::platform::set_platform(Box::new(TestingBackend::new(TestingBackendOptions {
+        mock_time: true,
+        threading: false,
+        renderer_name: Some("software".into()),
+    })))
+    .expect("the first platform of this process");
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("config");
+    support::private_config(&config);
+    let file_a = dir.path().join("shapes.vol");
+    generate_file(&file_a, SceneKind::Shapes, 48);
+    let file_b = dir.path().join("shells.vol");
+    generate_file(&file_b, SceneKind::Shells, 40);
+
+    let v = Viewer::new(Source::File(file_a.clone()), None).unwrap();
+    v.ui()
+        .window()
+        .set_size(slint::LogicalSize::new(1000.0, 820.0));
+    v.ui().show().unwrap();
+    v.pump();
+    v.ui().invoke_canvas_resized();
+    settle(&v);
+    // The laid-out canvas: a full-quality frame of its size.
+    v.ui().invoke_reset_view();
+    settle(&v);
+    let home = v.orbit();
+    let whole = frame(&v);
+    assert_eq!(crop_of(&v), None, "no cut at first");
+    assert_eq!(
+        (v.ui().get_dim_x(), v.ui().get_dim_y(), v.ui().get_dim_z()),
+        (48, 48, 48)
+    );
+
+    // 1. Crop: the upper x bound at half keeps voxels 0..=24 of 0..=47.
+    v.ui().set_crop_x1(0.5);
+    v.ui().invoke_cut_changed(false);
+    settle(&v);
+    assert_eq!(
+        crop_of(&v),
+        Some(CropBox {
+            lo: Vec3::ZERO,
+            hi: Vec3::new(24.0, 47.0, 47.0)
+        })
+    );
+    let cropped = frame(&v);
+    assert_ne!(cropped, whole, "the crop changes the picture");
+
+    // The clipping plane: enabled, moved and turned with its sliders.
+    v.ui().set_plane_enabled(true);
+    v.ui().set_plane_offset(-0.1);
+    v.ui().set_plane_azimuth(90.0);
+    v.ui().set_plane_elevation(30.0);
+    v.ui().invoke_cut_changed(false);
+    settle(&v);
+    let clip = v.session().unwrap().settings.clip;
+    assert_eq!(clip.planes.len(), 1);
+    let n = clip.planes[0].normal;
+    let (a, e) = (90f32.to_radians(), 30f32.to_radians());
+    let expected = Vec3::new(e.cos() * a.cos(), e.cos() * a.sin(), e.sin());
+    assert!((n - expected).length() < 1e-5, "normal {n}");
+    let along = (clip.planes[0].point - Vec3::splat(23.5)).dot(n);
+    let half = Vec3::splat(47.0).length() / 2.0;
+    assert!((along + 0.1 * half).abs() < 1e-3, "offset {along}");
+    assert!(v.ui().get_plane_info().contains("normal"));
+    let cut = frame(&v);
+    assert_ne!(cut, cropped, "the plane cuts more away");
+
+    // A session saved after cutting holds the cut; uncutting restores the
+    // whole picture; opening the session brings the sliders and picture back.
+    let session_path = dir.path().join("cut.toml");
+    v.ui()
+        .set_session_path(session_path.display().to_string().into());
+    element(&v, "App::session-save").invoke_accessible_default_action();
+    let saved = Session::load(&session_path).unwrap();
+    assert_eq!(saved.settings.clip, clip);
+    element(&v, "App::cut-reset").invoke_accessible_default_action();
+    settle(&v);
+    assert!(v.session().unwrap().settings.clip.is_empty());
+    assert!(!v.ui().get_plane_enabled());
+    assert_eq!(v.ui().get_crop_x1(), 1.0);
+    assert!(frame(&v) == whole, "uncut: the whole volume again");
+    element(&v, "App::session-open").invoke_accessible_default_action();
+    wait_until(&v, "session restored", |v| v.ui().get_crop_x1() < 1.0);
+    assert!(!v.ui().get_message_is_error(), "{:?}", v.ui().get_message());
+    assert!((v.ui().get_crop_x1() - 24.0 / 47.0).abs() < 1e-6);
+    assert!(v.ui().get_plane_enabled());
+    assert!((v.ui().get_plane_azimuth() - 90.0).abs() < 1e-3);
+    assert!((v.ui().get_plane_elevation() - 30.0).abs() < 1e-3);
+    assert!((v.ui().get_plane_offset() + 0.1).abs() < 1e-4);
+    assert_eq!(v.session().unwrap().settings.clip, clip, "bit for bit");
+    assert!(frame(&v) == cut, "the cut picture is back");
+
+    // 2. Keyboard shortcuts on the canvas (a click gives it the keyboard).
+    element(&v, "App::canvas").mock_single_click(PointerEventButton::Left);
+    settle(&v);
+    key(&v, "1");
+    settle(&v);
+    assert_eq!((v.orbit().azimuth, v.orbit().elevation), (0.0, 0.0), "+x");
+    let from_x = frame(&v);
+    key(&v, "3");
+    settle(&v);
+    assert!(v.orbit().elevation > 1.5, "from the top");
+    assert_ne!(frame(&v), from_x);
+    key(&v, "Y");
+    settle(&v);
+    assert!((v.orbit().azimuth + std::f32::consts::FRAC_PI_2).abs() < 1e-6);
+    assert_eq!(v.orbit().elevation, 0.0, "from −y");
+    key(&v, "r");
+    settle(&v);
+    assert_eq!(v.orbit(), home, "R resets the view");
+    key(&v, "q");
+    assert_eq!(v.orbit(), home, "other keys do nothing");
+    // S saves a numbered screenshot beside the Save PNG path and says where.
+    let shot = dir.path().join("shot.png");
+    v.ui()
+        .set_screenshot_path(shot.display().to_string().into());
+    key(&v, "s");
+    let first = dir.path().join("shot-1.png");
+    assert!(first.exists(), "{:?}", v.ui().get_message());
+    assert!(v.ui().get_message().contains(&*first.display().to_string()));
+    let image = raycaster::render::RgbImage::load_png(&first).unwrap();
+    assert_eq!(image.width() * image.height() * 4, frame(&v).len() as u32);
+    // Ctrl+S too.
+    let window = v.ui().window();
+    window.dispatch_event(WindowEvent::KeyPressed {
+        text: Key::Control.into(),
+    });
+    key(&v, "s");
+    window.dispatch_event(WindowEvent::KeyReleased {
+        text: Key::Control.into(),
+    });
+    assert!(dir.path().join("shot-2.png").exists());
+    assert!(v.ui().get_help().contains("R reset"));
+
+    // 3. Slice views through the crosshair (the volume's centre at first).
+    assert_eq!(v.crosshair(), [23, 23, 23]);
+    assert_eq!(
+        (
+            v.ui().get_cross_x(),
+            v.ui().get_cross_y(),
+            v.ui().get_cross_z()
+        ),
+        (23, 23, 23)
+    );
+    let before = [v.ui().get_slice_x(), v.ui().get_slice_y()].map(|i| pixels(&i));
+    let axial = pixels(&v.ui().get_slice_z());
+    assert_eq!((axial.0, axial.1), (48, 48));
+    // A click on the axial (z) slice, fitted into a 100×100 area: x 12, y 47 − 36.
+    v.ui().invoke_slice_clicked(2, 26.0, 76.0, 100.0, 100.0);
+    assert_eq!(v.crosshair(), [12, 11, 23], "x and y move, z stays");
+    assert_eq!(
+        (
+            v.ui().get_cross_x(),
+            v.ui().get_cross_y(),
+            v.ui().get_cross_z()
+        ),
+        (12, 11, 23)
+    );
+    let after = [v.ui().get_slice_x(), v.ui().get_slice_y()].map(|i| pixels(&i));
+    assert_ne!(after[0], before[0], "the sagittal slice moved");
+    assert_ne!(after[1], before[1], "the coronal slice moved");
+    // The sagittal view is slice x = 12 of the file (but for the crosshair lines).
+    let volume = Volume::open(&file_a).unwrap();
+    let expected = Slice::extract(&volume, Axis::X, 12)
+        .unwrap()
+        .to_image(Some([0.0, 255.0]))
+        .unwrap();
+    let shown = &after[0].2;
+    let differing = expected
+        .data()
+        .chunks(3)
+        .zip(shown.chunks(4))
+        .filter(|(e, s)| e[..] != s[..3])
+        .count();
+    assert!(differing <= 48 + 48, "{differing} pixels differ");
+    let old = Slice::extract(&volume, Axis::X, 23).unwrap();
+    assert_ne!(
+        old.values,
+        Slice::extract(&volume, Axis::X, 12).unwrap().values
+    );
+    // Clicks outside the fitted image do nothing; the wheel steps a slice.
+    v.ui().invoke_slice_clicked(0, 1.0, 50.0, 300.0, 100.0);
+    assert_eq!(v.crosshair(), [12, 11, 23]);
+    v.ui().invoke_slice_scrolled(2, 120.0);
+    assert_eq!(v.crosshair(), [12, 11, 24]);
+    // A named window (lung, in the file's units) changes the grey levels.
+    let lung = v
+        .ui()
+        .get_slice_windows()
+        .iter()
+        .position(|w| w == "lung")
+        .unwrap() as i32;
+    let z_before = pixels(&v.ui().get_slice_z());
+    v.ui().set_slice_window_index(lung);
+    v.ui().invoke_slice_window_selected(lung);
+    assert!(
+        v.ui().get_slice_window_info().contains("-1350"),
+        "{}",
+        v.ui().get_slice_window_info()
+    );
+    assert_ne!(pixels(&v.ui().get_slice_z()), z_before);
+    // Zoomed 2× about the crosshair (12, 11): the axial view shows x 0..24 and
+    // y 0..24 (rows 24..48); a click maps through the zoom.
+    v.ui().set_slice_zoom(2.0);
+    v.ui().invoke_slice_zoom_changed();
+    let zoomed = pixels(&v.ui().get_slice_z());
+    assert_eq!((zoomed.0, zoomed.1), (24, 24));
+    v.ui().invoke_slice_clicked(2, 10.0, 90.0, 100.0, 100.0);
+    assert_eq!(v.crosshair(), [2, 2, 24]);
+    v.ui().set_slice_zoom(1.0);
+    v.ui().invoke_slice_zoom_changed();
+    assert_eq!(pixels(&v.ui().get_slice_z()).0, 48);
+
+    // 4. Recent files: the file and the session opened so far, newest first.
+    let recent_file = config.join("raycaster/recent");
+    let listed = std::fs::read_to_string(&recent_file).unwrap();
+    assert_eq!(
+        listed.lines().collect::<Vec<_>>(),
+        [
+            session_path.display().to_string(),
+            file_a.display().to_string()
+        ]
+    );
+    v.ui().invoke_open_file(file_b.display().to_string().into());
+    wait_until(&v, "file b", |v| {
+        v.volume_name() == file_b.display().to_string()
+    });
+    assert_eq!(
+        v.recent_files(),
+        [file_b.clone(), session_path.clone(), file_a.clone()]
+    );
+    let menu: Vec<String> = v
+        .ui()
+        .get_recent_files()
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    assert_eq!(menu[0], "recent files (3)");
+    assert_eq!(menu[3], file_a.display().to_string());
+    // A new volume comes uncut, its crosshair at its centre.
+    assert_eq!(crop_of(&v), None);
+    assert_eq!(v.crosshair(), [19, 19, 19]);
+    // Picking the oldest entry reopens it; a file gone since is skipped.
+    std::fs::remove_file(&file_b).unwrap();
+    v.ui().invoke_recent_selected(3);
+    wait_until(&v, "file a again", |v| {
+        v.volume_name() == file_a.display().to_string()
+    });
+    assert_eq!(v.ui().get_recent_index(), 0);
+    assert_eq!(v.recent_files(), [file_a.clone(), session_path.clone()]);
+    let listed: Vec<PathBuf> = std::fs::read_to_string(&recent_file)
+        .unwrap()
+        .lines()
+        .map(PathBuf::from)
+        .collect();
+    assert_eq!(listed, [file_a, session_path]);
+}
