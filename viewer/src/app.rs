@@ -7,6 +7,7 @@
 //! are opened on a background thread; a failure leaves the current volume.
 
 use std::cell::RefCell;
+use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
 use std::rc::{Rc, Weak};
 use std::sync::Arc;
@@ -15,7 +16,7 @@ use std::time::Duration;
 
 use anyhow::{Context, Result};
 use crossbeam_channel::{Receiver, Sender};
-use raycaster::render::ClipRegion;
+use raycaster::render::{Camera, ClipRegion};
 use raycaster::render::{
     DEFAULT_ERT_THRESHOLD, FrameEvent, FrameRequest, FrameStats, GlobalMode, LevelChoice,
     Membership, Mode, Notify, ObjectStyle, PRESETS, ParallelOptions, RenderFront, RenderSettings,
@@ -45,6 +46,8 @@ const SETTLE: Duration = Duration::from_millis(200);
 const MOVING_LEVEL_BIAS: f32 = 1.0;
 /// Canvas size assumed before the window is laid out.
 const FALLBACK_CANVAS: (u32, u32) = (640, 480);
+/// Frames whose cameras are remembered (requests in flight at once).
+const REMEMBERED_CAMERAS: usize = 8;
 /// Tile sizes of the settings panel.
 const TILE_SIZES: [u32; 4] = [8, 16, 32, 64];
 
@@ -157,6 +160,9 @@ struct State {
     canvas: (u32, u32),
     /// A recent-files error was shown (shown once, not on every open).
     recent_error_shown: bool,
+    /// The newest requests' ids, cameras and orbit targets: the annotations of
+    /// the frame on screen follow its own camera.
+    cameras: VecDeque<(u64, Camera, glam::Vec3)>,
 }
 
 thread_local! {
@@ -245,6 +251,7 @@ impl Viewer {
                 recent_error_shown: false,
                 canvas: (0, 0),
                 slice_frames: [[0; 4]; 3],
+                cameras: VecDeque::new(),
             }),
             scheduled,
             wake: wake.clone(),
@@ -590,6 +597,7 @@ fn connect(ui: &App, c: &Rc<Controller>) {
         .scroll_slice(axis, delta));
     on!(on_slice_window_selected, |c, _index| c.update_slices());
     on!(on_slice_zoom_changed, |c| c.update_slices());
+    on!(on_show_planes_toggled, |c| c.redraw_frame());
     on!(on_recent_selected, |c, index| c.open_recent(index));
     let weak = Rc::downgrade(c);
     ui.on_shortcut(move |text, control| {
@@ -934,6 +942,10 @@ impl Controller {
         let window =
             crate::slices::window(ui.get_slice_window_index().max(0) as usize, fitted, &units);
         let zoom = ui.get_slice_zoom();
+        let spacing = volume.spacing();
+        let orientation = volume.orientation();
+        let mut edges = Vec::with_capacity(12);
+        let mut aspects = [1.0f32; 3];
         let mut frames = [[0u32; 4]; 3];
         let mut error = None;
         for axis in Axis::ALL {
@@ -945,9 +957,14 @@ impl Controller {
                 window,
                 zoom,
             );
+            let labels = crate::annotations::slice_labels(axis, orientation);
+            edges.extend([labels.left, labels.right, labels.top, labels.bottom]);
             let image = match image {
                 Ok((image, at)) => {
                     frames[axis.index()] = [at[0], at[1], image.width(), image.height()];
+                    let [u, v] = axis.in_plane();
+                    aspects[axis.index()] =
+                        (image.width() as f32 * spacing[u]) / (image.height() as f32 * spacing[v]);
                     image
                 }
                 Err(e) => {
@@ -981,15 +998,21 @@ impl Controller {
             info += &format!(" · slices read from pyramid level {}", st.slice_level);
         }
         ui.set_slice_window_info(info.into());
+        let edges: Vec<SharedString> = edges.into_iter().map(Into::into).collect();
+        ui.set_slice_edges(ModelRc::new(VecModel::from(edges)));
+        ui.set_slice_aspects(ModelRc::new(VecModel::from(aspects.to_vec())));
         drop(st);
         self.state.borrow_mut().slice_frames = frames;
         if let Some(error) = error {
             self.show_message(&error, true);
         }
+        if ui.get_show_planes() {
+            self.redraw_frame();
+        }
     }
 
     /// Moves the crosshair to a click at `(x, y)` in the `axis` slice's area
-    /// of `w × h` (the image is fitted inside it, centred).
+    /// of `w × h` (the image is fitted inside it, centred, at its aspect).
     fn click_slice(&self, axis: i32, x: f32, y: f32, w: f32, h: f32) {
         let Some(axis) = usize::try_from(axis).ok().and_then(|a| Axis::ALL.get(a)) else {
             return;
@@ -1004,12 +1027,17 @@ impl Controller {
             // The part of the slice shown (zoomed about the crosshair).
             let [x0, y0, fw, fh] = st.slice_frames[axis.index()];
             let (iw, ih) = (fw as f32, fh as f32);
-            let scale = (w / iw).min(h / ih);
-            if fw == 0 || fh == 0 || scale.is_nan() || scale <= 0.0 {
+            let spacing = current.volume.volume.spacing();
+            let [u, _] = axis.in_plane();
+            let aspect = (iw * spacing[u]) / (ih * spacing[v]);
+            // The image's size on screen, as app.slint lays it out.
+            let shown_w = w.min(h * aspect);
+            let shown_h = shown_w / aspect;
+            if fw == 0 || fh == 0 || !(shown_w > 0.0 && shown_h > 0.0) {
                 return;
             }
-            let col = (x - (w - iw * scale) / 2.0) / scale;
-            let row = (y - (h - ih * scale) / 2.0) / scale;
+            let col = (x - (w - shown_w) / 2.0) / shown_w * iw;
+            let row = (y - (h - shown_h) / 2.0) / shown_h * ih;
             if !(0.0..iw).contains(&col) || !(0.0..ih).contains(&row) {
                 return;
             }
@@ -1244,6 +1272,11 @@ impl Controller {
             level,
         });
         st.latest = Some((id, moving));
+        if st.cameras.len() == REMEMBERED_CAMERAS {
+            st.cameras.pop_front();
+        }
+        let target = st.nav.orbit().target;
+        st.cameras.push_back((id, camera, target));
         drop(st);
         if moving {
             self.settle_later();
@@ -1329,12 +1362,14 @@ impl Controller {
         }
     }
 
-    /// Copies the frame buffer to the canvas when tiles landed since last time.
+    /// Copies the frame buffer to the canvas when tiles landed since last time,
+    /// with the annotations of its camera (edge labels, scale bar and, when
+    /// asked, the crosshair's slice planes).
     fn show_frame(&self) {
         let Some(ui) = self.ui() else { return };
         let mut st = self.state.borrow_mut();
         let Some(current) = &st.current else { return };
-        let image = {
+        let (id, tiles, mut pixels) = {
             let fb = current.front.framebuffer().lock();
             if (fb.frame_id, fb.tiles_written) == st.shown || fb.width == 0 {
                 return;
@@ -1346,9 +1381,48 @@ impl Controller {
             );
             (fb.frame_id, fb.tiles_written, pixels)
         };
-        st.shown = (image.0, image.1);
+        let volume = &current.volume.volume;
+        let camera =
+            st.cameras
+                .iter()
+                .find(|(c, _, _)| *c == id)
+                .and_then(|(_, camera, target)| {
+                    let camera = camera.with_size(pixels.width(), pixels.height()).ok()?;
+                    Some((camera, *target))
+                });
+        if let Some((camera, target)) = camera {
+            let orientation = volume.orientation();
+            let labels = crate::annotations::view_labels(&camera, orientation);
+            ui.set_label_left(labels.left.into());
+            ui.set_label_right(labels.right.into());
+            ui.set_label_top(labels.top.into());
+            ui.set_label_bottom(labels.bottom.into());
+            let unit = crate::annotations::length_unit(volume);
+            let bar = crate::annotations::view_scale_bar(&camera, target, unit);
+            ui.set_scale_fraction(bar.as_ref().map_or(0.0, |b| b.fraction));
+            ui.set_scale_label(bar.map(|b| b.label).unwrap_or_default().into());
+            if ui.get_show_planes() {
+                let outlines = crate::annotations::plane_outlines(
+                    volume.dims(),
+                    volume.spacing(),
+                    st.crosshair.voxel,
+                );
+                crate::annotations::draw_plane_outlines(
+                    pixels.make_mut_bytes(),
+                    &camera,
+                    &outlines,
+                );
+            }
+        }
+        st.shown = (id, tiles);
         drop(st);
-        ui.set_frame(Image::from_rgba8(image.2));
+        ui.set_frame(Image::from_rgba8(pixels));
+    }
+
+    /// Draws the frame on screen again (its annotations changed).
+    fn redraw_frame(&self) {
+        self.state.borrow_mut().shown = (u64::MAX, u64::MAX);
+        self.show_frame();
     }
 
     fn tf_size(&self) -> (f32, f32) {

@@ -4,8 +4,9 @@
 //! [`Viewer`] builds the window and its controller; the modules below hold the
 //! pieces that need no window (navigation, quality policy, transfer-function
 //! editor, loading, the segments panel, the cut panel, keyboard shortcuts, slice
-//! views, recent files) so they are tested on their own.
+//! views, recent files, picture annotations) so they are tested on their own.
 
+pub(crate) mod annotations;
 pub mod app;
 pub(crate) mod cut;
 pub mod loader;
