@@ -442,7 +442,7 @@ fn opening_reads_nothing_and_frames_compute_cells_only_for_bricks_they_visit() {
     let camera = default_camera(&volume, 64);
     let frame =
         render_parallel(&prepared, &camera, &settings, &ParallelOptions::default()).unwrap();
-    let visible = prepared.ranges().as_slice().len() as u64 - frame.stats.bricks_transparent;
+    let visible = prepared.geometry().grid().block_count() - frame.stats.bricks_transparent;
     let known = prepared.cells().bricks_known();
     assert!(
         known > 0 && known <= visible,
