@@ -113,29 +113,6 @@ impl<'a> RenderVolume<'a> {
         }
     }
 
-    /// Asks the OS to read the stored samples of brick `b` ahead of use (bricked
-    /// files, mapped: the file brick holding it is one contiguous run; linear files
-    /// are left to the kernel's own read-ahead).
-    pub fn prefetch_brick(&self, b: [u32; 3]) {
-        let Layout::Bricked { side } = self.volume.layout() else {
-            return;
-        };
-        let file_grid = BlockGrid::new(self.volume.dims(), u32::from(side));
-        let fb = file_grid.brick_of_voxel(self.geometry.grid().origin(b));
-        let bytes = u64::from(side).pow(3) * self.volume.sample_type().size();
-        self.volume.prefetch(file_grid.index(fb) * bytes, bytes);
-        if let Some(labels) = self.labels
-            && let Layout::Bricked { side } = labels.layout()
-        {
-            let grid = BlockGrid::new(labels.dims(), u32::from(side));
-            let bytes = u64::from(side).pow(3);
-            labels.prefetch(
-                grid.index(grid.brick_of_voxel(file_grid.origin(fb))) * bytes,
-                bytes,
-            );
-        }
-    }
-
     /// Attaches a label volume (u8 object ids, same dimensions) for two-level
     /// rendering; its layout must fit the rendering grid like the data's.
     pub fn with_labels(mut self, labels: &'a Volume) -> Result<Self, RenderError> {
