@@ -38,8 +38,8 @@ pub(crate) fn read_ahead(
     interrupted: impl Fn() -> bool,
 ) {
     let grid = *volume.geometry().grid();
-    let mut data = Stream::new(volume.volume());
-    let mut labels = volume.labels().map(Stream::new);
+    let mut data = Stream::new(volume.volume(), &grid);
+    let mut labels = volume.labels().map(|l| Stream::new(l, &grid));
     for (i, b) in bricks.into_iter().enumerate() {
         if i % 16 == 0 && interrupted() {
             return;
@@ -63,12 +63,10 @@ struct Stream<'v> {
 }
 
 impl<'v> Stream<'v> {
-    fn new(volume: &'v Volume) -> Self {
+    /// The requests for `volume`, rendered by bricks of `grid`.
+    fn new(volume: &'v Volume, grid: &BlockGrid) -> Self {
         let linear = match volume.layout() {
-            Layout::Linear => Some(LinearRanges::new(
-                volume.dims(),
-                volume.sample_type().size(),
-            )),
+            Layout::Linear => Some(LinearRanges::new(grid, volume.sample_type().size())),
             Layout::Bricked { .. } => None,
         };
         Stream { volume, linear }
@@ -103,21 +101,44 @@ impl<'v> Stream<'v> {
 
 /// Turns bricks of a linear volume into few byte ranges of its samples (offsets
 /// from the first sample), in the order the bricks come.
+///
+/// Rows (runs along z) shorter than about [`MERGE_GAP`] are not worth cutting: a
+/// brick then needs its rows whole, and so does every brick stacked on it along z
+/// (they share those rows' pages), so the first brick of such a column asks for
+/// the column's rows in each x-slab once, and the column is marked done (one bit
+/// per x-slab and brick row: `dims.x × ⌈dims.y / step⌉` bits, 18 KiB for 2048³).
+/// Longer rows are asked for brick by brick, each row's z-run.
 #[derive(Clone, Debug)]
 pub(crate) struct LinearRanges {
     dims: [u64; 3],
     sample_bytes: u64,
+    /// The rendering bricks' step (voxels between brick origins).
+    step: u64,
     /// The request being built.
     pending: Option<Range<u64>>,
+    /// With short rows: per x-slab and brick row, whether its rows were asked for
+    /// (bit `x · rows + y0 / step`); empty with long rows.
+    columns_done: Vec<u64>,
 }
 
 impl LinearRanges {
-    /// The planner for a linear volume of `dims` with samples of `sample_bytes`.
-    pub(crate) fn new(dims: [u32; 3], sample_bytes: u64) -> Self {
+    /// The planner for bricks of `grid` over a linear volume with samples of
+    /// `sample_bytes`.
+    pub(crate) fn new(grid: &BlockGrid, sample_bytes: u64) -> Self {
+        let dims = grid.dims().map(u64::from);
+        let step = u64::from(grid.step());
+        let short_rows = dims[2].saturating_sub(step + 1) * sample_bytes <= MERGE_GAP;
+        let columns = if short_rows {
+            dims[0] * u64::from(grid.counts()[1])
+        } else {
+            0
+        };
         LinearRanges {
-            dims: dims.map(u64::from),
+            dims,
             sample_bytes,
+            step,
             pending: None,
+            columns_done: vec![0; columns.div_ceil(64) as usize],
         }
     }
 
@@ -126,8 +147,9 @@ impl LinearRanges {
         self.dims.iter().product::<u64>() * self.sample_bytes
     }
 
-    /// Adds the brick of voxels `origin .. origin + extent`: its range in each
-    /// x-slab, rounded out to pages; hands `emit` every request completed.
+    /// Adds the brick of voxels `origin .. origin + extent` (a brick of the grid
+    /// given to [`Self::new`]): the rows it needs, rounded out to pages; hands
+    /// `emit` every request completed.
     pub(crate) fn push(
         &mut self,
         origin: [u32; 3],
@@ -137,13 +159,28 @@ impl LinearRanges {
         let [_, dy, dz] = self.dims;
         let [x0, y0, z0] = origin.map(u64::from);
         let [ex, ey, ez] = extent.map(u64::from);
+        let bytes = self.sample_bytes;
         let len = self.len();
+        let pages = |first: u64, end: u64| {
+            (first * bytes / PAGE * PAGE)..((end * bytes).div_ceil(PAGE) * PAGE).min(len)
+        };
+        let row = |x: u64, y: u64| (x * dy + y) * dz;
+        if self.columns_done.is_empty() {
+            for x in x0..x0 + ex {
+                for y in y0..y0 + ey {
+                    self.add(pages(row(x, y) + z0, row(x, y) + z0 + ez), emit);
+                }
+            }
+            return;
+        }
+        let rows = dy.saturating_sub(1).div_ceil(self.step).max(1);
         for x in x0..x0 + ex {
-            let first = (x * dy + y0) * dz + z0;
-            let last = (x * dy + y0 + ey - 1) * dz + z0 + ez;
-            let start = first * self.sample_bytes / PAGE * PAGE;
-            let end = (last * self.sample_bytes).div_ceil(PAGE) * PAGE;
-            self.add(start..end.min(len), emit);
+            let bit = x * rows + y0 / self.step;
+            let (word, mask) = ((bit / 64) as usize, 1u64 << (bit % 64));
+            if self.columns_done[word] & mask == 0 {
+                self.columns_done[word] |= mask;
+                self.add(pages(row(x, y0), row(x, y0 + ey - 1) + dz), emit);
+            }
         }
     }
 
@@ -191,7 +228,7 @@ mod tests {
     /// when it was emitted.
     fn plan(grid: &BlockGrid, bytes: u64, bricks: &[[u32; 3]]) -> Vec<(Range<u64>, usize)> {
         let mut out = Vec::new();
-        let mut ranges = LinearRanges::new(grid.dims(), bytes);
+        let mut ranges = LinearRanges::new(grid, bytes);
         for (k, &b) in bricks.iter().enumerate() {
             ranges.push(grid.origin(b), grid.extent(b), &mut |r| out.push((r, k)));
         }
@@ -205,6 +242,18 @@ mod tests {
     /// first to cover) is never before the first brick an earlier request served
     /// (a request may serve none: pages a neighbour's request already covered).
     fn check(dims: [u32; 3], side: u32, bytes: u64, order: impl Fn(&BlockGrid) -> Vec<[u32; 3]>) {
+        check_rows(dims, side, bytes, order, true);
+    }
+
+    /// [`check`], the count of requests checked only when `rows_merge` (rows
+    /// shorter than [`MERGE_GAP`]; long rows take a request each).
+    fn check_rows(
+        dims: [u32; 3],
+        side: u32,
+        bytes: u64,
+        order: impl Fn(&BlockGrid) -> Vec<[u32; 3]>,
+        rows_merge: bool,
+    ) {
         let grid = BlockGrid::new(dims, side);
         let bricks = order(&grid);
         let requests = plan(&grid, bytes, &bricks);
@@ -253,7 +302,7 @@ mod tests {
             );
         }
         assert!(
-            (requests.len() as u64) * 4 <= rows,
+            !rows_merge || (requests.len() as u64) * 4 <= rows,
             "{} requests for {rows} brick rows",
             requests.len()
         );
@@ -299,6 +348,24 @@ mod tests {
             // Rows 0..=15 of the slab, 15 KiB and 16 bytes, rounded up to a page.
             assert_eq!(r.end, ((x as u64) << 20) + 16384);
         }
+    }
+
+    #[test]
+    fn long_rows_are_requested_row_by_row() {
+        // u16 rows of 80 and 128 KiB: a brick needs one page of each of its rows.
+        let order = |_: &BlockGrid| vec![[0, 0, 0], [0, 0, 2000], [1, 0, 1], [0, 0, 1]];
+        check_rows([31, 4, 40000], 16, 2, order, false);
+        let grid = BlockGrid::new([4, 16, 65536], 16);
+        let requests = plan(&grid, 2, &[[0, 0, 0]]);
+        assert_eq!(requests.len(), 4 * 16);
+        assert!(requests.iter().all(|(r, _)| r.end - r.start == PAGE));
+    }
+
+    #[test]
+    fn a_brick_asked_for_again_is_not_requested_again() {
+        let grid = BlockGrid::new([2, 1024, 1024], 16);
+        assert_eq!(plan(&grid, 1, &[[0, 0, 0]]).len(), 2);
+        assert_eq!(plan(&grid, 1, &[[0, 0, 0], [0, 0, 0]]).len(), 2);
     }
 
     #[test]
