@@ -261,8 +261,9 @@ impl BrickRanges {
             && let Ok(map) = super::pyramid::map_region(file, start, body)
             && bytemuck::try_cast_slice::<u8, [u16; 2]>(&map).is_ok()
         {
-            // Checked in one sequential pass; the kernel reads ahead for it.
-            let _ = map.advise(memmap2::Advice::Sequential);
+            // Checked in one pass: the table is asked for whole first (exactly its
+            // pages; sequential advice would let read-ahead run on past its end).
+            let _ = map.advise(memmap2::Advice::WillNeed);
             let table = BrickRanges {
                 grid,
                 ranges: Entries::Mapped(Arc::new(map)),
