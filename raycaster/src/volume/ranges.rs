@@ -439,6 +439,68 @@ mod tests {
     }
 
     #[test]
+    fn tables_read_from_a_file_are_mapped_where_aligned_and_equal_the_decoded_ones() {
+        let dims = [37, 50, 23];
+        let data: Vec<u8> = (0..dims.iter().product::<u32>())
+            .map(|i| (i.wrapping_mul(2_654_435_761) >> 24) as u8)
+            .collect();
+        let vol = TypedVolume::new(&data, dims, Layout::Linear);
+        let table = BrickRanges::compute(&vol, &BlockGrid::new(dims, 6));
+        let bytes = table.encode();
+        for (offset, mapped) in [(0u64, true), (4098, true), (4099, false)] {
+            let mut file = tempfile::tempfile().unwrap();
+            let mut image = vec![0xAAu8; offset as usize];
+            image.extend_from_slice(&bytes);
+            image.extend_from_slice(&[0x55; 10]);
+            std::io::Write::write_all(&mut file, &image).unwrap();
+            let len = image.len() as u64 - offset;
+            let read = BrickRanges::read_from(&file, offset, len, dims)
+                .unwrap()
+                .unwrap();
+            assert_eq!(read, table, "offset {offset}");
+            assert_eq!(read.is_mapped(), mapped, "offset {offset}");
+            assert_eq!(read.clone().as_slice(), table.as_slice());
+            // Cut short, another volume's dims, or an entry with min > max: refused.
+            let short = BrickRanges::read_from(&file, offset, bytes.len() as u64 - 1, dims);
+            assert!(short.unwrap().is_none());
+            let other = BrickRanges::read_from(&file, offset, len, [37, 50, 24]);
+            assert!(other.unwrap().is_none());
+            let mut bad = image.clone();
+            let at = offset as usize + TABLE_HEADER_LEN + 4 * 7;
+            bad[at..at + 4].copy_from_slice(&[9, 0, 8, 0]);
+            std::os::unix::fs::FileExt::write_all_at(&file, &bad, 0).unwrap();
+            assert!(
+                BrickRanges::read_from(&file, offset, len, dims)
+                    .unwrap()
+                    .is_none()
+            );
+        }
+    }
+
+    #[test]
+    fn a_fresh_sidecar_is_read_mapped_and_a_stale_one_refused() {
+        let dims = [10, 7, 5];
+        let data = ramp_volume(dims);
+        let vol = TypedVolume::new(&data, dims, Layout::Linear);
+        let table = BrickRanges::compute(&vol, &BlockGrid::new(dims, 4));
+        let t = SystemTime::UNIX_EPOCH + std::time::Duration::from_secs(77);
+        let bytes = table.encode_sidecar(350, t);
+        let mut file = tempfile::tempfile().unwrap();
+        std::io::Write::write_all(&mut file, &bytes).unwrap();
+        let len = bytes.len() as u64;
+        let read = BrickRanges::read_sidecar(&file, len, dims, 350, t)
+            .unwrap()
+            .unwrap();
+        assert!(read.is_mapped());
+        assert_eq!(read, table);
+        assert!(
+            BrickRanges::read_sidecar(&file, len, dims, 351, t)
+                .unwrap()
+                .is_none()
+        );
+    }
+
+    #[test]
     fn ranges_cover_the_overlap_voxels() {
         let dims = [9, 1, 1];
         let mut data = vec![0u8; 9];
