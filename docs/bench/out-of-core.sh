@@ -15,19 +15,10 @@ raycaster=${2:-target/release/raycaster}
 
 drop_cache() { sync; echo 3 > /proc/sys/vm/drop_caches; }
 
-# Runs "$@", prints its wall time and the peak RssAnon sampled every 10 ms.
+# Runs "$@", prints its wall time and the peak RssAnon (and RssFile) sampled every
+# millisecond (peak-anon.py beside this script).
 measure() {
-    local start end peak=0 anon pid
-    start=$(date +%s.%N)
-    "$@" & pid=$!
-    while kill -0 "$pid" 2>/dev/null; do
-        anon=$(awk '/^RssAnon/ {print $2}' "/proc/$pid/status" 2>/dev/null || true)
-        if [ -n "$anon" ] && [ "$anon" -gt "$peak" ]; then peak=$anon; fi
-        sleep 0.01
-    done
-    wait "$pid"
-    end=$(date +%s.%N)
-    printf 'wall %.2f s, peak anonymous RSS %d MiB\n' "$(echo "$end - $start" | bc)" $((peak / 1024))
+    "$(dirname "$0")/peak-anon.py" "$@"
 }
 
 run() {

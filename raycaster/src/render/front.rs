@@ -367,12 +367,11 @@ fn prefetch_view(
         request.options.tile_size,
         None,
     );
-    for (i, brick) in schedule.bricks.iter().enumerate() {
-        if i % 256 == 0 && interrupted() {
-            return;
-        }
-        volume.prefetch_brick(brick.coords);
-    }
+    super::read_ahead::read_ahead(
+        volume,
+        schedule.bricks.iter().map(|b| b.coords),
+        interrupted,
+    );
 }
 
 /// Writes finished tiles into the shared frame buffer.

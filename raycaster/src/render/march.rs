@@ -41,12 +41,12 @@ impl<'a, T: Sample> BrickContext<'a, T> {
         plan: &'a FramePlan,
         b: [u32; 3],
     ) -> Self {
-        let grid = volume.geometry().grid();
-        let index = grid.index(b);
         let sampler = BrickSampler::new(volume.brick_view(data, b));
+        let range = volume.brick_range(b);
+        let transparent = plan.range_empty(range[0], range[1]);
         // A brick every ray skips is never read, not even for its cells.
-        let cells =
-            (plan.empty_space_skipping && !plan.brick_droppable(index as usize)).then(|| {
+        let cells = (plan.empty_space_skipping && !transparent && !plan.brick_cut_away(volume, b))
+            .then(|| {
                 let cells = volume.cells();
                 let cell_step = cells.cell_step() as f32;
                 CellGrid {
@@ -59,8 +59,8 @@ impl<'a, T: Sample> BrickContext<'a, T> {
             });
         BrickContext {
             sampler,
-            range: volume.ranges().range(b),
-            transparent: plan.transparent[index as usize],
+            range,
+            transparent,
             cells,
             labels: volume.labels().map(|l| match l.data() {
                 VolumeData::U8(ids) => volume.brick_view(&ids, b),

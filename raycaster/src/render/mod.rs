@@ -31,6 +31,7 @@ mod partition;
 mod pixel;
 mod prepared;
 mod ray;
+mod read_ahead;
 mod relay;
 mod renderer;
 mod runs;

@@ -265,16 +265,16 @@ impl FrameJob<'_> {
     }
 
     /// Asks the OS to read the frame's bricks in the order the frame visits them
-    /// (front to back, visible and non-empty only), so that render threads find
+    /// (front to back, visible and non-empty only; bricks of bricked files, the
+    /// rows of linear files: [`super::read_ahead`]), so that render threads find
     /// them in the page cache instead of stalling on page faults; returns when
     /// every request is made or the frame is cancelled.
     fn read_ahead(&self) {
-        for scheduled in &self.schedule.bricks {
-            if (self.cancelled)() {
-                return;
-            }
-            self.volume.prefetch_brick(scheduled.coords);
-        }
+        super::read_ahead::read_ahead(
+            self.volume,
+            self.schedule.bricks.iter().map(|s| s.coords),
+            self.cancelled,
+        );
     }
 
     /// A render thread: march each task's tile through its brick, send it back.

@@ -78,19 +78,18 @@ impl Partition {
         parts: usize,
     ) -> Result<Partition, RenderError> {
         let plan = FramePlan::new(volume, settings)?;
-        Ok(Partition::balanced(volume.geometry(), &plan, parts))
+        Ok(Partition::balanced(volume, &plan, parts))
     }
 
-    /// Cuts the grid of `geometry` into `parts` boxes (at least 1), balancing the
+    /// Cuts the grid of `volume` into `parts` boxes (at least 1), balancing the
     /// bricks `plan` renders (non-empty under its transfer function): each split
     /// cuts the longer axis of a box where the two sides' shares of rendered
     /// bricks come closest to their shares of parts. A box one brick thick on
     /// every axis is not cut further; the parts it cannot give are empty.
-    pub(crate) fn balanced(geometry: &VolumeGeometry, plan: &FramePlan, parts: usize) -> Partition {
-        let grid = geometry.grid();
+    pub(crate) fn balanced(volume: &RenderVolume<'_>, plan: &FramePlan, parts: usize) -> Partition {
+        let grid = volume.geometry().grid();
         let counts = grid.counts();
-        let weight_of =
-            |b: [u32; 3]| -> u64 { u64::from(!plan.brick_droppable(grid.index(b) as usize)) };
+        let weight_of = |b: [u32; 3]| -> u64 { u64::from(!plan.brick_droppable(volume, b)) };
         let mut partition = Partition {
             parts: vec![
                 BrickBox {
@@ -288,7 +287,7 @@ mod tests {
         let plan = FramePlan::new(&prepared, &RenderSettings::default()).unwrap();
         let grid = prepared.geometry().grid();
         for n in [1, 2, 3, 4, 5, 8] {
-            let partition = Partition::balanced(prepared.geometry(), &plan, n);
+            let partition = Partition::balanced(&prepared, &plan, n);
             assert_eq!(partition.parts().len(), n);
             let mut owners = vec![0u32; grid.block_count() as usize];
             for part in partition.parts() {
@@ -297,7 +296,7 @@ mod tests {
             assert!(owners.iter().all(|&o| o == 1), "{n} parts");
             let total: u64 = partition.weights().iter().sum();
             let rendered = (0..owners.len())
-                .filter(|&i| !plan.brick_droppable(i))
+                .filter(|&i| !plan.brick_droppable(&prepared, grid.coords(i as u64)))
                 .count() as u64;
             assert_eq!(total, rendered);
             let ideal = total as f64 / n as f64;
@@ -317,7 +316,7 @@ mod tests {
         let prepared = RenderVolume::new(&volume, Some(9)).unwrap();
         let geometry = prepared.geometry();
         let plan = FramePlan::new(&prepared, &RenderSettings::default()).unwrap();
-        let partition = Partition::balanced(geometry, &plan, 5);
+        let partition = Partition::balanced(&prepared, &plan, 5);
         let part_of = |p: Vec3| {
             let b = geometry.owner(p);
             partition

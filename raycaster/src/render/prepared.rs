@@ -1,7 +1,6 @@
 //! A volume prepared for rendering (its brick grid and value ranges) and the
 //! per-frame plan (sampled transfer function, empty bricks, kernel parameters).
 
-use std::borrow::Cow;
 use std::sync::Arc;
 
 use glam::Vec3;
@@ -28,7 +27,9 @@ use crate::volume::{
 pub struct RenderVolume<'a> {
     volume: &'a Volume,
     geometry: VolumeGeometry,
-    ranges: Cow<'a, BrickRanges>,
+    /// The file's table (its own grid); the rendering grid's ranges are merged
+    /// from it brick by brick ([`RenderVolume::brick_range`]).
+    ranges: &'a BrickRanges,
     cells: CellRanges,
     labels: Option<&'a Volume>,
 }
@@ -57,9 +58,10 @@ impl<'a> RenderVolume<'a> {
     /// are cut into logical bricks of any side (default
     /// [`default_linear_brick_side`]); bricked files use their stored bricks
     /// (default) or logical sub-bricks whose step divides the stored one (side 16 →
-    /// 4, 6, 16; side 32 → 2, 32). Nothing is read here: brick ranges are merged
-    /// from the file's table (exact when the grid is the table's or a multiple of
-    /// it, else a superset: [`BrickRanges::covering`]), and the small cells' ranges
+    /// 4, 6, 16; side 32 → 2, 32). Nothing is read or allocated per brick here:
+    /// brick ranges are merged from the file's table when a frame asks for them
+    /// (exact when the grid is the table's or a multiple of it, else a superset:
+    /// [`BrickRanges::covering_range`]), and the small cells' ranges
     /// are computed the first time a frame visits their brick and kept for later
     /// frames ([`CellRanges`]); transfer-function changes never rescan.
     pub fn new(volume: &'a Volume, brick_side: Option<u32>) -> Result<Self, RenderError> {
@@ -82,22 +84,10 @@ impl<'a> RenderVolume<'a> {
                 brick_side.unwrap_or_else(|| default_linear_brick_side(volume.dims())),
             ),
         };
-        let known = volume.ranges();
-        let ranges = if known.grid() == &grid {
-            Cow::Borrowed(known)
-        } else {
-            let factor = grid.step() / known.grid().step();
-            let coarser = factor > 1 && grid.step().is_multiple_of(known.grid().step());
-            Cow::Owned(if coarser {
-                known.coarsened(factor)
-            } else {
-                known.covering(&grid)
-            })
-        };
         Ok(RenderVolume {
             volume,
             geometry: VolumeGeometry::placed(grid, volume.spacing(), volume.origin()),
-            ranges,
+            ranges: volume.ranges(),
             cells: CellRanges::lazy(&grid),
             labels: None,
         })
@@ -120,29 +110,6 @@ impl<'a> RenderVolume<'a> {
                 data.brick(&file_grid, fb).sub(offset, grid.extent(b))
             }
             _ => data.brick(grid, b),
-        }
-    }
-
-    /// Asks the OS to read the stored samples of brick `b` ahead of use (bricked
-    /// files, mapped: the file brick holding it is one contiguous run; linear files
-    /// are left to the kernel's own read-ahead).
-    pub fn prefetch_brick(&self, b: [u32; 3]) {
-        let Layout::Bricked { side } = self.volume.layout() else {
-            return;
-        };
-        let file_grid = BlockGrid::new(self.volume.dims(), u32::from(side));
-        let fb = file_grid.brick_of_voxel(self.geometry.grid().origin(b));
-        let bytes = u64::from(side).pow(3) * self.volume.sample_type().size();
-        self.volume.prefetch(file_grid.index(fb) * bytes, bytes);
-        if let Some(labels) = self.labels
-            && let Layout::Bricked { side } = labels.layout()
-        {
-            let grid = BlockGrid::new(labels.dims(), u32::from(side));
-            let bytes = u64::from(side).pow(3);
-            labels.prefetch(
-                grid.index(grid.brick_of_voxel(file_grid.origin(fb))) * bytes,
-                bytes,
-            );
         }
     }
 
@@ -192,9 +159,11 @@ impl<'a> RenderVolume<'a> {
         &self.geometry
     }
 
-    /// Value range of each brick of the grid.
-    pub fn ranges(&self) -> &BrickRanges {
-        &self.ranges
+    /// Value range of brick `b` of the rendering grid, merged from the file's
+    /// table ([`BrickRanges::covering_range`]; the entry itself when the grids
+    /// agree).
+    pub fn brick_range(&self, b: [u32; 3]) -> [u16; 2] {
+        self.ranges.covering_range(self.geometry.grid(), b)
     }
 
     /// Value ranges of the small cells inside each brick (those computed so far).
@@ -206,7 +175,7 @@ impl<'a> RenderVolume<'a> {
     /// samples) on the first visit.
     pub fn cells_of<T: Sample>(&self, data: &TypedVolume<'_, T>, b: [u32; 3]) -> BrickCells {
         let index = self.geometry.grid().index(b);
-        let known = self.ranges.range(b);
+        let known = self.brick_range(b);
         self.cells
             .of_brick(index, Some(known), || self.brick_view(data, b))
     }
@@ -226,8 +195,10 @@ pub(crate) struct FramePlan {
     /// Per axis: raw value per voxel → value normalised over the transfer
     /// function's domain per world unit of the smallest spacing.
     pub gradient_scale: Vec3,
-    /// Per brick (file order): empty under this frame's compositor.
-    pub transparent: Vec<bool>,
+    /// Bricks of the grid that no sample of can change a pixel (for the
+    /// statistics; whether a brick is, is asked per brick:
+    /// [`Self::brick_transparent`]).
+    pub transparent_count: u64,
     /// The parallel renderer's kernel (available on this machine).
     pub simd: SimdLevel,
     /// Per-pixel ray-start jitter ([`RenderSettings::jitter`]).
@@ -235,9 +206,6 @@ pub(crate) struct FramePlan {
     /// The part of the volume shown ([`RenderSettings::clip`]), in voxel
     /// coordinates of the level rendered.
     pub clip: ClipRegion,
-    /// Per brick (file order): entirely outside the clip region (empty without
-    /// one).
-    pub cut_away: Vec<bool>,
 }
 
 /// The smallest extent, in voxels, of a small cell of `volume`'s bricks along an
@@ -326,27 +294,17 @@ impl FramePlan {
             dt: settings.step * geometry.min_spacing(),
             jitter: settings.jitter,
             gradient_scale: Vec3::splat(geometry.min_spacing() / (d1 - d0)) / geometry.spacing(),
-            transparent: Vec::new(),
+            transparent_count: 0,
             simd,
             clip: settings.clip.at_level(volume.volume().level_scale()),
-            cut_away: Vec::new(),
         };
-        if !plan.clip.is_empty() {
-            plan.cut_away = geometry
-                .grid()
-                .iter()
-                .map(|b| {
-                    let (lo, hi) = geometry.brick_voxel_box(b);
-                    plan.clip.cuts_away(lo, hi)
-                })
-                .collect();
-        }
-        plan.transparent = volume
-            .ranges()
-            .as_slice()
-            .par_iter()
-            .map(|&[lo, hi]| plan.range_empty(lo, hi))
-            .collect();
+        // Nothing per brick is kept: the count takes one pass over the grid, and
+        // later questions about a brick ask its range again (an O(1) query).
+        let grid = geometry.grid();
+        plan.transparent_count = (0..grid.block_count())
+            .into_par_iter()
+            .filter(|&i| plan.brick_transparent(volume, grid.coords(i)))
+            .count() as u64;
         Ok(plan)
     }
 
@@ -357,16 +315,33 @@ impl FramePlan {
         lo > hi || self.compositor.range_empty(lo, hi)
     }
 
-    /// Whether brick number `index` can be left out of the frame: nothing in it can
-    /// change a pixel, whatever came before, or it lies outside the clip region.
-    pub fn brick_droppable(&self, index: usize) -> bool {
-        (self.empty_space_skipping && self.transparent[index])
-            || self.cut_away.get(index).copied().unwrap_or(false)
+    /// Whether no sample of brick `b` of `volume`'s grid can change a pixel
+    /// under this frame's compositor, whatever came before.
+    pub fn brick_transparent(&self, volume: &RenderVolume<'_>, b: [u32; 3]) -> bool {
+        let [lo, hi] = volume.brick_range(b);
+        self.range_empty(lo, hi)
+    }
+
+    /// Whether brick `b` of `volume`'s grid lies entirely outside the clip region.
+    pub fn brick_cut_away(&self, volume: &RenderVolume<'_>, b: [u32; 3]) -> bool {
+        if self.clip.is_empty() {
+            return false;
+        }
+        let (lo, hi) = volume.geometry().brick_voxel_box(b);
+        self.clip.cuts_away(lo, hi)
+    }
+
+    /// Whether brick `b` of `volume`'s grid can be left out of the frame: nothing
+    /// in it can change a pixel, whatever came before, or it lies outside the clip
+    /// region.
+    pub fn brick_droppable(&self, volume: &RenderVolume<'_>, b: [u32; 3]) -> bool {
+        (self.empty_space_skipping && self.brick_transparent(volume, b))
+            || self.brick_cut_away(volume, b)
     }
 
     /// Bricks that no sample of can change a pixel.
     pub fn transparent_bricks(&self) -> u64 {
-        self.transparent.iter().filter(|&&t| t).count() as u64
+        self.transparent_count
     }
 }
 

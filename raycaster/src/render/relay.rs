@@ -150,7 +150,7 @@ pub fn render_distributed(
     let plan = FramePlan::new(volume, settings)?;
     super::geometry::check_sample_budget(volume.geometry(), settings.step, camera)?;
     let geometry = volume.geometry();
-    let partition = Partition::balanced(geometry, &plan, ranks);
+    let partition = Partition::balanced(volume, &plan, ranks);
     let order = partition.visibility_order(camera, geometry);
     let part = partition.parts()[rank];
     let mut own = RankStats {

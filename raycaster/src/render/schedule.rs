@@ -22,6 +22,9 @@ pub(crate) struct ScheduledBrick {
     pub coords: [u32; 3],
     /// Pixels whose rays may meet it.
     pub rect: PixelRect,
+    /// Its sort key: the distance of its centre from the eye (or its depth
+    /// along the view).
+    pub depth: f32,
 }
 
 /// One tile: its pixels and its bricks, front to back.
@@ -61,10 +64,12 @@ impl FrameSchedule {
         let volume_rect = camera.project_box(lo, hi);
         let spacing = geometry.spacing();
         let step = grid.step() as f32;
-        let mut keyed: Vec<(f32, ScheduledBrick)> = Vec::new();
+        // One record per scheduled brick, sorted in place: no second list and no
+        // merge-sort buffer (equal keys keep grid order, as a stable sort would).
+        let mut bricks: Vec<ScheduledBrick> = Vec::new();
         if volume_rect.is_some() {
-            for (i, b) in grid.iter().enumerate() {
-                let empty = plan.brick_droppable(i);
+            for b in grid.iter() {
+                let empty = plan.brick_droppable(volume, b);
                 if empty || part.is_some_and(|p| !p.contains(b)) {
                     continue;
                 }
@@ -74,11 +79,19 @@ impl FrameSchedule {
                 };
                 let centre =
                     geometry.origin() + (Vec3::from(b.map(|c| c as f32)) + 0.5) * step * spacing;
-                keyed.push((camera.depth_key(centre), ScheduledBrick { coords: b, rect }));
+                bricks.push(ScheduledBrick {
+                    coords: b,
+                    rect,
+                    depth: camera.depth_key(centre),
+                });
             }
         }
-        keyed.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let bricks: Vec<ScheduledBrick> = keyed.into_iter().map(|(_, b)| b).collect();
+        bricks.shrink_to_fit();
+        bricks.sort_unstable_by(|a, b| {
+            a.depth
+                .total_cmp(&b.depth)
+                .then_with(|| grid.index(a.coords).cmp(&grid.index(b.coords)))
+        });
         let (w, h) = (camera.width(), camera.height());
         let (nx, ny) = (w.div_ceil(tile_size), h.div_ceil(tile_size));
         let mut tiles: Vec<TileQueue> = (0..ny)

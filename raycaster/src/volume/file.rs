@@ -365,30 +365,32 @@ fn load_ranges(
     let dims = header.dims;
     let grid = header.block_grid(LINEAR_RANGE_SIDE);
     if let Some(offset) = header.ranges_offset {
-        // Read with one positioned read, not through the map: bricked files are
-        // mapped for random access, where faults read page by page.
-        let table_len = (28 + 4 * grid.block_count()).min(len - offset);
-        let mut table = vec![0u8; table_len as usize];
-        match storage {
-            Storage::Mapped(_) => {
-                std::os::unix::fs::FileExt::read_exact_at(file, &mut table, offset).at(path)?
+        // Mapped files keep the table in the file (its own read-only mapping,
+        // read ahead sequentially: the samples' mapping of bricked files is advised
+        // for random access); files in RAM decode it from their bytes.
+        let available = len.saturating_sub(offset);
+        let table = match storage {
+            Storage::Mapped(_) => BrickRanges::read_from(file, offset, available, dims).at(path)?,
+            Storage::Ram { .. } => {
+                let table_len = (28 + 4 * grid.block_count()).min(available);
+                BrickRanges::decode(
+                    &storage.bytes()[offset as usize..(offset + table_len) as usize],
+                    dims,
+                )
             }
-            Storage::Ram { .. } => table
-                .copy_from_slice(&storage.bytes()[offset as usize..(offset + table_len) as usize]),
-        }
-        return BrickRanges::decode(&table, dims)
+        };
+        return table
             .filter(|r| r.grid() == &grid)
             .ok_or_else(|| VolumeError::new(path, VolumeErrorKind::CorruptRanges));
     }
     let sidecar = ranges_sidecar_path(path);
     let mtime = file.metadata().and_then(|m| m.modified()).ok();
-    // A sidecar that is not a regular file (a named pipe) is ignored, never read.
-    let sidecar_bytes = crate::files::open_regular(&sidecar).and_then(|mut f| {
-        let mut bytes = Vec::new();
-        f.read_to_end(&mut bytes).map(|_| bytes)
-    });
-    if let (Some(mtime), Ok(bytes)) = (mtime, sidecar_bytes)
-        && let Some(r) = BrickRanges::decode_sidecar(&bytes, dims, len, mtime)
+    // A sidecar that is not a regular file (a named pipe) is ignored, never read;
+    // its table is mapped like an embedded one.
+    if let Some(mtime) = mtime
+        && let Ok(side) = crate::files::open_regular(&sidecar)
+        && let Ok(side_len) = side.metadata().map(|m| m.len())
+        && let Ok(Some(r)) = BrickRanges::read_sidecar(&side, side_len, dims, len, mtime)
         && r.grid() == &grid
     {
         return Ok(r);

@@ -190,7 +190,8 @@ impl PyramidLayout {
         Ok(plan)
     }
 
-    /// Reads and checks the value-range table of level `k` (1-based).
+    /// Reads and checks the value-range table of level `k` (1-based); its entries
+    /// stay in the file, mapped ([`BrickRanges::read_from`]).
     pub fn read_ranges(
         &self,
         file: &File,
@@ -199,10 +200,8 @@ impl PyramidLayout {
         k: usize,
     ) -> Result<BrickRanges, VolumeErrorKind> {
         let e = &self.levels[k - 1];
-        let mut bytes = vec![0u8; e.ranges_len as usize];
-        file.read_exact_at(&mut bytes, block_start + e.ranges_offset)?;
         let header = self.level_header(base, k);
-        BrickRanges::decode(&bytes, e.dims)
+        BrickRanges::read_from(file, block_start + e.ranges_offset, e.ranges_len, e.dims)?
             .filter(|r| r.grid() == &header.block_grid(LINEAR_RANGE_SIDE))
             .ok_or_else(|| VolumeErrorKind::CorruptPyramid(format!("level {k}'s range table")))
     }

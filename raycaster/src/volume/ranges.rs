@@ -4,9 +4,17 @@
 //! multi-GB file does not rescan it: files with the extended header carry the table
 //! after their samples; thesis files get a sidecar `<file>.ranges` that records the
 //! length and modification time of the file it describes.
+//!
+//! A table opened from a mapped file stays in the file: its entries are read through
+//! a read-only mapping of the table (page cache, not this process's anonymous
+//! memory), so a volume of millions of bricks costs no heap for its ranges.
 
+use std::fs::File;
+use std::os::unix::fs::FileExt;
+use std::sync::Arc;
 use std::time::SystemTime;
 
+use memmap2::Mmap;
 use rayon::prelude::*;
 
 use super::grid::BlockGrid;
@@ -22,11 +30,29 @@ const TABLE_HEADER_LEN: usize = 4 + 4 + 12 + 8;
 const SIDECAR_HEADER_LEN: usize = 4 + 4 + 8 + 8 + 4;
 
 /// The smallest and largest sample of every brick of a grid.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug)]
 pub struct BrickRanges {
     grid: BlockGrid,
-    ranges: Vec<[u16; 2]>,
+    ranges: Entries,
 }
+
+/// Where a table's `[min, max]` entries live.
+#[derive(Clone, Debug)]
+enum Entries {
+    /// Computed or decoded into memory.
+    Owned(Vec<[u16; 2]>),
+    /// In a read-only mapping of exactly the entries (little-endian u16 pairs,
+    /// 2-byte aligned: checked when mapped), shared by clones.
+    Mapped(Arc<Mmap>),
+}
+
+impl PartialEq for BrickRanges {
+    fn eq(&self, other: &Self) -> bool {
+        self.grid == other.grid && self.as_slice() == other.as_slice()
+    }
+}
+
+impl Eq for BrickRanges {}
 
 impl BrickRanges {
     /// Scans every brick of `grid` in `volume` (in parallel).
@@ -40,7 +66,7 @@ impl BrickRanges {
             .collect();
         BrickRanges {
             grid: *grid,
-            ranges,
+            ranges: Entries::Owned(ranges),
         }
     }
 
@@ -50,7 +76,10 @@ impl BrickRanges {
     /// If the count does not match the grid.
     pub fn from_parts(grid: BlockGrid, ranges: Vec<[u16; 2]>) -> Self {
         assert_eq!(ranges.len() as u64, grid.block_count());
-        BrickRanges { grid, ranges }
+        BrickRanges {
+            grid,
+            ranges: Entries::Owned(ranges),
+        }
     }
 
     /// The ranges of the coarser grid whose bricks span `factor` of these bricks
@@ -78,7 +107,10 @@ impl BrickRanges {
                 merged
             })
             .collect();
-        BrickRanges { grid, ranges }
+        BrickRanges {
+            grid,
+            ranges: Entries::Owned(ranges),
+        }
     }
 
     /// Ranges for another grid over the same volume, merged from these without
@@ -87,37 +119,41 @@ impl BrickRanges {
     /// unions of these (the same grid, or [`Self::coarsened`]'s); otherwise a
     /// superset of the true range, which empty-space skipping may use safely.
     pub fn covering(&self, grid: &BlockGrid) -> BrickRanges {
-        let step = self.grid.step();
-        let counts = self.grid.counts();
-        let ranges = grid
-            .iter()
-            .map(|b| {
-                let origin = grid.origin(b);
-                let extent = grid.extent(b);
-                // Bricks j whose voxels [j·step, j·step + step] meet [a, z]; one
-                // sharing only voxel z is left out when its neighbour holds z too.
-                let span = |a: usize| {
-                    let (lo, hi) = (origin[a], origin[a] + extent[a] - 1);
-                    let first = (lo / step).min(counts[a] - 1);
-                    let last = ((hi.max(lo + 1) - 1) / step).min(counts[a] - 1);
-                    first..=last
-                };
-                let mut merged = [u16::MAX, 0];
-                for x in span(0) {
-                    for y in span(1) {
-                        for z in span(2) {
-                            let [l, h] = self.range([x, y, z]);
-                            merged = [merged[0].min(l), merged[1].max(h)];
-                        }
-                    }
-                }
-                merged
-            })
-            .collect();
+        let ranges = grid.iter().map(|b| self.covering_range(grid, b)).collect();
         BrickRanges {
             grid: *grid,
-            ranges,
+            ranges: Entries::Owned(ranges),
         }
+    }
+
+    /// The range of brick `b` of another grid over the same volume, merged from
+    /// these ([`Self::covering`]'s entry for `b`, without building the table).
+    pub fn covering_range(&self, grid: &BlockGrid, b: [u32; 3]) -> [u16; 2] {
+        if grid == &self.grid {
+            return self.range(b);
+        }
+        let step = self.grid.step();
+        let counts = self.grid.counts();
+        let origin = grid.origin(b);
+        let extent = grid.extent(b);
+        // Bricks j whose voxels [j·step, j·step + step] meet [a, z]; one
+        // sharing only voxel z is left out when its neighbour holds z too.
+        let span = |a: usize| {
+            let (lo, hi) = (origin[a], origin[a] + extent[a] - 1);
+            let first = (lo / step).min(counts[a] - 1);
+            let last = ((hi.max(lo + 1) - 1) / step).min(counts[a] - 1);
+            first..=last
+        };
+        let mut merged = [u16::MAX, 0];
+        for x in span(0) {
+            for y in span(1) {
+                for z in span(2) {
+                    let [l, h] = self.range([x, y, z]);
+                    merged = [merged[0].min(l), merged[1].max(h)];
+                }
+            }
+        }
+        merged
     }
 
     /// The grid the ranges belong to.
@@ -127,31 +163,42 @@ impl BrickRanges {
 
     /// `[min, max]` of brick `b`.
     pub fn range(&self, b: [u32; 3]) -> [u16; 2] {
-        self.ranges[self.grid.index(b) as usize]
+        self.as_slice()[self.grid.index(b) as usize]
     }
 
     /// All ranges in file order of the grid.
     pub fn as_slice(&self) -> &[[u16; 2]] {
-        &self.ranges
+        match &self.ranges {
+            Entries::Owned(v) => v,
+            // Alignment and length were checked when the table was mapped.
+            Entries::Mapped(map) => bytemuck::cast_slice(&map[..]),
+        }
+    }
+
+    /// Whether the entries are read through a mapping of the file (no copy in
+    /// memory) rather than held in memory.
+    pub fn is_mapped(&self) -> bool {
+        matches!(self.ranges, Entries::Mapped(_))
     }
 
     /// Smallest and largest sample of the whole volume.
     pub fn overall(&self) -> [u16; 2] {
-        self.ranges
+        self.as_slice()
             .iter()
             .fold([u16::MAX, 0], |[lo, hi], r| [lo.min(r[0]), hi.max(r[1])])
     }
 
     /// Encodes the table (the form embedded after the samples of extended files).
     pub fn encode(&self) -> Vec<u8> {
-        let mut out = Vec::with_capacity(TABLE_HEADER_LEN + self.ranges.len() * 4);
+        let entries = self.as_slice();
+        let mut out = Vec::with_capacity(TABLE_HEADER_LEN + entries.len() * 4);
         out.extend_from_slice(&TABLE_MAGIC);
         out.extend_from_slice(&self.grid.side().to_le_bytes());
         for c in self.grid.dims() {
             out.extend_from_slice(&c.to_le_bytes());
         }
-        out.extend_from_slice(&(self.ranges.len() as u64).to_le_bytes());
-        for [lo, hi] in &self.ranges {
+        out.extend_from_slice(&(entries.len() as u64).to_le_bytes());
+        for [lo, hi] in entries {
             out.extend_from_slice(&lo.to_le_bytes());
             out.extend_from_slice(&hi.to_le_bytes());
         }
@@ -161,20 +208,8 @@ impl BrickRanges {
     /// Decodes a table written by [`Self::encode`] for a volume of `dims`; `None` when
     /// the bytes are not a consistent table for those dims.
     pub fn decode(bytes: &[u8], dims: [u32; 3]) -> Option<Self> {
-        let head = bytes.get(..TABLE_HEADER_LEN)?;
-        if head[..4] != TABLE_MAGIC {
-            return None;
-        }
-        let u32_at = |o: usize| u32::from_le_bytes(head[o..o + 4].try_into().unwrap());
-        let side = u32_at(4);
-        if side < 2 || [u32_at(8), u32_at(12), u32_at(16)] != dims {
-            return None;
-        }
-        let count = u64::from_le_bytes(head[20..28].try_into().unwrap());
-        let grid = BlockGrid::new(dims, side);
-        if count != grid.block_count() {
-            return None;
-        }
+        let grid = table_grid(bytes.get(..TABLE_HEADER_LEN)?, dims)?;
+        let count = grid.block_count();
         let body = bytes.get(TABLE_HEADER_LEN..)?;
         if (body.len() as u64) < count.checked_mul(4)? {
             return None;
@@ -189,10 +224,60 @@ impl BrickRanges {
                 ]
             })
             .collect();
-        if ranges.iter().any(|[lo, hi]| lo > hi) {
-            return None;
+        let table = BrickRanges {
+            grid,
+            ranges: Entries::Owned(ranges),
+        };
+        table.consistent().then_some(table)
+    }
+
+    /// The table written by [`Self::encode`] at byte `offset` of `file`, at most
+    /// `len` bytes long, for a volume of `dims`: its entries mapped read-only where
+    /// the file allows it (they stay in the page cache, not in this process's
+    /// memory), else read and decoded. `Ok(None)` when the bytes are not a
+    /// consistent table for those dims.
+    pub fn read_from(
+        file: &File,
+        offset: u64,
+        len: u64,
+        dims: [u32; 3],
+    ) -> std::io::Result<Option<Self>> {
+        let mut head = [0u8; TABLE_HEADER_LEN];
+        if len < TABLE_HEADER_LEN as u64 {
+            return Ok(None);
         }
-        Some(BrickRanges { grid, ranges })
+        file.read_exact_at(&mut head, offset)?;
+        let Some(grid) = table_grid(&head, dims) else {
+            return Ok(None);
+        };
+        let Some(body) = grid.block_count().checked_mul(4) else {
+            return Ok(None);
+        };
+        if body > len - TABLE_HEADER_LEN as u64 {
+            return Ok(None);
+        }
+        let start = offset + TABLE_HEADER_LEN as u64;
+        if body > 0
+            && let Ok(map) = super::pyramid::map_region(file, start, body)
+            && bytemuck::try_cast_slice::<u8, [u16; 2]>(&map).is_ok()
+        {
+            // Checked in one pass: the table is asked for whole first (exactly its
+            // pages; sequential advice would let read-ahead run on past its end).
+            let _ = map.advise(memmap2::Advice::WillNeed);
+            let table = BrickRanges {
+                grid,
+                ranges: Entries::Mapped(Arc::new(map)),
+            };
+            return Ok(table.consistent().then_some(table));
+        }
+        let mut bytes = vec![0u8; TABLE_HEADER_LEN + body as usize];
+        file.read_exact_at(&mut bytes, offset)?;
+        Ok(Self::decode(&bytes, dims))
+    }
+
+    /// Whether every entry is a range (`min ≤ max`).
+    fn consistent(&self) -> bool {
+        self.as_slice().iter().all(|[lo, hi]| lo <= hi)
     }
 
     /// Encodes a sidecar file for a volume file of `file_len` bytes modified at `mtime`.
@@ -216,18 +301,63 @@ impl BrickRanges {
         file_len: u64,
         mtime: SystemTime,
     ) -> Option<Self> {
-        let head = bytes.get(..SIDECAR_HEADER_LEN)?;
-        let (secs, nanos) = split_time(mtime);
-        let fresh = head[..4] == SIDECAR_MAGIC
-            && head[4..8] == SIDECAR_VERSION.to_le_bytes()
-            && head[8..16] == file_len.to_le_bytes()
-            && head[16..24] == secs.to_le_bytes()
-            && head[24..28] == nanos.to_le_bytes();
-        if !fresh {
+        if !sidecar_is_fresh(bytes, file_len, mtime) {
             return None;
         }
         Self::decode(&bytes[SIDECAR_HEADER_LEN..], dims)
     }
+
+    /// The table of the sidecar `sidecar` (of `sidecar_len` bytes), as
+    /// [`Self::decode_sidecar`] would decode it, its entries mapped
+    /// ([`Self::read_from`]); `Ok(None)` when it is malformed or stale.
+    pub fn read_sidecar(
+        sidecar: &File,
+        sidecar_len: u64,
+        dims: [u32; 3],
+        file_len: u64,
+        mtime: SystemTime,
+    ) -> std::io::Result<Option<Self>> {
+        let mut head = [0u8; SIDECAR_HEADER_LEN];
+        if sidecar_len < SIDECAR_HEADER_LEN as u64 {
+            return Ok(None);
+        }
+        sidecar.read_exact_at(&mut head, 0)?;
+        if !sidecar_is_fresh(&head, file_len, mtime) {
+            return Ok(None);
+        }
+        let header = SIDECAR_HEADER_LEN as u64;
+        Self::read_from(sidecar, header, sidecar_len - header, dims)
+    }
+}
+
+/// The grid a table's header (its first [`TABLE_HEADER_LEN`] bytes) declares, if
+/// it is a table for a volume of `dims`.
+fn table_grid(head: &[u8], dims: [u32; 3]) -> Option<BlockGrid> {
+    if head.len() < TABLE_HEADER_LEN || head[..4] != TABLE_MAGIC {
+        return None;
+    }
+    let u32_at = |o: usize| u32::from_le_bytes(head[o..o + 4].try_into().unwrap());
+    let side = u32_at(4);
+    if side < 2 || [u32_at(8), u32_at(12), u32_at(16)] != dims {
+        return None;
+    }
+    let count = u64::from_le_bytes(head[20..28].try_into().unwrap());
+    let grid = BlockGrid::new(dims, side);
+    (count == grid.block_count()).then_some(grid)
+}
+
+/// Whether a sidecar starting with `head` describes the file of `file_len` bytes
+/// modified at `mtime`.
+fn sidecar_is_fresh(head: &[u8], file_len: u64, mtime: SystemTime) -> bool {
+    let Some(head) = head.get(..SIDECAR_HEADER_LEN) else {
+        return false;
+    };
+    let (secs, nanos) = split_time(mtime);
+    head[..4] == SIDECAR_MAGIC
+        && head[4..8] == SIDECAR_VERSION.to_le_bytes()
+        && head[8..16] == file_len.to_le_bytes()
+        && head[16..24] == secs.to_le_bytes()
+        && head[24..28] == nanos.to_le_bytes()
 }
 
 /// Seconds (negative before the epoch) and nanoseconds of `t`, as sidecars record it.
@@ -306,6 +436,68 @@ mod tests {
         assert_eq!(BrickRanges::decode(&bytes, dims), Some(r.clone()));
         assert_eq!(BrickRanges::decode(&bytes, [10, 7, 6]), None);
         assert_eq!(BrickRanges::decode(&bytes[..bytes.len() - 1], dims), None);
+    }
+
+    #[test]
+    fn tables_read_from_a_file_are_mapped_where_aligned_and_equal_the_decoded_ones() {
+        let dims = [37, 50, 23];
+        let data: Vec<u8> = (0..dims.iter().product::<u32>())
+            .map(|i| (i.wrapping_mul(2_654_435_761) >> 24) as u8)
+            .collect();
+        let vol = TypedVolume::new(&data, dims, Layout::Linear);
+        let table = BrickRanges::compute(&vol, &BlockGrid::new(dims, 6));
+        let bytes = table.encode();
+        for (offset, mapped) in [(0u64, true), (4098, true), (4099, false)] {
+            let mut file = tempfile::tempfile().unwrap();
+            let mut image = vec![0xAAu8; offset as usize];
+            image.extend_from_slice(&bytes);
+            image.extend_from_slice(&[0x55; 10]);
+            std::io::Write::write_all(&mut file, &image).unwrap();
+            let len = image.len() as u64 - offset;
+            let read = BrickRanges::read_from(&file, offset, len, dims)
+                .unwrap()
+                .unwrap();
+            assert_eq!(read, table, "offset {offset}");
+            assert_eq!(read.is_mapped(), mapped, "offset {offset}");
+            assert_eq!(read.clone().as_slice(), table.as_slice());
+            // Cut short, another volume's dims, or an entry with min > max: refused.
+            let short = BrickRanges::read_from(&file, offset, bytes.len() as u64 - 1, dims);
+            assert!(short.unwrap().is_none());
+            let other = BrickRanges::read_from(&file, offset, len, [37, 50, 24]);
+            assert!(other.unwrap().is_none());
+            let mut bad = image.clone();
+            let at = offset as usize + TABLE_HEADER_LEN + 4 * 7;
+            bad[at..at + 4].copy_from_slice(&[9, 0, 8, 0]);
+            std::os::unix::fs::FileExt::write_all_at(&file, &bad, 0).unwrap();
+            assert!(
+                BrickRanges::read_from(&file, offset, len, dims)
+                    .unwrap()
+                    .is_none()
+            );
+        }
+    }
+
+    #[test]
+    fn a_fresh_sidecar_is_read_mapped_and_a_stale_one_refused() {
+        let dims = [10, 7, 5];
+        let data = ramp_volume(dims);
+        let vol = TypedVolume::new(&data, dims, Layout::Linear);
+        let table = BrickRanges::compute(&vol, &BlockGrid::new(dims, 4));
+        let t = SystemTime::UNIX_EPOCH + std::time::Duration::from_secs(77);
+        let bytes = table.encode_sidecar(350, t);
+        let mut file = tempfile::tempfile().unwrap();
+        std::io::Write::write_all(&mut file, &bytes).unwrap();
+        let len = bytes.len() as u64;
+        let read = BrickRanges::read_sidecar(&file, len, dims, 350, t)
+            .unwrap()
+            .unwrap();
+        assert!(read.is_mapped());
+        assert_eq!(read, table);
+        assert!(
+            BrickRanges::read_sidecar(&file, len, dims, 351, t)
+                .unwrap()
+                .is_none()
+        );
     }
 
     #[test]
