@@ -2,6 +2,9 @@
 # Screenshot of the real viewer window with its Cut panel and slice views under
 # Xvfb -> docs/images/viewer-slices.png. The built-in shapes scene is cut open by a
 # session (crop box and clipping plane, restored into the Cut sliders).
+#   docs/viewer-slices-screenshot.sh [OUT.png] [SESSION.toml]
+# With a session, that session is shown instead (docs/sessions/lung1-cut.toml:
+# the lung1 CT cut open -> docs/images/viewer-lung1-cut.png).
 # Needs: xvfb (apt-get install xvfb) and python3; the framebuffer Xvfb keeps in a
 # file (-fbdir, XWD format) is converted to PNG by the few lines of Python below.
 # Uses the dev profile, the one CI builds Slint in (no second Slint build).
@@ -9,6 +12,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo build -q -p viewer
 out=${1:-docs/images/viewer-slices.png}
+session=${2:-}
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 cat > "$tmp/cut.toml" <<'TOML'
@@ -42,9 +46,10 @@ export SLINT_BACKEND=winit-software
 Xvfb :97 -screen 0 1280x820x24 -fbdir "$tmp" -nolisten tcp &
 xvfb=$!
 sleep 2
-DISPLAY=:97 "${CARGO_TARGET_DIR:-target}"/debug/viewer --session "$tmp/cut.toml" &
+[ -n "$session" ] || session=$tmp/cut.toml
+DISPLAY=:97 "${CARGO_TARGET_DIR:-target}"/debug/viewer --session "$session" &
 viewer=$!
-sleep 15
+sleep "${SETTLE:-15}"   # seconds for the frame to refine (more for a real scan)
 python3 - "$tmp/Xvfb_screen0" "$out" <<'PY'
 import struct, sys, zlib
 data = open(sys.argv[1], "rb").read()

@@ -11,16 +11,14 @@ use raycaster::render::Camera;
 use raycaster::slice::Axis;
 use raycaster::volume::{Orientation, Volume};
 
+use crate::slices::AXIS_COLOURS;
+
 /// A component of a direction smaller than this (of a unit vector) is not named:
 /// an axis about 12° off a patient axis is labelled with that axis alone.
 const NAMED_COMPONENT: f32 = 0.2;
 
 /// The scale bar spans at most this fraction of the view's width.
 const SCALE_BAR_MAX_FRACTION: f32 = 0.25;
-
-/// The colour of each axis's slice plane (x red, y green, z blue), as the slice
-/// views draw their crosshair lines.
-pub(crate) const PLANE_COLOURS: [[u8; 3]; 3] = [[230, 70, 70], [70, 200, 90], [80, 140, 255]];
 
 /// The labels of a picture's four edges: the direction (patient or volume) that
 /// points towards each.
@@ -182,7 +180,7 @@ pub(crate) fn plane_outlines(dims: [u32; 3], spacing: [f32; 3], voxel: [u32; 3])
 /// pass behind a perspective camera, are left out.
 pub(crate) fn draw_plane_outlines(rgba: &mut [u8], camera: &Camera, outlines: &[[Vec3; 4]; 3]) {
     let (w, h) = (camera.width(), camera.height());
-    for (outline, colour) in outlines.iter().zip(PLANE_COLOURS) {
+    for (outline, colour) in outlines.iter().zip(AXIS_COLOURS) {
         for i in 0..4 {
             let (a, b) = (outline[i], outline[(i + 1) % 4]);
             if let (Some(pa), Some(pb)) = (camera.project(a), camera.project(b)) {
@@ -344,7 +342,7 @@ mod tests {
         let camera = orbit.camera(80, 60).unwrap();
         let mut rgba = vec![0u8; 80 * 60 * 4];
         draw_plane_outlines(&mut rgba, &camera, &outlines);
-        for colour in PLANE_COLOURS {
+        for colour in AXIS_COLOURS {
             assert!(
                 rgba.chunks(4).any(|p| p[..3] == colour),
                 "a {colour:?} outline is drawn"

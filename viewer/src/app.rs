@@ -811,6 +811,7 @@ impl Controller {
             st.latest = None;
             st.ended = None;
             st.shown = (0, 0);
+            st.cameras.clear();
             st.last_stats = None;
             st.first_frame = true;
         }
@@ -1385,7 +1386,7 @@ impl Controller {
         let camera =
             st.cameras
                 .iter()
-                .find(|(c, _, _)| *c == id)
+                .rfind(|(c, _, _)| *c == id)
                 .and_then(|(_, camera, target)| {
                     let camera = camera.with_size(pixels.width(), pixels.height()).ok()?;
                     Some((camera, *target))

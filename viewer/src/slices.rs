@@ -14,9 +14,13 @@ use raycaster::windows::NAMED_WINDOWS;
 /// The largest slice side read (larger volumes use a coarser pyramid level).
 pub(crate) const MAX_SLICE_EDGE: u32 = 512;
 
+/// A crosshair line is one image pixel thick per this many pixels of the
+/// image's side (a 512-pixel slice shown 256 pixels wide keeps its lines).
+const LINE_SPAN: u32 = 256;
+
 /// The colour of each axis's slice and of the crosshair line showing it: x red,
 /// y green, z blue.
-const AXIS_COLOURS: [[u8; 3]; 3] = [[230, 70, 70], [70, 200, 90], [80, 140, 255]];
+pub(crate) const AXIS_COLOURS: [[u8; 3]; 3] = [[230, 70, 70], [70, 200, 90], [80, 140, 255]];
 
 /// The slice views' names, by axis (x, y, z).
 pub(crate) const VIEW_NAMES: [&str; 3] = ["sagittal (x)", "coronal (y)", "axial (z)"];
@@ -128,13 +132,20 @@ pub(crate) fn slice_image(
     let [u, v] = axis.in_plane();
     let col = at(u);
     let row = h - 1 - at(v).min(h - 1);
-    for y in 0..h {
-        let i = ((y * w + col.min(w - 1)) * 3) as usize;
-        rgb[i..i + 3].copy_from_slice(&AXIS_COLOURS[u]);
+    // Lines stay visible when the view shows the image smaller than it is: a
+    // line is one pixel per LINE_SPAN pixels of the image's side thick.
+    let thick = |len: u32| len.div_ceil(LINE_SPAN).max(1);
+    for x in col.min(w - 1)..(col.min(w - 1) + thick(w)).min(w) {
+        for y in 0..h {
+            let i = ((y * w + x) * 3) as usize;
+            rgb[i..i + 3].copy_from_slice(&AXIS_COLOURS[u]);
+        }
     }
-    for x in 0..w {
-        let i = ((row * w + x) * 3) as usize;
-        rgb[i..i + 3].copy_from_slice(&AXIS_COLOURS[v]);
+    for y in row..(row + thick(h)).min(h) {
+        for x in 0..w {
+            let i = ((y * w + x) * 3) as usize;
+            rgb[i..i + 3].copy_from_slice(&AXIS_COLOURS[v]);
+        }
     }
     let (x0, cw) = zoom_span(w, col.min(w - 1), zoom);
     let (y0, ch) = zoom_span(h, row, zoom);
@@ -152,6 +163,29 @@ pub(crate) fn slice_image(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The gradient scene of `dims` voxels written to a linear u8 file in `dir`.
+    fn gradient_file(dir: &std::path::Path, dims: [u32; 3]) -> Volume {
+        let volume = raycaster::synth::SceneKind::Gradient.build(dims, 1);
+        let path = dir.join("gradient.vol");
+        let header = raycaster::volume::Header::new(
+            dims,
+            [1.0; 3],
+            raycaster::volume::Layout::Linear,
+            raycaster::volume::SampleType::U8,
+            raycaster::volume::Content::Scalar,
+            raycaster::volume::Format::Extended,
+        );
+        raycaster::generate::generate(
+            volume.as_ref(),
+            &header,
+            &path,
+            &Default::default(),
+            &raycaster::job::Job::silent(),
+        )
+        .unwrap();
+        Volume::open(&path).unwrap()
+    }
 
     #[test]
     fn clicks_move_the_other_axes() {
@@ -182,26 +216,8 @@ mod tests {
 
     #[test]
     fn slices_show_the_crosshair() {
-        let volume = raycaster::synth::SceneKind::Gradient.build([20, 16, 12], 1);
         let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("g.vol");
-        let header = raycaster::volume::Header::new(
-            [20, 16, 12],
-            [1.0; 3],
-            raycaster::volume::Layout::Linear,
-            raycaster::volume::SampleType::U8,
-            raycaster::volume::Content::Scalar,
-            raycaster::volume::Format::Extended,
-        );
-        raycaster::generate::generate(
-            volume.as_ref(),
-            &header,
-            &path,
-            &Default::default(),
-            &raycaster::job::Job::silent(),
-        )
-        .unwrap();
-        let volume = Volume::open(&path).unwrap();
+        let volume = gradient_file(dir.path(), [20, 16, 12]);
         assert_eq!(slice_level(&volume), 0);
         let c = Crosshair::centre(volume.dims());
         let (image, at) = slice_image(&volume, 0, Axis::Z, &c, [0.0, 255.0], 1.0).unwrap();
@@ -220,6 +236,27 @@ mod tests {
         assert_eq!(at, [4, 4]);
         let i = ((4 * 10 + 5) * 3) as usize;
         assert_eq!(zoomed.data()[i..i + 3], AXIS_COLOURS[1]);
+    }
+
+    #[test]
+    fn crosshair_lines_thicken_on_large_slices() {
+        let dir = tempfile::tempdir().unwrap();
+        let volume = gradient_file(dir.path(), [600, 300, 4]);
+        let c = Crosshair::centre(volume.dims());
+        let (image, _) = slice_image(&volume, 0, Axis::Z, &c, [0.0, 255.0], 1.0).unwrap();
+        let px = |x: u32, y: u32| {
+            let i = ((y * 600 + x) * 3) as usize;
+            [image.data()[i], image.data()[i + 1], image.data()[i + 2]]
+        };
+        // 600 columns: the x line (column 299) is 3 pixels wide; 300 rows: the
+        // y line (row 299 − 149 = 150) is 2 pixels high.
+        for x in 299..302 {
+            assert_eq!(px(x, 10), AXIS_COLOURS[0], "column {x}");
+        }
+        assert_ne!(px(302, 10), AXIS_COLOURS[0]);
+        assert_eq!(px(10, 150), AXIS_COLOURS[1]);
+        assert_eq!(px(10, 151), AXIS_COLOURS[1]);
+        assert_ne!(px(10, 152), AXIS_COLOURS[1]);
     }
 
     #[test]

@@ -195,6 +195,36 @@ fn the_viewer_cuts_slices_and_remembers_files() {
     settle(&v);
     assert!((v.orbit().azimuth + std::f32::consts::FRAC_PI_2).abs() < 1e-6);
     assert_eq!(v.orbit().elevation, 0.0, "from −y");
+    // The edges name the volume's axes (this file has no orientation) and a
+    // scale bar measures the view in voxels (spacing 1).
+    let ui = v.ui();
+    let edges = [
+        ui.get_label_left(),
+        ui.get_label_right(),
+        ui.get_label_top(),
+        ui.get_label_bottom(),
+    ];
+    assert_eq!(edges.map(|e| e.to_string()), ["−x", "+x", "+z", "−z"]);
+    assert!(
+        ui.get_scale_label().ends_with(" voxels"),
+        "{}",
+        ui.get_scale_label()
+    );
+    assert!(ui.get_scale_fraction() > 0.05 && ui.get_scale_fraction() <= 0.25);
+    // The crosshair's slice planes outlined over the picture, and gone again.
+    let plain = frame(&v);
+    element(&v, "App::planes-box").invoke_accessible_default_action();
+    settle(&v);
+    assert!(ui.get_show_planes());
+    let outlined = frame(&v);
+    assert_ne!(outlined, plain, "the planes are drawn");
+    assert!(
+        outlined.chunks(4).any(|p| p[..3] == [230, 70, 70]),
+        "the x plane is outlined in red"
+    );
+    element(&v, "App::planes-box").invoke_accessible_default_action();
+    settle(&v);
+    assert!(frame(&v) == plain, "no outlines once unticked");
     key(&v, "r");
     settle(&v);
     assert_eq!(v.orbit(), home, "R resets the view");
