@@ -163,6 +163,11 @@ struct State {
     /// The newest requests' ids, cameras and orbit targets: the annotations of
     /// the frame on screen follow its own camera.
     cameras: VecDeque<(u64, Camera, glam::Vec3)>,
+    /// The slice views' window (stored values) on screen, the one a right-drag
+    /// started from, and the free window such drags set.
+    slice_window: [f32; 2],
+    window_drag_base: [f32; 2],
+    custom_window: Option<[f32; 2]>,
 }
 
 thread_local! {
@@ -252,6 +257,9 @@ impl Viewer {
                 canvas: (0, 0),
                 slice_frames: [[0; 4]; 3],
                 cameras: VecDeque::new(),
+                slice_window: [0.0, 1.0],
+                window_drag_base: [0.0, 1.0],
+                custom_window: None,
             }),
             scheduled,
             wake: wake.clone(),
@@ -597,6 +605,8 @@ fn connect(ui: &App, c: &Rc<Controller>) {
         .scroll_slice(axis, delta));
     on!(on_slice_window_selected, |c, _index| c.update_slices());
     on!(on_slice_zoom_changed, |c| c.update_slices());
+    on!(on_slice_window_dragged, |c, _axis, dx, dy, start| c
+        .drag_slice_window(dx, dy, start));
     on!(on_show_planes_toggled, |c| c.redraw_frame());
     on!(on_recent_selected, |c, index| c.open_recent(index));
     let weak = Rc::downgrade(c);
@@ -812,6 +822,7 @@ impl Controller {
             st.ended = None;
             st.shown = (0, 0);
             st.cameras.clear();
+            st.custom_window = None;
             st.last_stats = None;
             st.first_frame = true;
         }
@@ -940,8 +951,11 @@ impl Controller {
             .volume
             .domain
             .unwrap_or([0.0, f32::from(volume.sample_type().max_value())]);
-        let window =
-            crate::slices::window(ui.get_slice_window_index().max(0) as usize, fitted, &units);
+        let index = ui.get_slice_window_index().max(0) as usize;
+        let window = match st.custom_window {
+            Some(custom) if index + 1 == crate::slices::window_names().len() => custom,
+            _ => crate::slices::window(index, fitted, &units),
+        };
         let zoom = ui.get_slice_zoom();
         let spacing = volume.spacing();
         let orientation = volume.orientation();
@@ -1003,7 +1017,10 @@ impl Controller {
         ui.set_slice_edges(ModelRc::new(VecModel::from(edges)));
         ui.set_slice_aspects(ModelRc::new(VecModel::from(aspects.to_vec())));
         drop(st);
-        self.state.borrow_mut().slice_frames = frames;
+        let mut st = self.state.borrow_mut();
+        st.slice_frames = frames;
+        st.slice_window = window;
+        drop(st);
         if let Some(error) = error {
             self.show_message(&error, true);
         }
@@ -1050,6 +1067,33 @@ impl Controller {
                 1 << st.slice_level,
             );
         }
+        self.update_slices();
+    }
+
+    /// Free window/level: a right-drag on a slice started (`start`) or moved by
+    /// `dx`, `dy` (fractions of the view) from where it started.
+    fn drag_slice_window(&self, dx: f32, dy: f32, start: bool) {
+        let Some(ui) = self.ui() else { return };
+        {
+            let mut st = self.state.borrow_mut();
+            if start {
+                st.window_drag_base = st.slice_window;
+                return;
+            }
+            let Some(current) = &st.current else { return };
+            let volume = &current.volume.volume;
+            let [lo, hi] = current
+                .volume
+                .domain
+                .unwrap_or([0.0, f32::from(volume.sample_type().max_value())]);
+            st.custom_window = Some(crate::slices::dragged_window(
+                st.window_drag_base,
+                dx,
+                dy,
+                hi - lo,
+            ));
+        }
+        ui.set_slice_window_index(crate::slices::window_names().len() as i32 - 1);
         self.update_slices();
     }
 

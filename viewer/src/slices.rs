@@ -15,8 +15,8 @@ use raycaster::windows::NAMED_WINDOWS;
 pub(crate) const MAX_SLICE_EDGE: u32 = 512;
 
 /// A crosshair line is one image pixel thick per this many pixels of the
-/// image's side (a 512-pixel slice shown 256 pixels wide keeps its lines).
-const LINE_SPAN: u32 = 256;
+/// image's side (a 512-pixel slice shown 150 pixels wide keeps its lines).
+const LINE_SPAN: u32 = 128;
 
 /// The colour of each axis's slice and of the crosshair line showing it: x red,
 /// y green, z blue.
@@ -25,11 +25,31 @@ pub(crate) const AXIS_COLOURS: [[u8; 3]; 3] = [[230, 70, 70], [70, 200, 90], [80
 /// The slice views' names, by axis (x, y, z).
 pub(crate) const VIEW_NAMES: [&str; 3] = ["sagittal (x)", "coronal (y)", "axial (z)"];
 
-/// The window choices: the fitted window, then the named windows.
+/// The last window choice: the window set by right-dragging on a slice.
+pub(crate) const CUSTOM_WINDOW: &str = "custom (right-drag a slice)";
+
+/// The window choices: the fitted window, the named windows, then the custom one.
 pub(crate) fn window_names() -> Vec<String> {
     std::iter::once("fitted".to_string())
         .chain(NAMED_WINDOWS.iter().map(|w| w.name.to_string()))
+        .chain(std::iter::once(CUSTOM_WINDOW.to_string()))
         .collect()
+}
+
+/// Free window/level: `base` changed by a drag of `dx`, `dy` (fractions of the
+/// slice view's width and height) over data whose values span `span`. Dragging
+/// right widens the window (less contrast), dragging down lowers its centre (a
+/// brighter picture), each by `span` per view; the width stays positive.
+pub(crate) fn dragged_window(base: [f32; 2], dx: f32, dy: f32, span: f32) -> [f32; 2] {
+    let (dx, dy) = (dx.clamp(-4.0, 4.0), dy.clamp(-4.0, 4.0));
+    let span = if span.is_finite() && span > 0.0 {
+        span
+    } else {
+        1.0
+    };
+    let width = (base[1] - base[0] + dx * span).max(span * 0.002);
+    let centre = (base[0] + base[1]) / 2.0 - dy * span;
+    [centre - width / 2.0, centre + width / 2.0]
 }
 
 /// The stored-value window of choice `index` ([`window_names`]): 0 the fitted
@@ -211,7 +231,23 @@ mod tests {
         let w = window(lung + 1, [1.0, 2.0], &hu);
         assert_eq!(w, [32768.0 - 1350.0, 32768.0 + 150.0]);
         assert_eq!(describe_window(w, &hu), "-1350 HU .. 150 HU");
-        assert_eq!(window_names().len(), NAMED_WINDOWS.len() + 1);
+        assert_eq!(window_names().len(), NAMED_WINDOWS.len() + 2);
+        assert_eq!(window_names().last().unwrap(), CUSTOM_WINDOW);
+    }
+
+    #[test]
+    fn dragging_widens_and_moves_the_window() {
+        let base = [100.0, 200.0];
+        assert_eq!(dragged_window(base, 0.0, 0.0, 1000.0), base);
+        // Right a tenth of the view: 100 wider about the same centre.
+        assert_eq!(dragged_window(base, 0.1, 0.0, 1000.0), [50.0, 250.0]);
+        // Down a tenth: the centre 100 lower.
+        assert_eq!(dragged_window(base, 0.0, 0.1, 1000.0), [0.0, 100.0]);
+        // Far left: the width stays positive.
+        let narrow = dragged_window(base, -1.0, 0.0, 1000.0);
+        assert!(narrow[1] > narrow[0] && (narrow[1] - narrow[0] - 2.0).abs() < 1e-3);
+        let odd = dragged_window(base, f32::NAN.max(0.0), 0.0, f32::NAN);
+        assert_eq!(odd, base);
     }
 
     #[test]
@@ -248,15 +284,16 @@ mod tests {
             let i = ((y * 600 + x) * 3) as usize;
             [image.data()[i], image.data()[i + 1], image.data()[i + 2]]
         };
-        // 600 columns: the x line (column 299) is 3 pixels wide; 300 rows: the
-        // y line (row 299 − 149 = 150) is 2 pixels high.
-        for x in 299..302 {
+        // 600 columns: the x line (column 299) is 5 pixels wide; 300 rows: the
+        // y line (row 299 − 149 = 150) is 3 pixels high.
+        for x in 299..304 {
             assert_eq!(px(x, 10), AXIS_COLOURS[0], "column {x}");
         }
-        assert_ne!(px(302, 10), AXIS_COLOURS[0]);
-        assert_eq!(px(10, 150), AXIS_COLOURS[1]);
-        assert_eq!(px(10, 151), AXIS_COLOURS[1]);
-        assert_ne!(px(10, 152), AXIS_COLOURS[1]);
+        assert_ne!(px(304, 10), AXIS_COLOURS[0]);
+        for y in 150..153 {
+            assert_eq!(px(10, y), AXIS_COLOURS[1], "row {y}");
+        }
+        assert_ne!(px(10, 153), AXIS_COLOURS[1]);
     }
 
     #[test]

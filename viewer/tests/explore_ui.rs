@@ -293,6 +293,29 @@ fn the_viewer_cuts_slices_and_remembers_files() {
         .filter(|(e, s)| e[..] != s[..3])
         .count();
     assert!(differing <= 48 + 48, "{differing} pixels differ");
+    // Free window/level: a right-drag down a fifth of the axial view lowers the
+    // window's centre by a fifth of the data's span; the picker says "custom".
+    let info = v.ui().get_slice_window_info();
+    let axial = pixels(&v.ui().get_slice_z());
+    v.ui().invoke_slice_window_dragged(2, 0.0, 0.0, true);
+    v.ui().invoke_slice_window_dragged(2, 0.0, 0.2, false);
+    let names = v.ui().get_slice_windows();
+    assert_eq!(
+        v.ui().get_slice_window_index() as usize,
+        names.row_count() - 1
+    );
+    assert!(
+        names
+            .row_data(names.row_count() - 1)
+            .unwrap()
+            .starts_with("custom")
+    );
+    assert_ne!(v.ui().get_slice_window_info(), info);
+    assert_ne!(
+        pixels(&v.ui().get_slice_z()),
+        axial,
+        "a brighter axial slice"
+    );
     let old = Slice::extract(&volume, Axis::X, 23).unwrap();
     assert_ne!(
         old.values,
