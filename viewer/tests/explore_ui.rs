@@ -6,13 +6,12 @@
 //!
 //! One test function: the platform can be set once per process.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 mod support;
-use support::{element, wait_for_frame};
+use support::{element, generate_file, wait_for_frame};
 
-use i_slint_backend_testing::{TestingBackend, TestingBackendOptions};
 use raycaster::render::{CropBox, Vec3};
 use raycaster::session::Session;
 use raycaster::slice::{Axis, Slice};
@@ -55,26 +54,6 @@ fn frame(v: &Viewer) -> Vec<u8> {
     pixels(&v.ui().get_frame()).2
 }
 
-/// Writes the built-in `kind` scene of `size³` voxels as a `.vol` file.
-fn generate_file(path: &Path, kind: SceneKind, size: u32) {
-    let header = raycaster::volume::Header::new(
-        [size; 3],
-        [1.0; 3],
-        raycaster::volume::Layout::Bricked { side: 16 },
-        raycaster::volume::SampleType::U8,
-        raycaster::volume::Content::Scalar,
-        raycaster::volume::Format::Extended,
-    );
-    raycaster::generate::generate(
-        kind.build([size; 3], 1).as_ref(),
-        &header,
-        path,
-        &Default::default(),
-        &raycaster::job::Job::silent(),
-    )
-    .unwrap();
-}
-
 /// Presses and releases a key with the given text.
 fn key(v: &Viewer, text: &str) {
     let window = v.ui().window();
@@ -88,12 +67,7 @@ fn crop_of(v: &Viewer) -> Option<CropBox> {
 
 #[test]
 fn the_viewer_cuts_slices_and_remembers_files() {
-    slint::platform::set_platform(Box::new(TestingBackend::new(TestingBackendOptions {
-        mock_time: true,
-        threading: false,
-        renderer_name: Some("software".into()),
-    })))
-    .expect("the first platform of this process");
+    support::headless_platform();
     let dir = tempfile::tempdir().unwrap();
     let config = dir.path().join("config");
     support::private_config(&config);

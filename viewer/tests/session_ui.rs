@@ -11,7 +11,6 @@ use std::time::{Duration, Instant};
 mod support;
 use support::{element, wait_for_frame};
 
-use i_slint_backend_testing::{TestingBackend, TestingBackendOptions};
 use raycaster::render::{Mode, PRESETS, RenderVolume, RgbImage, render_sequential};
 use raycaster::session::Session;
 use raycaster::synth::SceneKind;
@@ -96,12 +95,7 @@ fn lit(pixels: &[u8]) -> usize {
 
 #[test]
 fn sessions_save_render_and_restore_the_picture() {
-    slint::platform::set_platform(Box::new(TestingBackend::new(TestingBackendOptions {
-        mock_time: true,
-        threading: false,
-        renderer_name: Some("software".into()),
-    })))
-    .expect("the first platform of this process");
+    support::headless_platform();
     let dir = tempfile::tempdir().unwrap();
     support::private_config(dir.path());
 

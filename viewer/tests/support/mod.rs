@@ -1,11 +1,45 @@
-//! What the headless viewer tests share: waiting for frames, finding elements
-//! and a private configuration folder.
+//! What the headless viewer tests share: the testing platform, waiting for
+//! frames, finding elements, a private configuration folder and volume files.
 
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use i_slint_backend_testing::ElementHandle;
+use i_slint_backend_testing::{ElementHandle, TestingBackend, TestingBackendOptions};
+use raycaster::synth::SceneKind;
 use viewer::Viewer;
+
+/// Installs Slint's testing platform: software renderer, mocked time, no
+/// threads. Call it once, first, in the test process.
+pub fn headless_platform() {
+    slint::platform::set_platform(Box::new(TestingBackend::new(TestingBackendOptions {
+        mock_time: true,
+        threading: false,
+        renderer_name: Some("software".into()),
+    })))
+    .expect("the first platform of this process");
+}
+
+/// Writes the built-in `kind` scene of `size³` voxels as a bricked u8 `.vol` file.
+// Not every test file writes volumes.
+#[allow(dead_code)]
+pub fn generate_file(path: &Path, kind: SceneKind, size: u32) {
+    let header = raycaster::volume::Header::new(
+        [size; 3],
+        [1.0; 3],
+        raycaster::volume::Layout::Bricked { side: 16 },
+        raycaster::volume::SampleType::U8,
+        raycaster::volume::Content::Scalar,
+        raycaster::volume::Format::Extended,
+    );
+    raycaster::generate::generate(
+        kind.build([size; 3], 1).as_ref(),
+        &header,
+        path,
+        &Default::default(),
+        &raycaster::job::Job::silent(),
+    )
+    .unwrap();
+}
 
 /// Pumps until the newest frame is on screen.
 pub fn wait_for_frame(v: &Viewer) {
