@@ -7,7 +7,7 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 mod support;
-use support::{element, wait_for_frame};
+use support::{element, generate_file, wait_for_frame};
 
 use raycaster::render::SegmentScene;
 use raycaster::synth::SceneKind;
@@ -29,27 +29,6 @@ fn wait_until(v: &Viewer, done: impl Fn(&Viewer) -> bool) {
         std::thread::sleep(Duration::from_millis(5));
     }
     wait_for_frame(v);
-}
-
-/// Writes the built-in `kind` scene of `size³` voxels as a bricked `.vol` file
-/// (with its resolution pyramid, when it is large enough for one).
-fn generate_file(path: &Path, kind: SceneKind, size: u32) {
-    let header = raycaster::volume::Header::new(
-        [size; 3],
-        [1.0; 3],
-        raycaster::volume::Layout::Bricked { side: 16 },
-        raycaster::volume::SampleType::U8,
-        raycaster::volume::Content::Scalar,
-        raycaster::volume::Format::Extended,
-    );
-    raycaster::generate::generate(
-        kind.build([size; 3], 1).as_ref(),
-        &header,
-        path,
-        &Default::default(),
-        &raycaster::job::Job::silent(),
-    )
-    .unwrap();
 }
 
 /// The canvas image as RGB triples, with its size.

@@ -19,7 +19,8 @@ pub fn headless_platform() {
     .expect("the first platform of this process");
 }
 
-/// Writes the built-in `kind` scene of `size³` voxels as a bricked u8 `.vol` file.
+/// Writes the built-in `kind` scene of `size³` voxels as a bricked u8 `.vol` file
+/// (with its resolution pyramid, when it is large enough for one).
 // Not every test file writes volumes.
 #[allow(dead_code)]
 pub fn generate_file(path: &Path, kind: SceneKind, size: u32) {
