@@ -484,6 +484,13 @@ fn navigator_for(v: &LoadedVolume) -> Navigator {
     Navigator::from_home(raycaster::render::Orbit::default_view(lo, hi).with_axes(axes))
 }
 
+/// The slice views' fitted window (stored values): the volume's fitted domain,
+/// else its sample type's whole range.
+fn fitted_window(v: &LoadedVolume) -> [f32; 2] {
+    v.domain
+        .unwrap_or([0.0, f32::from(v.volume.sample_type().max_value())])
+}
+
 fn preset_for(v: &LoadedVolume, name: &str) -> TransferFunction {
     let mut tf = TransferFunction::preset(name)
         .unwrap_or_else(|_| TransferFunction::preset("grayscale").expect("built-in preset"));
@@ -947,10 +954,7 @@ impl Controller {
         let Some(current) = &st.current else { return };
         let volume = &current.volume.volume;
         let units = volume.value_units();
-        let fitted = current
-            .volume
-            .domain
-            .unwrap_or([0.0, f32::from(volume.sample_type().max_value())]);
+        let fitted = fitted_window(&current.volume);
         let index = ui.get_slice_window_index().max(0) as usize;
         let window = match st.custom_window {
             Some(custom) if index + 1 == crate::slices::window_names().len() => custom,
@@ -1081,11 +1085,7 @@ impl Controller {
                 return;
             }
             let Some(current) = &st.current else { return };
-            let volume = &current.volume.volume;
-            let [lo, hi] = current
-                .volume
-                .domain
-                .unwrap_or([0.0, f32::from(volume.sample_type().max_value())]);
+            let [lo, hi] = fitted_window(&current.volume);
             st.custom_window = Some(crate::slices::dragged_window(
                 st.window_drag_base,
                 dx,
