@@ -7,6 +7,7 @@
 
 use glam::Vec3;
 
+use super::cell_cache::CellCache;
 use super::local::{LocalCompositor, with_local};
 use super::march::BrickContext;
 use super::packet::PacketWork;
@@ -103,6 +104,8 @@ pub(crate) struct SamplePoint<'s, T: Sample> {
     pub(crate) ray: &'s PixelRay,
     pub(crate) brick: &'s BrickContext<'s, T>,
     pub(crate) volume: &'s VolumeSampler<'s, T>,
+    /// The ray's current cell, with its corners and (once asked) differences.
+    pub(crate) cell: &'s CellCache,
     pub(crate) gradient_scale: Vec3,
 }
 
@@ -117,7 +120,7 @@ impl<T: Sample> SamplePoint<'_, T> {
     /// The gradient at voxel position `p` (near the sample).
     #[inline]
     pub fn gradient_at(&self, p: Vec3) -> Vec3 {
-        self.volume.gradient(&self.brick.sampler, p) * self.gradient_scale
+        self.cell.gradient(self.volume, &self.brick.sampler, p) * self.gradient_scale
     }
 
     /// The unit world direction of the ray.

@@ -9,6 +9,7 @@
 
 use glam::Vec3;
 
+use super::cell_cache::CellCache;
 use super::compositor::{Compositor, SamplePoint};
 use super::counters::Counters;
 use super::pixel::{PixelRay, PixelState};
@@ -128,6 +129,7 @@ pub(crate) fn march_brick<T: Sample, C: Compositor>(
         let mut stopped_before = None;
         let cells = if ess { brick.cells.as_ref() } else { None };
         let mut runs = SampleRuns::new(c, ray, cells, last_voxel, first, last);
+        let mut cell = CellCache::default();
         'runs: for run in runs.by_ref() {
             if C::STATE_SKIPS && ess && c.below_interest(&acc, run.hi) {
                 skipped += u64::from(run.len());
@@ -136,7 +138,7 @@ pub(crate) fn march_brick<T: Sample, C: Compositor>(
             for k in run.first..run.end {
                 let position = ray.position(k, last_voxel);
                 let sample = SamplePoint {
-                    value: brick.sampler.value(position),
+                    value: cell.value(&brick.sampler, position),
                     position,
                     index: k,
                     fraction: if k == last_sample {
@@ -147,6 +149,7 @@ pub(crate) fn march_brick<T: Sample, C: Compositor>(
                     ray,
                     brick,
                     volume,
+                    cell: &cell,
                     gradient_scale: plan.gradient_scale,
                 };
                 c.sample(&mut acc, &sample);

@@ -9,6 +9,7 @@
 //! change the image.
 
 mod camera;
+mod cell_cache;
 mod cells;
 mod clip;
 mod compositor;

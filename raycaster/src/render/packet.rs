@@ -391,9 +391,9 @@ fn step<T: Sample, G: Gather>(
 }
 
 /// The scaled gradient of every visible lane: from the brick's 4×4×4
-/// neighbourhood in lanes where it lies inside the brick (the scalar
-/// `gradient_interior`'s arithmetic), else one lane at a time through the
-/// volume sampler.
+/// neighbourhood in lanes where it lies inside the brick (the arithmetic of the
+/// scalar `corner_differences` and `gradient_from_differences`), else one lane
+/// at a time through the volume sampler.
 #[inline(always)]
 fn gradients<T: Sample, G: Gather>(
     plan: &FramePlan,
@@ -408,9 +408,8 @@ fn gradients<T: Sample, G: Gather>(
     let extent = geometry.extent;
     let [sx, sy, _] = geometry.strides;
     let samples = sampler.samples();
-    // Per lane: the neighbourhood's z-runs the six reads use, as in
-    // `gradient_interior`: runs (1,1) (1,2) (2,1) (2,2) whole, the others'
-    // middle pair.
+    // Per lane: the neighbourhood's z-runs the corner differences use: runs
+    // (1,1) (1,2) (2,1) (2,2) whole, the others' middle pair.
     let mut interior = [false; LANES];
     let mut fallback: [Vec3; LANES] = [Vec3::ZERO; LANES];
     let mut cell_frac = [[0.0f32; LANES]; 3];
@@ -469,26 +468,49 @@ fn gradients<T: Sample, G: Gather>(
             }
         }
     }
+    // The central differences at the cell's corners (the scalar
+    // `corner_differences`, corner order x, y, z slowest to fastest), then
+    // trilinear per axis (`gradient_from_differences`).
+    let sub = |a: Lanes, b: Lanes| -> Lanes { each(|i| a[i] - b[i]) };
+    let [r11, r12, r21, r22] = &whole_runs;
+    // The block's x-y columns at the cell's corners, in whole runs (z − 1 ..= z + 2).
+    let column = |x: usize, y: usize| match (x, y) {
+        (1, 1) => r11,
+        (1, 2) => r12,
+        (2, 1) => r21,
+        _ => r22,
+    };
+    // The middle pair (the corners' z) of the eight outer columns, as `MID` lists them.
+    let outer = |x: usize, y: usize| {
+        let r = MID
+            .iter()
+            .position(|&m| m == (x, y))
+            .expect("an outer column");
+        &mid_runs[r]
+    };
+    let mut d = [[[0.0f32; LANES]; 8]; 3];
+    for c in 0..8 {
+        let (x, y, z) = (1 + (c >> 2), 1 + ((c >> 1) & 1), 1 + (c & 1));
+        let at = |x: usize, y: usize, z: usize| -> Lanes {
+            if (1..=2).contains(&x) && (1..=2).contains(&y) {
+                column(x, y)[z]
+            } else {
+                outer(x, y)[z - 1]
+            }
+        };
+        d[0][c] = sub(at(x + 1, y, z), at(x - 1, y, z));
+        d[1][c] = sub(at(x, y + 1, z), at(x, y - 1, z));
+        d[2][c] = sub(at(x, y, z + 1), at(x, y, z - 1));
+    }
     let [fx, fy, fz] = cell_frac;
-    // z-lerp of a whole run for the cell below (0), itself (1), above (2).
-    let zl = |r: &[Lanes; 4], k: usize| lerp(r[k], r[k + 1], fz);
-    let zm = |r: &[Lanes; 2]| lerp(r[0], r[1], fz);
-    let tri = |c00: Lanes, c01: Lanes, c10: Lanes, c11: Lanes| {
+    let tri = |c: &[Lanes; 8]| {
+        let c00 = lerp(c[0], c[1], fz);
+        let c01 = lerp(c[2], c[3], fz);
+        let c10 = lerp(c[4], c[5], fz);
+        let c11 = lerp(c[6], c[7], fz);
         lerp(lerp(c00, c01, fy), lerp(c10, c11, fy), fx)
     };
-    let [r11, r12, r21, r22] = &whole_runs;
-    let (m01, m02) = (zm(&mid_runs[0]), zm(&mid_runs[1]));
-    let (m10, m13) = (zm(&mid_runs[2]), zm(&mid_runs[3]));
-    let (m20, m23) = (zm(&mid_runs[4]), zm(&mid_runs[5]));
-    let (m31, m32) = (zm(&mid_runs[6]), zm(&mid_runs[7]));
-    let (m11, m12, m21, m22) = (zl(r11, 1), zl(r12, 1), zl(r21, 1), zl(r22, 1));
-    let sub = |a: Lanes, b: Lanes| -> Lanes { each(|i| a[i] - b[i]) };
-    let gx = sub(tri(m21, m22, m31, m32), tri(m01, m02, m11, m12));
-    let gy = sub(tri(m12, m13, m22, m23), tri(m10, m11, m20, m21));
-    let gz = sub(
-        tri(zl(r11, 2), zl(r12, 2), zl(r21, 2), zl(r22, 2)),
-        tri(zl(r11, 0), zl(r12, 0), zl(r21, 0), zl(r22, 0)),
-    );
+    let (gx, gy, gz) = (tri(&d[0]), tri(&d[1]), tri(&d[2]));
     let scale = plan.gradient_scale.to_array();
     let raw = [gx, gy, gz];
     each(|a| {

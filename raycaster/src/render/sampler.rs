@@ -6,12 +6,12 @@
 //! `[0, dims − 1]`). Every read is clamped to the volume, so nothing outside it is
 //! ever addressed.
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 
 use crate::volume::{BlockGrid, BrickView, Layout, Sample, TypedVolume};
 
 /// How a brick's samples are addressed: what [`BrickSampler::value_local`] and
-/// [`BrickSampler::gradient_interior`] compute their reads from.
+/// [`BrickSampler::corner_differences`] compute their reads from.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct CellGeometry {
     /// Distance in samples between neighbours along x, y, z.
@@ -91,71 +91,171 @@ impl<'a, T: Sample> BrickSampler<'a, T> {
     /// The trilinearly interpolated value at local position `l` (inside the brick).
     #[inline]
     pub fn value_local(&self, l: Vec3) -> f32 {
-        let [sx, sy, _] = self.view.strides();
         // Float → int casts saturate, so a hair below 0 becomes cell 0.
-        let ix = (l.x as u32).min(self.max_cell[0]);
-        let iy = (l.y as u32).min(self.max_cell[1]);
-        let iz = (l.z as u32).min(self.max_cell[2]);
-        let (fx, fy, fz) = (l.x - ix as f32, l.y - iy as f32, l.z - iz as f32);
+        let cell = [
+            (l.x as u32).min(self.max_cell[0]),
+            (l.y as u32).min(self.max_cell[1]),
+            (l.z as u32).min(self.max_cell[2]),
+        ];
+        trilinear(&self.corners(cell), cell_fraction(l, cell))
+    }
+
+    /// Largest lower cell corner per axis: local cells `0..=max_cell`.
+    #[inline]
+    pub(crate) fn max_cell(&self) -> [u32; 3] {
+        self.max_cell
+    }
+
+    /// The eight corner values of local cell `cell` (each coordinate at most
+    /// [`Self::max_cell`]), in [`Corners`] order.
+    #[inline]
+    pub(crate) fn corners(&self, [ix, iy, iz]: [u32; 3]) -> Corners {
+        let [sx, sy, _] = self.view.strides();
         let base = ix as usize * sx + iy as usize * sy + iz as usize;
         let [ox, oy, oz] = self.corner_stride;
         // One bounds check for the whole cell: every corner lies in this slice.
         let s = &self.view.samples_from(base)[..=ox + oy + oz];
         let v = |o: usize| f32::from(s[o].to_u16());
-        let c00 = lerp(v(0), v(oz), fz);
-        let c01 = lerp(v(oy), v(oy + oz), fz);
-        let c10 = lerp(v(ox), v(ox + oz), fz);
-        let c11 = lerp(v(ox + oy), v(ox + oy + oz), fz);
-        lerp(lerp(c00, c01, fy), lerp(c10, c11, fy), fx)
+        [
+            v(0),
+            v(oz),
+            v(oy),
+            v(oy + oz),
+            v(ox),
+            v(ox + oz),
+            v(ox + oy),
+            v(ox + oy + oz),
+        ]
     }
 
-    /// The central-difference gradient at local position `l` when the 4×4×4 voxels
-    /// around its cell lie in this brick, else `None` (near the brick's faces).
-    ///
-    /// It equals [`VolumeSampler::gradient`] there — the same six trilinear reads
-    /// `f(l ± e)`, in the same order of operations — but loads each z-run of the
-    /// neighbourhood once, with one bounds check per run, instead of addressing
-    /// 48 voxels one cell at a time.
+    /// The central differences at the corners of local cell `cell` when the
+    /// 4×4×4 voxels around it lie in this brick, else `None` (near the brick's
+    /// faces). Each z-run of the neighbourhood is loaded once, with one bounds
+    /// check per run.
     #[inline]
-    pub fn gradient_interior(&self, l: Vec3) -> Option<Vec3> {
+    pub(crate) fn corner_differences(&self, [ix, iy, iz]: [u32; 3]) -> Option<CornerDifferences> {
         let extent = self.view.extent();
-        if !(l.x >= 1.0 && l.y >= 1.0 && l.z >= 1.0) {
+        if ix == 0 || iy == 0 || iz == 0 {
             return None;
         }
-        let (ix, iy, iz) = (l.x as u32, l.y as u32, l.z as u32);
         if ix + 2 >= extent[0] || iy + 2 >= extent[1] || iz + 2 >= extent[2] {
             return None;
         }
-        let (fx, fy, fz) = (l.x - ix as f32, l.y - iy as f32, l.z - iz as f32);
         let [sx, sy, _] = self.view.strides();
         let base = (ix - 1) as usize * sx + (iy - 1) as usize * sy + (iz - 1) as usize;
         let block = &self.view.samples_from(base)[..3 * sx + 3 * sy + 4];
-        // The z-run at block column (x, y): voxels z − 1 ..= z + 2 of the cell.
-        let run = |x: usize, y: usize| -> [f32; 4] {
+        let f = |v: T| f32::from(v.to_u16());
+        let run = |x: usize, y: usize| {
             let r = &block[x * sx + y * sy..][..4];
-            let f = |v: T| f32::from(v.to_u16());
             [f(r[0]), f(r[1]), f(r[2]), f(r[3])]
         };
-        // z-lerps of a run for the cell one below (0), the cell itself (1), one above (2).
-        let zl = |r: &[f32; 4], k: usize| lerp(r[k], r[k + 1], fz);
-        // Trilinear value from the z-lerps of a cell's four columns.
-        let tri = |c00: f32, c01: f32, c10: f32, c11: f32| {
-            lerp(lerp(c00, c01, fy), lerp(c10, c11, fy), fx)
+        let pair = |x: usize, y: usize| {
+            let r = &block[x * sx + y * sy + 1..][..2];
+            [f(r[0]), f(r[1])]
         };
-        // The twelve columns the six reads touch (the block's corners are unused),
-        // written out: array `map`s here do not inline and cost twice the time.
-        let (r11, r12, r21, r22) = (run(1, 1), run(1, 2), run(2, 1), run(2, 2));
-        let (m01, m02) = (zl(&run(0, 1), 1), zl(&run(0, 2), 1));
-        let (m10, m13) = (zl(&run(1, 0), 1), zl(&run(1, 3), 1));
-        let (m20, m23) = (zl(&run(2, 0), 1), zl(&run(2, 3), 1));
-        let (m31, m32) = (zl(&run(3, 1), 1), zl(&run(3, 2), 1));
-        let (m11, m12, m21, m22) = (zl(&r11, 1), zl(&r12, 1), zl(&r21, 1), zl(&r22, 1));
-        let gx = tri(m21, m22, m31, m32) - tri(m01, m02, m11, m12);
-        let gy = tri(m12, m13, m22, m23) - tri(m10, m11, m20, m21);
-        let gz = tri(zl(&r11, 2), zl(&r12, 2), zl(&r21, 2), zl(&r22, 2))
-            - tri(zl(&r11, 0), zl(&r12, 0), zl(&r21, 0), zl(&r22, 0));
-        Some(Vec3::new(gx, gy, gz) * 0.5)
+        Some(differences(&Neighbourhood {
+            inner: [[run(1, 1), run(1, 2)], [run(2, 1), run(2, 2)]],
+            x_below: [pair(0, 1), pair(0, 2)],
+            x_above: [pair(3, 1), pair(3, 2)],
+            y_below: [pair(1, 0), pair(2, 0)],
+            y_above: [pair(1, 3), pair(2, 3)],
+        }))
     }
+}
+
+/// The 32 voxels around a cell that its corners' central differences read, in
+/// z-runs: block coordinates with the cell's lower corner at (1, 1, 1).
+pub(crate) struct Neighbourhood {
+    /// Columns (1..=2, 1..=2), z from 0 to 3: `inner[x − 1][y − 1][z]`.
+    pub inner: [[[f32; 4]; 2]; 2],
+    /// Column (0, 1..=2), z 1..=2: `x_below[y − 1][z − 1]`.
+    pub x_below: [[f32; 2]; 2],
+    /// Column (3, 1..=2), z 1..=2.
+    pub x_above: [[f32; 2]; 2],
+    /// Column (1..=2, 0), z 1..=2: `y_below[x − 1][z − 1]`.
+    pub y_below: [[f32; 2]; 2],
+    /// Column (1..=2, 3), z 1..=2.
+    pub y_above: [[f32; 2]; 2],
+}
+
+/// The central differences `v(c + e) − v(c − e)` along x, y, z at a cell's
+/// corners, in [`Corners`] order.
+pub(crate) type CornerDifferences = [Vec3A; 8];
+
+/// The corner differences of a cell from its [`Neighbourhood`].
+#[inline(always)]
+pub(crate) fn differences(n: &Neighbourhood) -> CornerDifferences {
+    let mut d = [Vec3A::ZERO; 8];
+    for (c, out) in d.iter_mut().enumerate() {
+        let (x, y, z) = (c >> 2, (c >> 1) & 1, c & 1);
+        let column = &n.inner[x][y];
+        let dx = if x == 0 {
+            n.inner[1][y][z + 1] - n.x_below[y][z]
+        } else {
+            n.x_above[y][z] - n.inner[0][y][z + 1]
+        };
+        let dy = if y == 0 {
+            n.inner[x][1][z + 1] - n.y_below[x][z]
+        } else {
+            n.y_above[x][z] - n.inner[x][0][z + 1]
+        };
+        let dz = column[z + 2] - column[z];
+        *out = Vec3A::new(dx, dy, dz);
+    }
+    d
+}
+
+/// A cell's eight corner values, x slowest: (0,0,0), (0,0,1), (0,1,0), (0,1,1),
+/// (1,0,0), (1,0,1), (1,1,0), (1,1,1).
+pub(crate) type Corners = [f32; 8];
+
+/// The position of local point `l` inside its cell `cell`, per axis.
+#[inline]
+pub(crate) fn cell_fraction(l: Vec3, cell: [u32; 3]) -> [f32; 3] {
+    // Through i32: one instruction per axis in the baseline instruction set
+    // (the same value as `as f32` of the u32, for any cell of a volume).
+    [
+        l.x - cell[0] as i32 as f32,
+        l.y - cell[1] as i32 as f32,
+        l.z - cell[2] as i32 as f32,
+    ]
+}
+
+/// The cell holding local point `l` (`l` ≥ 0: its coordinates' integer
+/// parts); a coordinate below zero gives a cell no brick has.
+#[inline]
+pub(crate) fn cell_of(l: Vec3) -> [u32; 3] {
+    [l.x as i32 as u32, l.y as i32 as u32, l.z as i32 as u32]
+}
+
+/// Trilinear interpolation of a cell's corners at `[fx, fy, fz]`: z, then y,
+/// then x (every kernel interpolates in this order, so their values agree to the
+/// bit).
+#[inline]
+pub(crate) fn trilinear(c: &Corners, [fx, fy, fz]: [f32; 3]) -> f32 {
+    let c00 = lerp(c[0], c[1], fz);
+    let c01 = lerp(c[2], c[3], fz);
+    let c10 = lerp(c[4], c[5], fz);
+    let c11 = lerp(c[6], c[7], fz);
+    lerp(lerp(c00, c01, fy), lerp(c10, c11, fy), fx)
+}
+
+/// The central-difference gradient inside a cell from the differences at its
+/// corners ([`differences`]): trilinear per axis (in one vector, the three axes'
+/// operations each as [`trilinear`]'s), halved.
+///
+/// Trilinear interpolation is linear in the corner values and a shift by one
+/// voxel keeps the weights, so this is `(f(p + e) − f(p − e)) / 2` of the
+/// trilinear field `f` — six trilinear reads — computed from the cell's
+/// 32-voxel neighbourhood, and once per cell rather than once per sample.
+#[inline]
+pub(crate) fn gradient_from_differences(d: &CornerDifferences, [fx, fy, fz]: [f32; 3]) -> Vec3 {
+    let lerp3 = |a: Vec3A, b: Vec3A, t: f32| a + (b - a) * t;
+    let c00 = lerp3(d[0], d[1], fz);
+    let c01 = lerp3(d[2], d[3], fz);
+    let c10 = lerp3(d[4], d[5], fz);
+    let c11 = lerp3(d[6], d[7], fz);
+    Vec3::from(lerp3(lerp3(c00, c01, fy), lerp3(c10, c11, fy), fx) * 0.5)
 }
 
 #[inline]
@@ -174,6 +274,9 @@ pub struct VolumeSampler<'a, T: Sample> {
     whole: Option<BrickSampler<'a, T>>,
     /// The last voxel of the volume.
     last: Vec3,
+    /// Largest lower corner of a cell whose neighbourhood lies in the volume
+    /// (`dims − 3` per axis; cells from 1 to it have central differences).
+    last_inner_cell: [i64; 3],
 }
 
 impl<'a, T: Sample> VolumeSampler<'a, T> {
@@ -196,6 +299,7 @@ impl<'a, T: Sample> VolumeSampler<'a, T> {
             grid,
             whole,
             last: Vec3::from(dims.map(|d| (d - 1) as f32)),
+            last_inner_cell: dims.map(|d| i64::from(d) - 3),
         }
     }
 
@@ -217,17 +321,18 @@ impl<'a, T: Sample> VolumeSampler<'a, T> {
     }
 
     /// The gradient at `p` by central differences over one voxel,
-    /// `(f(p + e) − f(p − e)) / 2` per axis, in raw value per voxel; one-sided at
-    /// the volume's faces. Reads come from `local` when it covers them.
+    /// `(f(p + e) − f(p − e)) / 2` per axis, in raw value per voxel; one-sided in
+    /// the cells at the volume's faces. Reads come from `local` when it covers
+    /// them.
+    ///
+    /// Inside, it is [`gradient_from_differences`] of `p`'s cell: a function of
+    /// `p` and the voxels alone, whichever brick asks (the cell caches of the
+    /// scalar kernel and the packet kernels compute the same bits).
     #[inline]
     pub fn gradient(&self, local: &BrickSampler<'a, T>, p: Vec3) -> Vec3 {
-        if let Some(g) = local.gradient_interior(p - local.origin) {
-            return g;
-        }
-        // Linear storage: near a brick's face the whole volume usually still
-        // holds the neighbourhood.
-        if let Some(g) = self.whole.as_ref().and_then(|w| w.gradient_interior(p)) {
-            return g;
+        let cell = cell_of(p);
+        if let Some(d) = self.corner_differences(local, cell) {
+            return gradient_from_differences(&d, cell_fraction(p, cell));
         }
         let mut g = [0f32; 3];
         for (a, e) in [Vec3::X, Vec3::Y, Vec3::Z].into_iter().enumerate() {
@@ -239,6 +344,46 @@ impl<'a, T: Sample> VolumeSampler<'a, T> {
             }
         }
         Vec3::from(g)
+    }
+
+    /// The central differences at the corners of volume cell `cell`
+    /// ([`BrickSampler::corner_differences`]), read from `local` where it holds
+    /// the cell's neighbourhood; `None` for the cells at the volume's faces,
+    /// whose neighbourhood leaves the volume.
+    #[inline]
+    pub(crate) fn corner_differences(
+        &self,
+        local: &BrickSampler<'a, T>,
+        cell: [u32; 3],
+    ) -> Option<CornerDifferences> {
+        let inner = self.last_inner_cell;
+        if (0..3).any(|a| cell[a] == 0 || i64::from(cell[a]) > inner[a]) {
+            return None;
+        }
+        // Linear storage: the whole volume holds every neighbourhood.
+        if let Some(whole) = &self.whole {
+            return whole.corner_differences(cell);
+        }
+        let origin = local.view.origin();
+        if (0..3).all(|a| cell[a] >= origin[a])
+            && let Some(d) = local.corner_differences([0, 1, 2].map(|a| cell[a] - origin[a]))
+        {
+            return Some(d);
+        }
+        // Bricked storage across a brick's face: voxel by voxel.
+        let v = |x: u32, y: u32, z: u32| {
+            let g = [cell[0] + x - 1, cell[1] + y - 1, cell[2] + z - 1];
+            f32::from(self.volume.voxel(g).to_u16())
+        };
+        let run = |x: u32, y: u32| [v(x, y, 0), v(x, y, 1), v(x, y, 2), v(x, y, 3)];
+        let pair = |x: u32, y: u32| [v(x, y, 1), v(x, y, 2)];
+        Some(differences(&Neighbourhood {
+            inner: [[run(1, 1), run(1, 2)], [run(2, 1), run(2, 2)]],
+            x_below: [pair(0, 1), pair(0, 2)],
+            x_above: [pair(3, 1), pair(3, 2)],
+            y_below: [pair(1, 0), pair(2, 0)],
+            y_above: [pair(1, 3), pair(2, 3)],
+        }))
     }
 
     /// The value at `q` (inside the volume), from `local` when it covers `q`.
@@ -296,8 +441,29 @@ mod tests {
         }
     }
 
+    /// `samples` (linear, `dims`) stored in bricks of side `side`.
+    fn to_bricks(samples: &[u16], dims: [u32; 3], side: u32) -> Vec<u16> {
+        let linear = TypedVolume::new(samples, dims, Layout::Linear);
+        let grid = BlockGrid::new(dims, side);
+        let s = side as usize;
+        let mut out = vec![0u16; grid.iter().count() * s * s * s];
+        for b in grid.iter() {
+            let (o, e) = (grid.origin(b), grid.extent(b));
+            let start = grid.index(b) as usize * s * s * s;
+            for x in 0..e[0] {
+                for y in 0..e[1] {
+                    for z in 0..e[2] {
+                        let at = start + (x as usize * s + y as usize) * s + z as usize;
+                        out[at] = linear.voxel([o[0] + x, o[1] + y, o[2] + z]);
+                    }
+                }
+            }
+        }
+        out
+    }
+
     #[test]
-    fn the_interior_gradient_equals_central_differences_of_trilinear_reads() {
+    fn the_gradient_equals_central_differences_of_trilinear_reads_whichever_brick_asks() {
         let dims = [20, 18, 22];
         let mut seed = 0x2545_f491_u32;
         let mut next = || {
@@ -307,37 +473,55 @@ mod tests {
             seed
         };
         let samples: Vec<u16> = (0..20 * 18 * 22).map(|_| (next() % 4096) as u16).collect();
-        let vol = TypedVolume::new(&samples, dims, Layout::Linear);
-        let sampler = VolumeSampler::new(vol);
-        let grid = BlockGrid::new(dims, 8);
-        let (mut interior, mut total) = (0, 0);
-        for b in grid.iter() {
-            let brick = BrickSampler::new(vol.brick(&grid, b));
-            let o = Vec3::from(grid.origin(b).map(|v| v as f32));
-            let e = Vec3::from(grid.extent(b).map(|v| (v - 1) as f32));
-            for _ in 0..200 {
-                let f = Vec3::new(
-                    (next() % 10_000) as f32 / 9_999.0,
-                    (next() % 10_000) as f32 / 9_999.0,
-                    (next() % 10_000) as f32 / 9_999.0,
-                );
-                let p = o + f * e;
-                total += 1;
-                let Some(fast) = brick.gradient_interior(p - o) else {
-                    continue;
-                };
-                interior += 1;
-                let central = |a: Vec3| (sampler.value(p + a) - sampler.value(p - a)) / 2.0;
-                let expected = Vec3::new(central(Vec3::X), central(Vec3::Y), central(Vec3::Z));
-                assert!(
-                    (fast - expected).abs().max_element() < 1e-2,
-                    "{p}: {fast} vs {expected}"
-                );
-                assert_eq!(sampler.gradient(&brick, p), fast);
+        let linear = TypedVolume::new(&samples, dims, Layout::Linear);
+        let bricked_samples = to_bricks(&samples, dims, 8);
+        let bricked = TypedVolume::new(&bricked_samples, dims, Layout::Bricked { side: 8 });
+        let whole = VolumeSampler::new(linear);
+        let whole_brick = BrickSampler::new(linear.brick(&BlockGrid::new(dims, 22), [0, 0, 0]));
+        let (mut inside, mut total, mut from_neighbours) = (0, 0, 0);
+        for volume in [linear, bricked] {
+            let sampler = VolumeSampler::new(volume);
+            let grid = volume.natural_grid(8);
+            for b in grid.iter() {
+                let brick = BrickSampler::new(volume.brick(&grid, b));
+                let o = Vec3::from(grid.origin(b).map(|v| v as f32));
+                let e = Vec3::from(grid.extent(b).map(|v| (v - 1) as f32));
+                for _ in 0..200 {
+                    let f = Vec3::new(
+                        (next() % 10_000) as f32 / 9_999.0,
+                        (next() % 10_000) as f32 / 9_999.0,
+                        (next() % 10_000) as f32 / 9_999.0,
+                    );
+                    let p = o + f * e;
+                    total += 1;
+                    let g = sampler.gradient(&brick, p);
+                    // A function of the position alone: the same bits from the
+                    // brick, from the whole volume, in either storage.
+                    assert_eq!(g, whole.gradient(&whole_brick, p), "{p}");
+                    let cell = [p.x as u32, p.y as u32, p.z as u32];
+                    if sampler.corner_differences(&brick, cell).is_none() {
+                        continue;
+                    }
+                    inside += 1;
+                    let local = [0, 1, 2].map(|a| cell[a] - o[a] as u32);
+                    if brick.corner_differences(local).is_none() {
+                        from_neighbours += 1;
+                    }
+                    let central = |a: Vec3| (sampler.value(p + a) - sampler.value(p - a)) / 2.0;
+                    let expected = Vec3::new(central(Vec3::X), central(Vec3::Y), central(Vec3::Z));
+                    assert!(
+                        (g - expected).abs().max_element() < 1e-2,
+                        "{p}: {g} vs {expected}"
+                    );
+                }
             }
         }
-        assert!(interior > total / 4, "{interior} of {total} interior");
-        assert!(interior < total, "the faces take the general path");
+        assert!(inside > total / 2, "{inside} of {total} inside");
+        assert!(inside < total, "the volume's faces take the one-sided path");
+        assert!(
+            from_neighbours > total / 10,
+            "{from_neighbours} across brick faces"
+        );
     }
 
     #[test]
