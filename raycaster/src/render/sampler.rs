@@ -185,8 +185,7 @@ pub(crate) type CornerDifferences = [Vec3A; 8];
 /// The corner differences of a cell from its [`Neighbourhood`].
 #[inline(always)]
 pub(crate) fn differences(n: &Neighbourhood) -> CornerDifferences {
-    let mut d = [Vec3A::ZERO; 8];
-    for (c, out) in d.iter_mut().enumerate() {
+    std::array::from_fn(|c| {
         let (x, y, z) = (c >> 2, (c >> 1) & 1, c & 1);
         let column = &n.inner[x][y];
         let dx = if x == 0 {
@@ -200,9 +199,8 @@ pub(crate) fn differences(n: &Neighbourhood) -> CornerDifferences {
             n.y_above[x][z] - n.inner[x][0][z + 1]
         };
         let dz = column[z + 2] - column[z];
-        *out = Vec3A::new(dx, dy, dz);
-    }
-    d
+        Vec3A::new(dx, dy, dz)
+    })
 }
 
 /// A cell's eight corner values, x slowest: (0,0,0), (0,0,1), (0,1,0), (0,1,1),
