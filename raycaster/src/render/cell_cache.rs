@@ -11,7 +11,7 @@
 
 use std::cell::Cell;
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 
 use super::sampler::{
     BrickSampler, CornerDifferences, Corners, VolumeSampler, cell_fraction, cell_of,
@@ -35,6 +35,9 @@ enum Differences {
 pub(crate) struct CellCache {
     /// The cell's lower corner in brick-local voxels (`u32::MAX`: none yet).
     cell: [u32; 3],
+    /// The same corner as floats (infinite: none yet), for the test of a
+    /// position against the cell without conversions.
+    lower: Vec3A,
     /// Its corner values.
     corners: Corners,
     /// The central differences at its corners, when `state` is `Known`.
@@ -46,27 +49,54 @@ impl Default for CellCache {
     fn default() -> Self {
         CellCache {
             cell: [u32::MAX; 3],
+            lower: Vec3A::INFINITY,
             corners: [0.0; 8],
-            differences: Cell::new([glam::Vec3A::ZERO; 8]),
+            differences: Cell::new([Vec3A::ZERO; 8]),
             state: Cell::new(Differences::Unknown),
         }
     }
 }
 
 impl CellCache {
+    /// Where local position `l` lies in the cached cell (its [`cell_fraction`]),
+    /// if it lies there.
+    ///
+    /// `l − lower` is exact for positions in or near the brick, and a rounding
+    /// never changes a difference's sign, so the test is `cell_of(l) == cell`
+    /// except where the difference rounds up to 1 (a position a hair below the
+    /// next cell), which is merely not cached.
+    #[inline(always)]
+    fn fraction_in_cell(&self, l: Vec3A) -> Option<[f32; 3]> {
+        let f = l - self.lower;
+        (f.cmpge(Vec3A::ZERO) & f.cmplt(Vec3A::ONE))
+            .all()
+            .then(|| f.to_array())
+    }
+
     /// The trilinear value at volume position `p` (inside `sampler`'s brick),
     /// making `p`'s cell the cached one.
-    #[inline]
+    #[inline(always)]
     pub fn value<T: Sample>(&mut self, sampler: &BrickSampler<'_, T>, p: Vec3) -> f32 {
         let l = p - sampler.origin();
+        match self.fraction_in_cell(l.into()) {
+            Some(f) => trilinear(&self.corners, f),
+            None => self.enter(sampler, l),
+        }
+    }
+
+    /// [`Self::value`] at local position `l` outside the cached cell: makes its
+    /// cell the cached one (unless `l` lies on the brick's upper face).
+    #[inline(never)]
+    fn enter<T: Sample>(&mut self, sampler: &BrickSampler<'_, T>, l: Vec3) -> f32 {
         let cell = cell_of(l);
+        let max = sampler.max_cell();
+        if cell[0] > max[0] || cell[1] > max[1] || cell[2] > max[2] {
+            // On the brick's upper face: the cell below, not cached.
+            return sampler.value_local(l);
+        }
         if cell != self.cell {
-            let max = sampler.max_cell();
-            if cell[0] > max[0] || cell[1] > max[1] || cell[2] > max[2] {
-                // On the brick's upper face: the cell below, not cached.
-                return sampler.value_local(l);
-            }
             self.cell = cell;
+            self.lower = Vec3A::from(cell.map(|c| c as i32 as f32));
             self.corners = sampler.corners(cell);
             self.state.set(Differences::Unknown);
         }
@@ -83,17 +113,16 @@ impl CellCache {
         p: Vec3,
     ) -> Vec3 {
         let origin = sampler.origin();
-        let l = p - origin;
-        let cell = cell_of(l);
-        // (A point just below the brick truncates into its first cell too.)
-        if cell != self.cell || l.min_element() < 0.0 {
+        // (A point just below the brick, whose coordinates would truncate into
+        // its first cell, is not in the cell: the test is on the fraction.)
+        let Some(f) = self.fraction_in_cell((p - origin).into()) else {
             return volume.gradient(sampler, p);
-        }
+        };
         match self.state.get() {
             Differences::Known => {}
             Differences::AtVolumeFace => return volume.gradient(sampler, p),
             Differences::Unknown => {
-                let global = [0, 1, 2].map(|a| cell[a] + origin[a] as u32);
+                let global = [0, 1, 2].map(|a| self.cell[a] + origin[a] as u32);
                 match volume.corner_differences(sampler, global) {
                     Some(d) => {
                         self.differences.set(d);
@@ -106,7 +135,7 @@ impl CellCache {
                 }
             }
         }
-        gradient_from_differences(&self.differences.get(), cell_fraction(l, cell))
+        gradient_from_differences(&self.differences.get(), f)
     }
 }
 

@@ -195,7 +195,7 @@ impl Dvr {
     /// A sample with pre-integration: it stands for the segment to the next
     /// sample (see [`Dvr::range_empty`]), preceded by the segment from the
     /// sample before when that one was skipped.
-    #[inline]
+    #[inline(never)]
     fn sample_preintegrated<T: Sample>(
         &self,
         pre: &PreintegratedTable,
@@ -275,7 +275,9 @@ impl Compositor for Dvr {
     fn range_empty(&self, lo: u16, hi: u16) -> bool {
         self.table.is_transparent(lo, hi)
     }
-    #[inline]
+    // Always inlined into the marching loop (a transparent sample costs a
+    // table read); pre-integration is a call.
+    #[inline(always)]
     fn sample<T: Sample>(&self, st: &mut Accumulation, s: &SamplePoint<'_, T>) {
         if let Some(pre) = self.table.preintegrated() {
             self.sample_preintegrated(pre, st, s);
