@@ -153,13 +153,7 @@ impl<'a, T: Sample> BrickSampler<'a, T> {
             let r = &block[x * sx + y * sy + 1..][..2];
             [f(r[0]), f(r[1])]
         };
-        Some(differences(&Neighbourhood {
-            inner: [[run(1, 1), run(1, 2)], [run(2, 1), run(2, 2)]],
-            x_below: [pair(0, 1), pair(0, 2)],
-            x_above: [pair(3, 1), pair(3, 2)],
-            y_below: [pair(1, 0), pair(2, 0)],
-            y_above: [pair(1, 3), pair(2, 3)],
-        }))
+        Some(differences(&Neighbourhood::from_columns(run, pair)))
     }
 }
 
@@ -176,6 +170,24 @@ pub(crate) struct Neighbourhood {
     pub y_below: [[f32; 2]; 2],
     /// Column (1..=2, 3), z 1..=2.
     pub y_above: [[f32; 2]; 2],
+}
+
+impl Neighbourhood {
+    /// The neighbourhood from its block's z-runs: `run(x, y)` the whole column
+    /// (z 0..=3), `pair(x, y)` its middle two voxels (z 1..=2).
+    #[inline(always)]
+    fn from_columns(
+        run: impl Fn(usize, usize) -> [f32; 4],
+        pair: impl Fn(usize, usize) -> [f32; 2],
+    ) -> Self {
+        Neighbourhood {
+            inner: [[run(1, 1), run(1, 2)], [run(2, 1), run(2, 2)]],
+            x_below: [pair(0, 1), pair(0, 2)],
+            x_above: [pair(3, 1), pair(3, 2)],
+            y_below: [pair(1, 0), pair(2, 0)],
+            y_above: [pair(1, 3), pair(2, 3)],
+        }
+    }
 }
 
 /// The central differences `v(c + e) − v(c − e)` along x, y, z at a cell's
@@ -373,15 +385,12 @@ impl<'a, T: Sample> VolumeSampler<'a, T> {
             let g = [cell[0] + x - 1, cell[1] + y - 1, cell[2] + z - 1];
             f32::from(self.volume.voxel(g).to_u16())
         };
-        let run = |x: u32, y: u32| [v(x, y, 0), v(x, y, 1), v(x, y, 2), v(x, y, 3)];
-        let pair = |x: u32, y: u32| [v(x, y, 1), v(x, y, 2)];
-        Some(differences(&Neighbourhood {
-            inner: [[run(1, 1), run(1, 2)], [run(2, 1), run(2, 2)]],
-            x_below: [pair(0, 1), pair(0, 2)],
-            x_above: [pair(3, 1), pair(3, 2)],
-            y_below: [pair(1, 0), pair(2, 0)],
-            y_above: [pair(1, 3), pair(2, 3)],
-        }))
+        let run = |x: usize, y: usize| {
+            let (x, y) = (x as u32, y as u32);
+            [v(x, y, 0), v(x, y, 1), v(x, y, 2), v(x, y, 3)]
+        };
+        let pair = |x: usize, y: usize| [v(x as u32, y as u32, 1), v(x as u32, y as u32, 2)];
+        Some(differences(&Neighbourhood::from_columns(run, pair)))
     }
 
     /// The value at `q` (inside the volume), from `local` when it covers `q`.
