@@ -705,6 +705,7 @@ fn flags_session(args: &RenderArgs, source: VolumeSource, volume: &Volume) -> Re
         )?,
         settings: settings(args, volume)?,
         level,
+        slices: None,
     })
 }
 

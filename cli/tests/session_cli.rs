@@ -67,6 +67,7 @@ fn session(mode: Mode) -> Session {
             ..RenderSettings::default()
         },
         level: LevelChoice::Auto { bias: 0.0 },
+        slices: None,
     }
 }
 

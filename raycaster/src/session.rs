@@ -4,7 +4,8 @@
 //! the label volume and two-level scene if any, the image size, the exact camera,
 //! the [`RenderSettings`] (mode and its parameters, transfer function, step,
 //! early ray termination, empty-space skipping, shading, pre-integration, jitter,
-//! crop box and clipping planes, background) and the pyramid level choice. The
+//! crop box and clipping planes, background), the pyramid level choice and the
+//! viewer's slice views ([`SliceViews`], which only the viewer uses). The
 //! viewer saves what it shows as a session and `raycaster render --session`
 //! renders it: the same settings and camera give the same pixels.
 //!
@@ -86,7 +87,36 @@ pub struct Session {
     pub settings: RenderSettings,
     /// Which level of the volume's resolution pyramid to sample.
     pub level: LevelChoice,
+    /// The viewer's slice views, when it saved them (`raycaster render` draws
+    /// no slices and ignores them).
+    pub slices: Option<SliceViews>,
 }
+
+/// The viewer's slice views: where the crosshair is, their window and zoom.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SliceViews {
+    /// The crosshair: a voxel of the full-resolution volume (the viewer clamps
+    /// it into the volume it opens).
+    pub crosshair: [u32; 3],
+    /// The window the slices are shown with.
+    pub window: SliceWindow,
+    /// The slices' zoom about the crosshair, at least 1.
+    pub zoom: f32,
+}
+
+/// The window of the slice views.
+#[derive(Clone, Debug, PartialEq)]
+pub enum SliceWindow {
+    /// Fitted to the data (the transfer function's domain).
+    Fitted,
+    /// A named window (`raycaster::windows::NAMED_WINDOWS`: `lung`, `bone`, …).
+    Named(String),
+    /// A window set by hand, `[lo, hi]` in stored sample values.
+    Values([f32; 2]),
+}
+
+/// The largest slice zoom a session may ask for (the viewer's slider's).
+pub const MAX_SLICE_ZOOM: f32 = 8.0;
 
 /// The camera of a session.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -157,6 +187,51 @@ pub enum SessionError {
     Scene(#[source] SceneError),
 }
 
+/// The `[slices]` section, checked.
+fn slice_views(file: &SlicesFile) -> Result<SliceViews, SessionError> {
+    let window = match &file.window {
+        None => SliceWindow::Fitted,
+        Some(WindowField::Name(name)) if name == "fitted" => SliceWindow::Fitted,
+        Some(WindowField::Name(name)) => {
+            if !crate::windows::NAMED_WINDOWS.iter().any(|w| w.name == name) {
+                let known: Vec<&str> = crate::windows::NAMED_WINDOWS
+                    .iter()
+                    .map(|w| w.name)
+                    .collect();
+                return Err(invalid(
+                    "slices.window",
+                    format!(
+                        "{name:?} is not a window (fitted, {}, or [lo, hi] in stored values)",
+                        known.join(", ")
+                    ),
+                ));
+            }
+            SliceWindow::Named(name.clone())
+        }
+        Some(WindowField::Values([lo, hi])) => {
+            if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+                return Err(invalid(
+                    "slices.window",
+                    format!("[{lo}, {hi}]: needs finite values with lo < hi"),
+                ));
+            }
+            SliceWindow::Values([*lo, *hi])
+        }
+    };
+    let zoom = file.zoom.unwrap_or(1.0);
+    if !(1.0..=MAX_SLICE_ZOOM).contains(&zoom) {
+        return Err(invalid(
+            "slices.zoom",
+            format!("{zoom}: must lie in 1..={MAX_SLICE_ZOOM}"),
+        ));
+    }
+    Ok(SliceViews {
+        crosshair: file.crosshair,
+        window,
+        zoom,
+    })
+}
+
 fn invalid(field: &str, what: impl Into<String>) -> SessionError {
     SessionError::Invalid {
         field: field.to_string(),
@@ -181,6 +256,22 @@ struct SessionFile {
     #[serde(default)]
     clip: ClipFile,
     scene: Option<toml::Table>,
+    slices: Option<SlicesFile>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SlicesFile {
+    crosshair: [u32; 3],
+    window: Option<WindowField>,
+    zoom: Option<f32>,
+}
+
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum WindowField {
+    Name(String),
+    Values([f32; 2]),
 }
 
 #[derive(Deserialize)]
@@ -408,6 +499,7 @@ impl Session {
             .map_err(|e| invalid("camera", e.to_string()))?;
         let transfer = transfer(&file.transfer, base)?;
         let (settings, level) = settings(&file, transfer, base)?;
+        let slices = file.slices.as_ref().map(slice_views).transpose()?;
         Ok(Session {
             source,
             labels,
@@ -415,6 +507,7 @@ impl Session {
             camera,
             settings,
             level,
+            slices,
         })
     }
 
@@ -603,6 +696,21 @@ impl Session {
                 .map_err(|e| invalid("scene", format!("cannot embed the scene: {e}")))?;
             out += "\n# The two-level scene (docs/segments.md).\n";
             out += &text;
+        }
+
+        if let Some(slices) = &self.slices {
+            out += "\n[slices]                  # the viewer's slice views\n";
+            let _ = writeln!(out, "crosshair = {:?}", slices.crosshair);
+            match &slices.window {
+                SliceWindow::Fitted => out += "window = \"fitted\"\n",
+                SliceWindow::Named(name) => {
+                    let _ = writeln!(out, "window = {}", quote(name));
+                }
+                SliceWindow::Values(v) => {
+                    let _ = writeln!(out, "window = {}", list(*v));
+                }
+            }
+            let _ = writeln!(out, "zoom = {}", num(slices.zoom));
         }
         Ok(out)
     }
@@ -1129,6 +1237,11 @@ mod tests {
                 },
             },
             level: LevelChoice::Auto { bias: 0.5 },
+            slices: Some(SliceViews {
+                crosshair: [3, 40, 17],
+                window: SliceWindow::Values([-12.5, 300.25]),
+                zoom: 2.5,
+            }),
         }
     }
 
@@ -1141,6 +1254,38 @@ mod tests {
     fn a_session_reads_back_equal() {
         let s = sample();
         assert_eq!(round_trip(&s), s);
+    }
+
+    #[test]
+    fn slice_views_read_back_equal_and_are_optional() {
+        let mut s = sample();
+        for window in [
+            SliceWindow::Fitted,
+            SliceWindow::Named("lung".into()),
+            SliceWindow::Values([0.1, 0.2]),
+        ] {
+            s.slices = Some(SliceViews {
+                crosshair: [0, 7, 99],
+                window,
+                zoom: 1.0,
+            });
+            assert_eq!(round_trip(&s), s);
+        }
+        s.slices = None;
+        let text = s.to_toml().unwrap();
+        assert!(!text.contains("[slices]"));
+        assert_eq!(round_trip(&s), s);
+        // Only the crosshair is needed: a fitted window, no zoom.
+        let short = format!("{text}\n[slices]\ncrosshair = [1, 2, 3]\n");
+        let read = Session::parse(&short, Path::new("")).unwrap();
+        assert_eq!(
+            read.slices,
+            Some(SliceViews {
+                crosshair: [1, 2, 3],
+                window: SliceWindow::Fitted,
+                zoom: 1.0,
+            })
+        );
     }
 
     #[test]
@@ -1360,6 +1505,10 @@ mod tests {
             ("shading", "ambient = -1.0", "shading.ambient"),
             ("clip", "planes = [[1.0, 1.0, 1.0, 0.0, 0.0, 0.0]]", "clip"),
             ("clip", "crop = [5.0, 0.0, 0.0, 1.0, 9.0, 9.0]", "clip"),
+            ("slices", "window = \"liver\"", "slices.window"),
+            ("slices", "window = [300.0, 200.0]", "slices.window"),
+            ("slices", "zoom = 0.5", "slices.zoom"),
+            ("slices", "zoom = nan", "slices.zoom"),
         ] {
             match with(table, line) {
                 Err(SessionError::Invalid { field: f, what }) => {

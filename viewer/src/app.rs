@@ -22,7 +22,7 @@ use raycaster::render::{
     Membership, Mode, Notify, ObjectStyle, PRESETS, ParallelOptions, RenderFront, RenderSettings,
     RgbImage, SegmentScene, TransferFunction,
 };
-use raycaster::session::{Session, SessionCamera};
+use raycaster::session::{Session, SessionCamera, SliceViews, SliceWindow};
 use raycaster::slice::Axis;
 use raycaster::source::VolumeSource;
 use raycaster::synth::SceneKind;
@@ -1160,6 +1160,9 @@ impl Controller {
             let values = CutValues::from_region(&settings.clip, dims);
             set_cut_values(&ui, &values);
             st.cut_restored = Some((values, settings.clip.clone()));
+            if let Some(slices) = &session.slices {
+                Self::restore_slice_views(&ui, &mut st, slices);
+            }
         }
         ui.set_mode_index(
             Mode::ALL
@@ -1229,7 +1232,51 @@ impl Controller {
             camera: SessionCamera::Orbit(*st.nav.orbit()),
             settings: Self::view_settings(&ui, &st, step),
             level: st.level,
+            slices: Some(Self::slice_views(&ui, &st)),
         })
+    }
+
+    /// The slice views as a session holds them.
+    fn slice_views(ui: &App, st: &State) -> SliceViews {
+        let names = crate::slices::window_names();
+        let index = ui.get_slice_window_index().max(0) as usize;
+        let window = match index {
+            0 => SliceWindow::Fitted,
+            i if i + 1 == names.len() => {
+                SliceWindow::Values(st.custom_window.unwrap_or(st.slice_window))
+            }
+            i => raycaster::windows::NAMED_WINDOWS
+                .get(i - 1)
+                .map_or(SliceWindow::Fitted, |w| SliceWindow::Named(w.name.into())),
+        };
+        SliceViews {
+            crosshair: st.crosshair.voxel,
+            window,
+            zoom: ui.get_slice_zoom(),
+        }
+    }
+
+    /// Sets the slice views from a session's.
+    fn restore_slice_views(ui: &App, st: &mut State, slices: &SliceViews) {
+        let dims = st
+            .current
+            .as_ref()
+            .map_or([1; 3], |c| c.volume.volume.dims());
+        st.crosshair = Crosshair::at(slices.crosshair, dims);
+        let names = crate::slices::window_names();
+        let index = match &slices.window {
+            SliceWindow::Fitted => 0,
+            SliceWindow::Named(name) => raycaster::windows::NAMED_WINDOWS
+                .iter()
+                .position(|w| w.name == name)
+                .map_or(0, |i| i + 1),
+            SliceWindow::Values(values) => {
+                st.custom_window = Some(*values);
+                names.len() - 1
+            }
+        };
+        ui.set_slice_window_index(index as i32);
+        ui.set_slice_zoom(slices.zoom);
     }
 
     fn save_session(&self, path: &Path) {

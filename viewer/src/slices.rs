@@ -96,6 +96,14 @@ impl Crosshair {
         }
     }
 
+    /// Voxel `voxel` of a volume of `dims` voxels, moved inside it.
+    pub(crate) fn at(voxel: [u32; 3], dims: [u32; 3]) -> Crosshair {
+        Crosshair {
+            voxel: [0, 1, 2].map(|a| voxel[a].min(dims[a].saturating_sub(1))),
+            dims,
+        }
+    }
+
     /// Moves along `axis` by `steps` voxels, staying inside the volume.
     pub(crate) fn step(&mut self, axis: Axis, steps: i64) {
         let a = axis.index();

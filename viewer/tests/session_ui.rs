@@ -123,6 +123,18 @@ fn sessions_save_render_and_restore_the_picture() {
     v.ui().set_step_index(1);
     v.ui().set_ert(false);
     v.ui().invoke_settings_changed();
+    // The slice views: the crosshair moved by a click on the axial slice, a
+    // window set by a right-drag, a zoom.
+    let centre_voxel = v.crosshair();
+    v.ui().invoke_slice_clicked(2, 20.0, 30.0, 100.0, 100.0);
+    assert_ne!(v.crosshair(), centre_voxel, "the click moved the crosshair");
+    v.ui().invoke_slice_window_dragged(2, 0.0, 0.0, true);
+    v.ui().invoke_slice_window_dragged(2, 0.3, 0.1, false);
+    v.ui().set_slice_zoom(2.5);
+    v.ui().invoke_slice_zoom_changed();
+    let crosshair = v.crosshair();
+    let slice_info = v.ui().get_slice_window_info();
+    let axial = v.ui().get_slice_z().to_rgba8().unwrap().as_bytes().to_vec();
     settle(&v);
     let (w, h, shown) = frame(&v);
     assert_ne!(shown, start, "the view changed");
@@ -136,6 +148,14 @@ fn sessions_save_render_and_restore_the_picture() {
     assert_eq!(session.settings.mode, Mode::Sabella);
     assert_eq!(session.settings.step, 1.5, "the coarse preset");
     assert_eq!(session.settings.early_termination, None);
+    let slices = session.slices.clone().expect("the slice views are saved");
+    assert_eq!(slices.crosshair, crosshair);
+    assert_eq!(slices.zoom, 2.5);
+    assert!(
+        matches!(slices.window, raycaster::session::SliceWindow::Values(_)),
+        "{:?}",
+        slices.window
+    );
     assert_eq!(Some(&session), v.session().as_ref());
     assert!(
         PRESETS.iter().all(|(name, _)| {
@@ -162,6 +182,13 @@ fn sessions_save_render_and_restore_the_picture() {
     assert_eq!(v.ui().get_mode_index(), sabella);
     assert_eq!(v.ui().get_step_index(), 1);
     assert!(!v.ui().get_ert());
+    assert_eq!(v.crosshair(), crosshair, "the crosshair is restored");
+    assert_eq!(v.ui().get_slice_zoom(), 2.5);
+    assert_eq!(v.ui().get_slice_window_info(), slice_info);
+    assert!(
+        v.ui().get_slice_z().to_rgba8().unwrap().as_bytes() == axial.as_slice(),
+        "the restored axial slice is the saved one"
+    );
     assert_eq!(v.session().as_ref(), Some(&session));
     assert!(
         frame(&v).2 == shown,
