@@ -160,6 +160,8 @@ struct State {
     canvas: (u32, u32),
     /// A recent-files error was shown (shown once, not on every open).
     recent_error_shown: bool,
+    /// The file browser's folder and the entries it lists.
+    browser: Option<(PathBuf, Vec<crate::browser::Entry>)>,
     /// The newest requests' ids, cameras and orbit targets: the annotations of
     /// the frame on screen follow its own camera.
     cameras: VecDeque<(u64, Camera, glam::Vec3)>,
@@ -254,6 +256,7 @@ impl Viewer {
                     .map(|f| crate::recent::load(&f))
                     .unwrap_or_default(),
                 recent_error_shown: false,
+                browser: None,
                 canvas: (0, 0),
                 slice_frames: [[0; 4]; 3],
                 cameras: VecDeque::new(),
@@ -543,6 +546,10 @@ fn connect(ui: &App, c: &Rc<Controller>) {
     });
     on!(on_open_file, |c, path| c
         .open(Source::File(PathBuf::from(path.as_str()))));
+    on!(on_browse, |c| c.toggle_browser());
+    on!(on_browser_picked, |c, index| c.browser_pick(index));
+    on!(on_browser_up, |c| c.browser_up());
+    on!(on_browser_open_folder, |c| c.browser_open_folder());
     on!(on_save_screenshot, |c, path| c
         .save_screenshot(Path::new(path.as_str())));
     on!(on_open_session, |c, path| c
@@ -694,6 +701,90 @@ impl Controller {
 
     /// Opens a volume on a background thread; the current one stays until it is
     /// ready (and stays for good if opening fails).
+    /// Shows the file browser at the folder of the typed path (else the working
+    /// folder), or hides it.
+    fn toggle_browser(&self) {
+        let Some(ui) = self.ui() else { return };
+        if ui.get_browser_shown() {
+            ui.set_browser_shown(false);
+            return;
+        }
+        let folder = crate::browser::start_folder(ui.get_file_path().as_str());
+        ui.set_browser_shown(true);
+        self.browse_to(folder);
+    }
+
+    /// Lists `folder` in the browser; a folder that cannot be read is said on
+    /// the message line and the listing stays.
+    fn browse_to(&self, folder: PathBuf) {
+        let Some(ui) = self.ui() else { return };
+        match crate::browser::list(&folder) {
+            Ok(entries) => {
+                let labels: Vec<SharedString> = entries.iter().map(|e| e.label().into()).collect();
+                ui.set_browser_folder(folder.display().to_string().into());
+                ui.set_browser_entries(ModelRc::new(VecModel::from(labels)));
+                self.state.borrow_mut().browser = Some((folder, entries));
+            }
+            Err(e) => self.show_message(&format!("cannot list {}: {e}", folder.display()), true),
+        }
+    }
+
+    /// A browser entry picked: a folder is shown, a volume opened, a session
+    /// restored.
+    fn browser_pick(&self, index: i32) {
+        let picked = {
+            let st = self.state.borrow();
+            st.browser.as_ref().and_then(|(folder, entries)| {
+                let entry = entries.get(usize::try_from(index).ok()?)?;
+                Some((folder.join(&entry.name), entry.kind))
+            })
+        };
+        let (Some(ui), Some((path, kind))) = (self.ui(), picked) else {
+            return;
+        };
+        let text: SharedString = path.display().to_string().into();
+        match kind {
+            crate::browser::EntryKind::Folder => self.browse_to(path),
+            crate::browser::EntryKind::Volume => {
+                ui.set_file_path(text);
+                ui.set_browser_shown(false);
+                self.open(Source::File(path));
+            }
+            crate::browser::EntryKind::Session => {
+                ui.set_session_path(text);
+                ui.set_browser_shown(false);
+                self.open(Source::Session(path));
+            }
+        }
+    }
+
+    /// The browser shows the folder above.
+    fn browser_up(&self) {
+        let parent = {
+            let st = self.state.borrow();
+            st.browser
+                .as_ref()
+                .and_then(|(folder, _)| folder.parent().map(Path::to_path_buf))
+        };
+        if let Some(parent) = parent {
+            self.browse_to(parent);
+        }
+    }
+
+    /// Opens the browser's folder itself (a DICOM series).
+    fn browser_open_folder(&self) {
+        let folder = {
+            let st = self.state.borrow();
+            st.browser.as_ref().map(|(folder, _)| folder.clone())
+        };
+        let (Some(ui), Some(folder)) = (self.ui(), folder) else {
+            return;
+        };
+        ui.set_file_path(folder.display().to_string().into());
+        ui.set_browser_shown(false);
+        self.open(Source::File(folder));
+    }
+
     fn open(&self, source: Source) {
         let what = match &source {
             Source::File(p) => p.display().to_string(),

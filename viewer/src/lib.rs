@@ -8,6 +8,7 @@
 
 pub(crate) mod annotations;
 pub mod app;
+pub(crate) mod browser;
 pub(crate) mod cut;
 pub mod loader;
 pub mod navigation;

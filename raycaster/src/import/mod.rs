@@ -298,6 +298,18 @@ pub(crate) fn data_at_end(
         })
 }
 
+/// The file name endings of the foreign formats (lower case), and their formats.
+pub const FOREIGN_EXTENSIONS: [(&str, ImportFormat); 8] = [
+    (".nrrd", ImportFormat::Nrrd),
+    (".nhdr", ImportFormat::Nrrd),
+    (".nii", ImportFormat::Nifti),
+    (".nii.gz", ImportFormat::Nifti),
+    (".hdr", ImportFormat::Nifti),
+    (".mha", ImportFormat::MetaImage),
+    (".mhd", ImportFormat::MetaImage),
+    (".dcm", ImportFormat::Dicom),
+];
+
 /// Which format `path` is, by extension, then by its first bytes; `None` for `.vol`
 /// files and anything unknown. A folder is taken for a DICOM series.
 pub fn detect(path: &Path) -> Option<ImportFormat> {
@@ -308,17 +320,10 @@ pub fn detect(path: &Path) -> Option<ImportFormat> {
         .file_name()
         .map(|n| n.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default();
-    let by_ext = [
-        (".nrrd", ImportFormat::Nrrd),
-        (".nhdr", ImportFormat::Nrrd),
-        (".nii", ImportFormat::Nifti),
-        (".nii.gz", ImportFormat::Nifti),
-        (".hdr", ImportFormat::Nifti),
-        (".mha", ImportFormat::MetaImage),
-        (".mhd", ImportFormat::MetaImage),
-        (".dcm", ImportFormat::Dicom),
-    ];
-    if let Some((_, f)) = by_ext.iter().find(|(ext, _)| name.ends_with(ext)) {
+    if let Some((_, f)) = FOREIGN_EXTENSIONS
+        .iter()
+        .find(|(ext, _)| name.ends_with(ext))
+    {
         return Some(*f);
     }
     if name.ends_with(".vol") {

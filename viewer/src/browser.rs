@@ -1,0 +1,183 @@
+//! The file browser inside the viewer: a folder's sub-folders and the files the
+//! viewer opens (volumes in every format it reads, and sessions), without a
+//! desktop portal.
+
+use std::io;
+use std::path::{Path, PathBuf};
+
+use raycaster::import::FOREIGN_EXTENSIONS;
+
+/// What a listed entry is, and what picking it does.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum EntryKind {
+    /// A folder: picking it shows its contents (and "Open folder" reads it as
+    /// a DICOM series).
+    Folder,
+    /// A volume file (`.vol` or a foreign format): picking it opens it.
+    Volume,
+    /// A session (`.toml`): picking it restores it.
+    Session,
+}
+
+/// One entry of a folder listing.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub(crate) struct Entry {
+    /// The file or folder name.
+    pub name: String,
+    /// What it is.
+    pub kind: EntryKind,
+    /// Its size in bytes (0 for folders).
+    pub size: u64,
+}
+
+impl Entry {
+    /// The line the browser shows: `name/` for a folder, the name and size of
+    /// a file.
+    pub(crate) fn label(&self) -> String {
+        match self.kind {
+            EntryKind::Folder => format!("{}/", self.name),
+            EntryKind::Volume => format!("{}   {}", self.name, human_size(self.size)),
+            EntryKind::Session => format!("{}   (session)", self.name),
+        }
+    }
+}
+
+/// What a file named `name` is to the viewer, if anything.
+pub(crate) fn kind_of_file(name: &str) -> Option<EntryKind> {
+    let lower = name.to_ascii_lowercase();
+    if lower.ends_with(".vol") || FOREIGN_EXTENSIONS.iter().any(|(e, _)| lower.ends_with(e)) {
+        Some(EntryKind::Volume)
+    } else if lower.ends_with(".toml") {
+        Some(EntryKind::Session)
+    } else {
+        None
+    }
+}
+
+/// The sub-folders of `dir` and the files the viewer opens, folders first,
+/// each group by name (case-insensitive); hidden entries (a leading `.`) and
+/// other files are left out. Entries that cannot be inspected are skipped.
+pub(crate) fn list(dir: &Path) -> io::Result<Vec<Entry>> {
+    let mut entries = Vec::new();
+    for item in std::fs::read_dir(dir)? {
+        let Ok(item) = item else { continue };
+        let name = item.file_name().to_string_lossy().into_owned();
+        if name.starts_with('.') {
+            continue;
+        }
+        // Follows links: a link to a folder is a folder.
+        let Ok(meta) = std::fs::metadata(item.path()) else {
+            continue;
+        };
+        let kind = if meta.is_dir() {
+            EntryKind::Folder
+        } else if meta.is_file() {
+            match kind_of_file(&name) {
+                Some(kind) => kind,
+                None => continue,
+            }
+        } else {
+            // FIFOs, sockets, devices: never offered.
+            continue;
+        };
+        let size = if meta.is_file() { meta.len() } else { 0 };
+        entries.push(Entry { name, kind, size });
+    }
+    entries.sort_by(|a, b| {
+        (a.kind != EntryKind::Folder)
+            .cmp(&(b.kind != EntryKind::Folder))
+            .then_with(|| a.name.to_lowercase().cmp(&b.name.to_lowercase()))
+            .then_with(|| a.name.cmp(&b.name))
+    });
+    Ok(entries)
+}
+
+/// Where the browser starts: the folder of the typed path (the path itself
+/// when it is a folder), else the working folder.
+pub(crate) fn start_folder(typed: &str) -> PathBuf {
+    let typed = Path::new(typed.trim());
+    let candidate = if typed.is_dir() {
+        Some(typed.to_path_buf())
+    } else {
+        typed
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty() && p.is_dir())
+            .map(Path::to_path_buf)
+    };
+    let folder = candidate
+        .or_else(|| std::env::current_dir().ok())
+        .unwrap_or_else(|| PathBuf::from("."));
+    std::fs::canonicalize(&folder).unwrap_or(folder)
+}
+
+/// `bytes` as people read it: `812 B`, `3.4 MB`, `12.0 GB`.
+fn human_size(bytes: u64) -> String {
+    const UNITS: [&str; 5] = ["B", "kB", "MB", "GB", "TB"];
+    let mut value = bytes as f64;
+    let mut unit = 0;
+    while value >= 1000.0 && unit + 1 < UNITS.len() {
+        value /= 1000.0;
+        unit += 1;
+    }
+    if unit == 0 {
+        format!("{bytes} B")
+    } else {
+        format!("{value:.1} {}", UNITS[unit])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn folders_first_then_openable_files_by_name() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        std::fs::create_dir(d.join("scans")).unwrap();
+        std::fs::create_dir(d.join("Archive")).unwrap();
+        std::fs::create_dir(d.join(".cache")).unwrap();
+        std::fs::write(d.join("b.vol"), [0u8; 1500]).unwrap();
+        std::fs::write(d.join("A.NII.GZ"), [0u8; 10]).unwrap();
+        std::fs::write(d.join("view.toml"), "version = 1").unwrap();
+        std::fs::write(d.join("notes.txt"), "x").unwrap();
+        std::fs::write(d.join(".hidden.vol"), "x").unwrap();
+        let entries = list(d).unwrap();
+        let names: Vec<&str> = entries.iter().map(|e| e.name.as_str()).collect();
+        assert_eq!(
+            names,
+            ["Archive", "scans", "A.NII.GZ", "b.vol", "view.toml"]
+        );
+        let kinds: Vec<EntryKind> = entries.iter().map(|e| e.kind).collect();
+        use EntryKind::*;
+        assert_eq!(kinds, [Folder, Folder, Volume, Volume, Session]);
+        assert_eq!(entries[0].label(), "Archive/");
+        assert_eq!(entries[3].label(), "b.vol   1.5 kB");
+        assert_eq!(entries[2].label(), "A.NII.GZ   10 B");
+    }
+
+    #[test]
+    fn a_missing_folder_is_an_error_and_the_start_falls_back() {
+        let dir = tempfile::tempdir().unwrap();
+        assert!(list(&dir.path().join("gone")).is_err());
+        let file = dir.path().join("x.vol");
+        std::fs::write(&file, "x").unwrap();
+        let canonical = std::fs::canonicalize(dir.path()).unwrap();
+        assert_eq!(start_folder(&file.display().to_string()), canonical);
+        assert_eq!(start_folder(&dir.path().display().to_string()), canonical);
+        let nowhere = dir.path().join("no/such/file.vol");
+        let here = std::fs::canonicalize(std::env::current_dir().unwrap()).unwrap();
+        assert_eq!(start_folder(&nowhere.display().to_string()), here);
+        assert_eq!(human_size(12_345_678_901), "12.3 GB");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_fifo_is_never_offered() {
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("pipe.vol");
+        let status = std::process::Command::new("mkfifo").arg(&fifo).status();
+        assert!(status.is_ok_and(|s| s.success()), "mkfifo");
+        assert!(list(dir.path()).unwrap().is_empty());
+    }
+}
