@@ -5,6 +5,7 @@
 use std::io;
 use std::path::{Path, PathBuf};
 
+use raycaster::files::human_bytes;
 use raycaster::import::FOREIGN_EXTENSIONS;
 
 /// What a listed entry is, and what picking it does.
@@ -36,7 +37,7 @@ impl Entry {
     pub(crate) fn label(&self) -> String {
         match self.kind {
             EntryKind::Folder => format!("{}/", self.name),
-            EntryKind::Volume => format!("{}   {}", self.name, human_size(self.size)),
+            EntryKind::Volume => format!("{}   {}", self.name, human_bytes(self.size)),
             EntryKind::Session => format!("{}   (session)", self.name),
         }
     }
@@ -110,22 +111,6 @@ pub(crate) fn start_folder(typed: &str) -> PathBuf {
     std::fs::canonicalize(&folder).unwrap_or(folder)
 }
 
-/// `bytes` as people read it: `812 B`, `3.4 MB`, `12.0 GB`.
-fn human_size(bytes: u64) -> String {
-    const UNITS: [&str; 5] = ["B", "kB", "MB", "GB", "TB"];
-    let mut value = bytes as f64;
-    let mut unit = 0;
-    while value >= 1000.0 && unit + 1 < UNITS.len() {
-        value /= 1000.0;
-        unit += 1;
-    }
-    if unit == 0 {
-        format!("{bytes} B")
-    } else {
-        format!("{value:.1} {}", UNITS[unit])
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -153,7 +138,7 @@ mod tests {
         assert_eq!(kinds, [Folder, Folder, Volume, Volume, Session]);
         assert_eq!(entries[0].label(), "Archive/");
         assert_eq!(entries[3].label(), "b.vol   1.5 kB");
-        assert_eq!(entries[2].label(), "A.NII.GZ   10 B");
+        assert_eq!(entries[2].label(), "A.NII.GZ   10 bytes");
     }
 
     #[test]
@@ -168,7 +153,6 @@ mod tests {
         let nowhere = dir.path().join("no/such/file.vol");
         let here = std::fs::canonicalize(std::env::current_dir().unwrap()).unwrap();
         assert_eq!(start_folder(&nowhere.display().to_string()), here);
-        assert_eq!(human_size(12_345_678_901), "12.3 GB");
     }
 
     #[cfg(unix)]

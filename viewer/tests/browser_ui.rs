@@ -11,7 +11,7 @@ mod support;
 use support::{element, generate_file, wait_for_frame};
 
 use raycaster::synth::SceneKind;
-use slint::{ComponentHandle, Model};
+use slint::Model;
 use viewer::{Source, Viewer};
 
 /// The browser's entries as shown.
@@ -46,13 +46,7 @@ fn the_browser_opens_volumes_and_sessions_from_folders() {
     std::fs::write(scans.join("readme.txt"), "not a volume").unwrap();
     std::fs::write(root.join("other.nrrd"), "NRRD0004\n").unwrap();
 
-    let v = Viewer::new(Source::BuiltIn(SceneKind::Shapes, 32), None).unwrap();
-    v.ui()
-        .window()
-        .set_size(slint::LogicalSize::new(1000.0, 820.0));
-    v.ui().show().unwrap();
-    v.pump();
-    v.ui().invoke_canvas_resized();
+    let v = support::shown_viewer(Source::BuiltIn(SceneKind::Shapes, 32), 1000.0, 820.0);
     wait_for_frame(&v);
     assert_eq!(v.ui().get_dim_x(), 32);
 
@@ -67,7 +61,7 @@ fn the_browser_opens_volumes_and_sessions_from_folders() {
         v.ui().get_browser_folder().to_string(),
         canonical_root.display().to_string()
     );
-    assert_eq!(entries(&v), ["empty/", "scans/", "other.nrrd   9 B"]);
+    assert_eq!(entries(&v), ["empty/", "scans/", "other.nrrd   9 bytes"]);
 
     // A folder entry shows its contents (the text file is not offered).
     v.ui().invoke_browser_picked(1);

@@ -76,13 +76,7 @@ fn the_viewer_cuts_slices_and_remembers_files() {
     let file_b = dir.path().join("shells.vol");
     generate_file(&file_b, SceneKind::Shells, 40);
 
-    let v = Viewer::new(Source::File(file_a.clone()), None).unwrap();
-    v.ui()
-        .window()
-        .set_size(slint::LogicalSize::new(1000.0, 820.0));
-    v.ui().show().unwrap();
-    v.pump();
-    v.ui().invoke_canvas_resized();
+    let v = support::shown_viewer(Source::File(file_a.clone()), 1000.0, 820.0);
     settle(&v);
     // The laid-out canvas: a full-quality frame of its size.
     v.ui().invoke_reset_view();

@@ -15,7 +15,7 @@ use raycaster::render::{Mode, PRESETS, RenderVolume, RgbImage, render_sequential
 use raycaster::session::Session;
 use raycaster::synth::SceneKind;
 use slint::platform::PointerEventButton;
-use slint::{ComponentHandle, LogicalPosition, Model};
+use slint::{LogicalPosition, Model};
 use viewer::{Source, Viewer};
 
 /// Lets the view rest (the settle timer fires) and waits for the full-quality
@@ -46,14 +46,8 @@ fn frame(v: &Viewer) -> (u32, u32, Vec<u8>) {
 
 /// A viewer on `source` in a window of the test's size, its first frame settled.
 fn viewer(source: Source) -> Viewer {
-    let v = Viewer::new(source, None).unwrap();
-    v.ui()
-        .window()
-        .set_size(slint::LogicalSize::new(900.0, 640.0));
-    v.ui().show().unwrap();
-    v.pump();
     // The laid-out canvas: a frame of its size.
-    v.ui().invoke_canvas_resized();
+    let v = support::shown_viewer(source, 900.0, 640.0);
     settle(&v);
     v
 }

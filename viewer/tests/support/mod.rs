@@ -6,7 +6,8 @@ use std::time::{Duration, Instant};
 
 use i_slint_backend_testing::{ElementHandle, TestingBackend, TestingBackendOptions};
 use raycaster::synth::SceneKind;
-use viewer::Viewer;
+use slint::ComponentHandle;
+use viewer::{Source, Viewer};
 
 /// Installs Slint's testing platform: software renderer, mocked time, no
 /// threads. Call it once, first, in the test process.
@@ -40,6 +41,20 @@ pub fn generate_file(path: &Path, kind: SceneKind, size: u32) {
         &raycaster::job::Job::silent(),
     )
     .unwrap();
+}
+
+/// A viewer on `source` in a shown window of `width × height` logical pixels,
+/// its canvas laid out (the first frame is requested, not waited for).
+#[allow(dead_code)]
+pub fn shown_viewer(source: Source, width: f32, height: f32) -> Viewer {
+    let v = Viewer::new(source, None).unwrap();
+    v.ui()
+        .window()
+        .set_size(slint::LogicalSize::new(width, height));
+    v.ui().show().unwrap();
+    v.pump();
+    v.ui().invoke_canvas_resized();
+    v
 }
 
 /// Pumps until the newest frame is on screen.
