@@ -158,27 +158,28 @@ impl<'a, T: Sample> BrickSampler<'a, T> {
 }
 
 /// The 32 voxels around a cell that its corners' central differences read, in
-/// z-runs: block coordinates with the cell's lower corner at (1, 1, 1).
-pub(crate) struct Neighbourhood {
+/// z-runs: block coordinates with the cell's lower corner at (1, 1, 1). A voxel
+/// is a value `V`: an `f32`, or one per lane in the packet kernels.
+pub(crate) struct Neighbourhood<V> {
     /// Columns (1..=2, 1..=2), z from 0 to 3: `inner[x − 1][y − 1][z]`.
-    pub inner: [[[f32; 4]; 2]; 2],
+    pub inner: [[[V; 4]; 2]; 2],
     /// Column (0, 1..=2), z 1..=2: `x_below[y − 1][z − 1]`.
-    pub x_below: [[f32; 2]; 2],
+    pub x_below: [[V; 2]; 2],
     /// Column (3, 1..=2), z 1..=2.
-    pub x_above: [[f32; 2]; 2],
+    pub x_above: [[V; 2]; 2],
     /// Column (1..=2, 0), z 1..=2: `y_below[x − 1][z − 1]`.
-    pub y_below: [[f32; 2]; 2],
+    pub y_below: [[V; 2]; 2],
     /// Column (1..=2, 3), z 1..=2.
-    pub y_above: [[f32; 2]; 2],
+    pub y_above: [[V; 2]; 2],
 }
 
-impl Neighbourhood {
+impl<V: Copy> Neighbourhood<V> {
     /// The neighbourhood from its block's z-runs: `run(x, y)` the whole column
     /// (z 0..=3), `pair(x, y)` its middle two voxels (z 1..=2).
     #[inline(always)]
-    fn from_columns(
-        run: impl Fn(usize, usize) -> [f32; 4],
-        pair: impl Fn(usize, usize) -> [f32; 2],
+    pub(crate) fn from_columns(
+        run: impl Fn(usize, usize) -> [V; 4],
+        pair: impl Fn(usize, usize) -> [V; 2],
     ) -> Self {
         Neighbourhood {
             inner: [[run(1, 1), run(1, 2)], [run(2, 1), run(2, 2)]],
@@ -194,25 +195,41 @@ impl Neighbourhood {
 /// corners, in [`Corners`] order.
 pub(crate) type CornerDifferences = [Vec3A; 8];
 
+impl<V: Copy> Neighbourhood<V> {
+    /// The central differences at the cell's corners per axis (`[x, y, z]`,
+    /// each in [`Corners`] order), with `sub(a, b)` = a − b: the one definition
+    /// every kernel uses (so their gradients agree to the bit).
+    #[inline(always)]
+    pub(crate) fn differences_by(&self, sub: impl Fn(V, V) -> V) -> [[V; 8]; 3] {
+        let x = std::array::from_fn(|c| {
+            let (x, y, z) = (c >> 2, (c >> 1) & 1, c & 1);
+            if x == 0 {
+                sub(self.inner[1][y][z + 1], self.x_below[y][z])
+            } else {
+                sub(self.x_above[y][z], self.inner[0][y][z + 1])
+            }
+        });
+        let y = std::array::from_fn(|c| {
+            let (x, y, z) = (c >> 2, (c >> 1) & 1, c & 1);
+            if y == 0 {
+                sub(self.inner[x][1][z + 1], self.y_below[x][z])
+            } else {
+                sub(self.y_above[x][z], self.inner[x][0][z + 1])
+            }
+        });
+        let z = std::array::from_fn(|c| {
+            let column = &self.inner[c >> 2][(c >> 1) & 1];
+            sub(column[(c & 1) + 2], column[c & 1])
+        });
+        [x, y, z]
+    }
+}
+
 /// The corner differences of a cell from its [`Neighbourhood`].
 #[inline(always)]
-pub(crate) fn differences(n: &Neighbourhood) -> CornerDifferences {
-    std::array::from_fn(|c| {
-        let (x, y, z) = (c >> 2, (c >> 1) & 1, c & 1);
-        let column = &n.inner[x][y];
-        let dx = if x == 0 {
-            n.inner[1][y][z + 1] - n.x_below[y][z]
-        } else {
-            n.x_above[y][z] - n.inner[0][y][z + 1]
-        };
-        let dy = if y == 0 {
-            n.inner[x][1][z + 1] - n.y_below[x][z]
-        } else {
-            n.y_above[x][z] - n.inner[x][0][z + 1]
-        };
-        let dz = column[z + 2] - column[z];
-        Vec3A::new(dx, dy, dz)
-    })
+pub(crate) fn differences(n: &Neighbourhood<f32>) -> CornerDifferences {
+    let [x, y, z] = n.differences_by(|a, b| a - b);
+    std::array::from_fn(|c| Vec3A::new(x[c], y[c], z[c]))
 }
 
 /// A cell's eight corner values, x slowest: (0,0,0), (0,0,1), (0,1,0), (0,1,1),
