@@ -699,8 +699,6 @@ impl Controller {
         }
     }
 
-    /// Opens a volume on a background thread; the current one stays until it is
-    /// ready (and stays for good if opening fails).
     /// Shows the file browser at the folder of the typed path (else the working
     /// folder), or hides it.
     fn toggle_browser(&self) {
@@ -785,6 +783,8 @@ impl Controller {
         self.open(Source::File(folder));
     }
 
+    /// Opens a volume on a background thread; the current one stays until it is
+    /// ready (and stays for good if opening fails).
     fn open(&self, source: Source) {
         let what = match &source {
             Source::File(p) => p.display().to_string(),
@@ -1252,7 +1252,12 @@ impl Controller {
             set_cut_values(&ui, &values);
             st.cut_restored = Some((values, settings.clip.clone()));
             if let Some(slices) = &session.slices {
-                Self::restore_slice_views(&ui, &mut st, slices);
+                st.crosshair = Crosshair::at(slices.crosshair, dims);
+                if let SliceWindow::Values(values) = slices.window {
+                    st.custom_window = Some(values);
+                }
+                ui.set_slice_window_index(crate::slices::window_index(&slices.window) as i32);
+                ui.set_slice_zoom(slices.zoom);
             }
         }
         ui.set_mode_index(
@@ -1329,45 +1334,15 @@ impl Controller {
 
     /// The slice views as a session holds them.
     fn slice_views(ui: &App, st: &State) -> SliceViews {
-        let names = crate::slices::window_names();
         let index = ui.get_slice_window_index().max(0) as usize;
-        let window = match index {
-            0 => SliceWindow::Fitted,
-            i if i + 1 == names.len() => {
-                SliceWindow::Values(st.custom_window.unwrap_or(st.slice_window))
-            }
-            i => raycaster::windows::NAMED_WINDOWS
-                .get(i - 1)
-                .map_or(SliceWindow::Fitted, |w| SliceWindow::Named(w.name.into())),
-        };
         SliceViews {
             crosshair: st.crosshair.voxel,
-            window,
+            window: crate::slices::session_window(
+                index,
+                st.custom_window.unwrap_or(st.slice_window),
+            ),
             zoom: ui.get_slice_zoom(),
         }
-    }
-
-    /// Sets the slice views from a session's.
-    fn restore_slice_views(ui: &App, st: &mut State, slices: &SliceViews) {
-        let dims = st
-            .current
-            .as_ref()
-            .map_or([1; 3], |c| c.volume.volume.dims());
-        st.crosshair = Crosshair::at(slices.crosshair, dims);
-        let names = crate::slices::window_names();
-        let index = match &slices.window {
-            SliceWindow::Fitted => 0,
-            SliceWindow::Named(name) => raycaster::windows::NAMED_WINDOWS
-                .iter()
-                .position(|w| w.name == name)
-                .map_or(0, |i| i + 1),
-            SliceWindow::Values(values) => {
-                st.custom_window = Some(*values);
-                names.len() - 1
-            }
-        };
-        ui.set_slice_window_index(index as i32);
-        ui.set_slice_zoom(slices.zoom);
     }
 
     fn save_session(&self, path: &Path) {

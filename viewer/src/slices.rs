@@ -7,6 +7,7 @@
 //! full-resolution voxels.
 
 use raycaster::render::RgbImage;
+use raycaster::session::SliceWindow;
 use raycaster::slice::{Axis, Slice, SliceError};
 use raycaster::volume::{ValueUnits, Volume};
 use raycaster::windows::NAMED_WINDOWS;
@@ -34,6 +35,31 @@ pub(crate) fn window_names() -> Vec<String> {
         .chain(NAMED_WINDOWS.iter().map(|w| w.name.to_string()))
         .chain(std::iter::once(CUSTOM_WINDOW.to_string()))
         .collect()
+}
+
+/// Window choice `index` ([`window_names`]) as a session holds it; `custom` is
+/// the window of the last choice (set by a right-drag).
+pub(crate) fn session_window(index: usize, custom: [f32; 2]) -> SliceWindow {
+    match index {
+        0 => SliceWindow::Fitted,
+        i => match NAMED_WINDOWS.get(i - 1) {
+            Some(w) => SliceWindow::Named(w.name.into()),
+            None => SliceWindow::Values(custom),
+        },
+    }
+}
+
+/// The window choice ([`window_names`]) of a session's window: 0 for the fitted
+/// one or a name no longer known, the last for set values.
+pub(crate) fn window_index(window: &SliceWindow) -> usize {
+    match window {
+        SliceWindow::Fitted => 0,
+        SliceWindow::Named(name) => NAMED_WINDOWS
+            .iter()
+            .position(|w| w.name == name)
+            .map_or(0, |i| i + 1),
+        SliceWindow::Values(_) => NAMED_WINDOWS.len() + 1,
+    }
 }
 
 /// Free window/level: `base` changed by a drag of `dx`, `dy` (fractions of the
@@ -241,6 +267,20 @@ mod tests {
         assert_eq!(describe_window(w, &hu), "-1350 HU .. 150 HU");
         assert_eq!(window_names().len(), NAMED_WINDOWS.len() + 2);
         assert_eq!(window_names().last().unwrap(), CUSTOM_WINDOW);
+    }
+
+    #[test]
+    fn window_choices_and_session_windows_map_both_ways() {
+        let custom = [1.0, 2.0];
+        for index in 0..window_names().len() {
+            assert_eq!(window_index(&session_window(index, custom)), index);
+        }
+        assert_eq!(session_window(0, custom), SliceWindow::Fitted);
+        assert_eq!(
+            session_window(window_names().len() - 1, custom),
+            SliceWindow::Values(custom)
+        );
+        assert_eq!(window_index(&SliceWindow::Named("gone".into())), 0);
     }
 
     #[test]
