@@ -84,11 +84,12 @@ pub(crate) fn list(dir: &Path) -> io::Result<Vec<Entry>> {
         let size = if meta.is_file() { meta.len() } else { 0 };
         entries.push(Entry { name, kind, size });
     }
-    entries.sort_by(|a, b| {
-        (a.kind != EntryKind::Folder)
-            .cmp(&(b.kind != EntryKind::Folder))
-            .then_with(|| a.name.to_lowercase().cmp(&b.name.to_lowercase()))
-            .then_with(|| a.name.cmp(&b.name))
+    entries.sort_by_cached_key(|e| {
+        (
+            e.kind != EntryKind::Folder,
+            e.name.to_lowercase(),
+            e.name.clone(),
+        )
     });
     Ok(entries)
 }
