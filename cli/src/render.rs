@@ -9,11 +9,11 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use raycaster::render::{
-    Camera, ClipPlane, ClipRegion, CropBox, LevelChoice, Light, MAX_CLIP_PLANES, Mat3, Membership,
-    Mode, ModeParameters, Orbit, PRESETS, ParallelOptions, Projection, RenderSettings,
-    RenderVolume, SabellaDepth, SabellaMapping, SabellaOutput, SegmentScene, Shading, SimdLevel,
-    TileSink, TransferFunction, Vec3, closest_preset, patient_axes, render_parallel_into,
-    render_sequential,
+    Camera, ClipPlane, ClipRegion, CropBox, DepthBand, LevelBand, LevelChoice, Light,
+    MAX_CLIP_PLANES, Mat3, Membership, Mode, ModeParameters, Orbit, PRESETS, ParallelOptions,
+    Projection, RenderSettings, RenderVolume, Renderer, SabellaDepth, SabellaMapping,
+    SabellaOutput, SegmentScene, Shading, SimdLevel, TileSink, TransferFunction, Vec3,
+    closest_preset, patient_axes, render_sequential_levels,
 };
 use raycaster::session::{Session, SessionCamera};
 use raycaster::source::{self, VolumeSource};
@@ -256,9 +256,10 @@ pub struct RenderArgs {
     ram: bool,
 
     /// Resolution level of the file's pyramid to sample: `auto` (the coarsest
-    /// whose voxels project to at most a pixel) or a level number (0 = full
-    /// resolution, 1 = half on every axis, ...). Files without a pyramid
-    /// (`volgen pyramid FILE` adds one) always render level 0.
+    /// whose voxels project to at most a pixel; a deep perspective view samples
+    /// each band of depths at its own level, finer near the camera) or a level
+    /// number (0 = full resolution, 1 = half on every axis, ...). Files without
+    /// a pyramid (`volgen pyramid FILE` adds one) always render level 0.
     #[arg(long, default_value = "auto", value_parser = |s: &str| s.parse::<LevelChoice>(), value_name = "auto|N")]
     level: LevelChoice,
 
@@ -476,12 +477,17 @@ pub fn run(args: RenderArgs) -> Result<()> {
     check_arguments(&args)?;
     crate::output::check_output(&args.output, args.force)?;
     let setup = Setup::new(&args)?;
-    let prepared = setup.prepared(&args)?;
+    let prepared = setup.prepared_bands(&args)?;
+    let passes: Vec<(&RenderVolume<'_>, Option<DepthBand>)> = prepared
+        .iter()
+        .zip(&setup.bands)
+        .map(|(volume, band)| (volume, band.depth))
+        .collect();
     let frame = if args.sequential {
-        render_sequential(&prepared, &setup.camera, &setup.settings)?
+        render_sequential_levels(&passes, &setup.camera, &setup.settings)?
     } else {
         render_with_progress(
-            &prepared,
+            &passes,
             &setup.camera,
             &setup.settings,
             &parallel_options(&args, 1),
@@ -524,7 +530,11 @@ pub(crate) struct Setup {
     pub labels: Option<Volume>,
     pub settings: RenderSettings,
     pub camera: Camera,
+    /// The level a frame of one level samples (the nearest band's).
     pub level: usize,
+    /// The levels the frame samples, nearest first, each in its band of depths
+    /// (one for a fixed level, an orthographic view, a two-level scene).
+    pub bands: Vec<LevelBand>,
     /// Bytes this process had read before opening anything.
     read_before: u64,
 }
@@ -577,22 +587,44 @@ impl Setup {
             (None, _) => None,
         };
         let camera = session.camera().context("invalid camera")?;
-        // Two-level scenes with labels sample labels of the same level, when they have it.
-        let level = match &labels {
-            Some(labels) => session
-                .level
-                .resolve(&volume, &camera)
-                .min(labels.level_count() - 1),
-            None => session.level.resolve(&volume, &camera),
+        // Two-level scenes sample one level, and with labels the labels of the
+        // same level, when they have it.
+        let bands = match &labels {
+            Some(labels) => vec![LevelBand {
+                level: session
+                    .level
+                    .resolve(&volume, &camera)
+                    .min(labels.level_count() - 1),
+                depth: None,
+            }],
+            None if session.settings.segments.is_some() => vec![LevelBand {
+                level: session.level.resolve(&volume, &camera),
+                depth: None,
+            }],
+            None => session.level.bands(&volume, &camera),
         };
         Ok(Setup {
             volume,
             labels,
             settings: session.settings,
             camera,
-            level,
+            level: bands[0].level,
+            bands,
             read_before,
         })
+    }
+
+    /// The volume's levels of [`Self::bands`], nearest first, prepared for
+    /// rendering with `--brick` (preparing reads nothing).
+    pub(crate) fn prepared_bands(&self, args: &RenderArgs) -> Result<Vec<RenderVolume<'_>>> {
+        let mut levels = vec![self.prepared(args)?];
+        for band in &self.bands[1..] {
+            levels.push(RenderVolume::new(
+                self.volume.level(band.level),
+                args.brick,
+            )?);
+        }
+        Ok(levels)
     }
 
     /// The volume's level prepared for rendering with `--brick`, labels attached.
@@ -619,7 +651,7 @@ pub(crate) fn finish(
         eprint!("{}", stats::table(&frame.stats));
         eprint!(
             "{}",
-            stats::level_table(&setup.volume, setup.level, bytes_read)
+            stats::level_table(&setup.volume, &setup.bands, bytes_read)
         );
     }
     if args.stats_json {
@@ -627,7 +659,7 @@ pub(crate) fn finish(
             &frame.stats,
             &setup.volume,
             &setup.settings,
-            setup.level,
+            &setup.bands,
             bytes_read,
         );
         if let Some(object) = json.as_object_mut() {
@@ -1062,7 +1094,7 @@ impl TileSink for ProgressSink {
 /// Renders with the parallel renderer; with `show_after`, a frame that takes longer
 /// than that shows the share of its pixels done on stderr.
 fn render_with_progress(
-    volume: &RenderVolume<'_>,
+    passes: &[(&RenderVolume<'_>, Option<DepthBand>)],
     camera: &Camera,
     settings: &RenderSettings,
     options: &ParallelOptions,
@@ -1076,14 +1108,20 @@ fn render_with_progress(
         )),
         pixels_done: AtomicU64::new(0),
     };
-    // Tiles cover the pixels the volume projects onto.
-    let (lo, hi) = volume.geometry().world_bounds();
-    let total = camera
-        .project_box(lo, hi)
+    // Tiles cover the pixels the volume projects onto (in a frame of several
+    // levels, the farthest level's tiles are counted: the nearer ones hand their
+    // pixels on unfinished).
+    let total = passes
+        .last()
+        .and_then(|(volume, _)| {
+            let (lo, hi) = volume.geometry().world_bounds();
+            camera.project_box(lo, hi)
+        })
         .map_or(1, |r| u64::from(r.x1 - r.x0) * u64::from(r.y1 - r.y0))
         .max(1);
     let stats = with_progress_line("rendering", total, show_after, &sink.pixels_done, || {
-        render_parallel_into(volume, camera, settings, options, &sink, &|| false)
+        Renderer::per_frame()
+            .render_levels_into(passes, camera, settings, options, &sink, &|| false)
     })?
     .expect("a frame that cannot be cancelled completes");
     let mut frame = sink.frame.into_inner().unwrap_or_else(|e| e.into_inner());

@@ -1,6 +1,6 @@
 //! Printing a frame's statistics: a table for people, JSON for scripts.
 
-use raycaster::render::{FrameStats, RenderSettings};
+use raycaster::render::{FrameStats, LevelBand, RenderSettings};
 use raycaster::volume::Volume;
 
 /// The counters as an aligned table.
@@ -46,14 +46,16 @@ pub fn json(
     s: &FrameStats,
     volume: &Volume,
     settings: &RenderSettings,
-    level: usize,
+    bands: &[LevelBand],
     bytes_read: u64,
 ) -> serde_json::Value {
     let c = &s.counters;
+    let level = bands.first().map_or(0, |b| b.level);
     serde_json::json!({
         "volume": volume.path().display().to_string(),
         "dims": volume.dims(),
         "level": level,
+        "coarsest_level": bands.last().map_or(0, |b| b.level),
         "levels": volume.level_count(),
         "level_dims": volume.level(level).dims(),
         "bytes_read": bytes_read,
@@ -82,12 +84,32 @@ pub fn json(
 }
 
 /// The level line and the bytes read from storage, for [`table`]'s reader.
-pub fn level_table(volume: &Volume, level: usize, bytes_read: u64) -> String {
-    let [x, y, z] = volume.level(level).dims();
+pub fn level_table(volume: &Volume, bands: &[LevelBand], bytes_read: u64) -> String {
+    let dims = |level: usize| {
+        let [x, y, z] = volume.level(level).dims();
+        format!("{x}×{y}×{z}")
+    };
+    let levels = match bands {
+        [first, .., last] => format!(
+            "{}–{} of 0..={} (by depth, {} nearest, {} farthest)",
+            first.level,
+            last.level,
+            volume.level_count() - 1,
+            dims(first.level),
+            dims(last.level)
+        ),
+        _ => {
+            let level = bands.first().map_or(0, |b| b.level);
+            format!(
+                "{level} of 0..={} ({} voxels)",
+                volume.level_count() - 1,
+                dims(level)
+            )
+        }
+    };
     format!(
-        "level            {level} of 0..={} ({x}×{y}×{z} voxels)\n\
+        "level            {levels}\n\
          read from disk   {:.1} MB (this process, open and frame)\n",
-        volume.level_count() - 1,
         bytes_read as f64 / 1e6
     )
 }

@@ -425,3 +425,81 @@ fn renders_a_nifti_file_directly() {
     assert!(!out.status.success());
     assert!(stderr(&out).contains("junk.nrrd"), "{}", stderr(&out));
 }
+
+#[test]
+fn a_deep_perspective_view_samples_each_depth_at_its_own_level() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = raycaster::synth::SceneKind::Shapes.build([256; 3], 7);
+    let header = raycaster::volume::Header::new(
+        [256; 3],
+        [1.0; 3],
+        raycaster::volume::Layout::Bricked { side: 16 },
+        raycaster::volume::SampleType::U8,
+        raycaster::volume::Content::Scalar,
+        raycaster::volume::Format::Extended,
+    );
+    raycaster::generate::generate(
+        scene.as_ref(),
+        &header,
+        &dir.path().join("shapes.vol"),
+        &Default::default(),
+        &raycaster::job::Job::silent(),
+    )
+    .unwrap();
+    let run = |out: &str, extra: &[&str]| {
+        let mut args = vec![
+            "render",
+            "shapes.vol",
+            "-o",
+            out,
+            "--size",
+            "64",
+            "--fov",
+            "90",
+            "--zoom",
+            "2",
+            "--stats-json",
+            "-q",
+        ];
+        args.extend_from_slice(extra);
+        let out = raycaster(&args, dir.path());
+        assert!(out.status.success(), "{}", stderr(&out));
+        serde_json::from_slice::<serde_json::Value>(&out.stdout).expect("one JSON object")
+    };
+    let auto = run("auto.png", &[]);
+    assert_eq!(
+        (auto["level"].as_u64(), auto["coarsest_level"].as_u64()),
+        (Some(0), Some(2))
+    );
+    let sequential = run("sequential.png", &["--sequential"]);
+    assert_eq!(sequential["samples"], auto["samples"]);
+    let image = |name: &str| RgbImage::load_png(&dir.path().join(name)).unwrap();
+    assert_eq!(image("auto.png"), image("sequential.png"));
+    // Full resolution everywhere takes more samples than the bands.
+    let full = run("full.png", &["--level", "0"]);
+    assert_eq!(full["coarsest_level"].as_u64(), Some(0));
+    let samples = |v: &serde_json::Value| v["samples"].as_u64().unwrap();
+    assert!(samples(&auto) < samples(&full), "{auto} vs {full}");
+    // The human-readable table names the levels and how they are split.
+    let out = raycaster(
+        &[
+            "render",
+            "shapes.vol",
+            "-o",
+            "t.png",
+            "--size",
+            "64",
+            "--fov",
+            "90",
+            "--zoom",
+            "2",
+            "--stats",
+        ],
+        dir.path(),
+    );
+    assert!(
+        stderr(&out).contains("0–2 of 0..=2 (by depth"),
+        "{}",
+        stderr(&out)
+    );
+}

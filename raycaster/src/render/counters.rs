@@ -54,8 +54,11 @@ pub struct FrameStats {
     pub threads: u32,
     /// Wall time of the frame.
     pub time: Duration,
-    /// The pyramid level the frame sampled (0: full resolution).
+    /// The pyramid level the frame sampled (0: full resolution); in a frame of
+    /// several levels, the finest (nearest).
     pub level: u32,
+    /// The coarsest level the frame sampled (`level` in a frame of one).
+    pub coarsest_level: u32,
 }
 
 impl FrameStats {

@@ -83,6 +83,7 @@ impl DirectSend<'_> {
                         incoming: None,
                         outgoing: None,
                         read_ahead: true,
+                        continues: false,
                     },
                     self.options,
                 )

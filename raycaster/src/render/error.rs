@@ -30,6 +30,9 @@ pub enum RenderError {
     /// A label scene without a label volume, or a label volume that does not fit.
     #[error("labels: {0}")]
     Labels(String),
+    /// A frame of several pyramid levels that cannot be rendered so.
+    #[error("levels: {0}")]
+    Levels(&'static str),
     /// A frame would take more samples than any render should: an absurd spacing
     /// ratio or a tiny step. Refused up front instead of rendering "forever".
     #[error(

@@ -63,7 +63,7 @@ pub use geometry::{
 };
 pub use glam::{Mat3, Vec3};
 pub use image::{ImageError, RgbImage};
-pub use level::LevelChoice;
+pub use level::{DepthBand, LevelBand, LevelChoice};
 pub use optics::corrected_alpha;
 pub use orbit::{Orbit, patient_axes};
 pub use parallel::{
@@ -81,7 +81,7 @@ pub use sabella::{SabellaChannels, SabellaDepth, SabellaMapping, SabellaOutput, 
 pub use segments::{
     GlobalMode, ImportanceSource, LocalMode, Membership, ObjectStyle, SceneError, SegmentScene,
 };
-pub use sequential::render_sequential;
+pub use sequential::{render_sequential, render_sequential_levels};
 pub use settings::{DEFAULT_ERT_THRESHOLD, Mode, ModeParameters, RenderSettings};
 pub use shading::{Light, Shading};
 pub use simd::{SimdLevel, available as simd_levels};

@@ -22,16 +22,18 @@ use super::compositor::{Compositor, CompositorJob};
 use super::counters::{Counters, FrameStats};
 use super::error::RenderError;
 use super::frame::Frame;
+use super::level::DepthBand;
 use super::march::{BrickContext, march_brick};
 use super::ownership::owned_samples;
 use super::packet::{PacketItem, PacketWork};
+use super::pixel::PixelState;
 use super::prepared::{FramePlan, RenderVolume};
 use super::renderer::{FrameJobFn, Renderer, WorkerPool};
 use super::sampler::VolumeSampler;
 use super::schedule::FrameSchedule;
 use super::settings::RenderSettings;
 use super::simd::SimdLevel;
-use super::state_buffer::StateBuffer;
+use super::state_buffer::{StateBuffer, StateBytes};
 use super::tile::Tile;
 use crate::volume::{Sample, TypedVolume, VolumeData};
 
@@ -135,6 +137,7 @@ pub(crate) fn render_frame(
             incoming: None,
             outgoing: None,
             read_ahead: true,
+            continues: false,
         },
         options,
     );
@@ -147,7 +150,129 @@ pub(crate) fn render_frame(
         threads: options.render_threads as u32,
         time: start.elapsed(),
         level: volume.volume().level_index(),
+        coarsest_level: volume.volume().level_index(),
     }))
+}
+
+/// Renders one frame of several levels on `workers`: `passes` are the levels,
+/// nearest band first, each sampling its depth band
+/// ([`LevelChoice::bands`](super::level::LevelChoice::bands)). The levels are
+/// rendered one after another over the whole image, each continuing the pixels'
+/// states where the nearer one left them (a ray terminated in a nearer band
+/// stays terminated); the farthest resolves the pixels into `sink`. One pass
+/// without a band is [`render_frame`].
+pub(crate) fn render_levels_frame(
+    workers: &WorkerPool,
+    passes: &[(&RenderVolume<'_>, Option<DepthBand>)],
+    camera: &Camera,
+    settings: &RenderSettings,
+    options: &ParallelOptions,
+    sink: &dyn TileSink,
+    cancelled: &(dyn Fn() -> bool + Sync),
+) -> Result<Option<FrameStats>, RenderError> {
+    let nearest = check_levels(passes, settings)?;
+    if let [(volume, None)] = passes {
+        return render_frame(workers, volume, camera, settings, options, sink, cancelled);
+    }
+    let start = Instant::now();
+    let plans = level_plans(passes, camera, settings)?;
+    let full = PixelRect {
+        x0: 0,
+        y0: 0,
+        x1: camera.width(),
+        y1: camera.height(),
+    };
+    let record = plans[0].compositor.run(StateBytes);
+    let mut incoming: Option<StateBuffer> = None;
+    let mut total = Counters::default();
+    let (mut bricks, mut transparent) = (0, 0);
+    for (i, (&(volume, _), plan)) in passes.iter().zip(&plans).enumerate() {
+        let schedule = FrameSchedule::new(volume, plan, camera, options.tile_size, None);
+        let last = i + 1 == passes.len();
+        let outgoing = (!last).then(|| Mutex::new(StateBuffer::new(full, record)));
+        let counters = render_tiles(
+            workers,
+            &FrameJob {
+                volume,
+                camera,
+                plan,
+                schedule: &schedule,
+                sink,
+                cancelled,
+                tiles: 0..schedule.tiles.len(),
+                incoming: incoming.as_ref(),
+                outgoing: outgoing.as_ref(),
+                read_ahead: true,
+                continues: true,
+            },
+            options,
+        );
+        let Some(counters) = counters else {
+            return Ok(None);
+        };
+        total += counters;
+        bricks += volume.geometry().grid().block_count();
+        transparent += plan.transparent_bricks();
+        incoming = outgoing.map(Mutex::into_inner);
+    }
+    let coarsest = passes.last().map_or(nearest, |&(v, _)| v);
+    Ok(Some(FrameStats {
+        width: camera.width(),
+        height: camera.height(),
+        counters: total,
+        bricks,
+        bricks_transparent: transparent,
+        threads: options.render_threads as u32,
+        time: start.elapsed(),
+        level: nearest.volume().level_index(),
+        coarsest_level: coarsest.volume().level_index(),
+    }))
+}
+
+/// The nearest level of a frame of `passes`, or why they make no frame: none, or
+/// several for a two-level scene (whose segments would be cut where the levels
+/// meet; such scenes sample one level per frame).
+pub(crate) fn check_levels<'p, 'v>(
+    passes: &'p [(&'p RenderVolume<'v>, Option<DepthBand>)],
+    settings: &RenderSettings,
+) -> Result<&'p RenderVolume<'v>, RenderError> {
+    match passes {
+        [] => Err(RenderError::Levels("a frame needs a level to sample")),
+        [_, _, ..] if settings.segments.is_some() => Err(RenderError::Levels(
+            "two-level scenes sample one level per frame",
+        )),
+        [(nearest, _), ..] => Ok(nearest),
+    }
+}
+
+/// The plans of a frame's levels (each for its band), every level's sample
+/// budget checked.
+pub(crate) fn level_plans(
+    passes: &[(&RenderVolume<'_>, Option<DepthBand>)],
+    camera: &Camera,
+    settings: &RenderSettings,
+) -> Result<Vec<FramePlan>, RenderError> {
+    passes
+        .iter()
+        .map(|&(volume, band)| {
+            super::geometry::check_sample_budget(volume.geometry(), settings.step, camera)?;
+            Ok(FramePlan::new(volume, settings)?.in_band(band))
+        })
+        .collect()
+}
+
+/// A pixel's state as the next (coarser) level of a frame takes it over: its
+/// samples are counted from that level's first, and it is finished only if it
+/// terminated (early termination or a hit), not because the nearer level's
+/// band ended.
+#[inline]
+pub(crate) fn continue_in_level<C: Compositor>(
+    c: &C,
+    plan: &FramePlan,
+    state: &mut PixelState<C::State>,
+) {
+    state.next_sample = 0;
+    state.done = c.opacity(&state.acc) >= plan.ert_threshold || c.finished(&state.acc);
 }
 
 /// Runs `job`'s tiles on `workers`: the summed counters, or `None` if cancelled.
@@ -198,6 +323,9 @@ pub(crate) struct FrameJob<'f> {
     pub outgoing: Option<&'f Mutex<StateBuffer>>,
     /// Whether to ask the OS to read the schedule's bricks ahead.
     pub read_ahead: bool,
+    /// The incoming states come from another level of the frame
+    /// ([`continue_in_level`]).
+    pub continues: bool,
 }
 
 /// A frame's threads with the frame's compositor (chosen once per frame).
@@ -296,14 +424,7 @@ impl FrameJob<'_> {
         let mut items: Vec<PacketItem> = Vec::new();
         for Task { mut tile, brick } in tasks.iter() {
             if !(self.cancelled)() {
-                tile.prepare_rays(
-                    self.camera,
-                    geometry,
-                    self.plan.dt,
-                    self.plan.jitter,
-                    &self.plan.clip,
-                    &volume_rect,
-                );
+                tile.prepare_rays(self.camera, geometry, self.plan, &volume_rect);
                 let scheduled = self.schedule.bricks[brick as usize];
                 let context = BrickContext::new(data, self.volume, self.plan, scheduled.coords);
                 let mut counters = tile.counters;
@@ -389,6 +510,11 @@ impl FrameJob<'_> {
             let mut tile = Tile::new(index as u32, k, queue.rect, c.start());
             if let Some(incoming) = self.incoming {
                 incoming.read(queue.rect, &mut tile.states);
+                if self.continues {
+                    for state in &mut tile.states {
+                        continue_in_level(c, self.plan, state);
+                    }
+                }
             }
             if let Some(task) = self.next_task(c, tile, &mut counters) {
                 in_flight += 1;

@@ -9,6 +9,7 @@ use glam::Vec3;
 
 use super::clip::ClipRegion;
 use super::geometry::VolumeGeometry;
+use super::level::DepthBand;
 use super::ray::Ray;
 
 /// A pixel's ray through the volume, in voxel coordinates.
@@ -73,6 +74,51 @@ impl PixelRay {
         } else {
             t_box
         };
+        PixelRay::kept(ray, geometry, dt, t_enter, (t_box, t_exit), clip, None)
+    }
+
+    /// Like [`Self::new`] for one level of a frame of several
+    /// ([`DepthBand`]): samples are anchored where the ray enters the box of all
+    /// the frame's levels (plus `jitter` of the finest level's step), and the ray
+    /// keeps those in the band's part of it (and in `clip`).
+    pub fn in_band(
+        ray: &Ray,
+        geometry: &VolumeGeometry,
+        dt: f32,
+        jitter: f32,
+        clip: &ClipRegion,
+        band: &DepthBand,
+    ) -> Option<PixelRay> {
+        let (lo, hi) = geometry.world_bounds();
+        let (t_box, t_exit) = ray.intersect_box(lo, hi)?;
+        let anchor = band.anchor(ray.origin, ray.direction, dt, jitter)?;
+        if anchor >= t_exit {
+            return None;
+        }
+        let interval = band.ray_interval(ray.origin, ray.direction, anchor, dt)?;
+        PixelRay::kept(
+            ray,
+            geometry,
+            dt,
+            anchor,
+            (t_box, t_exit),
+            clip,
+            Some(interval),
+        )
+    }
+
+    /// The ray sampled every `dt` from `t_enter` up to `t_exit`, keeping the
+    /// samples in `[t_box, t_exit)` whose `t` also lies in `clip`'s part of the ray
+    /// and in `interval`.
+    fn kept(
+        ray: &Ray,
+        geometry: &VolumeGeometry,
+        dt: f32,
+        t_enter: f32,
+        (t_box, t_exit): (f32, f32),
+        clip: &ClipRegion,
+        interval: Option<(f32, f32)>,
+    ) -> Option<PixelRay> {
         let length = t_exit - t_enter;
         // Samples cover [t_enter, t_exit): ceil(L/dt) of them, at least one; the
         // last stands for the remaining length only. A huge count can only come
@@ -96,17 +142,31 @@ impl PixelRay {
             step,
             inv_step: Vec3::select(step.cmpeq(Vec3::ZERO), Vec3::ZERO, step.recip()),
         };
-        if clip.is_empty() {
+        if clip.is_empty() && interval.is_none() && t_enter >= t_box {
             return Some(whole);
         }
         let voxel_ray = Ray { origin, direction };
-        let (c0, c1) = clip.interval(&voxel_ray, t_box, t_exit)?;
+        let (mut c0, mut c1) = if clip.is_empty() {
+            (t_box, t_exit)
+        } else {
+            clip.interval(&voxel_ray, t_box, t_exit)?
+        };
+        if let Some((b0, b1)) = interval {
+            (c0, c1) = (c0.max(b0), c1.min(b1));
+            if c0 >= c1 {
+                return None;
+            }
+        }
         let first = whole.first_at_or_after(c0);
         let (samples, last_fraction) = if c1 >= t_exit {
             (samples, last_fraction)
         } else {
             let end = whole.first_at_or_after(c1);
-            let fraction = if end > 0 {
+            // An end on a sample (a coarser level's, where two levels of a frame
+            // meet) leaves the last kept sample a whole step.
+            let fraction = if end > 0 && end < samples && whole.t(end) == c1 {
+                1.0
+            } else if end > 0 {
                 ((c1 - whole.t(end - 1)) / dt).clamp(0.0, 1.0)
             } else {
                 0.0
@@ -195,16 +255,6 @@ impl<S> PixelState<S> {
         PixelState {
             acc: start,
             next_sample: 0,
-            done: false,
-        }
-    }
-
-    /// The state of a pixel whose ray has not started: `start`, expecting `ray`'s
-    /// first sample.
-    pub fn starting(start: S, ray: &PixelRay) -> Self {
-        PixelState {
-            acc: start,
-            next_sample: ray.first,
             done: false,
         }
     }

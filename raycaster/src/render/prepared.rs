@@ -6,12 +6,15 @@ use std::sync::Arc;
 use glam::Vec3;
 use rayon::prelude::*;
 
+use super::camera::Camera;
 use super::cells::{BrickCells, CellRanges};
 use super::clip::ClipRegion;
 use super::compositor::FrameCompositor;
 use super::error::RenderError;
 use super::geometry::VolumeGeometry;
+use super::level::DepthBand;
 use super::local::LocalCompositor;
+use super::pixel::{PixelRay, ray_jitter};
 use super::segments::Membership;
 use super::settings::{Mode, RenderSettings};
 use super::simd::SimdLevel;
@@ -206,6 +209,8 @@ pub(crate) struct FramePlan {
     /// The part of the volume shown ([`RenderSettings::clip`]), in voxel
     /// coordinates of the level rendered.
     pub clip: ClipRegion,
+    /// The depths this level samples in a frame of several levels; `None`: all.
+    pub band: Option<DepthBand>,
 }
 
 /// The smallest extent, in voxels, of a small cell of `volume`'s bricks along an
@@ -297,6 +302,7 @@ impl FramePlan {
             transparent_count: 0,
             simd,
             clip: settings.clip.at_level(volume.volume().level_scale()),
+            band: None,
         };
         // Nothing per brick is kept: the count takes one pass over the grid, and
         // later questions about a brick ask its range again (an O(1) query).
@@ -322,8 +328,40 @@ impl FramePlan {
         self.range_empty(lo, hi)
     }
 
-    /// Whether brick `b` of `volume`'s grid lies entirely outside the clip region.
+    /// The plan of one level of a frame of several: the level samples the depths
+    /// of `band` only ([`LevelChoice::bands`](super::level::LevelChoice::bands)).
+    pub fn in_band(mut self, band: Option<DepthBand>) -> Self {
+        self.band = band;
+        self
+    }
+
+    /// Pixel `(x, y)`'s ray through `geometry` (this plan's level), with its
+    /// jitter, clip region and depth band.
+    #[inline]
+    pub fn pixel_ray(
+        &self,
+        camera: &Camera,
+        geometry: &VolumeGeometry,
+        x: u32,
+        y: u32,
+    ) -> Option<PixelRay> {
+        let jitter = if self.jitter { ray_jitter(x, y) } else { 0.0 };
+        let ray = camera.ray(x, y);
+        match &self.band {
+            None => PixelRay::new(&ray, geometry, self.dt, jitter, &self.clip),
+            Some(band) => PixelRay::in_band(&ray, geometry, self.dt, jitter, &self.clip, band),
+        }
+    }
+
+    /// Whether brick `b` of `volume`'s grid lies entirely outside the clip region,
+    /// or outside this level's depth band.
     pub fn brick_cut_away(&self, volume: &RenderVolume<'_>, b: [u32; 3]) -> bool {
+        if let Some(band) = &self.band {
+            let (lo, hi) = volume.geometry().brick_world_box(b);
+            if !band.may_hold(lo, hi, self.dt) {
+                return true;
+            }
+        }
         if self.clip.is_empty() {
             return false;
         }

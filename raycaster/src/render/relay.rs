@@ -24,19 +24,17 @@ use crossbeam_channel::{Receiver, RecvTimeoutError, Sender};
 use parking_lot::Mutex;
 
 use super::camera::{Camera, PixelRect};
-use super::compositor::{Compositor, CompositorJob};
 use super::counters::{Counters, FrameStats};
 use super::direct_send::DirectSend;
 use super::error::RenderError;
 use super::frame::Frame;
 use super::parallel::{FrameJob, ParallelOptions, TileSink, render_tiles};
 use super::partition::{BrickBox, Partition};
-use super::pixel::PixelState;
 use super::prepared::{FramePlan, RenderVolume};
 use super::renderer::Renderer;
 use super::schedule::FrameSchedule;
 use super::settings::{Mode, RenderSettings};
-use super::state_buffer::{Reader, StateBuffer, StateCodec, put_f32, put_u32};
+use super::state_buffer::{Reader, StateBuffer, StateBytes, put_f32, put_u32};
 
 /// Point-to-point messages between the ranks of a distributed frame (MPI in
 /// the `raycaster` binary, channels in [`channel_links`]).
@@ -238,6 +236,7 @@ pub fn render_distributed(
                 incoming: incoming.as_ref(),
                 outgoing: outgoing.as_ref(),
                 read_ahead: own.bands == 0,
+                continues: false,
             },
             &options.parallel,
         )
@@ -348,6 +347,7 @@ fn gather(
         threads: (options.parallel.render_threads.max(1) * ranks) as u32,
         time: start.elapsed(),
         level: volume.volume().level_index(),
+        coarsest_level: volume.volume().level_index(),
     };
     Ok(DistributedFrame {
         frame: Some(frame),
@@ -378,15 +378,6 @@ fn chain(order: &[usize], rects: &[Option<PixelRect>], rect: &PixelRect) -> Vec<
 }
 
 /// The bytes of one pixel's state under the frame's compositor.
-struct StateBytes;
-
-impl CompositorJob for StateBytes {
-    type Output = usize;
-    fn run<C: Compositor>(self, _c: &C) -> usize {
-        <PixelState<C::State> as StateCodec>::BYTES
-    }
-}
-
 /// A band's resolved pixels.
 #[derive(Debug, Default)]
 pub(crate) struct BandPixels {

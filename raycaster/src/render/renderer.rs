@@ -12,7 +12,8 @@ use super::camera::Camera;
 use super::counters::FrameStats;
 use super::error::RenderError;
 use super::frame::Frame;
-use super::parallel::{ParallelOptions, TileSink, render_frame};
+use super::level::DepthBand;
+use super::parallel::{ParallelOptions, TileSink, render_frame, render_levels_frame};
 use super::prepared::RenderVolume;
 use super::settings::RenderSettings;
 
@@ -157,6 +158,47 @@ impl Renderer {
     ) -> Result<Option<FrameStats>, RenderError> {
         let workers = self.workers_for(options);
         render_frame(workers, volume, camera, settings, options, sink, cancelled)
+    }
+
+    /// Renders one frame of several pyramid levels, nearest band first
+    /// ([`LevelChoice::bands`](super::LevelChoice::bands): each level samples its
+    /// band of depths), handing the farthest level's finished tiles to `sink`.
+    /// One level without a band is [`Self::render_into`]'s frame; the sequential
+    /// reference is [`super::render_sequential_levels`].
+    #[allow(clippy::too_many_arguments)]
+    pub fn render_levels_into(
+        &mut self,
+        passes: &[(&RenderVolume<'_>, Option<DepthBand>)],
+        camera: &Camera,
+        settings: &RenderSettings,
+        options: &ParallelOptions,
+        sink: &dyn TileSink,
+        cancelled: &(dyn Fn() -> bool + Sync),
+    ) -> Result<Option<FrameStats>, RenderError> {
+        let workers = self.workers_for(options);
+        render_levels_frame(workers, passes, camera, settings, options, sink, cancelled)
+    }
+
+    /// Renders one frame of several pyramid levels into a [`Frame`]
+    /// ([`Self::render_levels_into`]).
+    pub fn render_levels(
+        &mut self,
+        passes: &[(&RenderVolume<'_>, Option<DepthBand>)],
+        camera: &Camera,
+        settings: &RenderSettings,
+        options: &ParallelOptions,
+    ) -> Result<Frame, RenderError> {
+        let frame = Mutex::new(Frame::empty(
+            camera.width(),
+            camera.height(),
+            settings.background,
+        ));
+        let stats = self
+            .render_levels_into(passes, camera, settings, options, &frame, &|| false)?
+            .expect("a frame that cannot be cancelled completes");
+        let mut frame = frame.into_inner();
+        frame.stats = stats;
+        Ok(frame)
     }
 
     /// The worker threads for frames with `options`, started when missing or

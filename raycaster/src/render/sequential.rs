@@ -8,17 +8,20 @@
 
 use std::time::Instant;
 
-use super::camera::Camera;
+use super::camera::{Camera, PixelRect};
 use super::compositor::{Compositor, CompositorJob};
 use super::counters::Counters;
 use super::error::RenderError;
 use super::frame::Frame;
+use super::level::DepthBand;
 use super::march::{BrickContext, march_brick};
 use super::ownership::owned_samples;
-use super::pixel::{PixelRay, PixelState, ray_jitter};
+use super::parallel::{check_levels, continue_in_level, level_plans};
+use super::pixel::PixelState;
 use super::prepared::{FramePlan, RenderVolume};
 use super::sampler::VolumeSampler;
 use super::settings::RenderSettings;
+use super::state_buffer::{StateBuffer, StateBytes};
 use crate::volume::{Sample, TypedVolume, VolumeData};
 
 /// Renders one frame of `volume` seen by `camera`, on the calling thread.
@@ -27,33 +30,80 @@ pub fn render_sequential(
     camera: &Camera,
     settings: &RenderSettings,
 ) -> Result<Frame, RenderError> {
+    render_sequential_levels(&[(volume, None)], camera, settings)
+}
+
+/// Renders one frame of several pyramid levels on the calling thread: `passes`
+/// are the levels, nearest band first, each sampling its depth band
+/// ([`LevelChoice::bands`](super::level::LevelChoice::bands)), the reference of
+/// [`Renderer::render_levels_into`](super::Renderer::render_levels_into). Like
+/// it, the levels are rendered one after another over the whole image, each
+/// continuing the pixels' states where the nearer one left them.
+pub fn render_sequential_levels(
+    passes: &[(&RenderVolume<'_>, Option<DepthBand>)],
+    camera: &Camera,
+    settings: &RenderSettings,
+) -> Result<Frame, RenderError> {
     let start = Instant::now();
-    let plan = FramePlan::new(volume, settings)?;
-    super::geometry::check_sample_budget(volume.geometry(), settings.step, camera)?;
+    let nearest = check_levels(passes, settings)?;
+    let plans = level_plans(passes, camera, settings)?;
     let mut frame = Frame::empty(camera.width(), camera.height(), settings.background);
-    let counters = match volume.volume().data() {
-        VolumeData::U8(data) => plan.compositor.run(SequentialPass {
-            volume,
-            data: &data,
-            camera,
-            plan: &plan,
-            frame: &mut frame,
-        }),
-        VolumeData::U16(data) => plan.compositor.run(SequentialPass {
-            volume,
-            data: &data,
-            camera,
-            plan: &plan,
-            frame: &mut frame,
-        }),
+    let record = plans[0].compositor.run(StateBytes);
+    let full = PixelRect {
+        x0: 0,
+        y0: 0,
+        x1: camera.width(),
+        y1: camera.height(),
     };
+    let mut counters = Counters::default();
+    let (mut bricks, mut transparent) = (0, 0);
+    let mut incoming: Option<StateBuffer> = None;
+    for (i, (&(volume, _), plan)) in passes.iter().zip(&plans).enumerate() {
+        let mut outgoing = (i + 1 < passes.len()).then(|| StateBuffer::new(full, record));
+        let states = LevelStates {
+            incoming: incoming.as_ref(),
+            outgoing: outgoing.as_mut(),
+        };
+        counters += match volume.volume().data() {
+            VolumeData::U8(data) => plan.compositor.run(SequentialPass {
+                volume,
+                data: &data,
+                camera,
+                plan,
+                frame: &mut frame,
+                states,
+            }),
+            VolumeData::U16(data) => plan.compositor.run(SequentialPass {
+                volume,
+                data: &data,
+                camera,
+                plan,
+                frame: &mut frame,
+                states,
+            }),
+        };
+        bricks += volume.geometry().grid().block_count();
+        transparent += plan.transparent_bricks();
+        incoming = outgoing;
+    }
     frame.stats.counters = counters;
-    frame.stats.bricks = volume.geometry().grid().block_count();
-    frame.stats.bricks_transparent = plan.transparent_bricks();
+    frame.stats.bricks = bricks;
+    frame.stats.bricks_transparent = transparent;
     frame.stats.threads = 1;
-    frame.stats.level = volume.volume().level_index();
+    frame.stats.level = nearest.volume().level_index();
+    frame.stats.coarsest_level = passes.last().map_or(0, |(v, _)| v.volume().level_index());
     frame.stats.time = start.elapsed();
     Ok(frame)
+}
+
+/// Where a level of a frame of several takes its pixels' states from and
+/// leaves them (both `None` in a frame of one level).
+struct LevelStates<'b> {
+    /// The nearer level's states; `None`: the compositor's start.
+    incoming: Option<&'b StateBuffer>,
+    /// Where the states go, unresolved, for the next level; `None`: resolved
+    /// into the frame.
+    outgoing: Option<&'b mut StateBuffer>,
 }
 
 /// The frame's pixels with compositor `C` (chosen once per frame).
@@ -63,6 +113,7 @@ struct SequentialPass<'p, 'v, 'd, T: Sample> {
     camera: &'p Camera,
     plan: &'p FramePlan,
     frame: &'p mut Frame,
+    states: LevelStates<'p>,
 }
 
 impl<T: Sample> CompositorJob for SequentialPass<'_, '_, '_, T> {
@@ -75,25 +126,58 @@ impl<T: Sample> CompositorJob for SequentialPass<'_, '_, '_, T> {
             camera,
             plan,
             frame,
+            mut states,
         } = self;
         let geometry = volume.geometry();
         let sampler = VolumeSampler::new(*data);
         let mut counters = Counters::default();
         let (lo, hi) = geometry.world_bounds();
-        let Some(rect) = camera.project_box(lo, hi) else {
-            return counters;
+        let projected = camera.project_box(lo, hi);
+        // A level of a frame of several carries every pixel's state on, even
+        // where its own box does not project.
+        let rect = match (&states.incoming, &states.outgoing, projected) {
+            (None, None, None) => return counters,
+            (None, None, Some(rect)) => rect,
+            _ => PixelRect {
+                x0: 0,
+                y0: 0,
+                x1: camera.width(),
+                y1: camera.height(),
+            },
+        };
+        let inside = |x: u32, y: u32| {
+            projected.is_some_and(|r| x >= r.x0 && x < r.x1 && y >= r.y0 && y < r.y1)
         };
         let last_voxel = geometry.last_voxel();
+        let mut row = vec![PixelState::new(c.start()); (rect.x1 - rect.x0) as usize];
+        // Pixels whose ray was marched (a frame of one level writes only those).
+        let mut marched = vec![false; row.len()];
         for y in rect.y0..rect.y1 {
-            for x in rect.x0..rect.x1 {
-                let jitter = if plan.jitter { ray_jitter(x, y) } else { 0.0 };
-                let Some(ray) =
-                    PixelRay::new(&camera.ray(x, y), geometry, plan.dt, jitter, &plan.clip)
-                else {
+            let row_rect = PixelRect {
+                y0: y,
+                y1: y + 1,
+                ..rect
+            };
+            match states.incoming {
+                Some(incoming) => {
+                    incoming.read(row_rect, &mut row);
+                    for state in &mut row {
+                        continue_in_level(c, plan, state);
+                    }
+                }
+                None => row.fill(PixelState::new(c.start())),
+            }
+            marched.fill(states.incoming.is_some());
+            for ((x, state), marched) in (rect.x0..rect.x1).zip(row.iter_mut()).zip(&mut marched) {
+                if state.done || !inside(x, y) {
+                    continue;
+                }
+                let Some(ray) = plan.pixel_ray(camera, geometry, x, y) else {
                     continue;
                 };
                 counters.rays += 1;
-                let mut state = PixelState::starting(c.start(), &ray);
+                *marched = true;
+                state.next_sample = state.next_sample.max(ray.first);
                 while !state.done {
                     let k = state.next_sample;
                     let b = geometry.owner(ray.position(k, last_voxel));
@@ -112,13 +196,21 @@ impl<T: Sample> CompositorJob for SequentialPass<'_, '_, '_, T> {
                         &ray,
                         k,
                         last,
-                        &mut state,
+                        state,
                         &mut counters,
                     );
                 }
-                let i = frame.index(x, y);
-                frame.rgba[i] = c.resolve(&state.acc);
-                frame.depth[i] = c.depth(&state.acc);
+            }
+            match states.outgoing.as_deref_mut() {
+                Some(outgoing) => outgoing.write(row_rect, &row),
+                None => {
+                    let pixels = (rect.x0..rect.x1).zip(&row).zip(&marched);
+                    for ((x, state), _) in pixels.filter(|(_, marched)| **marched) {
+                        let i = frame.index(x, y);
+                        frame.rgba[i] = c.resolve(&state.acc);
+                        frame.depth[i] = c.depth(&state.acc);
+                    }
+                }
             }
         }
         counters

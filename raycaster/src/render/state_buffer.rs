@@ -6,6 +6,7 @@
 //! where it stopped.
 
 use super::camera::PixelRect;
+use super::compositor::{Compositor, CompositorJob};
 use super::pixel::PixelState;
 
 /// A compositing state that can travel as bytes.
@@ -88,6 +89,17 @@ impl<S: StateCodec> StateCodec for PixelState<S> {
             next_sample: r.u32(),
             done: r.u8() != 0,
         }
+    }
+}
+
+/// Asks a frame's compositor for the bytes of one pixel's state
+/// (`plan.compositor.run(StateBytes)`).
+pub(crate) struct StateBytes;
+
+impl CompositorJob for StateBytes {
+    type Output = usize;
+    fn run<C: Compositor>(self, _c: &C) -> usize {
+        <PixelState<C::State> as StateCodec>::BYTES
     }
 }
 

@@ -2,10 +2,10 @@
 //! by value between the compositing and render threads (never shared).
 
 use super::camera::{Camera, PixelRect};
-use super::clip::ClipRegion;
 use super::counters::Counters;
 use super::geometry::VolumeGeometry;
-use super::pixel::{PixelRay, PixelState, ray_jitter};
+use super::pixel::{PixelRay, PixelState};
+use super::prepared::FramePlan;
 
 /// A tile and everything its pixels have accumulated.
 #[derive(Clone, Debug)]
@@ -48,16 +48,13 @@ impl<S: Copy> Tile<S> {
         ((y - self.rect.y0) * (self.rect.x1 - self.rect.x0) + (x - self.rect.x0)) as usize
     }
 
-    /// Computes the pixels' rays (once); pixels outside `volume_rect` get none.
-    /// With `jitter`, each ray starts [`ray_jitter`] of a step later; rays keep
-    /// their samples inside `clip`.
+    /// Computes the pixels' rays (once, [`FramePlan::pixel_ray`]); pixels outside
+    /// `volume_rect` get none.
     pub fn prepare_rays(
         &mut self,
         camera: &Camera,
         geometry: &VolumeGeometry,
-        dt: f32,
-        jitter: bool,
-        clip: &ClipRegion,
+        plan: &FramePlan,
         volume_rect: &PixelRect,
     ) {
         if !self.rays.is_empty() {
@@ -72,10 +69,7 @@ impl<S: Copy> Tile<S> {
                     && y >= volume_rect.y0
                     && y < volume_rect.y1;
                 let ray = inside
-                    .then(|| {
-                        let j = if jitter { ray_jitter(x, y) } else { 0.0 };
-                        PixelRay::new(&camera.ray(x, y), geometry, dt, j, clip)
-                    })
+                    .then(|| plan.pixel_ray(camera, geometry, x, y))
                     .flatten();
                 self.counters.rays += u64::from(ray.is_some());
                 self.rays.push(ray);
