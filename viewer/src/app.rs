@@ -42,8 +42,6 @@ use crate::ui::{App, ObjectRow};
 
 /// Quiet time after the last camera change before the full-quality frame.
 const SETTLE: Duration = Duration::from_millis(200);
-/// Moving frames sample one pyramid level coarser than still ones.
-const MOVING_LEVEL_BIAS: f32 = 1.0;
 /// Canvas size assumed before the window is laid out.
 const FALLBACK_CANVAS: (u32, u32) = (640, 480);
 /// Frames whose cameras are remembered (requests in flight at once).
@@ -1385,7 +1383,7 @@ impl Controller {
         let level = match first_levels {
             Some(n) => LevelChoice::Fixed(n as u32 - 1),
             None if moving => LevelChoice::Auto {
-                bias: MOVING_LEVEL_BIAS,
+                bias: st.quality.moving_level_bias(),
             },
             None => st.level,
         };
@@ -1488,7 +1486,10 @@ impl Controller {
                     FrameEvent::Done { id, stats } => {
                         let moving = latest.is_some_and(|(l, m)| l == id && m);
                         if moving {
-                            st.quality.moving_frame_took(stats.time);
+                            let coarsest = st.current.as_ref().is_none_or(|c| {
+                                stats.level + 1 >= c.volume.volume.level_count() as u32
+                            });
+                            st.quality.moving_frame_took(stats.time, coarsest);
                         }
                         if latest.is_some_and(|(l, _)| l == id) {
                             st.last_stats = Some((stats, moving));

@@ -8,6 +8,13 @@ pub const MOVING_BUDGET: Duration = Duration::from_millis(50);
 /// Range of the pacing factor P: moving frames are rendered at resolution 0.5/P
 /// and twice the still step × P, so P = 0.5 is the still quality.
 const PACING_RANGE: (f32, f32) = (0.5, 4.0);
+/// Pyramid levels moving frames start coarser than the automatic choice.
+const START_LEVEL_BIAS: u32 = 1;
+/// A moving frame this many times over the budget with the pacing at its
+/// coarsest takes the next coarser pyramid level; one this many times under it
+/// with the pacing at still quality, the next finer (a level halves the samples,
+/// so the hysteresis keeps the choice from swinging back).
+const LEVEL_STEP_RATIO: f32 = 1.5;
 
 /// The step presets of the settings panel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -53,6 +60,9 @@ pub struct QualityPolicy {
     /// The pacing factor P (see [`PACING_RANGE`]); 1 at the start: half
     /// resolution and twice the still step.
     pacing: f32,
+    /// Pyramid levels moving frames sample coarser than the automatic choice
+    /// (which already follows their lower resolution), learnt from their times.
+    level_bias: u32,
 }
 
 impl Default for QualityPolicy {
@@ -61,6 +71,7 @@ impl Default for QualityPolicy {
             preset: StepPreset::Fine,
             full_quality_only: false,
             pacing: 1.0,
+            level_bias: START_LEVEL_BIAS,
         }
     }
 }
@@ -90,16 +101,31 @@ impl QualityPolicy {
         }
     }
 
+    /// The pyramid level bias of moving frames: levels coarser than the
+    /// automatic choice for their resolution.
+    pub fn moving_level_bias(&self) -> f32 {
+        self.level_bias as f32
+    }
+
     /// Learns from a finished moving frame: its cost scales with pixels × samples
     /// per ray, i.e. with `factor⁻³`, so the factor moves by the cube root of the
-    /// time ratio to the budget.
-    pub fn moving_frame_took(&mut self, time: Duration) {
+    /// time ratio to the budget. Beyond what resolution and step can do, the
+    /// pyramid level follows the budget: a frame well over it with the pacing at
+    /// its coarsest makes the next moving frames one level coarser (unless it
+    /// sampled the coarsest level, `at_coarsest`), one well under it with the
+    /// pacing at still quality one level finer.
+    pub fn moving_frame_took(&mut self, time: Duration, at_coarsest: bool) {
         if self.full_quality_only || time.is_zero() {
             return;
         }
         let ratio = time.as_secs_f32() / MOVING_BUDGET.as_secs_f32();
         let (lo, hi) = PACING_RANGE;
         self.pacing = (self.pacing * ratio.cbrt()).clamp(lo, hi);
+        if ratio > LEVEL_STEP_RATIO && self.pacing >= hi && !at_coarsest {
+            self.level_bias += 1;
+        } else if ratio < 1.0 / LEVEL_STEP_RATIO && self.pacing <= lo {
+            self.level_bias = self.level_bias.saturating_sub(1);
+        }
     }
 
     /// The size of a frame for a canvas of `width × height` physical pixels.
@@ -138,29 +164,66 @@ mod tests {
                 ..QualityPolicy::default()
             };
             let base = q.moving();
-            q.moving_frame_took(Duration::from_millis(400));
+            q.moving_frame_took(Duration::from_millis(400), false);
             // 8× the budget: twice as coarse on both counts (cost ÷ 8).
             let paced = q.moving();
             assert!((paced.step / base.step - 2.0).abs() < 1e-4, "{preset:?}");
             assert!((base.resolution / paced.resolution - 2.0).abs() < 1e-4);
             for _ in 0..20 {
-                q.moving_frame_took(Duration::from_millis(400));
+                q.moving_frame_took(Duration::from_millis(400), false);
             }
             assert_eq!(q.moving().step, base.step * PACING_RANGE.1);
             for _ in 0..20 {
-                q.moving_frame_took(Duration::from_millis(5));
+                q.moving_frame_took(Duration::from_millis(5), false);
             }
             assert_eq!(q.moving(), q.still(), "never finer than a still frame");
             // Frames on budget leave the pacing where it is.
-            q.moving_frame_took(Duration::from_millis(400));
+            q.moving_frame_took(Duration::from_millis(400), false);
             let settled = q.moving();
-            q.moving_frame_took(MOVING_BUDGET);
+            q.moving_frame_took(MOVING_BUDGET, false);
             assert_eq!(q.moving(), settled);
             // Full quality only: no pacing.
             q.full_quality_only = true;
-            q.moving_frame_took(Duration::from_millis(400));
+            q.moving_frame_took(Duration::from_millis(400), false);
             assert_eq!(q.moving(), q.still());
         }
+    }
+
+    #[test]
+    fn moving_frames_take_a_coarser_level_when_pacing_cannot_keep_the_budget() {
+        let mut q = QualityPolicy::default();
+        assert_eq!(q.moving_level_bias(), START_LEVEL_BIAS as f32);
+        let slow = Duration::from_millis(400);
+        // Resolution and step coarsen first; then each slow frame a level.
+        q.moving_frame_took(slow, false);
+        assert_eq!(q.moving_level_bias(), 1.0, "pacing not at its coarsest yet");
+        q.moving_frame_took(slow, false);
+        assert_eq!(q.moving().step, q.still().step * 2.0 * PACING_RANGE.1);
+        let coarser = q.moving_level_bias();
+        assert!(coarser > 1.0);
+        q.moving_frame_took(slow, false);
+        assert_eq!(q.moving_level_bias(), coarser + 1.0);
+        // Not beyond the coarsest level a frame sampled.
+        q.moving_frame_took(slow, true);
+        assert_eq!(q.moving_level_bias(), coarser + 1.0);
+        // Frames on budget, or just under it, keep the level.
+        q.moving_frame_took(MOVING_BUDGET, false);
+        q.moving_frame_took(MOVING_BUDGET.mul_f32(0.8), false);
+        assert_eq!(q.moving_level_bias(), coarser + 1.0);
+        // Fast frames: resolution and step come back first, then the levels,
+        // down to the automatic choice.
+        let fast = Duration::from_millis(5);
+        q.moving_frame_took(fast, false);
+        assert_eq!(q.moving_level_bias(), coarser + 1.0, "pacing first");
+        for _ in 0..20 {
+            q.moving_frame_took(fast, false);
+        }
+        assert_eq!(q.moving(), q.still());
+        assert_eq!(q.moving_level_bias(), 0.0);
+        // Full quality only: nothing learnt.
+        q.full_quality_only = true;
+        q.moving_frame_took(slow, false);
+        assert_eq!(q.moving_level_bias(), 0.0);
     }
 
     #[test]
