@@ -551,6 +551,14 @@ impl FrameJob<'_> {
         counters: &mut Counters,
     ) -> Option<Task<C::State>> {
         let queue = &self.schedule.tiles[tile.index as usize].bricks;
+        // A tile whose every pixel is finished skips the rest of its queue at
+        // once (close to a large volume, a tile's queue holds up to hundreds of
+        // thousands of bricks, each covering most of the tile).
+        if tile.next < queue.len() && tile.all_finished() {
+            let rest = queue.len() - tile.next;
+            tile.counters.tasks_skipped_occluded += rest as u64;
+            tile.next = queue.len();
+        }
         while let Some(&brick) = queue.get(tile.next) {
             if !tile.finished_within(&self.schedule.bricks[brick as usize].rect) {
                 return Some(Task { tile, brick });

@@ -83,6 +83,11 @@ impl<S: Copy> Tile<S> {
         }
     }
 
+    /// Whether every pixel of the tile is finished (needs rays prepared).
+    pub fn all_finished(&self) -> bool {
+        !self.rays.is_empty() && self.states.iter().all(|s| s.done)
+    }
+
     /// Whether every pixel of `rect ∩ tile` is finished (needs rays prepared).
     pub fn finished_within(&self, rect: &PixelRect) -> bool {
         if self.rays.is_empty() {
