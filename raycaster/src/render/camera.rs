@@ -256,8 +256,14 @@ impl Camera {
 
     /// The pixels whose centre rays can hit the box `[lo, hi]`: the bounding
     /// rectangle of its projected corners, widened by a pixel, clipped to the image.
-    /// When a corner lies behind a perspective camera the whole image is returned.
     /// `None` when the box projects entirely outside the image.
+    ///
+    /// For a perspective camera, a box wholly behind the camera plane is `None`;
+    /// a box reaching across it is cut at a depth `δ` no ray can hit the box in
+    /// front of (half the box's distance from the camera times the cosine of the
+    /// widest ray's angle to the view), and the cut part projected: its corners
+    /// in front and the points where its edges cross depth `δ`. A box holding the
+    /// camera (or within a hair of it) covers the whole image.
     pub fn project_box(&self, lo: Vec3, hi: Vec3) -> Option<PixelRect> {
         let image = PixelRect {
             x0: 0,
@@ -265,20 +271,68 @@ impl Camera {
             x1: self.width,
             y1: self.height,
         };
-        let mut min = [f32::INFINITY; 2];
-        let mut max = [f32::NEG_INFINITY; 2];
-        for corner in 0..8 {
-            let p = Vec3::new(
+        let corners: [Vec3; 8] = std::array::from_fn(|corner| {
+            Vec3::new(
                 if corner & 1 == 0 { lo.x } else { hi.x },
                 if corner & 2 == 0 { lo.y } else { hi.y },
                 if corner & 4 == 0 { lo.z } else { hi.z },
-            );
-            let Some(q) = self.project(p) else {
-                return Some(image);
-            };
+            )
+        });
+        let mut min = [f32::INFINITY; 2];
+        let mut max = [f32::NEG_INFINITY; 2];
+        let mut add = |q: [f32; 2]| {
             for a in 0..2 {
                 min[a] = min[a].min(q[a]);
                 max[a] = max[a].max(q[a]);
+            }
+        };
+        match self.projection {
+            Projection::Orthographic { .. } => {
+                for p in corners {
+                    add(self
+                        .project(p)
+                        .expect("orthographic projections always exist"));
+                }
+            }
+            Projection::Perspective { .. } => {
+                let depth = |p: Vec3| (p - self.position).dot(self.direction);
+                // Rounding of sample positions, with a wide margin.
+                let hair = 1e-4 * (hi - lo).max_element().max(1e-3);
+                if corners.iter().all(|&p| depth(p) < -hair) {
+                    return None;
+                }
+                let reach = (self.position - self.position.clamp(lo, hi)).length();
+                if reach <= hair {
+                    return Some(image);
+                }
+                let widest = (1.0 + self.half_plane[0].powi(2) + self.half_plane[1].powi(2))
+                    .sqrt()
+                    .recip();
+                let cut = (reach * widest * 0.5).max(2e-6);
+                for (i, &p) in corners.iter().enumerate() {
+                    let dp = depth(p);
+                    if dp >= cut {
+                        add(self.project(p)?);
+                    }
+                    // Edges to the corners differing in one coordinate.
+                    for bit in [1, 2, 4] {
+                        let j = i | bit;
+                        if j == i {
+                            continue;
+                        }
+                        let (q, dq) = (corners[j], depth(corners[j]));
+                        if (dp < cut) != (dq < cut) {
+                            let at = p + (q - p) * ((cut - dp) / (dq - dp));
+                            match self.project(at) {
+                                Some(point) => add(point),
+                                None => return Some(image),
+                            }
+                        }
+                    }
+                }
+                if min[0] > max[0] {
+                    return None;
+                }
             }
         }
         let to_pixel = |v: f32, limit: u32| v.clamp(0.0, limit as f32) as u32;
@@ -395,15 +449,47 @@ mod tests {
     }
 
     #[test]
-    fn box_behind_the_camera_or_around_it() {
+    fn box_behind_the_camera_across_its_plane_or_around_it() {
         let cam = perspective();
+        // Wholly behind: no pixel.
         let behind = cam.project_box(Vec3::new(-1.0, -20.0, -1.0), Vec3::new(1.0, -19.0, 1.0));
-        // A box entirely behind still gives a conservative rectangle (all of it).
-        assert!(behind.is_some());
+        assert_eq!(behind, None);
         let around = cam
             .project_box(Vec3::splat(-20.0), Vec3::splat(20.0))
             .unwrap();
         assert_eq!(around.area(), 64 * 48);
+        // Boxes across the camera plane, beside the camera, around it and in
+        // front: every pixel whose ray hits one lies in its rectangle, and boxes
+        // off to the side of the camera cover little of the image or none.
+        let eye = cam.position();
+        let (forward, right, up) = (cam.direction(), cam.right(), cam.up());
+        let mut small = 0;
+        for i in 0..200 {
+            let f = |k: u32| ((i * k + 7) % 97) as f32 / 97.0;
+            let centre = eye
+                + forward * (f(13) * 6.0 - 2.0)
+                + right * (f(29) * 12.0 - 6.0)
+                + up * (f(31) * 12.0 - 6.0);
+            let half = Vec3::new(0.2 + f(37), 0.2 + f(41), 0.2 + f(43));
+            let (lo, hi) = (centre - half, centre + half);
+            let rect = cam.project_box(lo, hi);
+            let mut hit = 0;
+            for y in 0..cam.height() {
+                for x in 0..cam.width() {
+                    if cam.ray(x, y).intersect_box(lo, hi).is_none() {
+                        continue;
+                    }
+                    hit += 1;
+                    let r = rect.unwrap_or_else(|| panic!("box {lo} {hi} is hit but has no rect"));
+                    assert!(
+                        x >= r.x0 && x < r.x1 && y >= r.y0 && y < r.y1,
+                        "pixel {x},{y} hits box {lo} {hi} but lies outside {r:?}"
+                    );
+                }
+            }
+            small += usize::from(rect.is_none_or(|r| r.area() < 64 * 48 / 2) && hit < 64 * 48 / 2);
+        }
+        assert!(small > 100, "only {small} of 200 boxes have tight rects");
     }
 
     #[test]
