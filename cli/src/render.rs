@@ -589,20 +589,12 @@ impl Setup {
         let camera = session.camera().context("invalid camera")?;
         // Two-level scenes sample one level, and with labels the labels of the
         // same level, when they have it.
-        let bands = match &labels {
-            Some(labels) => vec![LevelBand {
-                level: session
-                    .level
-                    .resolve(&volume, &camera)
-                    .min(labels.level_count() - 1),
-                depth: None,
-            }],
-            None if session.settings.segments.is_some() => vec![LevelBand {
-                level: session.level.resolve(&volume, &camera),
-                depth: None,
-            }],
-            None => session.level.bands(&volume, &camera),
-        };
+        let levels = labels.as_ref().map_or(volume.level_count(), |l| {
+            volume.level_count().min(l.level_count())
+        });
+        let bands = session
+            .level
+            .frame_bands(&volume, &camera, &session.settings, levels);
         Ok(Setup {
             volume,
             labels,

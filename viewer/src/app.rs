@@ -1798,13 +1798,17 @@ pub fn status_line(s: &FrameStats, interactive: bool, bytes_read: u64) -> String
     let ms = s.time.as_secs_f64() * 1e3;
     let rays = c.rays.max(1) as f64;
     format!(
-        "{}{}×{} in {ms:.0} ms · level {} · {:.1} MB read from disk · {:.1} M samples/s · {:.2} M samples ({:.1}/ray) · \
+        "{}{}×{} in {ms:.0} ms · {} · {:.1} MB read from disk · {:.1} M samples/s · {:.2} M samples ({:.1}/ray) · \
          {:.0} % skipped empty · {:.0} % rays ended early · {} tasks ({} occluded) · {} bricks \
          ({} transparent) · {} threads",
         if interactive { "interactive " } else { "" },
         s.width,
         s.height,
-        s.level,
+        if s.coarsest_level > s.level {
+            format!("levels {}–{} by depth", s.level, s.coarsest_level)
+        } else {
+            format!("level {}", s.level)
+        },
         bytes_read as f64 / 1e6,
         s.samples_per_second() / 1e6,
         c.samples as f64 / 1e6,

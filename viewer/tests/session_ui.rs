@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 mod support;
 use support::{element, wait_for_frame};
 
-use raycaster::render::{Mode, PRESETS, RenderVolume, RgbImage, render_sequential};
+use raycaster::render::{Mode, PRESETS, RenderVolume, RgbImage, render_sequential_levels};
 use raycaster::session::Session;
 use raycaster::synth::SceneKind;
 use slint::platform::PointerEventButton;
@@ -53,19 +53,37 @@ fn viewer(source: Source) -> Viewer {
 }
 
 /// Renders a session as `raycaster render --session` does: its volume opened
-/// through the library's façade, its level resolved for its camera, labels of
-/// the same level attached.
+/// through the library's façade, its levels chosen for its camera (one per band
+/// of depths), labels of the same level attached.
 fn render_like_the_cli(session: &Session) -> RgbImage {
     let opened = raycaster::source::open(&session.source).unwrap();
     let camera = session.camera().unwrap();
-    let level = session.level.resolve(&opened.volume, &camera);
-    let mut prepared = RenderVolume::new(opened.volume.level(level), None).unwrap();
-    if session.settings.segments.is_some()
-        && let Some(labels) = &opened.labels
-    {
-        prepared = prepared.with_labels(labels.level(level)).unwrap();
-    }
-    render_sequential(&prepared, &camera, &session.settings)
+    let labels = opened
+        .labels
+        .as_ref()
+        .filter(|_| session.settings.segments.is_some());
+    let levels = labels.map_or(opened.volume.level_count(), |l| {
+        l.level_count().min(opened.volume.level_count())
+    });
+    let bands = session
+        .level
+        .frame_bands(&opened.volume, &camera, &session.settings, levels);
+    let prepared: Vec<RenderVolume<'_>> = bands
+        .iter()
+        .map(|band| {
+            let level = RenderVolume::new(opened.volume.level(band.level), None).unwrap();
+            match labels {
+                Some(labels) => level.with_labels(labels.level(band.level)).unwrap(),
+                None => level,
+            }
+        })
+        .collect();
+    let passes: Vec<_> = prepared
+        .iter()
+        .zip(&bands)
+        .map(|(v, b)| (v, b.depth))
+        .collect();
+    render_sequential_levels(&passes, &camera, &session.settings)
         .unwrap()
         .to_image()
 }

@@ -20,7 +20,7 @@ use parking_lot::Mutex;
 use super::camera::{Camera, PixelRect};
 use super::counters::FrameStats;
 use super::error::RenderError;
-use super::level::LevelChoice;
+use super::level::{DepthBand, LevelChoice};
 use super::parallel::{ParallelOptions, TileSink};
 use super::pixel::over_background;
 use super::prepared::{FramePlan, RenderVolume};
@@ -292,11 +292,16 @@ impl Worker {
                 self.emit(FrameEvent::Superseded { id });
                 continue;
             }
-            let level = request
-                .level
-                .resolve(volume, &request.camera)
-                .min(levels.len() - 1);
-            let event = self.render(&mut renderer, &levels[level], id, &request);
+            let bands =
+                request
+                    .level
+                    .frame_bands(volume, &request.camera, &request.settings, levels.len());
+            let passes: Vec<(&RenderVolume<'_>, Option<DepthBand>)> = bands
+                .iter()
+                .map(|band| (&levels[band.level], band.depth))
+                .collect();
+            let level = bands[0].level;
+            let event = self.render(&mut renderer, &passes, id, &request);
             let done = matches!(event, FrameEvent::Done { .. });
             self.emit(event);
             // Idle after a coarse frame: have the OS read the next finer level's
@@ -310,7 +315,7 @@ impl Worker {
     fn render(
         &self,
         renderer: &mut Renderer,
-        volume: &RenderVolume<'_>,
+        passes: &[(&RenderVolume<'_>, Option<DepthBand>)],
         id: u64,
         request: &FrameRequest,
     ) -> FrameEvent {
@@ -332,8 +337,8 @@ impl Worker {
             background: request.settings.background,
         };
         let cancelled = || self.latest.load(Ordering::Relaxed) != id;
-        match renderer.render_into(
-            volume,
+        match renderer.render_levels_into(
+            passes,
             &request.camera,
             &request.settings,
             &request.options,

@@ -9,6 +9,7 @@ use std::str::FromStr;
 use glam::Vec3;
 
 use super::camera::{Camera, Projection};
+use super::settings::RenderSettings;
 use crate::volume::Volume;
 
 /// How to pick the level a frame samples.
@@ -131,6 +132,37 @@ impl LevelChoice {
                 }),
             })
             .collect()
+    }
+}
+
+impl LevelChoice {
+    /// The levels a frame with `settings` samples, of the first `levels` levels of
+    /// `volume` (those prepared: with a label volume, the levels both have):
+    /// [`Self::bands`], or for a two-level scene one level, [`Self::resolve`]'s
+    /// (its segments would be cut where levels meet). What `raycaster render` and
+    /// the viewer both render.
+    pub fn frame_bands(
+        self,
+        volume: &Volume,
+        camera: &Camera,
+        settings: &RenderSettings,
+        levels: usize,
+    ) -> Vec<LevelBand> {
+        let coarsest = levels.max(1) - 1;
+        let single = || {
+            vec![LevelBand {
+                level: self.resolve(volume, camera).min(coarsest),
+                depth: None,
+            }]
+        };
+        if settings.segments.is_some() {
+            return single();
+        }
+        let bands = self.bands(volume, camera);
+        if bands.iter().any(|b| b.level > coarsest) {
+            return single();
+        }
+        bands
     }
 }
 
