@@ -35,7 +35,8 @@ mod mpi_rank {
     use mpi::topology::SimpleCommunicator;
     use mpi::traits::*;
     use raycaster::render::{
-        DistributedOptions, Link, LinkError, RankStats, RenderError, Renderer, render_distributed,
+        Compositing, DepthBand, DistributedOptions, Link, LinkError, RankStats, RenderError,
+        RenderVolume, Renderer, render_distributed_levels,
     };
 
     use crate::output::check_output;
@@ -150,8 +151,18 @@ mod mpi_rank {
             }
         });
         agree(&world, checked)?;
-        let setup = agree(&world, Setup::new(&args))?;
-        let prepared = agree(&world, setup.prepared(&args))?;
+        let mut setup = agree(&world, Setup::new(&args))?;
+        if Compositing::from(args.compositing) == Compositing::DirectSend {
+            // Partial images of one level: the nearest band's for the whole frame.
+            setup.bands.truncate(1);
+            setup.bands[0].depth = None;
+        }
+        let prepared = agree(&world, setup.prepared_bands(&args))?;
+        let passes: Vec<(&RenderVolume<'_>, Option<DepthBand>)> = prepared
+            .iter()
+            .zip(&setup.bands)
+            .map(|(volume, band)| (volume, band.depth))
+            .collect();
         let options = DistributedOptions {
             parallel: parallel_options(&args, local),
             bands: args.bands,
@@ -161,10 +172,10 @@ mod mpi_rank {
             world: &world,
             pending: RefCell::new(Vec::new()),
         };
-        let result = render_distributed(
+        let result = render_distributed_levels(
             &link,
             &mut Renderer::new(),
-            &prepared,
+            &passes,
             &setup.camera,
             &setup.settings,
             &options,

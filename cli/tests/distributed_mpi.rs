@@ -223,3 +223,64 @@ fn stats_list_every_rank_and_a_bad_input_stops_every_rank_with_one_message() {
     );
     assert!(!dir.path().join("never.png").exists());
 }
+
+#[test]
+fn a_deep_view_of_a_pyramid_file_samples_the_same_levels_distributed() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("shapes.vol");
+    let scene = raycaster::synth::SceneKind::Shapes.build([256; 3], 7);
+    let header = raycaster::volume::Header::new(
+        [256; 3],
+        [1.0; 3],
+        raycaster::volume::Layout::Bricked { side: 16 },
+        raycaster::volume::SampleType::U8,
+        raycaster::volume::Content::Scalar,
+        raycaster::volume::Format::Extended,
+    );
+    raycaster::generate::generate(
+        scene.as_ref(),
+        &header,
+        &file,
+        &Default::default(),
+        &raycaster::job::Job::silent(),
+    )
+    .unwrap();
+    let view = [
+        file.to_str().unwrap(),
+        "--size",
+        "64",
+        "--fov",
+        "90",
+        "--zoom",
+        "2",
+        "--quiet",
+        "--force",
+        "--stats-json",
+    ];
+    let reference = dir.path().join("single.png");
+    let out = single(&[&["render", "-o", reference.to_str().unwrap()], &view[..]].concat());
+    assert!(out.status.success(), "{out:?}");
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["coarsest_level"].as_u64(), Some(2), "{json}");
+    for ranks in [2, 3] {
+        let image = dir.path().join(format!("dist-{ranks}.png"));
+        let out = mpirun(
+            ranks,
+            &[
+                &["render", "--distributed", "-o", image.to_str().unwrap()],
+                &view[..],
+            ]
+            .concat(),
+        );
+        assert!(
+            out.status.success(),
+            "{ranks} ranks: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let d = max_difference(&image, &reference);
+        assert!(d <= 2, "{ranks} ranks: differs by {d}/255");
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        let dist: serde_json::Value = serde_json::from_str(stdout.trim()).unwrap();
+        assert_eq!(dist["samples"], json["samples"], "{ranks} ranks");
+    }
+}

@@ -10,10 +10,11 @@ mod render_support;
 use std::time::Duration;
 
 use raycaster::render::{
-    Camera, ClipPlane, ClipRegion, Compositing, CropBox, DistributedFrame, DistributedOptions,
-    GlobalMode, LocalMode, Membership, Mode, ObjectStyle, ParallelOptions, Partition, Projection,
-    RenderError, RenderSettings, RenderVolume, Renderer, SegmentScene, Vec3, channel_links,
-    render_distributed, render_parallel, render_sequential,
+    Camera, ClipPlane, ClipRegion, Compositing, CropBox, DepthBand, DistributedFrame,
+    DistributedOptions, GlobalMode, LevelChoice, LocalMode, Membership, Mode, ObjectStyle, Orbit,
+    ParallelOptions, Partition, Projection, RenderError, RenderSettings, RenderVolume, Renderer,
+    SegmentScene, SimdLevel, Vec3, channel_links, render_distributed_levels, render_parallel,
+    render_sequential,
 };
 use raycaster::synth::SceneKind;
 use raycaster::volume::Volume;
@@ -84,6 +85,28 @@ fn distributed_with(
     bands: Option<u32>,
     compositing: Compositing,
 ) -> Result<DistributedFrame, RenderError> {
+    distributed_levels(
+        &[(volume, None)],
+        camera,
+        settings,
+        ranks,
+        tile,
+        bands,
+        compositing,
+    )
+}
+
+/// Renders a frame of several levels on `ranks` thread-ranks with
+/// `compositing`; rank 0's result or the first rank's error.
+fn distributed_levels(
+    passes: &[(&RenderVolume<'_>, Option<DepthBand>)],
+    camera: &Camera,
+    settings: &RenderSettings,
+    ranks: usize,
+    tile: u32,
+    bands: Option<u32>,
+    compositing: Compositing,
+) -> Result<DistributedFrame, RenderError> {
     let links = channel_links(ranks, Duration::from_secs(120));
     let options = DistributedOptions {
         parallel: ParallelOptions {
@@ -99,10 +122,10 @@ fn distributed_with(
             .iter()
             .map(|link| {
                 scope.spawn(move || {
-                    render_distributed(
+                    render_distributed_levels(
                         link,
                         &mut Renderer::new(),
-                        volume,
+                        passes,
                         camera,
                         settings,
                         &options,
@@ -376,5 +399,98 @@ fn direct_send_of_partial_images_matches_for_dvr_and_refuses_other_modes() {
         )
         .unwrap_err();
         assert!(error.to_string().contains("DVR only"), "{error}");
+    }
+}
+
+#[test]
+fn a_frame_of_several_levels_gives_the_single_process_image() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let volume = scene_file(
+        dir.path(),
+        SceneKind::Shapes,
+        256,
+        raycaster::volume::Layout::Bricked { side: 16 },
+        raycaster::volume::SampleType::U8,
+        raycaster::volume::Access::Mapped,
+    );
+    let c = centre(&volume);
+    let views = [
+        (150.0, 0.7, 48),
+        // The camera inside the volume.
+        (40.0, 2.0, 40),
+    ];
+    for (distance, azimuth, size) in views {
+        let camera = Orbit {
+            target: c,
+            distance,
+            azimuth,
+            elevation: 0.3,
+            vfov_deg: Some(90.0),
+            ..Orbit::default_view(Vec3::ZERO, c * 2.0)
+        }
+        .camera(size, size)
+        .unwrap();
+        let bands = LevelChoice::default().bands(&volume, &camera);
+        assert!(bands.len() > 1, "{distance}: {bands:?}");
+        let levels: Vec<RenderVolume<'_>> = bands
+            .iter()
+            .map(|b| RenderVolume::new(volume.level(b.level), None).unwrap())
+            .collect();
+        let passes: Vec<_> = levels
+            .iter()
+            .zip(&bands)
+            .map(|(l, b)| (l, b.depth))
+            .collect();
+        for (mode, jitter) in [
+            (Mode::Dvr, true),
+            (Mode::Mip, false),
+            (Mode::FirstHit, false),
+        ] {
+            let settings = RenderSettings {
+                mode,
+                jitter,
+                transfer: scene_preset(SceneKind::Shapes),
+                simd: Some(SimdLevel::Scalar),
+                ..RenderSettings::default()
+            };
+            let options = ParallelOptions {
+                render_threads: 1,
+                compositing_threads: 1,
+                tile_size: 8,
+            };
+            let single = Renderer::new()
+                .render_levels(&passes, &camera, &settings, &options)
+                .unwrap();
+            for ranks in [1, 2, 3, 4] {
+                let name = format!("levels-{distance}-{mode:?}-{ranks}");
+                let frame = distributed_levels(
+                    &passes,
+                    &camera,
+                    &settings,
+                    ranks,
+                    8,
+                    None,
+                    Compositing::Relay,
+                )
+                .unwrap()
+                .frame
+                .unwrap();
+                assert_images_match(&name, &frame.to_image(), &single.to_image(), 0);
+                assert_eq!(
+                    frame.stats.counters.samples, single.stats.counters.samples,
+                    "{name}"
+                );
+                assert_eq!(
+                    (frame.stats.level, frame.stats.coarsest_level),
+                    (single.stats.level, single.stats.coarsest_level)
+                );
+            }
+        }
+        // Direct send composites partial images of one level only.
+        let dvr = RenderSettings::default();
+        let refused =
+            distributed_levels(&passes, &camera, &dvr, 2, 8, None, Compositing::DirectSend)
+                .unwrap_err();
+        assert!(refused.to_string().contains("one level"), "{refused}");
     }
 }

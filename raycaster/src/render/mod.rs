@@ -74,7 +74,7 @@ pub use prepared::{LARGE_LINEAR_BRICKS, RenderVolume, default_linear_brick_side}
 pub use ray::Ray;
 pub use relay::{
     ChannelLink, Compositing, DistributedFrame, DistributedOptions, Link, LinkError, RankStats,
-    channel_links, default_bands, render_distributed,
+    channel_links, default_bands, render_distributed, render_distributed_levels,
 };
 pub use renderer::Renderer;
 pub use sabella::{SabellaChannels, SabellaDepth, SabellaMapping, SabellaOutput, hsv_to_rgb};

@@ -28,7 +28,10 @@ use super::counters::{Counters, FrameStats};
 use super::direct_send::DirectSend;
 use super::error::RenderError;
 use super::frame::Frame;
-use super::parallel::{FrameJob, ParallelOptions, TileSink, render_tiles};
+use super::level::DepthBand;
+use super::parallel::{
+    FrameJob, ParallelOptions, TileSink, check_levels, level_plans, render_tiles,
+};
 use super::partition::{BrickBox, Partition};
 use super::prepared::{FramePlan, RenderVolume};
 use super::renderer::Renderer;
@@ -143,142 +146,222 @@ pub fn render_distributed(
     settings: &RenderSettings,
     options: &DistributedOptions,
 ) -> Result<DistributedFrame, RenderError> {
+    render_distributed_levels(link, renderer, &[(volume, None)], camera, settings, options)
+}
+
+/// Like [`render_distributed`] for a frame of several pyramid levels, nearest
+/// band first ([`LevelChoice::bands`](super::LevelChoice::bands)); the image
+/// equals [`Renderer::render_levels`]'s. Each level is partitioned among the
+/// ranks like a frame of its own; for each band of rows the chain runs through
+/// the nearest level's ranks in visibility order, then the next level's, and so
+/// on, the first rank of a level continuing the states where the last rank of
+/// the nearer level left them. Direct-send compositing takes one level.
+pub fn render_distributed_levels(
+    link: &dyn Link,
+    renderer: &mut Renderer,
+    passes: &[(&RenderVolume<'_>, Option<DepthBand>)],
+    camera: &Camera,
+    settings: &RenderSettings,
+    options: &DistributedOptions,
+) -> Result<DistributedFrame, RenderError> {
     let start = Instant::now();
+    check_levels(passes, settings)?;
     let (rank, ranks) = (link.rank(), link.ranks().max(1));
-    let plan = FramePlan::new(volume, settings)?;
-    super::geometry::check_sample_budget(volume.geometry(), settings.step, camera)?;
-    let geometry = volume.geometry();
-    let partition = Partition::balanced(volume, &plan, ranks);
-    let order = partition.visibility_order(camera, geometry);
-    let part = partition.parts()[rank];
+    let plans = level_plans(passes, camera, settings)?;
+    let partitions: Vec<Partition> = passes
+        .iter()
+        .zip(&plans)
+        .map(|(&(volume, _), plan)| Partition::balanced(volume, plan, ranks))
+        .collect();
+    let part = partitions[0].parts()[rank];
     let mut own = RankStats {
         rank: rank as u32,
         part: [part.lo, part.hi].concat().try_into().expect("six"),
-        bricks: partition.weights()[rank],
+        bricks: partitions.iter().map(|p| p.weights()[rank]).sum(),
         ..RankStats::default()
     };
     let (width, height) = (camera.width(), camera.height());
+    let summary = FrameSummary::of(passes, &plans, camera, options, ranks, start);
     if options.compositing == Compositing::DirectSend {
         if settings.mode != Mode::Dvr || settings.segments.is_some() {
             return Err(RenderError::DirectSendMode);
         }
+        let [(volume, None)] = passes else {
+            return Err(RenderError::Levels(
+                "direct-send compositing samples one level per frame",
+            ));
+        };
         let (rect, pixels) = DirectSend {
             link,
             workers: renderer.workers_for(&options.parallel),
             volume,
             camera,
-            plan: &plan,
-            partition: &partition,
-            order: &order,
+            plan: &plans[0],
+            partition: &partitions[0],
+            order: &partitions[0].visibility_order(camera, volume.geometry()),
             options: &options.parallel,
         }
         .run(&mut own)?;
-        return gather(
-            link,
-            own,
-            vec![(rect, pixels)],
-            &plan,
-            volume,
-            camera,
-            settings,
-            options,
-            start,
-        );
+        return gather(link, own, vec![(rect, pixels)], settings, &summary);
     }
-    let rects: Vec<Option<PixelRect>> = (0..ranks)
-        .map(|p| partition.screen_rect(p, camera, geometry))
-        .collect();
     let tile = options.parallel.tile_size.max(1);
-    let schedule = FrameSchedule::new(volume, &plan, camera, tile, Some(&part));
+    // Per level: this rank's schedule, and every rank's screen rectangle in
+    // visibility order.
+    let levels: Vec<LevelParts> = passes
+        .iter()
+        .zip(&plans)
+        .zip(&partitions)
+        .map(|((&(volume, _), plan), partition)| {
+            let geometry = volume.geometry();
+            let part = partition.parts()[rank];
+            LevelParts {
+                order: partition.visibility_order(camera, geometry),
+                rects: (0..ranks)
+                    .map(|p| partition.screen_rect(p, camera, geometry))
+                    .collect(),
+                schedule: FrameSchedule::new(volume, plan, camera, tile, Some(&part)),
+            }
+        })
+        .collect();
     let tiles_per_row = width.div_ceil(tile) as usize;
     let bands = band_rows(
         height.div_ceil(tile),
         options.bands.unwrap_or_else(|| default_bands(ranks)),
     );
-    let record = plan.compositor.run(StateBytes);
+    let record = plans[0].compositor.run(StateBytes);
     let workers = renderer.workers_for(&options.parallel);
     // Resolved bands: their rows and pixels, for rank 0.
     let mut finals: Vec<(PixelRect, BandPixels)> = Vec::new();
+    let mut read_ahead = vec![true; passes.len()];
     for (b, rows) in bands.iter().enumerate() {
         let rect = PixelRect::rows(width, rows.start * tile, (rows.end * tile).min(height));
-        let chain = chain(&order, &rects, &rect);
-        let Some(position) = chain.iter().position(|&r| r == rank) else {
-            continue;
-        };
-        let incoming = match position {
-            0 => None,
-            _ => {
-                let waited = Instant::now();
-                let message = link
-                    .receive(chain[position - 1], b as u32)
+        // The band's chain: (level, rank), nearest level first.
+        let chain: Vec<(usize, usize)> = levels
+            .iter()
+            .enumerate()
+            .flat_map(|(level, parts)| {
+                chain(&parts.order, &parts.rects, &rect)
+                    .into_iter()
+                    .map(move |r| (level, r))
+            })
+            .collect();
+        for (position, &(level, _)) in chain.iter().enumerate().filter(|(_, (_, r))| *r == rank) {
+            let incoming = match position {
+                0 => None,
+                _ => {
+                    let waited = Instant::now();
+                    let message = link
+                        .receive(chain[position - 1].1, b as u32)
+                        .map_err(|e| link_error(rank, &e))?;
+                    own.relay += waited.elapsed();
+                    Some(
+                        StateBuffer::from_bytes(message, rect, record)
+                            .map_err(|e| RenderError::Distributed(format!("rank {rank}: {e}")))?,
+                    )
+                }
+            };
+            let last = position + 1 == chain.len();
+            let outgoing = (!last).then(|| Mutex::new(StateBuffer::new(rect, record)));
+            let sink = BandSink::new(rect);
+            let rendering = Instant::now();
+            let counters = render_tiles(
+                workers,
+                &FrameJob {
+                    volume: passes[level].0,
+                    camera,
+                    plan: &plans[level],
+                    schedule: &levels[level].schedule,
+                    sink: &sink,
+                    cancelled: &|| false,
+                    tiles: rows.start as usize * tiles_per_row..rows.end as usize * tiles_per_row,
+                    incoming: incoming.as_ref(),
+                    outgoing: outgoing.as_ref(),
+                    read_ahead: std::mem::take(&mut read_ahead[level]),
+                    continues: position > 0 && chain[position - 1].0 != level,
+                },
+                &options.parallel,
+            )
+            .expect("a frame that cannot be cancelled completes");
+            own.render += rendering.elapsed();
+            own.counters += counters;
+            own.bands += 1;
+            match outgoing {
+                Some(states) => {
+                    let sending = Instant::now();
+                    link.send(
+                        chain[position + 1].1,
+                        b as u32,
+                        states.into_inner().to_bytes(),
+                    )
                     .map_err(|e| link_error(rank, &e))?;
-                own.relay += waited.elapsed();
-                Some(
-                    StateBuffer::from_bytes(message, rect, record)
-                        .map_err(|e| RenderError::Distributed(format!("rank {rank}: {e}")))?,
-                )
+                    own.relay += sending.elapsed();
+                }
+                None => finals.push((rect, sink.pixels.into_inner())),
             }
-        };
-        let last = position + 1 == chain.len();
-        let outgoing = (!last).then(|| Mutex::new(StateBuffer::new(rect, record)));
-        let sink = BandSink::new(rect);
-        let rendering = Instant::now();
-        let counters = render_tiles(
-            workers,
-            &FrameJob {
-                volume,
-                camera,
-                plan: &plan,
-                schedule: &schedule,
-                sink: &sink,
-                cancelled: &|| false,
-                tiles: rows.start as usize * tiles_per_row..rows.end as usize * tiles_per_row,
-                incoming: incoming.as_ref(),
-                outgoing: outgoing.as_ref(),
-                read_ahead: own.bands == 0,
-                continues: false,
-            },
-            &options.parallel,
-        )
-        .expect("a frame that cannot be cancelled completes");
-        own.render += rendering.elapsed();
-        own.counters += counters;
-        own.bands += 1;
-        match outgoing {
-            Some(states) => {
-                let sending = Instant::now();
-                link.send(
-                    chain[position + 1],
-                    b as u32,
-                    states.into_inner().to_bytes(),
-                )
-                .map_err(|e| link_error(rank, &e))?;
-                own.relay += sending.elapsed();
-            }
-            None => finals.push((rect, sink.pixels.into_inner())),
         }
     }
-    gather(
-        link, own, finals, &plan, volume, camera, settings, options, start,
-    )
+    gather(link, own, finals, settings, &summary)
+}
+
+/// One level of a distributed frame as this rank renders it.
+struct LevelParts {
+    /// The ranks' parts front to back.
+    order: Vec<usize>,
+    /// Each rank's part's screen rectangle.
+    rects: Vec<Option<PixelRect>>,
+    /// This rank's bricks of the level.
+    schedule: FrameSchedule,
+}
+
+/// What the frame's statistics say besides the counters.
+struct FrameSummary {
+    width: u32,
+    height: u32,
+    bricks: u64,
+    bricks_transparent: u64,
+    threads: u32,
+    level: u32,
+    coarsest_level: u32,
+    start: Instant,
+}
+
+impl FrameSummary {
+    fn of(
+        passes: &[(&RenderVolume<'_>, Option<DepthBand>)],
+        plans: &[FramePlan],
+        camera: &Camera,
+        options: &DistributedOptions,
+        ranks: usize,
+        start: Instant,
+    ) -> Self {
+        let level = |i: usize| passes[i].0.volume().level_index();
+        FrameSummary {
+            width: camera.width(),
+            height: camera.height(),
+            bricks: passes
+                .iter()
+                .map(|(v, _)| v.geometry().grid().block_count())
+                .sum(),
+            bricks_transparent: plans.iter().map(FramePlan::transparent_bricks).sum(),
+            threads: (options.parallel.render_threads.max(1) * ranks) as u32,
+            level: level(0),
+            coarsest_level: level(passes.len() - 1),
+            start,
+        }
+    }
 }
 
 /// Sends this rank's resolved rows and statistics to rank 0, where the image
 /// is assembled.
-#[allow(clippy::too_many_arguments)]
 fn gather(
     link: &dyn Link,
     own: RankStats,
     finals: Vec<(PixelRect, BandPixels)>,
-    plan: &FramePlan,
-    volume: &RenderVolume<'_>,
-    camera: &Camera,
     settings: &RenderSettings,
-    options: &DistributedOptions,
-    start: Instant,
+    summary: &FrameSummary,
 ) -> Result<DistributedFrame, RenderError> {
     let (rank, ranks) = (link.rank(), link.ranks().max(1));
-    let (width, height) = (camera.width(), camera.height());
+    let (width, height) = (summary.width, summary.height);
     if rank != 0 {
         // One message per band (a whole image could pass MPI's 2 GiB count
         // limit), then an empty one.
@@ -342,12 +425,12 @@ fn gather(
         width,
         height,
         counters,
-        bricks: volume.geometry().grid().block_count(),
-        bricks_transparent: plan.transparent_bricks(),
-        threads: (options.parallel.render_threads.max(1) * ranks) as u32,
-        time: start.elapsed(),
-        level: volume.volume().level_index(),
-        coarsest_level: volume.volume().level_index(),
+        bricks: summary.bricks,
+        bricks_transparent: summary.bricks_transparent,
+        threads: summary.threads,
+        time: summary.start.elapsed(),
+        level: summary.level,
+        coarsest_level: summary.coarsest_level,
     };
     Ok(DistributedFrame {
         frame: Some(frame),
@@ -377,7 +460,6 @@ fn chain(order: &[usize], rects: &[Option<PixelRect>], rect: &PixelRect) -> Vec<
     if chain.is_empty() { vec![0] } else { chain }
 }
 
-/// The bytes of one pixel's state under the frame's compositor.
 /// A band's resolved pixels.
 #[derive(Debug, Default)]
 pub(crate) struct BandPixels {
