@@ -8,7 +8,7 @@
 
 use glam::Vec3;
 
-use super::ray::Ray;
+use super::ray::{Ray, box_corners};
 
 /// How the camera projects.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -271,13 +271,7 @@ impl Camera {
             x1: self.width,
             y1: self.height,
         };
-        let corners: [Vec3; 8] = std::array::from_fn(|corner| {
-            Vec3::new(
-                if corner & 1 == 0 { lo.x } else { hi.x },
-                if corner & 2 == 0 { lo.y } else { hi.y },
-                if corner & 4 == 0 { lo.z } else { hi.z },
-            )
-        });
+        let corners = box_corners(lo, hi);
         let mut min = [f32::INFINITY; 2];
         let mut max = [f32::NEG_INFINITY; 2];
         let mut add = |q: [f32; 2]| {

@@ -9,6 +9,7 @@ use std::str::FromStr;
 use glam::Vec3;
 
 use super::camera::{Camera, Projection};
+use super::ray::box_corners;
 use super::settings::RenderSettings;
 use crate::volume::Volume;
 
@@ -47,9 +48,9 @@ impl FromStr for LevelChoice {
 impl LevelChoice {
     /// The one level of `volume` to render for `camera` (0 ..= the coarsest
     /// level): for [`LevelChoice::Auto`], the level at the volume's point nearest
-    /// to the camera (what frames that sample a single level use: the viewer's,
-    /// two-level scenes, distributed frames). [`Self::bands`] lets the level
-    /// change with depth instead.
+    /// to the camera (what frames of a single level sample: two-level scenes,
+    /// direct-send compositing; the nearest band of [`Self::bands`], which lets
+    /// the level change with depth).
     pub fn resolve(self, volume: &Volume, camera: &Camera) -> usize {
         let coarsest = volume.level_count() - 1;
         match self {
@@ -92,14 +93,9 @@ impl LevelChoice {
         // The depths the levels' boxes span (all of them: coarse boxes can reach
         // half a coarse voxel beyond level 0's).
         let (lo, hi) = levels_box(volume);
-        let corners = (0..8).map(|i| {
-            Vec3::new(
-                if i & 1 == 0 { lo.x } else { hi.x },
-                if i & 2 == 0 { lo.y } else { hi.y },
-                if i & 4 == 0 { lo.z } else { hi.z },
-            )
-        });
-        let far = corners.fold(f32::NEG_INFINITY, |f, p| f.max((p - eye).dot(axis)));
+        let far = box_corners(lo, hi)
+            .iter()
+            .fold(f32::NEG_INFINITY, |f, &p| f.max((p - eye).dot(axis)));
         let level_at = |z: f32| level_of_ratio(z.max(0.0) * per_depth / spacing, bias, coarsest);
         // The nearest band is [`Self::resolve`]'s level (at the volume's point
         // nearest to the camera); the farthest, the level at the farthest corner.
@@ -133,9 +129,7 @@ impl LevelChoice {
             })
             .collect()
     }
-}
 
-impl LevelChoice {
     /// The levels a frame with `settings` samples, of the first `levels` levels of
     /// `volume` (those prepared: with a label volume, the levels both have):
     /// [`Self::bands`], or for a two-level scene one level, [`Self::resolve`]'s
@@ -231,17 +225,11 @@ pub struct DepthBand {
 }
 
 impl DepthBand {
-    /// Whether a box of world points whose depths span `[lo, hi]` may hold a
-    /// sample of this band with step `dt` (the band's far end moves by up to
-    /// one coarser step).
+    /// Whether the world box `[lo, hi]` may hold a sample of this band with step
+    /// `dt` (the band's far end moves by up to one coarser step).
     pub(crate) fn may_hold(&self, lo: Vec3, hi: Vec3, dt: f32) -> bool {
         let (mut near, mut far) = (f32::INFINITY, f32::NEG_INFINITY);
-        for i in 0..8 {
-            let p = Vec3::new(
-                if i & 1 == 0 { lo.x } else { hi.x },
-                if i & 2 == 0 { lo.y } else { hi.y },
-                if i & 4 == 0 { lo.z } else { hi.z },
-            );
+        for p in box_corners(lo, hi) {
             let z = (p - self.eye).dot(self.axis);
             near = near.min(z);
             far = far.max(z);

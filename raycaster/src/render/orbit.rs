@@ -166,12 +166,7 @@ mod tests {
         for vfov in [Some(30.0), Some(60.0), None] {
             let orbit = Orbit::framing(lo, hi, 0.7, 0.4, vfov);
             let cam = orbit.camera(100, 80).unwrap();
-            for c in 0..8 {
-                let p = Vec3::new(
-                    if c & 1 == 0 { lo.x } else { hi.x },
-                    if c & 2 == 0 { lo.y } else { hi.y },
-                    if c & 4 == 0 { lo.z } else { hi.z },
-                );
+            for p in crate::render::ray::box_corners(lo, hi) {
                 let q = cam.project(p).unwrap();
                 assert!(
                     q[0] >= 0.0 && q[0] <= 100.0 && q[1] >= 0.0 && q[1] <= 80.0,

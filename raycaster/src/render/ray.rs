@@ -51,6 +51,19 @@ impl Ray {
     }
 }
 
+/// The 8 corners of the box `[lo, hi]` (corner `i` takes `hi` on axis `a` where
+/// bit `a` of `i` is set).
+#[inline]
+pub(crate) fn box_corners(lo: Vec3, hi: Vec3) -> [Vec3; 8] {
+    std::array::from_fn(|i| {
+        Vec3::new(
+            if i & 1 == 0 { lo.x } else { hi.x },
+            if i & 2 == 0 { lo.y } else { hi.y },
+            if i & 4 == 0 { lo.z } else { hi.z },
+        )
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
