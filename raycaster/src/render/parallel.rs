@@ -176,12 +176,7 @@ pub(crate) fn render_levels_frame(
     }
     let start = Instant::now();
     let plans = level_plans(passes, camera, settings)?;
-    let full = PixelRect {
-        x0: 0,
-        y0: 0,
-        x1: camera.width(),
-        y1: camera.height(),
-    };
+    let full = PixelRect::rows(camera.width(), 0, camera.height());
     let record = plans[0].compositor.run(StateBytes);
     let mut incoming: Option<StateBuffer> = None;
     let mut total = Counters::default();

@@ -13,7 +13,7 @@ use super::counters::FrameStats;
 use super::error::RenderError;
 use super::frame::Frame;
 use super::level::DepthBand;
-use super::parallel::{ParallelOptions, TileSink, render_frame, render_levels_frame};
+use super::parallel::{ParallelOptions, TileSink, render_levels_frame};
 use super::prepared::RenderVolume;
 use super::settings::RenderSettings;
 
@@ -131,17 +131,7 @@ impl Renderer {
         settings: &RenderSettings,
         options: &ParallelOptions,
     ) -> Result<Frame, RenderError> {
-        let frame = Mutex::new(Frame::empty(
-            camera.width(),
-            camera.height(),
-            settings.background,
-        ));
-        let stats = self
-            .render_into(volume, camera, settings, options, &frame, &|| false)?
-            .expect("a frame that cannot be cancelled completes");
-        let mut frame = frame.into_inner();
-        frame.stats = stats;
-        Ok(frame)
+        self.render_levels(&[(volume, None)], camera, settings, options)
     }
 
     /// Renders one frame, handing finished tiles to `sink` as they complete.
@@ -156,8 +146,14 @@ impl Renderer {
         sink: &dyn TileSink,
         cancelled: &(dyn Fn() -> bool + Sync),
     ) -> Result<Option<FrameStats>, RenderError> {
-        let workers = self.workers_for(options);
-        render_frame(workers, volume, camera, settings, options, sink, cancelled)
+        self.render_levels_into(
+            &[(volume, None)],
+            camera,
+            settings,
+            options,
+            sink,
+            cancelled,
+        )
     }
 
     /// Renders one frame of several pyramid levels, nearest band first
@@ -165,7 +161,6 @@ impl Renderer {
     /// band of depths), handing the farthest level's finished tiles to `sink`.
     /// One level without a band is [`Self::render_into`]'s frame; the sequential
     /// reference is [`super::render_sequential_levels`].
-    #[allow(clippy::too_many_arguments)]
     pub fn render_levels_into(
         &mut self,
         passes: &[(&RenderVolume<'_>, Option<DepthBand>)],

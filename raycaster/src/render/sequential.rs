@@ -49,12 +49,7 @@ pub fn render_sequential_levels(
     let plans = level_plans(passes, camera, settings)?;
     let mut frame = Frame::empty(camera.width(), camera.height(), settings.background);
     let record = plans[0].compositor.run(StateBytes);
-    let full = PixelRect {
-        x0: 0,
-        y0: 0,
-        x1: camera.width(),
-        y1: camera.height(),
-    };
+    let full = PixelRect::rows(camera.width(), 0, camera.height());
     let mut counters = Counters::default();
     let (mut bricks, mut transparent) = (0, 0);
     let mut incoming: Option<StateBuffer> = None;
@@ -138,12 +133,7 @@ impl<T: Sample> CompositorJob for SequentialPass<'_, '_, '_, T> {
         let rect = match (&states.incoming, &states.outgoing, projected) {
             (None, None, None) => return counters,
             (None, None, Some(rect)) => rect,
-            _ => PixelRect {
-                x0: 0,
-                y0: 0,
-                x1: camera.width(),
-                y1: camera.height(),
-            },
+            _ => PixelRect::rows(camera.width(), 0, camera.height()),
         };
         let inside = |x: u32, y: u32| {
             projected.is_some_and(|r| x >= r.x0 && x < r.x1 && y >= r.y0 && y < r.y1)
