@@ -284,3 +284,74 @@ fn request_storms_end_every_frame_exactly_once_and_shut_down() {
         assert!(done >= 200, "{done} frames completed");
     });
 }
+
+#[test]
+fn a_deep_view_renders_its_levels_by_depth_into_the_buffer_like_the_cli() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let volume = Arc::new(scene_file(
+        dir.path(),
+        SceneKind::Shapes,
+        256,
+        raycaster::volume::Layout::Bricked { side: 16 },
+        raycaster::volume::SampleType::U8,
+        raycaster::volume::Access::Mapped,
+    ));
+    let front = RenderFront::new(volume.clone(), None, None).unwrap();
+    let c = centre(&volume);
+    // Outside and close, and inside the volume.
+    for distance in [150.0, 90.0] {
+        let camera = raycaster::render::Orbit {
+            target: c,
+            distance,
+            azimuth: 0.7,
+            elevation: 0.3,
+            vfov_deg: Some(90.0),
+            ..raycaster::render::Orbit::default_view(raycaster::render::Vec3::ZERO, c * 2.0)
+        }
+        .camera(80, 64)
+        .unwrap();
+        let options = ParallelOptions {
+            render_threads: 2,
+            compositing_threads: 1,
+            tile_size: 16,
+        };
+        let id = front.request(FrameRequest {
+            camera,
+            settings: settings(),
+            options,
+            level: LevelChoice::default(),
+        });
+        let event = front
+            .events()
+            .recv_timeout(Duration::from_secs(60))
+            .unwrap();
+        let FrameEvent::Done { id: done, stats } = event else {
+            panic!("expected a finished frame, got {event:?}");
+        };
+        assert_eq!(done, id);
+        let bands = LevelChoice::default().frame_bands(&volume, &camera, &settings(), 3);
+        assert!(bands.len() > 1, "{distance}: {bands:?}");
+        assert_eq!(
+            (stats.level, stats.coarsest_level),
+            (bands[0].level as u32, bands[bands.len() - 1].level as u32)
+        );
+        let levels: Vec<RenderVolume<'_>> = bands
+            .iter()
+            .map(|b| RenderVolume::new(volume.level(b.level), None).unwrap())
+            .collect();
+        let passes: Vec<_> = levels
+            .iter()
+            .zip(&bands)
+            .map(|(l, b)| (l, b.depth))
+            .collect();
+        let expected = raycaster::render::render_sequential_levels(&passes, &camera, &settings())
+            .unwrap()
+            .to_image();
+        let fb = front.framebuffer().lock().clone();
+        assert_eq!(fb.tiles_written, 5 * 4, "every tile, once");
+        let rgb: Vec<u8> = fb.pixels.iter().flat_map(|p| [p[0], p[1], p[2]]).collect();
+        let got = raycaster::render::RgbImage::new(80, 64, rgb);
+        assert_images_match(&format!("front-levels-{distance}"), &got, &expected, 1);
+    }
+    front.shutdown();
+}
