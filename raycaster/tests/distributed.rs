@@ -11,7 +11,7 @@ use std::time::Duration;
 
 use raycaster::render::{
     Camera, ClipPlane, ClipRegion, Compositing, CropBox, DepthBand, DistributedFrame,
-    DistributedOptions, GlobalMode, LevelChoice, LocalMode, Membership, Mode, ObjectStyle, Orbit,
+    DistributedOptions, GlobalMode, LevelChoice, LocalMode, Membership, Mode, ObjectStyle,
     ParallelOptions, Partition, Projection, RenderError, RenderSettings, RenderVolume, Renderer,
     SegmentScene, SimdLevel, Vec3, channel_links, render_distributed_levels, render_parallel,
     render_sequential,
@@ -413,34 +413,17 @@ fn a_frame_of_several_levels_gives_the_single_process_image() {
         raycaster::volume::SampleType::U8,
         raycaster::volume::Access::Mapped,
     );
-    let c = centre(&volume);
     let views = [
         (150.0, 0.7, 48),
         // The camera inside the volume.
         (40.0, 2.0, 40),
     ];
     for (distance, azimuth, size) in views {
-        let camera = Orbit {
-            target: c,
-            distance,
-            azimuth,
-            elevation: 0.3,
-            vfov_deg: Some(90.0),
-            ..Orbit::default_view(Vec3::ZERO, c * 2.0)
-        }
-        .camera(size, size)
-        .unwrap();
+        let camera = wide_view(&volume, distance, azimuth, false, size, size);
         let bands = LevelChoice::default().bands(&volume, &camera);
         assert!(bands.len() > 1, "{distance}: {bands:?}");
-        let levels: Vec<RenderVolume<'_>> = bands
-            .iter()
-            .map(|b| RenderVolume::new(volume.level(b.level), None).unwrap())
-            .collect();
-        let passes: Vec<_> = levels
-            .iter()
-            .zip(&bands)
-            .map(|(l, b)| (l, b.depth))
-            .collect();
+        let levels = prepare_levels(&volume, &bands);
+        let passes = level_passes(&levels, &bands);
         for (mode, jitter) in [
             (Mode::Dvr, true),
             (Mode::Mip, false),

@@ -6,48 +6,21 @@
 mod render_support;
 
 use raycaster::render::{
-    Camera, DepthBand, LevelBand, LevelChoice, Mode, Orbit, ParallelOptions, RenderSettings,
-    RenderVolume, Renderer, SimdLevel, Vec3, render_sequential_levels,
+    Camera, LevelBand, LevelChoice, Mode, ParallelOptions, RenderSettings, RenderVolume, Renderer,
+    SimdLevel, render_sequential_levels,
 };
 use raycaster::synth::SceneKind;
 use raycaster::volume::{Access, Layout, SampleType, Volume};
-use render_support::{assert_images_match, centre, scene_file, scene_preset, white_tf};
+use render_support::{
+    assert_images_match, level_passes, prepare_levels, scene_file, scene_preset, white_tf,
+    wide_view,
+};
 use tempfile::TempDir;
 
 /// A close perspective view of `volume` (256³ with levels 0–2), 64 pixels wide
 /// with a 90° field: level 1 begins 64 voxels deep, level 2 at 128.
 fn close_view(volume: &Volume, orthographic: bool) -> Camera {
-    let c = centre(volume);
-    Orbit {
-        target: c,
-        distance: 150.0,
-        azimuth: 0.7,
-        elevation: 0.3,
-        vfov_deg: (!orthographic).then_some(90.0),
-        ortho_height: 300.0,
-        ..Orbit::default_view(Vec3::ZERO, c * 2.0)
-    }
-    .camera(64, 64)
-    .unwrap()
-}
-
-/// The volume's levels of `bands`, prepared.
-fn prepare<'v>(volume: &'v Volume, bands: &[LevelBand]) -> Vec<RenderVolume<'v>> {
-    bands
-        .iter()
-        .map(|b| RenderVolume::new(volume.level(b.level), None).unwrap())
-        .collect()
-}
-
-fn passes<'p, 'v>(
-    levels: &'p [RenderVolume<'v>],
-    bands: &[LevelBand],
-) -> Vec<(&'p RenderVolume<'v>, Option<DepthBand>)> {
-    levels
-        .iter()
-        .zip(bands)
-        .map(|(l, b)| (l, b.depth))
-        .collect()
+    wide_view(volume, 150.0, 0.7, orthographic, 64, 64)
 }
 
 fn level_numbers(bands: &[LevelBand]) -> Vec<usize> {
@@ -129,8 +102,8 @@ fn frames_of_several_levels_are_the_same_in_parallel_and_sequentially() {
         let camera = close_view(&volume, false);
         let bands = LevelChoice::default().bands(&volume, &camera);
         assert_eq!(bands.len(), 3, "{layout:?}");
-        let levels = prepare(&volume, &bands);
-        let passes = passes(&levels, &bands);
+        let levels = prepare_levels(&volume, &bands);
+        let passes = level_passes(&levels, &bands);
         let mut renderer = Renderer::new();
         let modes = [Mode::Dvr, Mode::Mip, Mode::FirstHit, Mode::Average];
         for (i, mode) in modes.into_iter().enumerate() {
@@ -186,8 +159,8 @@ fn levels_meet_without_cracks_and_far_levels_spare_full_resolution() {
     );
     let camera = close_view(&volume, false);
     let bands = LevelChoice::default().bands(&volume, &camera);
-    let levels = prepare(&volume, &bands);
-    let banded = passes(&levels, &bands);
+    let levels = prepare_levels(&volume, &bands);
+    let banded = level_passes(&levels, &bands);
     // Every value equally translucent: a uniform medium whatever the data, so
     // every level shows the same haze, each level's opacity corrected for its
     // step. (That levels meet exactly, sample for sample, is

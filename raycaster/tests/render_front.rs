@@ -297,19 +297,9 @@ fn a_deep_view_renders_its_levels_by_depth_into_the_buffer_like_the_cli() {
         raycaster::volume::Access::Mapped,
     ));
     let front = RenderFront::new(volume.clone(), None, None).unwrap();
-    let c = centre(&volume);
     // Outside and close, and inside the volume.
     for distance in [150.0, 90.0] {
-        let camera = raycaster::render::Orbit {
-            target: c,
-            distance,
-            azimuth: 0.7,
-            elevation: 0.3,
-            vfov_deg: Some(90.0),
-            ..raycaster::render::Orbit::default_view(raycaster::render::Vec3::ZERO, c * 2.0)
-        }
-        .camera(80, 64)
-        .unwrap();
+        let camera = wide_view(&volume, distance, 0.7, false, 80, 64);
         let options = ParallelOptions {
             render_threads: 2,
             compositing_threads: 1,
@@ -335,15 +325,8 @@ fn a_deep_view_renders_its_levels_by_depth_into_the_buffer_like_the_cli() {
             (stats.level, stats.coarsest_level),
             (bands[0].level as u32, bands[bands.len() - 1].level as u32)
         );
-        let levels: Vec<RenderVolume<'_>> = bands
-            .iter()
-            .map(|b| RenderVolume::new(volume.level(b.level), None).unwrap())
-            .collect();
-        let passes: Vec<_> = levels
-            .iter()
-            .zip(&bands)
-            .map(|(l, b)| (l, b.depth))
-            .collect();
+        let levels = prepare_levels(&volume, &bands);
+        let passes = level_passes(&levels, &bands);
         let expected = raycaster::render::render_sequential_levels(&passes, &camera, &settings())
             .unwrap()
             .to_image();

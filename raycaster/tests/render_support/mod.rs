@@ -187,3 +187,50 @@ pub fn render_bricked(
     let prepared = RenderVolume::new(volume, brick).unwrap();
     render_sequential(&prepared, camera, settings).unwrap()
 }
+
+/// A wide view of `volume` from `distance` to its centre (azimuth in radians,
+/// elevation 0.3): perspective with a 90° field, or orthographic 300 units high.
+pub fn wide_view(
+    volume: &Volume,
+    distance: f32,
+    azimuth: f32,
+    orthographic: bool,
+    width: u32,
+    height: u32,
+) -> raycaster::render::Camera {
+    let c = centre(volume);
+    raycaster::render::Orbit {
+        target: c,
+        distance,
+        azimuth,
+        elevation: 0.3,
+        vfov_deg: (!orthographic).then_some(90.0),
+        ortho_height: 300.0,
+        ..raycaster::render::Orbit::default_view(Vec3::ZERO, c * 2.0)
+    }
+    .camera(width, height)
+    .unwrap()
+}
+
+/// The levels of `volume` that `bands` sample, prepared (default bricks).
+pub fn prepare_levels<'v>(
+    volume: &'v Volume,
+    bands: &[raycaster::render::LevelBand],
+) -> Vec<RenderVolume<'v>> {
+    bands
+        .iter()
+        .map(|b| RenderVolume::new(volume.level(b.level), None).unwrap())
+        .collect()
+}
+
+/// The passes of a frame of several levels: each prepared level with its band.
+pub fn level_passes<'p, 'v>(
+    levels: &'p [RenderVolume<'v>],
+    bands: &[raycaster::render::LevelBand],
+) -> Vec<(&'p RenderVolume<'v>, Option<raycaster::render::DepthBand>)> {
+    levels
+        .iter()
+        .zip(bands)
+        .map(|(l, b)| (l, b.depth))
+        .collect()
+}
