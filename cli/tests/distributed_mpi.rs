@@ -6,6 +6,8 @@
 //! CI installs Open MPI and runs it).
 #![cfg(feature = "mpi")]
 
+mod support;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::time::{Duration, Instant};
@@ -228,23 +230,13 @@ fn stats_list_every_rank_and_a_bad_input_stops_every_rank_with_one_message() {
 fn a_deep_view_of_a_pyramid_file_samples_the_same_levels_distributed() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("shapes.vol");
-    let scene = raycaster::synth::SceneKind::Shapes.build([256; 3], 7);
-    let header = raycaster::volume::Header::new(
-        [256; 3],
-        [1.0; 3],
-        raycaster::volume::Layout::Bricked { side: 16 },
-        raycaster::volume::SampleType::U8,
-        raycaster::volume::Content::Scalar,
+    support::write_scene(
+        &file,
+        raycaster::synth::SceneKind::Shapes,
+        256,
+        7,
         raycaster::volume::Format::Extended,
     );
-    raycaster::generate::generate(
-        scene.as_ref(),
-        &header,
-        &file,
-        &Default::default(),
-        &raycaster::job::Job::silent(),
-    )
-    .unwrap();
     let view = [
         file.to_str().unwrap(),
         "--size",

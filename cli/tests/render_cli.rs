@@ -2,7 +2,7 @@
 
 mod support;
 
-use support::{raycaster, stderr};
+use support::{raycaster, stderr, write_scene};
 
 use std::path::Path;
 
@@ -26,24 +26,13 @@ fn renders_the_built_in_scene_without_arguments_but_the_output() {
 #[test]
 fn renders_a_file_and_reports_stats_as_json() {
     let dir = tempfile::tempdir().unwrap();
-    let vol = dir.path().join("shells.vol");
-    let scene = raycaster::synth::SceneKind::Shells.build([40; 3], 1);
-    let header = raycaster::volume::Header::new(
-        [40; 3],
-        [1.0; 3],
-        raycaster::volume::Layout::Bricked { side: 16 },
-        raycaster::volume::SampleType::U8,
-        raycaster::volume::Content::Scalar,
+    write_scene(
+        &dir.path().join("shells.vol"),
+        raycaster::synth::SceneKind::Shells,
+        40,
+        1,
         raycaster::volume::Format::Thesis,
     );
-    raycaster::generate::generate(
-        scene.as_ref(),
-        &header,
-        &vol,
-        &Default::default(),
-        &raycaster::job::Job::silent(),
-    )
-    .unwrap();
     let run = |extra: &[&str]| {
         let mut args = vec![
             "render",
@@ -429,23 +418,13 @@ fn renders_a_nifti_file_directly() {
 #[test]
 fn a_deep_perspective_view_samples_each_depth_at_its_own_level() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = raycaster::synth::SceneKind::Shapes.build([256; 3], 7);
-    let header = raycaster::volume::Header::new(
-        [256; 3],
-        [1.0; 3],
-        raycaster::volume::Layout::Bricked { side: 16 },
-        raycaster::volume::SampleType::U8,
-        raycaster::volume::Content::Scalar,
+    write_scene(
+        &dir.path().join("shapes.vol"),
+        raycaster::synth::SceneKind::Shapes,
+        256,
+        7,
         raycaster::volume::Format::Extended,
     );
-    raycaster::generate::generate(
-        scene.as_ref(),
-        &header,
-        &dir.path().join("shapes.vol"),
-        &Default::default(),
-        &raycaster::job::Job::silent(),
-    )
-    .unwrap();
     let run = |out: &str, extra: &[&str]| {
         let mut args = vec![
             "render",

@@ -1,4 +1,7 @@
-//! What the CLI tests share: running the `raycaster` binary as a user would.
+//! What the CLI tests share: running the `raycaster` binary as a user would,
+//! and writing the volumes it reads.
+// Each test binary uses some of these.
+#![allow(dead_code)]
 
 use std::path::Path;
 use std::process::{Command, Output};
@@ -15,4 +18,32 @@ pub fn raycaster(args: &[&str], dir: &Path) -> Output {
 /// A run's standard error as text.
 pub fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Writes built-in scene `kind` (its `seed`) as a bricked (side 16) u8 `.vol` of
+/// `n³` voxels in `format`, with its resolution pyramid where the format has one.
+pub fn write_scene(
+    path: &Path,
+    kind: raycaster::synth::SceneKind,
+    n: u32,
+    seed: u64,
+    format: raycaster::volume::Format,
+) {
+    let scene = kind.build([n; 3], seed);
+    let header = raycaster::volume::Header::new(
+        [n; 3],
+        [1.0; 3],
+        raycaster::volume::Layout::Bricked { side: 16 },
+        raycaster::volume::SampleType::U8,
+        raycaster::volume::Content::Scalar,
+        format,
+    );
+    raycaster::generate::generate(
+        scene.as_ref(),
+        &header,
+        path,
+        &Default::default(),
+        &raycaster::job::Job::silent(),
+    )
+    .unwrap();
 }
