@@ -142,7 +142,7 @@ impl PixelRay {
             step,
             inv_step: Vec3::select(step.cmpeq(Vec3::ZERO), Vec3::ZERO, step.recip()),
         };
-        if clip.is_empty() && interval.is_none() && t_enter >= t_box {
+        if clip.is_empty() && interval.is_none() {
             return Some(whole);
         }
         let voxel_ray = Ray { origin, direction };
