@@ -405,14 +405,7 @@ fn direct_send_of_partial_images_matches_for_dvr_and_refuses_other_modes() {
 #[test]
 fn a_frame_of_several_levels_gives_the_single_process_image() {
     let dir = tempfile::TempDir::new().unwrap();
-    let volume = scene_file(
-        dir.path(),
-        SceneKind::Shapes,
-        256,
-        raycaster::volume::Layout::Bricked { side: 16 },
-        raycaster::volume::SampleType::U8,
-        raycaster::volume::Access::Mapped,
-    );
+    let volume = pyramid_shapes(dir.path());
     let views = [
         (150.0, 0.7, 48),
         // The camera inside the volume.

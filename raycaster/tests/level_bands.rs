@@ -12,8 +12,8 @@ use raycaster::render::{
 use raycaster::synth::SceneKind;
 use raycaster::volume::{Access, Layout, SampleType, Volume};
 use render_support::{
-    assert_images_match, level_passes, prepare_levels, scene_file, scene_preset, white_tf,
-    wide_view,
+    assert_images_match, level_passes, prepare_levels, pyramid_shapes, scene_file, scene_preset,
+    white_tf, wide_view,
 };
 use tempfile::TempDir;
 
@@ -30,14 +30,7 @@ fn level_numbers(bands: &[LevelBand]) -> Vec<usize> {
 #[test]
 fn a_deep_perspective_view_gets_a_band_per_level_and_other_views_one() {
     let dir = TempDir::new().unwrap();
-    let volume = scene_file(
-        dir.path(),
-        SceneKind::Shapes,
-        256,
-        Layout::Bricked { side: 16 },
-        SampleType::U8,
-        Access::Mapped,
-    );
+    let volume = pyramid_shapes(dir.path());
     assert_eq!(volume.level_count(), 3);
     let camera = close_view(&volume, false);
     let auto = LevelChoice::default();
@@ -149,14 +142,7 @@ fn frames_of_several_levels_are_the_same_in_parallel_and_sequentially() {
 #[test]
 fn levels_meet_without_cracks_and_far_levels_spare_full_resolution() {
     let dir = TempDir::new().unwrap();
-    let volume = scene_file(
-        dir.path(),
-        SceneKind::Shapes,
-        256,
-        Layout::Bricked { side: 16 },
-        SampleType::U8,
-        Access::Mapped,
-    );
+    let volume = pyramid_shapes(dir.path());
     let camera = close_view(&volume, false);
     let bands = LevelChoice::default().bands(&volume, &camera);
     let levels = prepare_levels(&volume, &bands);

@@ -10,8 +10,8 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
 
 use raycaster::render::{
-    FrameEvent, FrameRequest, LevelChoice, Mode, ParallelOptions, RenderFront, RenderSettings,
-    RenderVolume, render_parallel,
+    Camera, FrameEvent, FrameRequest, FrameStats, LevelChoice, Mode, ParallelOptions, RenderFront,
+    RenderSettings, RenderVolume, render_parallel,
 };
 use raycaster::synth::SceneKind;
 use render_support::*;
@@ -42,6 +42,30 @@ fn settings() -> RenderSettings {
     }
 }
 
+/// Requests a frame of `camera` at the automatic level and waits (up to 30 s)
+/// for it to finish: its id and statistics.
+fn finished_frame(
+    front: &RenderFront,
+    camera: Camera,
+    options: ParallelOptions,
+) -> (u64, FrameStats) {
+    let id = front.request(FrameRequest {
+        camera,
+        settings: settings(),
+        options,
+        level: LevelChoice::default(),
+    });
+    let event = front
+        .events()
+        .recv_timeout(Duration::from_secs(30))
+        .unwrap();
+    let FrameEvent::Done { id: done, stats } = event else {
+        panic!("expected a finished frame, got {event:?}");
+    };
+    assert_eq!(done, id);
+    (id, stats)
+}
+
 #[test]
 fn a_frame_completes_into_the_buffer_as_the_parallel_renderer_draws_it() {
     let volume = Arc::new(scene_volume(SceneKind::Shapes, 32));
@@ -61,20 +85,7 @@ fn a_frame_completes_into_the_buffer_as_the_parallel_renderer_draws_it() {
         compositing_threads: 1,
         tile_size: 8,
     };
-    let id = front.request(FrameRequest {
-        camera,
-        settings: settings(),
-        options,
-        level: LevelChoice::default(),
-    });
-    let event = front
-        .events()
-        .recv_timeout(Duration::from_secs(30))
-        .unwrap();
-    let FrameEvent::Done { id: done, stats } = event else {
-        panic!("expected a finished frame, got {event:?}");
-    };
-    assert_eq!(done, id);
+    let (id, stats) = finished_frame(&front, camera, options);
     assert!(stats.counters.samples > 0);
     let prepared = RenderVolume::new(&volume, None).unwrap();
     let expected = render_parallel(&prepared, &camera, &settings(), &options)
@@ -288,14 +299,7 @@ fn request_storms_end_every_frame_exactly_once_and_shut_down() {
 #[test]
 fn a_deep_view_renders_its_levels_by_depth_into_the_buffer_like_the_cli() {
     let dir = tempfile::TempDir::new().unwrap();
-    let volume = Arc::new(scene_file(
-        dir.path(),
-        SceneKind::Shapes,
-        256,
-        raycaster::volume::Layout::Bricked { side: 16 },
-        raycaster::volume::SampleType::U8,
-        raycaster::volume::Access::Mapped,
-    ));
+    let volume = Arc::new(pyramid_shapes(dir.path()));
     let front = RenderFront::new(volume.clone(), None, None).unwrap();
     // Outside and close, and inside the volume.
     for distance in [150.0, 90.0] {
@@ -305,20 +309,7 @@ fn a_deep_view_renders_its_levels_by_depth_into_the_buffer_like_the_cli() {
             compositing_threads: 1,
             tile_size: 16,
         };
-        let id = front.request(FrameRequest {
-            camera,
-            settings: settings(),
-            options,
-            level: LevelChoice::default(),
-        });
-        let event = front
-            .events()
-            .recv_timeout(Duration::from_secs(60))
-            .unwrap();
-        let FrameEvent::Done { id: done, stats } = event else {
-            panic!("expected a finished frame, got {event:?}");
-        };
-        assert_eq!(done, id);
+        let (_, stats) = finished_frame(&front, camera, options);
         let bands = LevelChoice::default().frame_bands(&volume, &camera, &settings(), 3);
         assert!(bands.len() > 1, "{distance}: {bands:?}");
         assert_eq!(

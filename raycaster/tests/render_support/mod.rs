@@ -188,6 +188,19 @@ pub fn render_bricked(
     render_sequential(&prepared, camera, settings).unwrap()
 }
 
+/// The `shapes` scene as a 256³ u8 file, bricked (side 16) and mapped, with
+/// pyramid levels 0–2: what frames of several levels are tested on.
+pub fn pyramid_shapes(dir: &Path) -> Volume {
+    scene_file(
+        dir,
+        raycaster::synth::SceneKind::Shapes,
+        256,
+        Layout::Bricked { side: 16 },
+        SampleType::U8,
+        raycaster::volume::Access::Mapped,
+    )
+}
+
 /// A wide view of `volume` from `distance` to its centre (azimuth in radians,
 /// elevation 0.3): perspective with a 90° field, or orthographic 300 units high.
 pub fn wide_view(
