@@ -735,7 +735,7 @@ fn extended_bad_magic() {
 #[test]
 fn extended_unsupported_version() {
     let dir = TempDir::new().unwrap();
-    for version in [0u16, 5, 0x100, u16::MAX] {
+    for version in [0u16, 6, 0x100, u16::MAX] {
         extended_case(
             &dir,
             &format!("v{version}.vol"),

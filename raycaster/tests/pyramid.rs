@@ -13,8 +13,8 @@ use raycaster::render::{
     LevelChoice, ParallelOptions, RenderVolume, render_parallel, render_sequential,
 };
 use raycaster::volume::{
-    Content, Format, Header, Layout, SampleType, Volume, VolumeErrorKind, pyramid_sidecar_path,
-    write_pyramid_sidecar,
+    CellShape, Content, Format, Header, Layout, SampleType, Volume, VolumeErrorKind,
+    pyramid_sidecar_path, write_pyramid_sidecar,
 };
 use render_support::{assert_images_match, default_camera, scene_preset};
 use tempfile::TempDir;
@@ -373,6 +373,10 @@ fn files_without_a_pyramid_still_open_and_render() {
     let volume = Volume::open(&path).unwrap();
     assert_eq!(volume.level_count(), 3);
     assert_eq!(volume.header().pyramid_offset, None);
+    // The sidecar also stores the cells of every level, level 0's included.
+    for k in 0..3 {
+        assert!(volume.level(k).stored_cells().is_some(), "level {k}");
+    }
 }
 
 #[test]
@@ -388,13 +392,13 @@ fn a_corrupt_embedded_pyramid_is_refused_and_a_stale_sidecar_ignored() {
         .pyramid_offset
         .unwrap() as usize;
     let mut bytes = std::fs::read(&path).unwrap();
-    bytes[offset + 16] ^= 0x40; // level 1's x size in the directory
+    bytes[offset + 64] ^= 0x40; // level 1's x size in the directory
     std::fs::write(&path, &bytes).unwrap();
     let err = Volume::open(&path).expect_err("a lying directory");
     let msg = err.to_string();
     assert!(msg.contains("pyramid") && msg.contains("c.vol"), "{msg}");
     // A pyramid offset past the file's end is a header error.
-    bytes[offset + 16] ^= 0x40;
+    bytes[offset + 64] ^= 0x40;
     let past_end = (bytes.len() as u64 + 64).to_le_bytes();
     bytes[34..40].copy_from_slice(&past_end[..6]);
     std::fs::write(&path, &bytes).unwrap();
@@ -418,23 +422,22 @@ fn a_corrupt_embedded_pyramid_is_refused_and_a_stale_sidecar_ignored() {
 }
 
 #[test]
-fn opening_reads_nothing_and_frames_compute_cells_only_for_bricks_they_visit() {
+fn opening_reads_nothing_and_frames_read_stored_cells_or_compute_them_for_bricks_they_visit() {
     let dir = TempDir::new().unwrap();
     let header = u8_header(Layout::Bricked { side: 16 }, Format::Extended);
     let values = pattern(DIMS, 255, false);
     let path = dir.path().join("lazy.vol");
     write(&path, &header, &values, &small_slabs(), &Job::silent()).unwrap();
     let volume = Volume::open(&path).unwrap();
-    // The range tables stay in the file (mapped), for every level.
+    // The range and cell tables stay in the file (mapped), for every level.
     for k in 0..volume.level_count() {
-        assert!(volume.level(k).ranges().is_mapped(), "level {k}");
+        let level = volume.level(k);
+        assert!(level.ranges().is_mapped(), "level {k}");
+        assert!(
+            level.stored_cells().is_some_and(|c| c.is_mapped()),
+            "level {k}"
+        );
     }
-    let prepared = RenderVolume::new(&volume, None).unwrap();
-    assert_eq!(
-        prepared.cells().bricks_known(),
-        0,
-        "nothing computed at open"
-    );
     // Only the spheres' values are visible: the ramp's bricks are transparent.
     let settings = raycaster::render::RenderSettings {
         transfer: raycaster::render::TransferFunction::parse(
@@ -444,9 +447,23 @@ fn opening_reads_nothing_and_frames_compute_cells_only_for_bricks_they_visit() {
         ..Default::default()
     };
     let camera = default_camera(&volume, 64);
-    let frame =
-        render_parallel(&prepared, &camera, &settings, &ParallelOptions::default()).unwrap();
-    let visible = prepared.geometry().grid().block_count() - frame.stats.bricks_transparent;
+    // The file's own bricks: their cells are read from the file, none scanned.
+    let stored = RenderVolume::new(&volume, None).unwrap();
+    assert!(stored.cells().is_stored());
+    let frame = render_parallel(&stored, &camera, &settings, &ParallelOptions::default()).unwrap();
+    assert_eq!(stored.cells().bricks_scanned(), 0);
+    assert_eq!(stored.cells().bricks_known(), 0);
+    // Sub-bricks of side 6 have no stored table: their cells are computed the
+    // first time a frame visits them, and only then.
+    let prepared = RenderVolume::new(&volume, Some(6)).unwrap();
+    assert!(!prepared.cells().is_stored());
+    assert_eq!(
+        prepared.cells().bricks_known(),
+        0,
+        "nothing computed at open"
+    );
+    let lazy = render_parallel(&prepared, &camera, &settings, &ParallelOptions::default()).unwrap();
+    let visible = prepared.geometry().grid().block_count() - lazy.stats.bricks_transparent;
     let known = prepared.cells().bricks_known();
     assert!(
         known > 0 && known <= visible,
@@ -456,10 +473,11 @@ fn opening_reads_nothing_and_frames_compute_cells_only_for_bricks_they_visit() {
     let again =
         render_parallel(&prepared, &camera, &settings, &ParallelOptions::default()).unwrap();
     assert_eq!(prepared.cells().bricks_known(), known);
-    assert_eq!(again.to_image(), frame.to_image());
-    // The same frame from a prepared volume that scanned every brick up front.
-    let sequential = render_sequential(&prepared, &camera, &settings).unwrap();
-    assert_images_match("lazy-cells", &frame.to_image(), &sequential.to_image(), 1);
+    assert_eq!(again.to_image(), lazy.to_image());
+    // Both agree with the sequential oracle.
+    let sequential = render_sequential(&stored, &camera, &settings).unwrap();
+    assert_images_match("stored-cells", &frame.to_image(), &sequential.to_image(), 1);
+    assert_images_match("lazy-cells", &lazy.to_image(), &sequential.to_image(), 1);
 }
 
 #[test]
@@ -492,4 +510,224 @@ fn the_automatic_level_follows_the_projected_voxel_size() {
     assert_eq!("auto".parse::<LevelChoice>(), Ok(LevelChoice::default()));
     assert_eq!("1".parse::<LevelChoice>(), Ok(LevelChoice::Fixed(1)));
     assert!("coarse".parse::<LevelChoice>().is_err());
+}
+
+/// The cell ranges of every brick of `shape`'s grid over `values` (a volume of the
+/// grid's dims, x slowest), voxel by voxel: each cell's voxels and the voxel after,
+/// within the volume; `[u16::MAX, 0]` for a cell past the volume's edge; a brick of
+/// one value gives it to every cell.
+fn cells_reference(values: &[u16], shape: &CellShape) -> Vec<[u16; 2]> {
+    let grid = shape.grid();
+    let dims = grid.dims();
+    let at = |v: [u32; 3]| values[((v[0] * dims[1] + v[1]) * dims[2] + v[2]) as usize];
+    let range = |lo: [u32; 3], hi: [u32; 3]| {
+        let mut r = [u16::MAX, 0];
+        for x in lo[0]..hi[0] {
+            for y in lo[1]..hi[1] {
+                for z in lo[2]..hi[2] {
+                    let v = at([x, y, z]);
+                    r = [r[0].min(v), r[1].max(v)];
+                }
+            }
+        }
+        r
+    };
+    let (m, cs) = (shape.per_axis(), shape.cell_step());
+    let mut out = Vec::new();
+    for i in 0..grid.block_count() {
+        let b = grid.coords(i);
+        let (o, e) = (grid.origin(b), grid.extent(b));
+        let end = [0, 1, 2].map(|a| o[a] + e[a]);
+        let whole = range(o, end);
+        for c in 0..m * m * m {
+            let c = [c / (m * m), c / m % m, c % m];
+            let start = [0, 1, 2].map(|a| o[a] + c[a] * cs);
+            out.push(if whole[0] == whole[1] {
+                whole
+            } else if (0..3).any(|a| start[a] >= end[a]) {
+                [u16::MAX, 0]
+            } else {
+                range(start, [0, 1, 2].map(|a| (start[a] + cs + 1).min(end[a])))
+            });
+        }
+    }
+    out
+}
+
+#[test]
+fn every_level_stores_the_cell_ranges_of_its_bricks_as_computed_independently() {
+    let dir = TempDir::new().unwrap();
+    let cases = [
+        (
+            "bricked-u8",
+            u8_header(Layout::Bricked { side: 16 }, Format::Extended),
+            255,
+        ),
+        (
+            "thesis",
+            u8_header(Layout::Bricked { side: 9 }, Format::Thesis),
+            255,
+        ),
+        (
+            "linear-u16",
+            Header::new(
+                DIMS,
+                [1.0; 3],
+                Layout::Linear,
+                SampleType::U16,
+                Content::Scalar,
+                Format::Extended,
+            ),
+            4000,
+        ),
+    ];
+    for (name, header, max) in cases {
+        let path = dir.path().join(format!("{name}.vol"));
+        let values = pattern(DIMS, max, false);
+        write(&path, &header, &values, &small_slabs(), &Job::silent()).unwrap();
+        let volume = Volume::open(&path).unwrap();
+        assert_eq!(volume.level_count(), 3, "{name}");
+        if header.format == Format::Extended {
+            let bytes = std::fs::read(&path).unwrap();
+            assert_eq!(&bytes[30..32], &5u16.to_le_bytes(), "{name}: version 5");
+        }
+        let (mut level_values, mut dims) = (values, DIMS);
+        for k in 0..volume.level_count() {
+            let level = volume.level(k);
+            assert_eq!(level.dims(), dims);
+            let table = level
+                .stored_cells()
+                .unwrap_or_else(|| panic!("{name} level {k}"));
+            assert_eq!(table.shape(), &CellShape::default_for(level.header()));
+            assert_eq!(
+                table.as_slice(),
+                &cells_reference(&level_values, table.shape())[..],
+                "{name} level {k}"
+            );
+            (level_values, dims) = reduce_reference(&level_values, dims, false);
+        }
+    }
+}
+
+#[test]
+fn frames_reading_stored_cells_equal_frames_that_compute_them() {
+    use raycaster::render::{Mode, RenderSettings};
+    let dir = TempDir::new().unwrap();
+    let values = pattern(DIMS, 255, false);
+    for layout in [Layout::Bricked { side: 16 }, Layout::Linear] {
+        let header = u8_header(layout, Format::Extended);
+        let stored_path = dir.path().join("stored.vol");
+        let lazy_path = dir.path().join("lazy.vol");
+        write(
+            &stored_path,
+            &header,
+            &values,
+            &small_slabs(),
+            &Job::silent(),
+        )
+        .unwrap();
+        let no_pyramid = WriteOptions {
+            pyramid: false,
+            ..small_slabs()
+        };
+        write(&lazy_path, &header, &values, &no_pyramid, &Job::silent()).unwrap();
+        let (stored_volume, lazy_volume) = (
+            Volume::open(&stored_path).unwrap(),
+            Volume::open(&lazy_path).unwrap(),
+        );
+        let stored = RenderVolume::new(&stored_volume, None).unwrap();
+        let lazy = RenderVolume::new(&lazy_volume, None).unwrap();
+        assert!(stored.cells().is_stored() && !lazy.cells().is_stored());
+        let camera = default_camera(&stored_volume, 48);
+        for (mode, jitter) in [(Mode::Dvr, false), (Mode::Dvr, true), (Mode::Mip, false)] {
+            let settings = RenderSettings {
+                mode,
+                jitter,
+                transfer: raycaster::render::TransferFunction::parse(
+                    "point 0.0 1 1 1 0\npoint 0.3 1 1 1 0\npoint 0.5 1 0.5 0.2 0.6\npoint 1.0 1 0.5 0.2 0.9\n",
+                )
+                .unwrap(),
+                ..Default::default()
+            };
+            let what = format!("{layout} {mode:?} jitter {jitter}");
+            let options = ParallelOptions::default();
+            let a = render_parallel(&stored, &camera, &settings, &options).unwrap();
+            let b = render_parallel(&lazy, &camera, &settings, &options).unwrap();
+            assert_eq!(a.to_image(), b.to_image(), "{what}");
+            assert_eq!(a.stats.counters, b.stats.counters, "{what}");
+            assert!(
+                a.stats.counters.samples_skipped_empty > 0,
+                "{what}: skipping"
+            );
+            let oracle = render_sequential(&stored, &camera, &settings).unwrap();
+            assert_eq!(
+                oracle.stats.counters.samples, a.stats.counters.samples,
+                "{what}"
+            );
+        }
+        assert_eq!(stored.cells().bricks_scanned(), 0, "{layout}");
+        assert!(lazy.cells().bricks_scanned() > 0, "{layout}");
+    }
+}
+
+#[test]
+fn cell_tables_that_do_not_check_out_are_refused_or_ignored() {
+    let dir = TempDir::new().unwrap();
+    let values = pattern(DIMS, 255, false);
+    let header = u8_header(Layout::Bricked { side: 16 }, Format::Extended);
+    let path = dir.path().join("c.vol");
+    write(&path, &header, &values, &small_slabs(), &Job::silent()).unwrap();
+    let offset = Volume::open(&path)
+        .unwrap()
+        .header()
+        .pyramid_offset
+        .unwrap() as usize;
+    let good = std::fs::read(&path).unwrap();
+    let at = |o: usize| u64::from_le_bytes(good[o..o + 8].try_into().unwrap()) as usize;
+    // Level 0's cell table: its head names another shape.
+    let mut bytes = good.clone();
+    let table = offset + at(offset + 16);
+    bytes[table + 28] ^= 1; // cells per axis
+    std::fs::write(&path, &bytes).unwrap();
+    let msg = Volume::open(&path)
+        .expect_err("a lying cell table")
+        .to_string();
+    assert!(
+        msg.contains("level 0's cell table") && msg.contains("c.vol"),
+        "{msg}"
+    );
+    // A header of version 4 over a block with cell tables, and the reverse.
+    let mut bytes = good.clone();
+    bytes[30..32].copy_from_slice(&2u16.to_le_bytes());
+    std::fs::write(&path, &bytes).unwrap();
+    let msg = Volume::open(&path)
+        .expect_err("version 2 with cells")
+        .to_string();
+    assert!(msg.contains("cell tables"), "{msg}");
+    let mut bytes = good.clone();
+    bytes[offset + 4..offset + 8].copy_from_slice(&1u32.to_le_bytes());
+    std::fs::write(&path, &bytes).unwrap();
+    let msg = Volume::open(&path)
+        .expect_err("version 5 without cells")
+        .to_string();
+    assert!(msg.contains("cell tables"), "{msg}");
+
+    // A thesis file's sidecar whose cell table is damaged is ignored as a whole.
+    let thesis = u8_header(Layout::Bricked { side: 16 }, Format::Thesis);
+    let path = dir.path().join("t.vol");
+    write(&path, &thesis, &values, &small_slabs(), &Job::silent()).unwrap();
+    assert!(Volume::open(&path).unwrap().stored_cells().is_some());
+    let sidecar = pyramid_sidecar_path(&path);
+    let mut side = std::fs::read(&sidecar).unwrap();
+    let table = 64 + u64::from_le_bytes(side[64 + 16..64 + 24].try_into().unwrap()) as usize;
+    side[table] = b'X';
+    // Keep the file's time: the sidecar must stay fresh for the test to mean anything.
+    let file = std::fs::OpenOptions::new()
+        .write(true)
+        .open(&sidecar)
+        .unwrap();
+    std::os::unix::fs::FileExt::write_all_at(&file, &side[table..table + 1], table as u64).unwrap();
+    let volume = Volume::open(&path).unwrap();
+    assert_eq!(volume.level_count(), 1);
+    assert!(volume.stored_cells().is_none());
 }

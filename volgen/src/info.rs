@@ -125,6 +125,29 @@ pub fn run(a: InfoArgs) -> anyhow::Result<()> {
             a.file.display()
         );
     }
+    match volume.stored_cells() {
+        Some(cells) => {
+            let shape = cells.shape();
+            println!(
+                "cell ranges stored for every level: {}³ cells of {} voxels per brick of side {}",
+                shape.per_axis(),
+                shape.cell_step(),
+                shape.grid().side()
+            );
+        }
+        None => {
+            let how = if raycaster::volume::level_dims(h.dims).is_empty() {
+                "a volume this small has no pyramid block to hold them"
+            } else if volume.level_count() == 1 {
+                "`volgen pyramid` stores them with the pyramid"
+            } else if h.pyramid_offset.is_some() {
+                "the file predates them; `volgen convert` rewrites it with them"
+            } else {
+                "the sidecar predates them; `volgen pyramid --force` rebuilds it"
+            };
+            println!("cell ranges not stored: computed while rendering ({how})");
+        }
+    }
     if !a.no_histogram {
         let input = Input::open_vol(&a.file)?;
         let bar = voxel_bar(voxels, "histogram", a.quiet);

@@ -11,9 +11,22 @@ use crate::volume::pyramid::{
     PlaneFeed, PlaneTap, PyramidLayout, level_dims, map_region, write_levels,
 };
 use crate::volume::{
-    AtPath, BlockGrid, BrickRanges, BrickView, Content, Format, Header, LINEAR_RANGE_SIDE, Layout,
-    Sample, TypedVolume, VolumeError, VolumeErrorKind, ranges_sidecar_path,
+    AtPath, BlockGrid, BrickRanges, BrickView, CellShape, Content, Format, Header,
+    LINEAR_RANGE_SIDE, Layout, Sample, TypedVolume, VolumeError, VolumeErrorKind,
+    ranges_sidecar_path,
 };
+
+/// Where [`stream_samples`] writes the cell-range table of the level it writes,
+/// computed from the slabs on the way.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct CellSink<'f> {
+    /// The cells (of the level's default grid).
+    pub shape: CellShape,
+    /// The output file.
+    pub file: &'f std::fs::File,
+    /// Byte offset of the table in it.
+    pub offset: u64,
+}
 
 /// Bytes the writer thread writes between two flushes to disk.
 const SYNC_EVERY_BYTES: usize = 32 << 20;
@@ -89,14 +102,32 @@ pub fn write_volume<T: Sample>(
     // Extended files embed the pyramid after the range table; its level 1 is built
     // from level 0's slabs while they are written, the rest from level 1.
     let embedded = (wants_pyramid && header.format == Format::Extended)
-        .then(|| PyramidLayout::plan(&header))
+        .then(|| PyramidLayout::plan(&header, true))
         .transpose()
         .at(path)?;
     let table_len = 28 + 4 * header.block_grid(LINEAR_RANGE_SIDE).block_count();
     let block_start = (data_end + table_len).div_ceil(64) * 64;
     let level0_start = head_bytes.len() as u64;
+    let sink = |layout: &PyramidLayout, header: &Header, cells: Option<(u64, u64)>| {
+        cells
+            .map(|(offset, _)| CellSink {
+                shape: CellShape::default_for(header),
+                file,
+                offset: block_start + offset,
+            })
+            .filter(|_| layout.has_cells())
+    };
     let ranges = match &embedded {
-        None => stream_samples(file, level0_start, &header, options, job, path, &mut fill)?,
+        None => stream_samples(
+            file,
+            level0_start,
+            &header,
+            options,
+            job,
+            path,
+            None,
+            &mut fill,
+        )?,
         Some(layout) => {
             file.write_all_at(&layout.encode(), block_start).at(path)?;
             let level1 = &layout.levels[0];
@@ -113,6 +144,7 @@ pub fn write_volume<T: Sample>(
                         options,
                         job,
                         path,
+                        sink(layout, &level1_header, level1.cells).as_ref(),
                         &mut |x0, x1, slab: &mut [T]| feed.fill(x0, x1, slab, path),
                     )
                 });
@@ -124,6 +156,7 @@ pub fn write_volume<T: Sample>(
                     options,
                     job,
                     path,
+                    sink(layout, &header, layout.level0_cells).as_ref(),
                     &mut |x0, x1, slab: &mut [T]| {
                         fill(x0, x1, slab)?;
                         tap.push(x0, x1, slab);
@@ -167,6 +200,7 @@ pub fn write_volume<T: Sample>(
             )?;
             pyramid_levels = layout.levels.len();
             header.pyramid_offset = Some(block_start);
+            header.pyramid_cells = layout.has_cells();
         }
         file.write_all_at(&header.encode().at(path)?, 0).at(path)?;
     }
@@ -198,7 +232,9 @@ pub fn write_volume<T: Sample>(
 
 /// Writes the samples `fill` gives (see [`write_volume`]) in `header`'s layout into
 /// `file` from byte `start`, computing on this thread (and rayon) while a writer
-/// thread drains finished buffers. Returns the brick value ranges.
+/// thread drains finished buffers. Returns the brick value ranges; writes the cell
+/// ranges into `cells` when given.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn stream_samples<T: Sample>(
     file: &std::fs::File,
     start: u64,
@@ -206,6 +242,7 @@ pub(crate) fn stream_samples<T: Sample>(
     options: &WriteOptions,
     job: &Job,
     path: &Path,
+    cells: Option<&CellSink<'_>>,
     fill: &mut impl FnMut(u32, u32, &mut [T]) -> Result<(), VolumeError>,
 ) -> Result<BrickRanges, VolumeError> {
     let grid = header.block_grid(LINEAR_RANGE_SIDE);
@@ -239,6 +276,7 @@ pub(crate) fn stream_samples<T: Sample>(
         let produced = produce_slabs(
             header,
             &grid,
+            cells,
             options,
             job,
             path,
@@ -271,7 +309,7 @@ fn check_resources<T: Sample>(
     let grid = header.block_grid(LINEAR_RANGE_SIDE);
     let table = grid.block_count().saturating_mul(4).saturating_add(64);
     let levels = if pyramid && !level_dims(header.dims).is_empty() {
-        PyramidLayout::plan(header).at(path)?.block_len() + 64
+        PyramidLayout::plan(header, true).at(path)?.block_len() + 64
     } else {
         0
     };
@@ -313,12 +351,14 @@ fn physical_memory() -> u64 {
     }
 }
 
-/// The slab loop of [`write_volume`]: fills each slab, computes its brick ranges and
+/// The slab loop of [`write_volume`]: fills each slab, computes its brick ranges
+/// (and the cell ranges of the bricks of `cells` it holds, written there) and
 /// hands the file's bytes to `send` in order. Returns the ranges in brick order.
 #[allow(clippy::too_many_arguments)]
 fn produce_slabs<T: Sample>(
     header: &Header,
     grid: &BlockGrid,
+    cells: Option<&CellSink<'_>>,
     options: &WriteOptions,
     job: &Job,
     path: &Path,
@@ -332,7 +372,18 @@ fn produce_slabs<T: Sample>(
     let step = grid.step();
     let [nx, ny, nz] = grid.counts();
     let per_block_x = step as usize * plane * size_of::<T>();
-    let blocks_per_slab = (options.slab_bytes / per_block_x.max(1)).clamp(1, nx as usize) as u32;
+    // Slabs hold whole bricks of the cells' grid too: a cell brick spans `ratio`
+    // range bricks along x (1, or 2 for the side-31 bricks of large linear files).
+    let ratio = cells.map_or(1, |c| (c.shape.grid().step() / step).max(1));
+    debug_assert!(cells.is_none_or(|c| c.shape.grid().step() % step == 0));
+    let blocks_per_slab = (options.slab_bytes / per_block_x.max(1))
+        .clamp(1, nx as usize)
+        .next_multiple_of(ratio as usize) as u32;
+    if let Some(sink) = cells {
+        sink.file
+            .write_all_at(&sink.shape.encode_head(), sink.offset)
+            .at(path)?;
+    }
     let writer_stopped = || {
         let e = std::io::Error::other("the writer stopped");
         VolumeError::new(path, e)
@@ -351,6 +402,9 @@ fn produce_slabs<T: Sample>(
             return Err(VolumeError::new(path, VolumeErrorKind::Cancelled));
         }
         let view = BrickView::dense(&slab, [x0, 0, 0], [x1 - x0, dy, dz]);
+        if let Some(sink) = cells {
+            write_slab_cells(sink, &view, k0 / ratio, k1 == nx).at(path)?;
+        }
         // Planes this slab adds to the file; the last plane is shared with the next slab.
         let new_planes = if k1 == nx { x1 - x0 } else { x1 - 1 - x0 };
         match header.layout {
@@ -394,6 +448,33 @@ fn produce_slabs<T: Sample>(
     Ok(ranges)
 }
 
+/// Writes the cell ranges of the bricks of `sink`'s grid whose x index runs from
+/// `first` to those ending at `slab`'s last plane (to the grid's end for the
+/// `last` slab), read from `slab`.
+fn write_slab_cells<T: Sample>(
+    sink: &CellSink<'_>,
+    slab: &BrickView<'_, T>,
+    first: u32,
+    last: bool,
+) -> std::io::Result<()> {
+    let grid = sink.shape.grid();
+    let [nx, ny, nz] = grid.counts();
+    let x0 = slab.origin()[0];
+    let end = if last {
+        nx
+    } else {
+        (x0 + slab.extent()[0] - 1) / grid.step()
+    };
+    let per_x = u64::from(ny) * u64::from(nz);
+    let bricks = u64::from(first) * per_x..u64::from(end) * per_x;
+    let cells = sink.shape.scan_bricks(bricks.clone(), |b| {
+        let o = grid.origin(b);
+        slab.sub([o[0] - x0, o[1], o[2]], grid.extent(b))
+    });
+    let at = sink.shape.entry_offset(sink.offset, bricks.start);
+    sink.file.write_all_at(bytemuck::cast_slice(&cells), at)
+}
+
 /// Copies the row of bricks `(bx, by, 0..n_z)` out of `slab` into `out`, in file order,
 /// each brick whole (`side³` samples) with edge padding repeating the last voxel,
 /// and appends each brick's value range to `ranges`. Padding only repeats voxels of
@@ -435,4 +516,72 @@ fn gather_bricks<T: Sample>(
         })
         .collect();
     ranges.extend(brick_ranges);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::volume::{CellTable, SampleType};
+
+    /// Large linear files are rendered (and their cells stored) by bricks of side
+    /// 31 over a range grid of side 16: slabs must hold whole bricks of both.
+    #[test]
+    fn slabs_hold_whole_cell_bricks_of_a_coarser_grid() {
+        let dims = [97, 40, 33];
+        let values: Vec<u16> = (0..dims.iter().product::<u32>())
+            .map(|i| ((i * 7919) % 65521) as u16 / 3)
+            .collect();
+        let header = Header::new(
+            dims,
+            [1.0; 3],
+            Layout::Linear,
+            SampleType::U16,
+            Content::Scalar,
+            Format::Extended,
+        );
+        let shape = CellShape::of_grid(&BlockGrid::new(dims, 31));
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("cells");
+        let file = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(true)
+            .open(&path)
+            .unwrap();
+        let table_at = header.data_len().unwrap() + 64;
+        let sink = CellSink {
+            shape,
+            file: &file,
+            offset: table_at,
+        };
+        let plane = (dims[1] * dims[2]) as usize;
+        // One range brick (15 planes) per slab asked for: rounded up to two.
+        let options = WriteOptions {
+            slab_bytes: 15 * plane * 2,
+            ..WriteOptions::default()
+        };
+        stream_samples(
+            &file,
+            0,
+            &header,
+            &options,
+            &Job::silent(),
+            &path,
+            Some(&sink),
+            &mut |x0, x1, slab: &mut [u16]| {
+                slab.copy_from_slice(&values[x0 as usize * plane..x1 as usize * plane]);
+                Ok(())
+            },
+        )
+        .unwrap();
+        let table = CellTable::read_from(&file, table_at, shape.table_len().unwrap(), &shape)
+            .unwrap()
+            .expect("a table of the shape");
+        let volume = TypedVolume::new(&values, dims, Layout::Linear);
+        let scan = shape.scan_bricks(0..shape.grid().block_count(), |b| {
+            volume.brick(shape.grid(), b)
+        });
+        assert_eq!(table.as_slice(), &scan[..]);
+    }
 }

@@ -5,8 +5,10 @@
 //! [`target_cell_step`] voxels; a cell spans its cells plus the voxel after, so the
 //! trilinear reads of any sample it owns lie within its range.
 //!
-//! Nothing is scanned when a volume is opened: a brick's cells are computed the first
-//! time a frame marches a ray through it and kept for later frames, up to a memory
+//! Files written by this build store the cells of their default grid (their
+//! pyramid block: `volume::CellTable`); a frame reads a brick's cells from there.
+//! Otherwise nothing is scanned when a volume is opened: a brick's cells are
+//! computed the first time a frame marches a ray through it and kept for later frames, up to a memory
 //! budget ([`CELL_CACHE_BYTES`]; beyond it they are computed again for each visit,
 //! which costs one pass over a brick the task then marches anyway). Bricks that no
 //! frame visits (empty under every transfer function used, or never in view) are
@@ -18,35 +20,24 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use parking_lot::RwLock;
 
-use crate::volume::{BlockGrid, BrickView, Sample};
+use crate::volume::{BlockGrid, BrickView, CellShape, CellTable, Sample};
 
-/// Smallest cell size aimed at, in voxel steps per axis.
-pub const TARGET_CELL_STEP: u32 = 4;
-
-/// Cells beyond which larger cells are used, to bound the work per brick.
-pub const MAX_CELLS: u64 = 1 << 24;
+pub use crate::volume::{MAX_CELLS, TARGET_CELL_STEP, target_cell_step};
 
 /// Memory the cache of computed cell ranges may take, per prepared volume.
 pub const CELL_CACHE_BYTES: usize = 48 << 20;
 
-/// The cell step aimed at for a volume of `dims`: [`TARGET_CELL_STEP`], or larger
-/// when the volume would need more than [`MAX_CELLS`] cells.
-pub fn target_cell_step(dims: [u32; 3]) -> u32 {
-    let voxels: u64 = dims.iter().map(|&d| u64::from(d)).product();
-    let bound = (voxels as f64 / MAX_CELLS as f64).cbrt().ceil() as u32;
-    bound.max(TARGET_CELL_STEP)
-}
-
 /// The ranges of one brick's cells, `per_axis³` of them, x slowest.
 pub type BrickCells = Arc<[[u16; 2]]>;
 
-/// Per-brick cell ranges of a brick grid, computed lazily brick by brick.
+/// Per-brick cell ranges of a brick grid: read from the file's stored table where
+/// it has one for this grid, else computed lazily brick by brick.
 #[derive(Debug)]
 pub struct CellRanges {
-    /// Cells per brick and axis.
-    per_axis: u32,
-    /// Cell step in voxels.
-    cell_step: u32,
+    /// How bricks are cut into cells.
+    shape: CellShape,
+    /// The file's table of these cells, if it stores one.
+    stored: Option<CellTable>,
     /// Computed bricks by file-order index, while within the budget.
     cache: RwLock<HashMap<u64, BrickCells>>,
     /// Bricks the cache may hold.
@@ -58,18 +49,29 @@ pub struct CellRanges {
 impl CellRanges {
     /// The (not yet computed) cell ranges of the bricks of `grid`.
     pub fn lazy(grid: &BlockGrid) -> Self {
-        let per_axis = grid.step().div_ceil(target_cell_step(grid.dims())).max(1);
-        let cell_step = grid.step().div_ceil(per_axis);
-        let per_brick = (per_axis * per_axis * per_axis) as usize;
+        let shape = CellShape::of_grid(grid);
         // The ranges, their Arc's counts and a map entry.
-        let entry = per_brick * 4 + 64;
+        let entry = shape.per_brick() * 4 + 64;
         CellRanges {
-            per_axis,
-            cell_step,
+            shape,
+            stored: None,
             cache: RwLock::new(HashMap::new()),
             capacity: CELL_CACHE_BYTES / entry,
             scanned: AtomicU64::new(0),
         }
+    }
+
+    /// The cell ranges of the bricks of `grid`, read from `stored` (a file's table)
+    /// when it is a table of exactly these cells, else computed lazily.
+    pub fn stored_or_lazy(grid: &BlockGrid, stored: Option<&CellTable>) -> Self {
+        let mut cells = Self::lazy(grid);
+        cells.stored = stored.filter(|t| t.shape() == &cells.shape).cloned();
+        cells
+    }
+
+    /// Whether the ranges come from the file's stored table.
+    pub fn is_stored(&self) -> bool {
+        self.stored.is_some()
     }
 
     /// Scans every brick of `grid`, whose views `brick` gives (in parallel); what a
@@ -89,17 +91,17 @@ impl CellRanges {
 
     /// Cells per brick and axis.
     pub fn per_axis(&self) -> u32 {
-        self.per_axis
+        self.shape.per_axis()
     }
 
     /// Cell step in voxels.
     pub fn cell_step(&self) -> u32 {
-        self.cell_step
+        self.shape.cell_step()
     }
 
     /// Cells per brick.
     pub fn per_brick(&self) -> usize {
-        (self.per_axis * self.per_axis * self.per_axis) as usize
+        self.shape.per_brick()
     }
 
     /// The ranges of brick number `index` (file order), computed from the view
@@ -111,6 +113,9 @@ impl CellRanges {
         known: Option<[u16; 2]>,
         view: impl FnOnce() -> BrickView<'a, T>,
     ) -> BrickCells {
+        if let Some(table) = &self.stored {
+            return table.brick(index).into();
+        }
         if let Some(cells) = self.cache.read().get(&index) {
             return cells.clone();
         }
@@ -119,7 +124,7 @@ impl CellRanges {
             _ => {
                 self.scanned.fetch_add(1, Ordering::Relaxed);
                 let mut out = vec![[0u16; 2]; self.per_brick()];
-                brick_cells(&view(), self.per_axis, self.cell_step, &mut out);
+                self.shape.scan_brick(&view(), &mut out);
                 out.into()
             }
         };
@@ -143,38 +148,6 @@ impl CellRanges {
     /// Bricks whose cells were computed by reading their samples (cached or not).
     pub fn bricks_scanned(&self) -> u64 {
         self.scanned.load(Ordering::Relaxed)
-    }
-}
-
-fn brick_cells<T: Sample>(
-    view: &BrickView<'_, T>,
-    per_axis: u32,
-    cell_step: u32,
-    out: &mut [[u16; 2]],
-) {
-    let extent = view.extent();
-    let (lo, hi) = view.value_range();
-    if lo == hi {
-        out.fill([lo.to_u16(), hi.to_u16()]);
-        return;
-    }
-    let mut i = 0;
-    for cx in 0..per_axis {
-        for cy in 0..per_axis {
-            for cz in 0..per_axis {
-                let c = [cx, cy, cz];
-                let start = c.map(|v| v * cell_step);
-                if (0..3).any(|a| start[a] >= extent[a]) {
-                    // A cell past an edge brick's voxels owns no sample.
-                    out[i] = [u16::MAX, 0];
-                } else {
-                    let size = [0, 1, 2].map(|a| (cell_step + 1).min(extent[a] - start[a]));
-                    let (l, h) = view.sub(start, size).value_range();
-                    out[i] = [l.to_u16(), h.to_u16()];
-                }
-                i += 1;
-            }
-        }
     }
 }
 

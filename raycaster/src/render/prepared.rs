@@ -21,8 +21,7 @@ use super::simd::SimdLevel;
 use super::transfer::TransferTable;
 use super::two_level::TwoLevel;
 use crate::volume::{
-    BlockGrid, BrickRanges, BrickView, LINEAR_RANGE_SIDE, Layout, Sample, TypedVolume, Volume,
-    VolumeData,
+    BlockGrid, BrickRanges, BrickView, Layout, Sample, TypedVolume, Volume, VolumeData,
 };
 
 /// A volume with the brick grid the renderer walks and each brick's value range.
@@ -37,24 +36,7 @@ pub struct RenderVolume<'a> {
     labels: Option<&'a Volume>,
 }
 
-/// Bricks of the [`LINEAR_RANGE_SIDE`] grid beyond which linear volumes are rendered
-/// with larger bricks: per-frame scheduling and ray–brick clipping grow with the
-/// brick count (2000³, 700², step 0.2, 2 threads: 1.32 s with 16-voxel bricks,
-/// 0.91 s with 32), while up to about 800³ the two sides are equally fast.
-pub const LARGE_LINEAR_BRICKS: u64 = 1 << 18;
-
-/// The default logical brick side of a linear volume of `dims`: [`LINEAR_RANGE_SIDE`]
-/// (16), or for volumes whose 16-grid has more than [`LARGE_LINEAR_BRICKS`] bricks,
-/// bricks spanning two of those per axis (side 31), whose ranges merge from the
-/// file's table without a scan.
-pub fn default_linear_brick_side(dims: [u32; 3]) -> u32 {
-    let fine = BlockGrid::new(dims, LINEAR_RANGE_SIDE);
-    if fine.block_count() > LARGE_LINEAR_BRICKS {
-        2 * fine.step() + 1
-    } else {
-        LINEAR_RANGE_SIDE
-    }
-}
+pub use crate::volume::{LARGE_LINEAR_BRICKS, default_linear_brick_side};
 
 impl<'a> RenderVolume<'a> {
     /// Prepares `volume` for rendering by bricks of `brick_side` voxels. Linear files
@@ -64,9 +46,11 @@ impl<'a> RenderVolume<'a> {
     /// 4, 6, 16; side 32 → 2, 32). Nothing is read or allocated per brick here:
     /// brick ranges are merged from the file's table when a frame asks for them
     /// (exact when the grid is the table's or a multiple of it, else a superset:
-    /// [`BrickRanges::covering_range`]), and the small cells' ranges
-    /// are computed the first time a frame visits their brick and kept for later
-    /// frames ([`CellRanges`]); transfer-function changes never rescan.
+    /// [`BrickRanges::covering_range`]), and the small cells' ranges are read
+    /// from the file's cell table when it stores one for this grid
+    /// ([`Volume::stored_cells`]), else computed the first time a frame visits
+    /// their brick and kept for later frames ([`CellRanges`]); transfer-function
+    /// changes never rescan.
     pub fn new(volume: &'a Volume, brick_side: Option<u32>) -> Result<Self, RenderError> {
         if let Some(side) = brick_side
             && side < 2
@@ -91,7 +75,7 @@ impl<'a> RenderVolume<'a> {
             volume,
             geometry: VolumeGeometry::placed(grid, volume.spacing(), volume.origin()),
             ranges: volume.ranges(),
-            cells: CellRanges::lazy(&grid),
+            cells: CellRanges::stored_or_lazy(&grid, volume.stored_cells()),
             labels: None,
         })
     }
@@ -386,6 +370,7 @@ impl FramePlan {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::volume::LINEAR_RANGE_SIDE;
 
     #[test]
     fn large_linear_volumes_get_bricks_of_two_range_blocks() {

@@ -4,6 +4,7 @@ use std::fs::File;
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
+use super::cells::CellTable;
 use super::error::{AtPath, VolumeError, VolumeErrorKind};
 use super::header::{Content, Format, Header, HeaderError, Layout, MAX_HEADER_LEN, SampleType};
 use super::orientation::Orientation;
@@ -53,6 +54,8 @@ pub struct Volume {
     header: Header,
     storage: Storage,
     ranges: BrickRanges,
+    /// The stored cell ranges of the default brick grid, if the file has them.
+    cells: Option<CellTable>,
     /// Levels 1, 2, … of the resolution pyramid, if the file has one.
     levels: Vec<Volume>,
     /// Which pyramid level this is (0: the full-resolution volume).
@@ -96,12 +99,13 @@ impl Volume {
         }
         let data = typed_data(&header, storage.bytes()).at(path)?;
         let ranges = load_ranges(path, &header, &storage, data, &file, len, options)?;
-        let levels = load_pyramid(path, &header, &file, len, options.access)?;
+        let (levels, cells) = load_pyramid(path, &header, &file, len, options.access)?;
         Ok(Volume {
             path: path.to_path_buf(),
             header,
             storage,
             ranges,
+            cells,
             levels,
             level: 0,
         })
@@ -153,6 +157,7 @@ impl Volume {
             header,
             storage,
             ranges,
+            cells: None,
             levels: Vec::new(),
             level: 0,
         })
@@ -306,6 +311,13 @@ impl Volume {
         &self.ranges
     }
 
+    /// The cell ranges the file stores for its default brick grid
+    /// ([`CellShape::default_for`](super::CellShape::default_for)), if it stores
+    /// them (files with a pyramid written by this build).
+    pub fn stored_cells(&self) -> Option<&CellTable> {
+        self.cells.as_ref()
+    }
+
     /// The typed samples.
     pub fn data(&self) -> VolumeData<'_> {
         typed_data(&self.header, self.storage.bytes()).expect("alignment checked at open")
@@ -406,23 +418,26 @@ fn load_ranges(
     Ok(ranges)
 }
 
-/// The pyramid levels of an opened file: embedded (extended header version 2), else
-/// from a fresh `FILE.pyramid` sidecar, else none. A corrupt embedded pyramid is an
-/// error; a stale or unreadable sidecar is ignored.
+/// The pyramid levels of an opened file and its stored level-0 cell ranges:
+/// embedded (extended header version 2 or later), else from a fresh `FILE.pyramid`
+/// sidecar, else none. A corrupt embedded pyramid is an error; a stale or
+/// unreadable sidecar is ignored.
 fn load_pyramid(
     path: &Path,
     header: &Header,
     file: &File,
     len: u64,
     access: Access,
-) -> Result<Vec<Volume>, VolumeError> {
+) -> Result<(Vec<Volume>, Option<CellTable>), VolumeError> {
     if let Some(start) = header.pyramid_offset {
-        return read_levels(path, header, file, start, len, access);
+        let cells = Some(header.pyramid_cells);
+        return read_levels(path, header, file, start, len, access, cells);
     }
+    let none = || Ok((Vec::new(), None));
     let sidecar = pyramid_sidecar_path(path);
     // Never block on a FIFO or read a directory posing as the sidecar.
     let Ok(side) = crate::files::open_regular(&sidecar) else {
-        return Ok(Vec::new());
+        return none();
     };
     let mtime = file.metadata().and_then(|m| m.modified());
     let side_len = side.metadata().map(|m| m.len()).unwrap_or(0);
@@ -435,11 +450,22 @@ fn load_pyramid(
         Err(_) => false,
     };
     if !fresh || !side.metadata().is_ok_and(|m| m.is_file()) {
-        return Ok(Vec::new());
+        return none();
     }
-    Ok(read_levels(path, header, &side, SIDECAR_HEAD_LEN, side_len, access).unwrap_or_default())
+    Ok(read_levels(
+        path,
+        header,
+        &side,
+        SIDECAR_HEAD_LEN,
+        side_len,
+        access,
+        None,
+    )
+    .unwrap_or_default())
 }
 
+/// The levels of the pyramid block at `start` of `file`, and its level-0 cell
+/// table; `cells`: whether the block must store cell tables (`None`: either).
 fn read_levels(
     path: &Path,
     base: &Header,
@@ -447,9 +473,11 @@ fn read_levels(
     start: u64,
     file_len: u64,
     access: Access,
-) -> Result<Vec<Volume>, VolumeError> {
-    let layout = PyramidLayout::read(file, start, file_len, base).at(path)?;
-    (1..=layout.levels.len())
+    cells: Option<bool>,
+) -> Result<(Vec<Volume>, Option<CellTable>), VolumeError> {
+    let layout = PyramidLayout::read(file, start, file_len, base, cells).at(path)?;
+    let level0_cells = layout.read_cells(file, start, base, 0).at(path)?;
+    let levels = (1..=layout.levels.len())
         .map(|k| {
             let e = &layout.levels[k - 1];
             let header = layout.level_header(base, k);
@@ -460,16 +488,19 @@ fn read_levels(
             }
             typed_data(&header, storage.bytes()).at(path)?;
             let ranges = layout.read_ranges(file, start, base, k).at(path)?;
+            let cells = layout.read_cells(file, start, base, k).at(path)?;
             Ok(Volume {
                 path: path.to_path_buf(),
                 header,
                 storage,
                 ranges,
+                cells,
                 levels: Vec::new(),
                 level: k as u32,
             })
         })
-        .collect()
+        .collect::<Result<_, VolumeError>>()?;
+    Ok((levels, level0_cells))
 }
 
 /// Computes the resolution pyramid of the volume file `path` (any format) into its

@@ -15,9 +15,13 @@ pub const EXTENDED_HEADER_LEN: u64 = 64;
 pub const EXTENSION_MAGIC: [u8; 4] = *b"RCVX";
 /// The newest extension version this build writes and reads: version 2 adds a
 /// resolution pyramid, version 3 a value block (what samples mean: units), version
-/// 4 an orientation block (where the volume lies in the patient). Files are written
-/// with the oldest version that holds what they carry.
-pub const EXTENSION_VERSION: u16 = 4;
+/// 4 an orientation block (where the volume lies in the patient), version 5 the
+/// cell-range tables in the pyramid block (whose presence of value and orientation
+/// blocks the data offset says). Files are written with the oldest version that
+/// holds what they carry.
+pub const EXTENSION_VERSION: u16 = 5;
+/// The extension version of files with an orientation block and no cell tables.
+const EXTENSION_VERSION_ORIENTED: u16 = 4;
 /// The extension version of files with a value block and no orientation.
 const EXTENSION_VERSION_UNITS: u16 = 3;
 /// The extension version of files with a pyramid and no value block.
@@ -125,6 +129,9 @@ pub struct Header {
     pub ranges_offset: Option<u64>,
     /// Byte offset of the embedded resolution pyramid (extension version 2), if any.
     pub pyramid_offset: Option<u64>,
+    /// Whether the embedded pyramid block also stores the cell-range tables of
+    /// every level (block version 2, extension version 5).
+    pub pyramid_cells: bool,
     /// What samples mean (extension version 3); `None`: values are the samples.
     /// Set it with [`Header::with_units`], which moves the data offset.
     pub units: Option<ValueUnits>,
@@ -282,6 +289,7 @@ impl Header {
             data_offset,
             ranges_offset: None,
             pyramid_offset: None,
+            pyramid_cells: false,
             units: None,
             orientation: None,
         }
@@ -319,7 +327,8 @@ impl Header {
     /// what it carries.
     pub fn extension_version(&self) -> u16 {
         match (&self.orientation, &self.units, self.pyramid_offset) {
-            (Some(_), _, _) => EXTENSION_VERSION,
+            (_, _, Some(_)) if self.pyramid_cells => EXTENSION_VERSION,
+            (Some(_), _, _) => EXTENSION_VERSION_ORIENTED,
             (None, Some(_), _) => EXTENSION_VERSION_UNITS,
             (None, None, Some(_)) => EXTENSION_VERSION_PYRAMID,
             (None, None, None) => EXTENSION_VERSION_PLAIN,
@@ -476,7 +485,18 @@ impl Header {
                 code => return Err(HeaderError::UnknownContent(code)),
             };
             header.data_offset = u64_at(40);
-            if version >= 3 {
+            // Version 5 has the blocks its data offset makes room for.
+            let (has_units, has_orientation) = match version {
+                EXTENSION_VERSION => (
+                    header.data_offset >= UNITS_HEADER_LEN,
+                    header.data_offset >= ORIENTED_HEADER_LEN,
+                ),
+                v => (
+                    v >= EXTENSION_VERSION_UNITS,
+                    v >= EXTENSION_VERSION_ORIENTED,
+                ),
+            };
+            if has_units {
                 if bytes.len() < UNITS_HEADER_LEN as usize || file_len < UNITS_HEADER_LEN {
                     return Err(too_short(UNITS_HEADER_LEN));
                 }
@@ -484,7 +504,7 @@ impl Header {
                 // Version 4 always has a value block; identity there means none.
                 header.units = Some(ValueUnits::decode(block)?).filter(|u| !u.is_identity());
             }
-            if version >= 4 {
+            if has_orientation {
                 if bytes.len() < ORIENTED_HEADER_LEN as usize || file_len < ORIENTED_HEADER_LEN {
                     return Err(too_short(ORIENTED_HEADER_LEN));
                 }
@@ -507,6 +527,7 @@ impl Header {
                 six[..6].copy_from_slice(&bytes[34..40]);
                 let pyramid = u64::from_le_bytes(six);
                 header.pyramid_offset = (pyramid != 0).then_some(pyramid);
+                header.pyramid_cells = version >= EXTENSION_VERSION && pyramid != 0;
             }
         } else {
             header.validate()?;

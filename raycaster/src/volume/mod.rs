@@ -6,6 +6,7 @@
 //! for empty-space skipping. Streaming readers and writers convert and generate
 //! files in bounded memory.
 
+mod cells;
 mod error;
 mod file;
 mod grid;
@@ -18,6 +19,10 @@ mod storage;
 mod units;
 mod view;
 
+pub use cells::{
+    CELL_TABLE_HEAD_LEN, CellShape, CellTable, LARGE_LINEAR_BRICKS, MAX_CELLS, TARGET_CELL_STEP,
+    default_linear_brick_side, target_cell_step,
+};
 pub use error::{VolumeError, VolumeErrorKind};
 pub use file::{
     OpenOptions, Volume, VolumeData, ranges_sidecar_path, read_header, write_pyramid_sidecar,

@@ -17,6 +17,7 @@ use std::time::SystemTime;
 
 use rayon::prelude::*;
 
+use super::cells::{CellShape, CellTable};
 use super::error::{AtPath, VolumeError, VolumeErrorKind};
 use super::header::{Content, Format, Header, HeaderError};
 use super::ranges::{BrickRanges, LINEAR_RANGE_SIDE};
@@ -27,8 +28,14 @@ use super::view::TypedVolume;
 pub const COARSEST_EDGE: u32 = 64;
 
 const BLOCK_MAGIC: [u8; 4] = *b"RCPY";
-const BLOCK_VERSION: u32 = 1;
+/// Block version 1: the levels; version 2: the levels and the cell-range tables of
+/// level 0 and of every level.
+const BLOCK_VERSION_LEVELS: u32 = 1;
+const BLOCK_VERSION_CELLS: u32 = 2;
 const DIRECTORY_HEAD_LEN: u64 = 16;
+/// The directory head of block version 2: version 1's and where level 0's cell
+/// table lies.
+const DIRECTORY_HEAD_LEN_CELLS: u64 = 64;
 const ENTRY_LEN: u64 = 64;
 const SIDECAR_MAGIC: [u8; 4] = *b"RCPS";
 const SIDECAR_VERSION: u32 = 1;
@@ -82,6 +89,9 @@ pub struct LevelEntry {
     pub ranges_offset: u64,
     /// Bytes of that table.
     pub ranges_len: u64,
+    /// Where the level's cell-range table lies (offset from the block's start,
+    /// 64-aligned, and length), in a block that stores them.
+    pub cells: Option<(u64, u64)>,
 }
 
 /// The directory of a pyramid block: levels 1, 2, … in order.
@@ -89,13 +99,34 @@ pub struct LevelEntry {
 pub struct PyramidLayout {
     /// One entry per level beyond 0.
     pub levels: Vec<LevelEntry>,
+    /// Where level 0's cell-range table lies (offset from the block's start and
+    /// length), in a block that stores cell tables.
+    pub level0_cells: Option<(u64, u64)>,
 }
 
 impl PyramidLayout {
-    /// The layout this build writes for a volume with header `base`.
-    pub fn plan(base: &Header) -> Result<Self, HeaderError> {
+    /// The layout this build writes for a volume with header `base`: with the
+    /// cell-range tables of every level (block version 2) when `cells`.
+    pub fn plan(base: &Header, cells: bool) -> Result<Self, HeaderError> {
         let dims = level_dims(base.dims);
-        let mut offset = align64(DIRECTORY_HEAD_LEN + ENTRY_LEN * dims.len() as u64);
+        let head = if cells {
+            DIRECTORY_HEAD_LEN_CELLS
+        } else {
+            DIRECTORY_HEAD_LEN
+        };
+        let mut offset = align64(head + ENTRY_LEN * dims.len() as u64);
+        let cell_table = |header: &Header, offset: &mut u64| -> Result<_, HeaderError> {
+            if !cells {
+                return Ok(None);
+            }
+            let len = CellShape::default_for(header)
+                .table_len()
+                .ok_or(HeaderError::SizeOverflow)?;
+            let at = *offset;
+            *offset = align64(at.checked_add(len).ok_or(HeaderError::SizeOverflow)?);
+            Ok(Some((at, len)))
+        };
+        let level0_cells = cell_table(base, &mut offset)?;
         let mut levels = Vec::with_capacity(dims.len());
         for (k, d) in dims.into_iter().enumerate() {
             let scale = (1u64 << (k + 1)) as f32;
@@ -106,24 +137,56 @@ impl PyramidLayout {
             let ranges_offset = offset
                 .checked_add(data_len)
                 .ok_or(HeaderError::SizeOverflow)?;
+            let data_offset = offset;
+            offset = align64(ranges_offset + ranges_len);
             levels.push(LevelEntry {
                 dims: d,
                 spacing,
-                data_offset: offset,
+                data_offset,
                 data_len,
                 ranges_offset,
                 ranges_len,
+                cells: cell_table(&header, &mut offset)?,
             });
-            offset = align64(ranges_offset + ranges_len);
         }
-        Ok(PyramidLayout { levels })
+        let block_len = offset;
+        let layout = PyramidLayout {
+            levels,
+            level0_cells,
+        };
+        debug_assert_eq!(layout.block_len(), block_len);
+        Ok(layout)
+    }
+
+    /// Whether the block stores cell-range tables (block version 2).
+    pub fn has_cells(&self) -> bool {
+        self.level0_cells.is_some()
+    }
+
+    /// The shape of the cells of level `k` (0: the volume itself) stored in this
+    /// block.
+    pub fn cell_shape(&self, base: &Header, k: usize) -> CellShape {
+        match k {
+            0 => CellShape::default_for(base),
+            k => CellShape::default_for(&self.level_header(base, k)),
+        }
     }
 
     /// Bytes of the whole block.
     pub fn block_len(&self) -> u64 {
-        self.levels.last().map_or(align64(DIRECTORY_HEAD_LEN), |l| {
-            align64(l.ranges_offset + l.ranges_len)
-        })
+        let directory = if self.has_cells() {
+            DIRECTORY_HEAD_LEN_CELLS
+        } else {
+            DIRECTORY_HEAD_LEN
+        };
+        let ends = self.levels.iter().map(|l| {
+            let end = l
+                .cells
+                .map_or(l.ranges_offset + l.ranges_len, |(o, n)| o + n);
+            align64(end)
+        });
+        let level0 = self.level0_cells.map_or(0, |(o, n)| align64(o + n));
+        ends.chain([level0, align64(directory)]).max().unwrap_or(0)
     }
 
     /// The header describing level `k` (1-based) on its own: extended format, samples
@@ -137,9 +200,19 @@ impl PyramidLayout {
     pub fn encode(&self) -> Vec<u8> {
         let mut out = Vec::new();
         out.extend_from_slice(&BLOCK_MAGIC);
-        out.extend_from_slice(&BLOCK_VERSION.to_le_bytes());
+        let version = if self.has_cells() {
+            BLOCK_VERSION_CELLS
+        } else {
+            BLOCK_VERSION_LEVELS
+        };
+        out.extend_from_slice(&version.to_le_bytes());
         out.extend_from_slice(&(self.levels.len() as u32).to_le_bytes());
         out.extend_from_slice(&0u32.to_le_bytes());
+        if let Some((offset, len)) = self.level0_cells {
+            out.extend_from_slice(&offset.to_le_bytes());
+            out.extend_from_slice(&len.to_le_bytes());
+            out.resize(DIRECTORY_HEAD_LEN_CELLS as usize, 0);
+        }
         for e in &self.levels {
             for d in e.dims {
                 out.extend_from_slice(&d.to_le_bytes());
@@ -150,35 +223,53 @@ impl PyramidLayout {
             for v in [e.data_offset, e.data_len, e.ranges_offset, e.ranges_len] {
                 out.extend_from_slice(&v.to_le_bytes());
             }
-            out.extend_from_slice(&[0u8; 8]);
+            // Version 2: where the level's cell table starts (its length is
+            // the shape's).
+            out.extend_from_slice(&e.cells.map_or(0, |(o, _)| o).to_le_bytes());
         }
         out.resize(align64(out.len() as u64) as usize, 0);
         out
     }
 
     /// Reads the directory at `block_start` of `file` for a volume with header
-    /// `base`, checking it is exactly the one [`Self::plan`] gives and that the
-    /// block fits in `file_len` bytes.
+    /// `base`, checking it is exactly the one [`Self::plan`] gives for its block
+    /// version (`cells`: whether it must store cell tables; `None`: either) and
+    /// that the block fits in `file_len` bytes.
     pub fn read(
         file: &File,
         block_start: u64,
         file_len: u64,
         base: &Header,
+        cells: Option<bool>,
     ) -> Result<Self, VolumeErrorKind> {
         let corrupt = |why: &str| VolumeErrorKind::CorruptPyramid(why.to_string());
-        let plan = PyramidLayout::plan(base)?;
+        let mut head = [0u8; 8];
+        if block_start.saturating_add(8) > file_len {
+            return Err(corrupt("the directory is cut off"));
+        }
+        file.read_exact_at(&mut head, block_start)?;
+        if head[..4] != BLOCK_MAGIC {
+            return Err(corrupt("bad magic"));
+        }
+        let has_cells = match u32::from_le_bytes(head[4..8].try_into().unwrap()) {
+            BLOCK_VERSION_LEVELS => false,
+            BLOCK_VERSION_CELLS => true,
+            _ => return Err(corrupt("unsupported pyramid version")),
+        };
+        if cells.is_some_and(|c| c != has_cells) {
+            return Err(corrupt(if has_cells {
+                "it stores cell tables, which the header's version does not have"
+            } else {
+                "it lacks the cell tables the header's version says it has"
+            }));
+        }
+        let plan = PyramidLayout::plan(base, has_cells)?;
         let expected = plan.encode();
         let mut bytes = vec![0u8; expected.len()];
         if block_start.saturating_add(expected.len() as u64) > file_len {
             return Err(corrupt("the directory is cut off"));
         }
         file.read_exact_at(&mut bytes, block_start)?;
-        if bytes[..4] != BLOCK_MAGIC {
-            return Err(corrupt("bad magic"));
-        }
-        if bytes[4..8] != BLOCK_VERSION.to_le_bytes() {
-            return Err(corrupt("unsupported pyramid version"));
-        }
         if bytes != expected {
             return Err(corrupt(
                 "its directory does not match the volume's dimensions",
@@ -204,6 +295,28 @@ impl PyramidLayout {
         BrickRanges::read_from(file, block_start + e.ranges_offset, e.ranges_len, e.dims)?
             .filter(|r| r.grid() == &header.block_grid(LINEAR_RANGE_SIDE))
             .ok_or_else(|| VolumeErrorKind::CorruptPyramid(format!("level {k}'s range table")))
+    }
+
+    /// Reads and checks the cell-range table of level `k` (0: the volume itself),
+    /// if the block stores cell tables; its entries stay in the file, mapped.
+    pub fn read_cells(
+        &self,
+        file: &File,
+        block_start: u64,
+        base: &Header,
+        k: usize,
+    ) -> Result<Option<CellTable>, VolumeErrorKind> {
+        let place = match k {
+            0 => self.level0_cells,
+            k => self.levels[k - 1].cells,
+        };
+        let Some((offset, len)) = place else {
+            return Ok(None);
+        };
+        let shape = self.cell_shape(base, k);
+        CellTable::read_from(file, block_start + offset, len, &shape)?
+            .map(Some)
+            .ok_or_else(|| VolumeErrorKind::CorruptPyramid(format!("level {k}'s cell table")))
     }
 }
 
@@ -421,8 +534,16 @@ pub(crate) fn write_block<T: Sample>(
     job: &crate::job::Job,
     path: &Path,
 ) -> Result<PyramidLayout, VolumeError> {
-    let layout = PyramidLayout::plan(base).at(path)?;
+    let layout = PyramidLayout::plan(base, true).at(path)?;
     file.write_all_at(&layout.encode(), block_start).at(path)?;
+    if let Some((offset, _)) = layout.level0_cells {
+        let shape = layout.cell_shape(base, 0);
+        shape
+            .write_table(file, block_start + offset, |b| {
+                level0.brick(shape.grid(), b)
+            })
+            .at(path)?;
+    }
     write_levels(
         file,
         block_start,
@@ -473,6 +594,13 @@ pub(crate) fn write_levels<T: Sample>(
                 options,
                 job,
                 path,
+                e.cells
+                    .map(|(offset, _)| crate::io::CellSink {
+                        shape: CellShape::default_for(&header),
+                        file,
+                        offset: block_start + offset,
+                    })
+                    .as_ref(),
                 &mut |x0, x1, slab: &mut [T]| {
                     downsample_planes(&src, e.dims, labels, x0, x1, slab);
                     Ok(())
@@ -537,7 +665,7 @@ mod tests {
             Content::Scalar,
             Format::Extended,
         );
-        let plan = PyramidLayout::plan(&base).unwrap();
+        let plan = PyramidLayout::plan(&base, false).unwrap();
         assert_eq!(plan.levels.len(), 3);
         for e in &plan.levels {
             assert_eq!(e.data_offset % 64, 0);
@@ -545,5 +673,74 @@ mod tests {
         }
         assert_eq!(plan.levels[0].spacing, [2.0, 2.0, 4.0]);
         assert_eq!(plan.encode().len() % 64, 0);
+    }
+
+    /// Files written before cell tables existed (a version-2 header over a
+    /// version-1 block) open with their levels and compute their cells lazily.
+    #[test]
+    fn a_pyramid_without_cell_tables_still_opens() {
+        use crate::io::{WriteOptions, write_volume};
+        use crate::volume::Volume;
+        let dims = [130, 40, 20];
+        let base = Header::new(
+            dims,
+            [1.0; 3],
+            Layout::Bricked { side: 16 },
+            SampleType::U8,
+            Content::Scalar,
+            Format::Extended,
+        );
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("old.vol");
+        let options = WriteOptions {
+            pyramid: false,
+            ..WriteOptions::default()
+        };
+        let job = crate::job::Job::silent();
+        write_volume::<u8>(&path, &base, &options, &job, |x0, _, slab| {
+            for (i, v) in slab.iter_mut().enumerate() {
+                *v = ((x0 as usize * 800 + i) % 251) as u8;
+            }
+            Ok(())
+        })
+        .unwrap();
+        let volume = Volume::open(&path).unwrap();
+        let crate::volume::VolumeData::U8(level0) = volume.data() else {
+            unreachable!()
+        };
+        let file = std::fs::OpenOptions::new()
+            .write(true)
+            .read(true)
+            .open(&path)
+            .unwrap();
+        let block_start = align64(file.metadata().unwrap().len());
+        let layout = PyramidLayout::plan(volume.header(), false).unwrap();
+        assert!(!layout.has_cells());
+        file.write_all_at(&layout.encode(), block_start).unwrap();
+        write_levels(
+            &file,
+            block_start,
+            volume.header(),
+            &layout,
+            1,
+            level0,
+            &options,
+            &job,
+            &path,
+        )
+        .unwrap();
+        let mut header = volume.header().clone();
+        header.pyramid_offset = Some(block_start);
+        let head = header.encode().unwrap();
+        assert_eq!(&head[30..32], &2u16.to_le_bytes(), "written as version 2");
+        file.write_all_at(&head, 0).unwrap();
+        drop(file);
+        drop(volume);
+        let volume = Volume::open(&path).unwrap();
+        assert_eq!(volume.level_count(), 3);
+        assert!(!volume.header().pyramid_cells);
+        for k in 0..3 {
+            assert!(volume.level(k).stored_cells().is_none(), "level {k}");
+        }
     }
 }
