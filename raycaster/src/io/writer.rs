@@ -402,7 +402,7 @@ fn produce_slabs<T: Sample>(
             return Err(VolumeError::new(path, VolumeErrorKind::Cancelled));
         }
         let view = BrickView::dense(&slab, [x0, 0, 0], [x1 - x0, dy, dz]);
-        if let Some(sink) = cells {
+        if let (Some(sink), Layout::Linear) = (cells, header.layout) {
             write_slab_cells(sink, &view, k0 / ratio, k1 == nx).at(path)?;
         }
         // Planes this slab adds to the file; the last plane is shared with the next slab.
@@ -432,7 +432,24 @@ fn produce_slabs<T: Sample>(
                     for by in 0..ny {
                         let mut bricks = take_buffer();
                         let side = usize::from(side);
-                        gather_bricks(&view, grid, [bx, by], side, &mut bricks, &mut ranges);
+                        let shape = cells.map(|c| &c.shape);
+                        let row_cells = gather_bricks(
+                            &view,
+                            grid,
+                            [bx, by],
+                            side,
+                            &mut bricks,
+                            &mut ranges,
+                            shape,
+                        );
+                        if let Some(sink) = cells {
+                            // The cells' grid is the file's: its bricks are these.
+                            let first = grid.index([bx, by, 0]);
+                            let at = sink.shape.entry_offset(sink.offset, first);
+                            sink.file
+                                .write_all_at(bytemuck::cast_slice(&row_cells), at)
+                                .at(path)?;
+                        }
                         let len = bricks.len();
                         if !send(bricks, len) {
                             return Err(writer_stopped());
@@ -479,6 +496,8 @@ fn write_slab_cells<T: Sample>(
 /// each brick whole (`side³` samples) with edge padding repeating the last voxel,
 /// and appends each brick's value range to `ranges`. Padding only repeats voxels of
 /// the volume, so the range of the whole stored brick is the range inside the volume.
+/// Returns the bricks' cell ranges in `cells`' shape (none without it), computed from
+/// the gathered bricks while they are in cache.
 fn gather_bricks<T: Sample>(
     slab: &BrickView<'_, T>,
     grid: &BlockGrid,
@@ -486,17 +505,23 @@ fn gather_bricks<T: Sample>(
     side: usize,
     out: &mut Vec<T>,
     ranges: &mut Vec<[u16; 2]>,
-) {
+    cells: Option<&CellShape>,
+) -> Vec<[u16; 2]> {
     let nz = grid.counts()[2];
     let per_brick = side * side * side;
     out.clear();
     out.resize(nz as usize * per_brick, T::from_u16_saturating(0));
     let slab_end = [0, 1, 2].map(|a| slab.origin()[a] + slab.extent()[a] - 1);
+    // Without cells, one unused entry per brick keeps the zip below brick by brick.
+    let per_brick_cells = cells.map_or(1, CellShape::per_brick);
+    let mut row_cells = vec![[0u16; 2]; nz as usize * per_brick_cells];
     let brick_ranges: Vec<[u16; 2]> = out
         .par_chunks_mut(per_brick)
+        .zip(row_cells.par_chunks_mut(per_brick_cells))
         .enumerate()
-        .map(|(bz, brick)| {
-            let o = grid.origin([bx, by, bz as u32]);
+        .map(|(bz, (brick, brick_cells))| {
+            let b = [bx, by, bz as u32];
+            let o = grid.origin(b);
             for lx in 0..side as u32 {
                 let x = (o[0] + lx).min(slab_end[0]) - slab.origin()[0];
                 for ly in 0..side as u32 {
@@ -512,10 +537,23 @@ fn gather_bricks<T: Sample>(
             }
             let lo = brick.iter().copied().min().expect("bricks are not empty");
             let hi = brick.iter().copied().max().expect("bricks are not empty");
+            if let Some(shape) = cells {
+                if lo == hi {
+                    // What a scan gives a brick of one value, without the scan.
+                    brick_cells.fill([lo.to_u16(), hi.to_u16()]);
+                } else {
+                    let view = BrickView::stored(brick, side, o, grid.extent(b));
+                    shape.scan_brick(&view, brick_cells);
+                }
+            }
             [lo.to_u16(), hi.to_u16()]
         })
         .collect();
     ranges.extend(brick_ranges);
+    if cells.is_none() {
+        row_cells.clear();
+    }
+    row_cells
 }
 
 #[cfg(test)]

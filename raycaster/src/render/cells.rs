@@ -69,6 +69,14 @@ impl CellRanges {
         cells
     }
 
+    /// Asks the OS to read the stored cells of brick `index` ahead, if they are
+    /// stored (see [`CellTable::prefetch`]).
+    pub(crate) fn prefetch(&self, index: u64) {
+        if let Some(table) = &self.stored {
+            table.prefetch(index);
+        }
+    }
+
     /// Whether the ranges come from the file's stored table.
     pub fn is_stored(&self) -> bool {
         self.stored.is_some()

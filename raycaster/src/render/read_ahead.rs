@@ -12,7 +12,8 @@
 //! gap costs less than another request), and consecutive bricks' ranges are
 //! joined too, up to [`MAX_REQUEST`] per request so the first bricks' bytes are
 //! asked for without waiting for the later ones. The page cache is the OS's:
-//! nothing is copied into this process's memory.
+//! nothing is copied into this process's memory. Where the file stores the bricks'
+//! cell ranges, their entries are asked for too.
 
 use std::ops::Range;
 
@@ -40,11 +41,19 @@ pub(crate) fn read_ahead(
     let grid = *volume.geometry().grid();
     let mut data = Stream::new(volume.volume(), &grid);
     let mut labels = volume.labels().map(|l| Stream::new(l, &grid));
+    let cells_per_page = (PAGE / (volume.cells().per_brick() as u64 * 4)).max(1);
+    let mut last_cells_page = u64::MAX;
     for (i, b) in bricks.into_iter().enumerate() {
         if i % 16 == 0 && interrupted() {
             return;
         }
         data.brick(&grid, b);
+        let index = grid.index(b);
+        // Consecutive bricks' cells share a page: ask for each page once in a row.
+        if index / cells_per_page != last_cells_page {
+            last_cells_page = index / cells_per_page;
+            volume.cells().prefetch(index);
+        }
         if let Some(labels) = &mut labels {
             labels.brick(&grid, b);
         }

@@ -139,29 +139,69 @@ impl CellShape {
     /// into `out` (`per_brick` entries, x slowest). A cell past an edge brick's
     /// voxels owns no sample and gets the empty range `[u16::MAX, 0]`; a brick of
     /// one value gives that value to every cell.
+    ///
+    /// Min and max are separable: the brick is reduced axis by axis, x first
+    /// (whole planes element by element, which vectorises), then y (rows), then z,
+    /// so each voxel is read about once and cheaply rather than once per cell that
+    /// shares it.
     pub fn scan_brick<T: Sample>(&self, view: &BrickView<'_, T>, out: &mut [[u16; 2]]) {
-        let (per_axis, cell_step) = (self.per_axis, self.cell_step);
-        let extent = view.extent();
-        let (lo, hi) = view.value_range();
-        if lo == hi {
-            out.fill([lo.to_u16(), hi.to_u16()]);
+        const EMPTY: [u16; 2] = [u16::MAX, 0];
+        let (m, cs) = (self.per_axis as usize, self.cell_step as usize);
+        let e = view.extent().map(|v| v as usize);
+        // Per axis, the voxels of each cell that starts inside the brick: its own
+        // and the one after, cut at the edge (start, end exclusive).
+        let spans = e.map(|extent| {
+            (0..extent.div_ceil(cs).min(m))
+                .map(|c| (c * cs, (c * cs + cs + 1).min(extent)))
+                .collect::<Vec<_>>()
+        });
+        let n = spans.each_ref().map(Vec::len);
+        // Constant bricks (empty space, mostly) are common: a check that stops at
+        // the first other value spares them the scan.
+        let first = view.get([0, 0, 0]);
+        let constant = (0..e[0] as u32)
+            .all(|x| (0..e[1] as u32).all(|y| view.row(x, y).iter().all(|&v| v == first)));
+        if constant {
+            out.fill([first.to_u16(); 2]);
             return;
         }
-        let mut i = 0;
-        for cx in 0..per_axis {
-            for cy in 0..per_axis {
-                for cz in 0..per_axis {
-                    let start = [cx, cy, cz].map(|v| v * cell_step);
-                    if (0..3).any(|a| start[a] >= extent[a]) {
-                        out[i] = [u16::MAX, 0];
-                    } else {
-                        let size = [0, 1, 2].map(|a| (cell_step + 1).min(extent[a] - start[a]));
-                        let (l, h) = view.sub(start, size).value_range();
-                        out[i] = [l.to_u16(), h.to_u16()];
+        let copy;
+        let dense = match view.contiguous() {
+            Some(samples) => samples,
+            None => {
+                let mut rows = Vec::with_capacity(e[0] * e[1] * e[2]);
+                for x in 0..e[0] {
+                    for y in 0..e[1] {
+                        rows.extend_from_slice(view.row(x as u32, y as u32));
                     }
-                    i += 1;
                 }
+                copy = rows;
+                &copy[..]
             }
+        };
+        // [x, y, z] → [x cell, y, z] → [x cell, y cell, z] → [x cell, y cell, z cell].
+        let (lo, hi) = (
+            reduce_axis(dense, [1, e[0], e[1] * e[2]], &spans[0], T::min),
+            reduce_axis(dense, [1, e[0], e[1] * e[2]], &spans[0], T::max),
+        );
+        let (lo, hi) = (
+            reduce_axis(&lo, [n[0], e[1], e[2]], &spans[1], T::min),
+            reduce_axis(&hi, [n[0], e[1], e[2]], &spans[1], T::max),
+        );
+        let (lo, hi) = (
+            reduce_axis(&lo, [n[0] * n[1], e[2], 1], &spans[2], T::min),
+            reduce_axis(&hi, [n[0] * n[1], e[2], 1], &spans[2], T::max),
+        );
+        out.fill(EMPTY);
+        let mut whole = EMPTY;
+        for (i, (&l, &h)) in lo.iter().zip(&hi).enumerate() {
+            let (cx, cy, cz) = (i / (n[1] * n[2]), i / n[2] % n[1], i % n[2]);
+            let cell = [l.to_u16(), h.to_u16()];
+            out[(cx * m + cy) * m + cz] = cell;
+            whole = [whole[0].min(cell[0]), whole[1].max(cell[1])];
+        }
+        if whole[0] == whole[1] {
+            out.fill(whole);
         }
     }
 
@@ -214,6 +254,62 @@ impl CellShape {
     }
 }
 
+/// `data` seen as `[outer][len][inner]`, reduced with `f` over each span of the
+/// middle axis: `[outer][spans.len()][inner]`.
+fn reduce_axis<T: Sample>(
+    data: &[T],
+    [outer, len, inner]: [usize; 3],
+    spans: &[(usize, usize)],
+    f: impl Fn(T, T) -> T + Copy,
+) -> Vec<T> {
+    let mut out = Vec::with_capacity(outer * spans.len() * inner);
+    if inner == 1 {
+        for block in data.chunks_exact(len).take(outer) {
+            for &(start, end) in spans {
+                let run = &block[start..end];
+                out.push(run[1..].iter().fold(run[0], |a, &v| f(a, v)));
+            }
+        }
+        return out;
+    }
+    for block in data.chunks_exact(len * inner).take(outer) {
+        for &(start, end) in spans {
+            let at = out.len();
+            out.extend_from_slice(&block[start * inner..][..inner]);
+            for j in start + 1..end {
+                fold_lanes(&mut out[at..], &block[j * inner..][..inner], f);
+            }
+        }
+    }
+    out
+}
+
+/// `acc[i] = f(acc[i], row[i])` over the shorter of the two, 16 lanes at a time.
+#[inline]
+fn fold_lanes<T: Sample>(acc: &mut [T], row: &[T], f: impl Fn(T, T) -> T) {
+    const LANES: usize = 16;
+    let len = acc.len().min(row.len());
+    let (acc, row) = (&mut acc[..len], &row[..len]);
+    let mut acc_chunks = acc.chunks_exact_mut(LANES);
+    let mut row_chunks = row.chunks_exact(LANES);
+    for (a, r) in (&mut acc_chunks).zip(&mut row_chunks) {
+        let (a, r): (&mut [T; LANES], &[T; LANES]) = (
+            a.try_into().expect("a chunk"),
+            r.try_into().expect("a chunk"),
+        );
+        for j in 0..LANES {
+            a[j] = f(a[j], r[j]);
+        }
+    }
+    for (a, &r) in acc_chunks
+        .into_remainder()
+        .iter_mut()
+        .zip(row_chunks.remainder())
+    {
+        *a = f(*a, r);
+    }
+}
+
 /// The stored cell ranges of every brick of one level, as a file holds them.
 #[derive(Clone, Debug)]
 pub struct CellTable {
@@ -256,6 +352,9 @@ impl CellTable {
         let start = offset + CELL_TABLE_HEAD_LEN;
         let entries = match super::pyramid::map_region(file, start, body) {
             Ok(map) if bytemuck::try_cast_slice::<u8, [u16; 2]>(&map).is_ok() => {
+                // A frame reads the cells of the bricks it marches, scattered over
+                // the table: read-ahead would fetch the cells of bricks it skips.
+                let _ = map.advise(memmap2::Advice::Random);
                 Entries::Mapped(Arc::new(map))
             }
             _ => {
@@ -297,6 +396,19 @@ impl CellTable {
             Entries::Owned(v) => v,
             // Alignment and length were checked when the table was mapped.
             Entries::Mapped(map) => bytemuck::cast_slice(&map[..]),
+        }
+    }
+
+    /// Asks the OS to read the cells of brick `index` ahead (mapped tables; the
+    /// table is advised for random access, so nothing else is read).
+    pub fn prefetch(&self, index: u64) {
+        if let Entries::Mapped(map) = &self.entries {
+            let bytes = self.shape.per_brick() * 4;
+            let start = (index as usize * bytes).min(map.len());
+            let len = bytes.min(map.len() - start);
+            if len > 0 {
+                let _ = map.advise_range(memmap2::Advice::WillNeed, start, len);
+            }
         }
     }
 

@@ -192,6 +192,21 @@ impl<'a, T: Sample> BrickView<'a, T> {
         }
     }
 
+    /// A stored brick of `side³` samples (local z fastest) with volume origin
+    /// `origin`, of which `extent` voxels per axis lie in the volume.
+    ///
+    /// # Panics
+    /// If `samples` is shorter than `side³` or `extent` exceeds `side`.
+    pub fn stored(samples: &'a [T], side: usize, origin: [u32; 3], extent: [u32; 3]) -> Self {
+        assert!(samples.len() >= side * side * side && extent.iter().all(|&e| e as usize <= side));
+        BrickView {
+            samples,
+            strides: [side * side, side, 1],
+            origin,
+            extent,
+        }
+    }
+
     /// First voxel of the brick in volume coordinates.
     pub fn origin(&self) -> [u32; 3] {
         self.origin
@@ -218,6 +233,13 @@ impl<'a, T: Sample> BrickView<'a, T> {
     #[inline]
     pub fn samples_from(&self, offset: usize) -> &'a [T] {
         &self.samples[offset..]
+    }
+
+    /// The samples as one dense x-slowest, z-fastest block of exactly `extent`
+    /// (no gaps between rows or planes), if they are stored so.
+    pub fn contiguous(&self) -> Option<&'a [T]> {
+        let [ex, ey, ez] = self.extent.map(|e| e as usize);
+        (self.strides == [ey * ez, ez, 1]).then(|| &self.samples[..ex * ey * ez])
     }
 
     /// The z-run of samples at local `(x, y)`: `extent[2]` samples.
