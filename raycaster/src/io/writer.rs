@@ -108,14 +108,13 @@ pub fn write_volume<T: Sample>(
     let table_len = 28 + 4 * header.block_grid(LINEAR_RANGE_SIDE).block_count();
     let block_start = (data_end + table_len).div_ceil(64) * 64;
     let level0_start = head_bytes.len() as u64;
-    let sink = |layout: &PyramidLayout, header: &Header, cells: Option<(u64, u64)>| {
-        cells
-            .map(|(offset, _)| CellSink {
-                shape: CellShape::default_for(header),
-                file,
-                offset: block_start + offset,
-            })
-            .filter(|_| layout.has_cells())
+    // Where a level's cell table goes (a layout with cell tables places them).
+    let sink = |header: &Header, cells: Option<(u64, u64)>| {
+        cells.map(|(offset, _)| CellSink {
+            shape: CellShape::default_for(header),
+            file,
+            offset: block_start + offset,
+        })
     };
     let ranges = match &embedded {
         None => stream_samples(
@@ -144,7 +143,7 @@ pub fn write_volume<T: Sample>(
                         options,
                         job,
                         path,
-                        sink(layout, &level1_header, level1.cells).as_ref(),
+                        sink(&level1_header, level1.cells).as_ref(),
                         &mut |x0, x1, slab: &mut [T]| feed.fill(x0, x1, slab, path),
                     )
                 });
@@ -156,7 +155,7 @@ pub fn write_volume<T: Sample>(
                     options,
                     job,
                     path,
-                    sink(layout, &header, layout.level0_cells).as_ref(),
+                    sink(&header, layout.level0_cells).as_ref(),
                     &mut |x0, x1, slab: &mut [T]| {
                         fill(x0, x1, slab)?;
                         tap.push(x0, x1, slab);
@@ -444,6 +443,7 @@ fn produce_slabs<T: Sample>(
                         );
                         if let Some(sink) = cells {
                             // The cells' grid is the file's: its bricks are these.
+                            debug_assert_eq!(sink.shape.grid(), grid);
                             let first = grid.index([bx, by, 0]);
                             let at = sink.shape.entry_offset(sink.offset, first);
                             sink.file

@@ -8,9 +8,10 @@
 //! Files written by this build store the cells of their default grid (their
 //! pyramid block: `volume::CellTable`); a frame reads a brick's cells from there.
 //! Otherwise nothing is scanned when a volume is opened: a brick's cells are
-//! computed the first time a frame marches a ray through it and kept for later frames, up to a memory
-//! budget ([`CELL_CACHE_BYTES`]; beyond it they are computed again for each visit,
-//! which costs one pass over a brick the task then marches anyway). Bricks that no
+//! computed the first time a frame marches a ray through it and kept for later
+//! frames, up to a memory budget ([`CELL_CACHE_BYTES`]; beyond it they are computed
+//! again for each visit, which costs one pass over a brick the task then marches
+//! anyway). Bricks that no
 //! frame visits (empty under every transfer function used, or never in view) are
 //! never read; a brick whose stored range is a single value needs no read at all.
 

@@ -7,7 +7,8 @@
 //! `FILE.vol.pyramid` beside any file. The block starts with a directory of the
 //! levels; every offset in it is relative to the block's start, and a directory is
 //! only accepted when it is exactly the one this build would write for the file's
-//! header (so a lying directory is refused, never followed).
+//! header (so a lying directory is refused, never followed). Block version 2 also
+//! holds the cell-range tables of level 0 and of every level (`CellTable`).
 
 use std::fs::File;
 use std::os::unix::fs::FileExt;
