@@ -379,18 +379,25 @@ fn files_without_a_pyramid_still_open_and_render() {
     }
 }
 
-#[test]
-fn a_corrupt_embedded_pyramid_is_refused_and_a_stale_sidecar_ignored() {
-    let dir = TempDir::new().unwrap();
-    let values = pattern(DIMS, 255, false);
+/// A bricked u8 file `c.vol` of `values` with an embedded pyramid, and the
+/// pyramid block's offset.
+fn embedded_pyramid_file(dir: &TempDir, values: &[u16]) -> (std::path::PathBuf, usize) {
     let header = u8_header(Layout::Bricked { side: 16 }, Format::Extended);
     let path = dir.path().join("c.vol");
-    write(&path, &header, &values, &small_slabs(), &Job::silent()).unwrap();
+    write(&path, &header, values, &small_slabs(), &Job::silent()).unwrap();
     let offset = Volume::open(&path)
         .unwrap()
         .header()
         .pyramid_offset
-        .unwrap() as usize;
+        .unwrap();
+    (path, offset as usize)
+}
+
+#[test]
+fn a_corrupt_embedded_pyramid_is_refused_and_a_stale_sidecar_ignored() {
+    let dir = TempDir::new().unwrap();
+    let values = pattern(DIMS, 255, false);
+    let (path, offset) = embedded_pyramid_file(&dir, &values);
     let mut bytes = std::fs::read(&path).unwrap();
     bytes[offset + 64] ^= 0x40; // level 1's x size in the directory
     std::fs::write(&path, &bytes).unwrap();
@@ -674,14 +681,7 @@ fn frames_reading_stored_cells_equal_frames_that_compute_them() {
 fn cell_tables_that_do_not_check_out_are_refused_or_ignored() {
     let dir = TempDir::new().unwrap();
     let values = pattern(DIMS, 255, false);
-    let header = u8_header(Layout::Bricked { side: 16 }, Format::Extended);
-    let path = dir.path().join("c.vol");
-    write(&path, &header, &values, &small_slabs(), &Job::silent()).unwrap();
-    let offset = Volume::open(&path)
-        .unwrap()
-        .header()
-        .pyramid_offset
-        .unwrap() as usize;
+    let (path, offset) = embedded_pyramid_file(&dir, &values);
     let good = std::fs::read(&path).unwrap();
     let at = |o: usize| u64::from_le_bytes(good[o..o + 8].try_into().unwrap()) as usize;
     // Level 0's cell table: its head names another shape.
