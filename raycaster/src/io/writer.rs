@@ -12,7 +12,7 @@ use crate::volume::pyramid::{
 };
 use crate::volume::{
     AtPath, BlockGrid, BrickRanges, BrickView, CellShape, Content, Format, Header,
-    LINEAR_RANGE_SIDE, Layout, Sample, TypedVolume, VolumeError, VolumeErrorKind,
+    LINEAR_RANGE_SIDE, Layout, Sample, TypedVolume, VolumeError, VolumeErrorKind, encode_cells,
     ranges_sidecar_path,
 };
 
@@ -380,7 +380,7 @@ fn produce_slabs<T: Sample>(
         .next_multiple_of(ratio as usize) as u32;
     if let Some(sink) = cells {
         sink.file
-            .write_all_at(&sink.shape.encode_head(), sink.offset)
+            .write_all_at(&sink.shape.encode_head(T::TYPE), sink.offset)
             .at(path)?;
     }
     let writer_stopped = || {
@@ -445,9 +445,9 @@ fn produce_slabs<T: Sample>(
                             // The cells' grid is the file's: its bricks are these.
                             debug_assert_eq!(sink.shape.grid(), grid);
                             let first = grid.index([bx, by, 0]);
-                            let at = sink.shape.entry_offset(sink.offset, first);
+                            let at = sink.shape.entry_offset(sink.offset, first, T::TYPE);
                             sink.file
-                                .write_all_at(bytemuck::cast_slice(&row_cells), at)
+                                .write_all_at(&encode_cells(&row_cells, T::TYPE), at)
                                 .at(path)?;
                         }
                         let len = bricks.len();
@@ -488,8 +488,8 @@ fn write_slab_cells<T: Sample>(
         let o = grid.origin(b);
         slab.sub([o[0] - x0, o[1], o[2]], grid.extent(b))
     });
-    let at = sink.shape.entry_offset(sink.offset, bricks.start);
-    sink.file.write_all_at(bytemuck::cast_slice(&cells), at)
+    let at = sink.shape.entry_offset(sink.offset, bricks.start, T::TYPE);
+    sink.file.write_all_at(&encode_cells(&cells, T::TYPE), at)
 }
 
 /// Copies the row of bricks `(bx, by, 0..n_z)` out of `slab` into `out`, in file order,
@@ -613,13 +613,14 @@ mod tests {
             },
         )
         .unwrap();
-        let table = CellTable::read_from(&file, table_at, shape.table_len().unwrap(), &shape)
+        let len = shape.table_len(SampleType::U16).unwrap();
+        let table = CellTable::read_from(&file, table_at, len, &shape, SampleType::U16)
             .unwrap()
             .expect("a table of the shape");
         let volume = TypedVolume::new(&values, dims, Layout::Linear);
         let scan = shape.scan_bricks(0..shape.grid().block_count(), |b| {
             volume.brick(shape.grid(), b)
         });
-        assert_eq!(table.as_slice(), &scan[..]);
+        assert_eq!(table.to_vec(), scan);
     }
 }

@@ -41,7 +41,8 @@ pub(crate) fn read_ahead(
     let grid = *volume.geometry().grid();
     let mut data = Stream::new(volume.volume(), &grid);
     let mut labels = volume.labels().map(|l| Stream::new(l, &grid));
-    let cells_per_page = (PAGE / (volume.cells().per_brick() as u64 * 4)).max(1);
+    let cell_bytes = volume.cells().per_brick() as u64 * 2 * volume.volume().sample_type().size();
+    let cells_per_page = (PAGE / cell_bytes).max(1);
     let mut last_cells_page = u64::MAX;
     for (i, b) in bricks.into_iter().enumerate() {
         if i % 16 == 0 && interrupted() {

@@ -18,7 +18,7 @@ use memmap2::Mmap;
 use rayon::prelude::*;
 
 use super::grid::BlockGrid;
-use super::header::{Header, Layout};
+use super::header::{Header, Layout, SampleType};
 use super::ranges::LINEAR_RANGE_SIDE;
 use super::sample::Sample;
 use super::view::BrickView;
@@ -110,17 +110,23 @@ impl CellShape {
         (self.per_axis as usize).pow(3)
     }
 
-    /// Bytes of the stored table of these cells, head included (`None`: beyond
-    /// 64 bits).
-    pub fn table_len(&self) -> Option<u64> {
+    /// Bytes of one brick's stored cells in a volume of `sample`s: a `[min, max]`
+    /// pair per cell, each bound a sample.
+    pub fn brick_bytes(&self, sample: SampleType) -> u64 {
+        self.per_brick() as u64 * 2 * sample.size()
+    }
+
+    /// Bytes of the stored table of these cells for a volume of `sample`s, head
+    /// included (`None`: beyond 64 bits).
+    pub fn table_len(&self, sample: SampleType) -> Option<u64> {
         self.grid
             .block_count()
-            .checked_mul(self.per_brick() as u64 * 4)?
+            .checked_mul(self.brick_bytes(sample))?
             .checked_add(CELL_TABLE_HEAD_LEN)
     }
 
-    /// The head of the stored table of these cells.
-    pub fn encode_head(&self) -> Vec<u8> {
+    /// The head of the stored table of these cells for a volume of `sample`s.
+    pub fn encode_head(&self, sample: SampleType) -> Vec<u8> {
         let mut out = Vec::with_capacity(CELL_TABLE_HEAD_LEN as usize);
         out.extend_from_slice(&TABLE_MAGIC);
         out.extend_from_slice(&self.grid.side().to_le_bytes());
@@ -130,7 +136,7 @@ impl CellShape {
         out.extend_from_slice(&self.grid.block_count().to_le_bytes());
         out.extend_from_slice(&self.per_axis.to_le_bytes());
         out.extend_from_slice(&self.cell_step.to_le_bytes());
-        out.extend_from_slice(&0u32.to_le_bytes());
+        out.extend_from_slice(&(sample.size() as u32).to_le_bytes());
         debug_assert_eq!(out.len() as u64, CELL_TABLE_HEAD_LEN);
         out
     }
@@ -232,7 +238,7 @@ impl CellShape {
         offset: u64,
         brick: impl Fn([u32; 3]) -> BrickView<'a, T> + Sync,
     ) -> std::io::Result<()> {
-        file.write_all_at(&self.encode_head(), offset)?;
+        file.write_all_at(&self.encode_head(T::TYPE), offset)?;
         let batch = (1u64 << 20).div_ceil(self.per_brick() as u64).max(1);
         let count = self.grid.block_count();
         let mut start = 0;
@@ -240,17 +246,57 @@ impl CellShape {
             let end = (start + batch).min(count);
             let cells = self.scan_bricks(start..end, &brick);
             file.write_all_at(
-                bytemuck::cast_slice(&cells),
-                self.entry_offset(offset, start),
+                &encode_cells(&cells, T::TYPE),
+                self.entry_offset(offset, start, T::TYPE),
             )?;
             start = end;
         }
         Ok(())
     }
 
-    /// Where the cells of brick `index` start in a table at byte `offset`.
-    pub fn entry_offset(&self, offset: u64, index: u64) -> u64 {
-        offset + CELL_TABLE_HEAD_LEN + index * self.per_brick() as u64 * 4
+    /// Where the cells of brick `index` start in a table at byte `offset` of a
+    /// volume of `sample`s.
+    pub fn entry_offset(&self, offset: u64, index: u64, sample: SampleType) -> u64 {
+        offset + CELL_TABLE_HEAD_LEN + index * self.brick_bytes(sample)
+    }
+}
+
+/// Cell ranges as a table stores them for a volume of `sample`s: each bound as a
+/// little-endian sample (u8 volumes: one byte; the empty range `[65535, 0]`
+/// becomes `[255, 0]`, which no range of u8 values is).
+pub(crate) fn encode_cells(cells: &[[u16; 2]], sample: SampleType) -> Vec<u8> {
+    match sample {
+        SampleType::U8 => cells
+            .iter()
+            .flat_map(|&[lo, hi]| [lo.min(255) as u8, hi.min(255) as u8])
+            .collect(),
+        SampleType::U16 => cells
+            .iter()
+            .flat_map(|&[lo, hi]| [lo.to_le_bytes(), hi.to_le_bytes()])
+            .flatten()
+            .collect(),
+    }
+}
+
+/// The cell ranges of [`encode_cells`]'s bytes.
+fn decode_cells(bytes: &[u8], sample: SampleType) -> Vec<[u16; 2]> {
+    match sample {
+        SampleType::U8 => bytes
+            .chunks_exact(2)
+            .map(|c| match [u16::from(c[0]), u16::from(c[1])] {
+                [lo, hi] if lo > hi => [u16::MAX, 0],
+                range => range,
+            })
+            .collect(),
+        SampleType::U16 => bytes
+            .chunks_exact(4)
+            .map(|c| {
+                [
+                    u16::from_le_bytes([c[0], c[1]]),
+                    u16::from_le_bytes([c[2], c[3]]),
+                ]
+            })
+            .collect(),
     }
 }
 
@@ -314,30 +360,33 @@ fn fold_lanes<T: Sample>(acc: &mut [T], row: &[T], f: impl Fn(T, T) -> T) {
 #[derive(Clone, Debug)]
 pub struct CellTable {
     shape: CellShape,
+    /// The volume's sample type: the width of each stored bound.
+    sample: SampleType,
     entries: Entries,
 }
 
-/// Where a table's entries live.
+/// Where a table's entries live (as stored: [`encode_cells`]).
 #[derive(Clone, Debug)]
 enum Entries {
-    /// Decoded into memory.
-    Owned(Vec<[u16; 2]>),
-    /// In a read-only mapping of exactly the entries (2-byte aligned: checked when
-    /// mapped), shared by clones.
+    /// Read into memory.
+    Owned(Vec<u8>),
+    /// In a read-only mapping of exactly the entries, shared by clones.
     Mapped(Arc<Mmap>),
 }
 
 impl CellTable {
-    /// The table of `shape` at byte `offset` of `file` (at most `len` bytes), its
-    /// entries mapped read-only where the file allows it, else read. `Ok(None)`
-    /// when the bytes are not a table of exactly that shape.
+    /// The table of `shape` for a volume of `sample`s at byte `offset` of `file`
+    /// (at most `len` bytes), its entries mapped read-only where the file allows
+    /// it, else read. `Ok(None)` when the bytes are not a table of exactly that
+    /// shape.
     pub fn read_from(
         file: &File,
         offset: u64,
         len: u64,
         shape: &CellShape,
+        sample: SampleType,
     ) -> std::io::Result<Option<Self>> {
-        let Some(table_len) = shape.table_len() else {
+        let Some(table_len) = shape.table_len(sample) else {
             return Ok(None);
         };
         if len < table_len {
@@ -345,38 +394,36 @@ impl CellTable {
         }
         let mut head = [0u8; CELL_TABLE_HEAD_LEN as usize];
         file.read_exact_at(&mut head, offset)?;
-        if head[..] != shape.encode_head()[..] {
+        if head[..] != shape.encode_head(sample)[..] {
             return Ok(None);
         }
         let body = table_len - CELL_TABLE_HEAD_LEN;
         let start = offset + CELL_TABLE_HEAD_LEN;
         let entries = match super::pyramid::map_region(file, start, body) {
-            Ok(map) if bytemuck::try_cast_slice::<u8, [u16; 2]>(&map).is_ok() => {
+            Ok(map) => {
                 // A frame reads the cells of the bricks it marches, scattered over
                 // the table: read-ahead would fetch the cells of bricks it skips.
                 let _ = map.advise(memmap2::Advice::Random);
                 Entries::Mapped(Arc::new(map))
             }
-            _ => {
+            Err(_) => {
                 let mut bytes = vec![0u8; body as usize];
                 file.read_exact_at(&mut bytes, start)?;
-                Entries::Owned(
-                    bytes
-                        .chunks_exact(4)
-                        .map(|c| {
-                            [
-                                u16::from_le_bytes([c[0], c[1]]),
-                                u16::from_le_bytes([c[2], c[3]]),
-                            ]
-                        })
-                        .collect(),
-                )
+                Entries::Owned(bytes)
             }
         };
         Ok(Some(CellTable {
             shape: *shape,
+            sample,
             entries,
         }))
+    }
+
+    fn bytes(&self) -> &[u8] {
+        match &self.entries {
+            Entries::Owned(v) => v,
+            Entries::Mapped(map) => &map[..],
+        }
     }
 
     /// How the bricks are cut into cells.
@@ -385,25 +432,24 @@ impl CellTable {
     }
 
     /// The cells of brick number `index` (file order), x slowest.
-    pub fn brick(&self, index: u64) -> &[[u16; 2]] {
-        let per_brick = self.shape.per_brick();
-        &self.as_slice()[index as usize * per_brick..][..per_brick]
+    pub fn brick(&self, index: u64) -> Vec<[u16; 2]> {
+        let bytes = self.shape.brick_bytes(self.sample) as usize;
+        decode_cells(
+            &self.bytes()[index as usize * bytes..][..bytes],
+            self.sample,
+        )
     }
 
     /// Every brick's cells, in brick order.
-    pub fn as_slice(&self) -> &[[u16; 2]] {
-        match &self.entries {
-            Entries::Owned(v) => v,
-            // Alignment and length were checked when the table was mapped.
-            Entries::Mapped(map) => bytemuck::cast_slice(&map[..]),
-        }
+    pub fn to_vec(&self) -> Vec<[u16; 2]> {
+        decode_cells(self.bytes(), self.sample)
     }
 
     /// Asks the OS to read the cells of brick `index` ahead (mapped tables; the
     /// table is advised for random access, so nothing else is read).
     pub fn prefetch(&self, index: u64) {
         if let Entries::Mapped(map) = &self.entries {
-            let bytes = self.shape.per_brick() * 4;
+            let bytes = self.shape.brick_bytes(self.sample) as usize;
             let start = (index as usize * bytes).min(map.len());
             let len = bytes.min(map.len() - start);
             if len > 0 {
@@ -440,24 +486,43 @@ mod tests {
         shape
             .write_table(&file, 64, |b| vol.brick(shape.grid(), b))
             .unwrap();
-        let len = shape.table_len().unwrap();
-        let table = CellTable::read_from(&file, 64, len, &shape)
+        let len = shape.table_len(SampleType::U8).unwrap();
+        let table = CellTable::read_from(&file, 64, len, &shape, SampleType::U8)
             .unwrap()
             .unwrap();
         assert!(table.is_mapped());
         let all = shape.scan_bricks(0..shape.grid().block_count(), |b| {
             vol.brick(shape.grid(), b)
         });
-        assert_eq!(table.as_slice(), &all[..]);
+        assert_eq!(table.to_vec(), all);
+        // Each bound takes a byte in a u8 volume; the empty range survives.
+        assert_eq!(
+            len,
+            40 + shape.grid().block_count() * shape.per_brick() as u64 * 2
+        );
+        assert!(
+            all.contains(&[u16::MAX, 0]),
+            "edge bricks have cells past the edge"
+        );
+        let wide = [[3, 60000], [u16::MAX, 0], [7, 7]];
+        for sample in [SampleType::U8, SampleType::U16] {
+            let narrow = [[3, 200], [u16::MAX, 0], [7, 7]];
+            let cells = if sample == SampleType::U8 {
+                &narrow
+            } else {
+                &wide
+            };
+            assert_eq!(decode_cells(&encode_cells(cells, sample), sample), cells);
+        }
         // Cut short, or read for another shape: no table.
         assert!(
-            CellTable::read_from(&file, 64, len - 1, &shape)
+            CellTable::read_from(&file, 64, len - 1, &shape, SampleType::U8)
                 .unwrap()
                 .is_none()
         );
         let other = CellShape::of_grid(&BlockGrid::new(dims, 5));
         assert!(
-            CellTable::read_from(&file, 64, len, &other)
+            CellTable::read_from(&file, 64, len, &other, SampleType::U8)
                 .unwrap()
                 .is_none()
         );

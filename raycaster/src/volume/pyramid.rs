@@ -121,7 +121,7 @@ impl PyramidLayout {
                 return Ok(None);
             }
             let len = CellShape::default_for(header)
-                .table_len()
+                .table_len(header.sample_type)
                 .ok_or(HeaderError::SizeOverflow)?;
             let at = *offset;
             *offset = align64(at.checked_add(len).ok_or(HeaderError::SizeOverflow)?);
@@ -315,7 +315,7 @@ impl PyramidLayout {
             return Ok(None);
         };
         let shape = self.cell_shape(base, k);
-        CellTable::read_from(file, block_start + offset, len, &shape)?
+        CellTable::read_from(file, block_start + offset, len, &shape, base.sample_type)?
             .map(Some)
             .ok_or_else(|| VolumeErrorKind::CorruptPyramid(format!("level {k}'s cell table")))
     }
