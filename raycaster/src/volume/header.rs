@@ -740,6 +740,52 @@ mod tests {
         ));
     }
 
+    /// Version 5 (cell tables in the pyramid block) carries whatever versions 1–4
+    /// carry; its data offset says which blocks are there.
+    #[test]
+    fn cell_tables_are_version_5_with_the_blocks_the_data_offset_makes_room_for() {
+        let placed = Orientation {
+            axes: [[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]],
+            origin: [1.5, -2.0, 300.25],
+        };
+        let hu = Some(ValueUnits::new(1.0, -32768.0, "HU").unwrap());
+        let plain = sample_header(Format::Extended, SampleType::U16, Layout::Linear);
+        let cases = [
+            (None, None, EXTENDED_HEADER_LEN),
+            (hu.clone(), None, UNITS_HEADER_LEN),
+            (None, Some(placed.clone()), ORIENTED_HEADER_LEN),
+            (hu, Some(placed), ORIENTED_HEADER_LEN),
+        ];
+        for (units, orientation, data_offset) in cases {
+            let mut h = plain
+                .clone()
+                .with_units(units.clone())
+                .with_orientation(orientation.clone());
+            let file_len = h.data_end().unwrap() + 4096;
+            h.pyramid_offset = Some(h.data_end().unwrap().next_multiple_of(64));
+            // Without cell tables: the version the blocks need (2 to 4).
+            let older = h.encode().unwrap();
+            assert!((2..=4).contains(&u16::from_le_bytes([older[30], older[31]])));
+            assert!(!Header::parse(&older, file_len).unwrap().pyramid_cells);
+            h.pyramid_cells = true;
+            let bytes = h.encode().unwrap();
+            assert_eq!(bytes.len() as u64, data_offset);
+            assert_eq!(u16::from_le_bytes([bytes[30], bytes[31]]), 5);
+            let parsed = Header::parse(&bytes, file_len).unwrap();
+            assert_eq!(parsed, h);
+            assert_eq!((parsed.units, parsed.orientation), (units, orientation));
+            // A data offset that is not one of the three is refused.
+            let mut bad = bytes.clone();
+            bad[40..48].copy_from_slice(&(data_offset + 64).to_le_bytes());
+            assert!(Header::parse(&bad, file_len).is_err());
+        }
+        // Cell tables live in the pyramid block: no block, no version 5.
+        let mut no_pyramid = plain.clone();
+        no_pyramid.pyramid_cells = true;
+        let bytes = no_pyramid.encode().unwrap();
+        assert_eq!(u16::from_le_bytes([bytes[30], bytes[31]]), 1);
+    }
+
     #[test]
     fn linear_thesis_file_ignores_nothing_and_needs_all_samples() {
         let h = sample_header(Format::Thesis, SampleType::U8, Layout::Linear);
