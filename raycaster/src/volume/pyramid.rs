@@ -317,7 +317,11 @@ impl PyramidLayout {
         let shape = self.cell_shape(base, k);
         CellTable::read_from(file, block_start + offset, len, &shape, base.sample_type)?
             .map(Some)
-            .ok_or_else(|| VolumeErrorKind::CorruptPyramid(format!("level {k}'s cell table")))
+            .ok_or_else(|| {
+                VolumeErrorKind::CorruptPyramid(format!(
+                    "level {k}'s cell table does not match its bricks"
+                ))
+            })
     }
 }
 
