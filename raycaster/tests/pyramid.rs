@@ -576,6 +576,11 @@ fn every_level_stores_the_cell_ranges_of_its_bricks_as_computed_independently() 
             255,
         ),
         (
+            "thesis-linear",
+            u8_header(Layout::Linear, Format::Thesis),
+            255,
+        ),
+        (
             "linear-u16",
             Header::new(
                 DIMS,

@@ -193,6 +193,7 @@ pub fn write_volume<T: Sample>(
                 layout,
                 2,
                 level1_view,
+                None,
                 options,
                 job,
                 path,

@@ -541,14 +541,12 @@ pub(crate) fn write_block<T: Sample>(
 ) -> Result<PyramidLayout, VolumeError> {
     let layout = PyramidLayout::plan(base, true).at(path)?;
     file.write_all_at(&layout.encode(), block_start).at(path)?;
-    if let Some((offset, _)) = layout.level0_cells {
-        let shape = layout.cell_shape(base, 0);
-        shape
-            .write_table(file, block_start + offset, |b| {
-                level0.brick(shape.grid(), b)
-            })
-            .at(path)?;
-    }
+    // Level 0's cells are computed in the pass that reads it for level 1.
+    let level0_cells = layout.level0_cells.map(|(offset, _)| ColumnCells {
+        shape: layout.cell_shape(base, 0),
+        offset: block_start + offset,
+        next: 0,
+    });
     write_levels(
         file,
         block_start,
@@ -556,6 +554,7 @@ pub(crate) fn write_block<T: Sample>(
         &layout,
         1,
         level0,
+        level0_cells,
         options,
         job,
         path,
@@ -563,8 +562,55 @@ pub(crate) fn write_block<T: Sample>(
     Ok(layout)
 }
 
+/// The cell table of a level being read plane by plane (for the next level):
+/// each column of bricks (one x index) is scanned and written once the planes it
+/// spans have been read, while they are in the page cache.
+pub(crate) struct ColumnCells {
+    shape: CellShape,
+    /// Byte offset of the table in the output.
+    offset: u64,
+    /// The first column not written yet.
+    next: u32,
+}
+
+impl ColumnCells {
+    /// Writes the head and the columns lying wholly in planes `..read_to` of
+    /// `src` (every remaining column when `last`).
+    fn catch_up<T: Sample>(
+        &mut self,
+        file: &File,
+        src: &TypedVolume<'_, T>,
+        read_to: u32,
+        last: bool,
+    ) -> std::io::Result<()> {
+        let grid = *self.shape.grid();
+        let [nx, ny, nz] = grid.counts();
+        if self.next == 0 {
+            file.write_all_at(&self.shape.encode_head(T::TYPE), self.offset)?;
+        }
+        let mut end = self.next;
+        while end < nx
+            && (last || grid.origin([end, 0, 0])[0] + grid.extent([end, 0, 0])[0] <= read_to)
+        {
+            end += 1;
+        }
+        if end > self.next {
+            let per_x = u64::from(ny) * u64::from(nz);
+            let bricks = u64::from(self.next) * per_x..u64::from(end) * per_x;
+            let cells = self
+                .shape
+                .scan_bricks(bricks.clone(), |b| src.brick(&grid, b));
+            let at = self.shape.entry_offset(self.offset, bricks.start, T::TYPE);
+            file.write_all_at(&crate::volume::encode_cells(&cells, T::TYPE), at)?;
+            self.next = end;
+        }
+        Ok(())
+    }
+}
+
 /// Writes levels `from..` of `layout` into the block at `block_start`, level
-/// `from − 1` being `src`; then pads the block to its end.
+/// `from − 1` being `src` (whose cell table `src_cells`, when given, is written
+/// in the same pass); then pads the block to its end.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn write_levels<T: Sample>(
     file: &File,
@@ -573,6 +619,7 @@ pub(crate) fn write_levels<T: Sample>(
     layout: &PyramidLayout,
     from: usize,
     src: TypedVolume<'_, T>,
+    mut src_cells: Option<ColumnCells>,
     options: &crate::io::WriteOptions,
     job: &crate::job::Job,
     path: &Path,
@@ -608,6 +655,13 @@ pub(crate) fn write_levels<T: Sample>(
                     .as_ref(),
                 &mut |x0, x1, slab: &mut [T]| {
                     downsample_planes(&src, e.dims, labels, x0, x1, slab);
+                    if let Some(cells) = src_cells.as_mut().filter(|_| k == from) {
+                        // Planes up to 2·x1 − 1 of the level below were read.
+                        let read_to = (2 * x1).min(src.dims()[0]);
+                        cells
+                            .catch_up(file, &src, read_to, x1 == e.dims[0])
+                            .at(path)?;
+                    }
                     Ok(())
                 },
             )?
@@ -729,6 +783,7 @@ mod tests {
             &layout,
             1,
             level0,
+            None,
             &options,
             &job,
             &path,
