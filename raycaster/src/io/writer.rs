@@ -12,7 +12,7 @@ use crate::volume::pyramid::{
 };
 use crate::volume::{
     AtPath, BlockGrid, BrickRanges, BrickView, CellShape, Content, Format, Header,
-    LINEAR_RANGE_SIDE, Layout, Sample, TypedVolume, VolumeError, VolumeErrorKind, encode_cells,
+    LINEAR_RANGE_SIDE, Layout, Sample, TypedVolume, VolumeError, VolumeErrorKind,
     ranges_sidecar_path,
 };
 
@@ -446,9 +446,8 @@ fn produce_slabs<T: Sample>(
                             // The cells' grid is the file's: its bricks are these.
                             debug_assert_eq!(sink.shape.grid(), grid);
                             let first = grid.index([bx, by, 0]);
-                            let at = sink.shape.entry_offset(sink.offset, first, T::TYPE);
-                            sink.file
-                                .write_all_at(&encode_cells(&row_cells, T::TYPE), at)
+                            sink.shape
+                                .write_cells::<T>(sink.file, sink.offset, first, &row_cells)
                                 .at(path)?;
                         }
                         let len = bricks.len();
@@ -476,21 +475,17 @@ fn write_slab_cells<T: Sample>(
     last: bool,
 ) -> std::io::Result<()> {
     let grid = sink.shape.grid();
-    let [nx, ny, nz] = grid.counts();
     let x0 = slab.origin()[0];
     let end = if last {
-        nx
+        grid.counts()[0]
     } else {
         (x0 + slab.extent()[0] - 1) / grid.step()
     };
-    let per_x = u64::from(ny) * u64::from(nz);
-    let bricks = u64::from(first) * per_x..u64::from(end) * per_x;
-    let cells = sink.shape.scan_bricks(bricks.clone(), |b| {
-        let o = grid.origin(b);
-        slab.sub([o[0] - x0, o[1], o[2]], grid.extent(b))
-    });
-    let at = sink.shape.entry_offset(sink.offset, bricks.start, T::TYPE);
-    sink.file.write_all_at(&encode_cells(&cells, T::TYPE), at)
+    sink.shape
+        .write_columns(sink.file, sink.offset, first..end, |b| {
+            let o = grid.origin(b);
+            slab.sub([o[0] - x0, o[1], o[2]], grid.extent(b))
+        })
 }
 
 /// Copies the row of bricks `(bx, by, 0..n_z)` out of `slab` into `out`, in file order,

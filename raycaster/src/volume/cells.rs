@@ -199,15 +199,9 @@ impl CellShape {
             reduce_axis(&hi, [n[0] * n[1], e[2], 1], &spans[2], T::max),
         );
         out.fill(EMPTY);
-        let mut whole = EMPTY;
         for (i, (&l, &h)) in lo.iter().zip(&hi).enumerate() {
             let (cx, cy, cz) = (i / (n[1] * n[2]), i / n[2] % n[1], i % n[2]);
-            let cell = [l.to_u16(), h.to_u16()];
-            out[(cx * m + cy) * m + cz] = cell;
-            whole = [whole[0].min(cell[0]), whole[1].max(cell[1])];
-        }
-        if whole[0] == whole[1] {
-            out.fill(whole);
+            out[(cx * m + cy) * m + cz] = [l.to_u16(), h.to_u16()];
         }
     }
 
@@ -229,42 +223,40 @@ impl CellShape {
         out
     }
 
-    /// Writes the table of these cells at byte `offset` of `file`: its head, then
-    /// the cells of every brick, whose views `brick` gives, computed a batch of
-    /// bricks at a time (bounded memory).
-    pub fn write_table<'a, T: Sample>(
+    /// Scans the bricks of columns `columns` (their x index), whose views `brick`
+    /// gives, and writes their cells into the table at byte `offset` of `file`.
+    pub(crate) fn write_columns<'a, T: Sample>(
         &self,
         file: &File,
         offset: u64,
+        columns: std::ops::Range<u32>,
         brick: impl Fn([u32; 3]) -> BrickView<'a, T> + Sync,
     ) -> std::io::Result<()> {
-        file.write_all_at(&self.encode_head(T::TYPE), offset)?;
-        let batch = (1u64 << 20).div_ceil(self.per_brick() as u64).max(1);
-        let count = self.grid.block_count();
-        let mut start = 0;
-        while start < count {
-            let end = (start + batch).min(count);
-            let cells = self.scan_bricks(start..end, &brick);
-            file.write_all_at(
-                &encode_cells(&cells, T::TYPE),
-                self.entry_offset(offset, start, T::TYPE),
-            )?;
-            start = end;
-        }
-        Ok(())
+        let [_, ny, nz] = self.grid.counts();
+        let per_x = u64::from(ny) * u64::from(nz);
+        let bricks = u64::from(columns.start) * per_x..u64::from(columns.end) * per_x;
+        let first = bricks.start;
+        self.write_cells::<T>(file, offset, first, &self.scan_bricks(bricks, brick))
     }
 
-    /// Where the cells of brick `index` start in a table at byte `offset` of a
-    /// volume of `sample`s.
-    pub fn entry_offset(&self, offset: u64, index: u64, sample: SampleType) -> u64 {
-        offset + CELL_TABLE_HEAD_LEN + index * self.brick_bytes(sample)
+    /// Writes `cells`, those of the bricks from number `first` on, into the table
+    /// at byte `offset` of `file` (a volume of `T`s: [`encode_cells`]).
+    pub(crate) fn write_cells<T: Sample>(
+        &self,
+        file: &File,
+        offset: u64,
+        first: u64,
+        cells: &[[u16; 2]],
+    ) -> std::io::Result<()> {
+        let at = offset + CELL_TABLE_HEAD_LEN + first * self.brick_bytes(T::TYPE);
+        file.write_all_at(&encode_cells(cells, T::TYPE), at)
     }
 }
 
 /// Cell ranges as a table stores them for a volume of `sample`s: each bound as a
 /// little-endian sample (u8 volumes: one byte; the empty range `[65535, 0]`
 /// becomes `[255, 0]`, which no range of u8 values is).
-pub(crate) fn encode_cells(cells: &[[u16; 2]], sample: SampleType) -> Vec<u8> {
+fn encode_cells(cells: &[[u16; 2]], sample: SampleType) -> Vec<u8> {
     match sample {
         SampleType::U8 => cells
             .iter()
@@ -483,8 +475,12 @@ mod tests {
             .truncate(true)
             .open(dir.path().join("cells"))
             .unwrap();
+        file.write_all_at(&shape.encode_head(SampleType::U8), 64)
+            .unwrap();
         shape
-            .write_table(&file, 64, |b| vol.brick(shape.grid(), b))
+            .write_columns(&file, 64, 0..shape.grid().counts()[0], |b| {
+                vol.brick(shape.grid(), b)
+            })
             .unwrap();
         let len = shape.table_len(SampleType::U8).unwrap();
         let table = CellTable::read_from(&file, 64, len, &shape, SampleType::U8)

@@ -41,7 +41,6 @@ pub use storage::Access;
 pub use units::{HOUNSFIELD, MAX_UNIT_LEN, ValueUnits};
 pub use view::{BrickView, TypedVolume};
 
-pub(crate) use cells::encode_cells;
 pub(crate) use error::AtPath;
 pub(crate) use file::temp_file_beside;
 pub use file::write_file_atomically;

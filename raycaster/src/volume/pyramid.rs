@@ -584,7 +584,7 @@ impl ColumnCells {
         last: bool,
     ) -> std::io::Result<()> {
         let grid = *self.shape.grid();
-        let [nx, ny, nz] = grid.counts();
+        let nx = grid.counts()[0];
         if self.next == 0 {
             file.write_all_at(&self.shape.encode_head(T::TYPE), self.offset)?;
         }
@@ -595,13 +595,8 @@ impl ColumnCells {
             end += 1;
         }
         if end > self.next {
-            let per_x = u64::from(ny) * u64::from(nz);
-            let bricks = u64::from(self.next) * per_x..u64::from(end) * per_x;
-            let cells = self
-                .shape
-                .scan_bricks(bricks.clone(), |b| src.brick(&grid, b));
-            let at = self.shape.entry_offset(self.offset, bricks.start, T::TYPE);
-            file.write_all_at(&crate::volume::encode_cells(&cells, T::TYPE), at)?;
+            self.shape
+                .write_columns(file, self.offset, self.next..end, |b| src.brick(&grid, b))?;
             self.next = end;
         }
         Ok(())
