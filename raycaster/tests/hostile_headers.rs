@@ -15,8 +15,8 @@ use proptest::prelude::*;
 use proptest::sample::Index;
 use raycaster::volume::{
     Access, BlockGrid, BrickRanges, Content, Format, Header, HeaderError, LINEAR_RANGE_SIDE,
-    Layout, MAX_AXIS, OpenOptions, SampleType, THESIS_HEADER_LEN, TypedVolume, Volume, VolumeError,
-    VolumeErrorKind, ranges_sidecar_path,
+    Layout, MAX_AXIS, MAX_HEADER_LEN, OpenOptions, SampleType, THESIS_HEADER_LEN, TypedVolume,
+    Volume, VolumeError, VolumeErrorKind, ranges_sidecar_path,
 };
 use tempfile::TempDir;
 
@@ -1186,7 +1186,9 @@ fn check_volume(v: &Volume, file: &[u8]) -> Result<(), TestCaseError> {
 fn open_and_check(file: &[u8]) -> Result<(), TestCaseError> {
     let dir = TempDir::new().unwrap();
     let path = write(&dir, "random.vol", file);
-    let parsed = Header::parse(&file[..file.len().min(64)], file.len() as u64);
+    // What `Volume::open` reads before parsing: the longest header of any version.
+    let head = file.len().min(MAX_HEADER_LEN as usize);
+    let parsed = Header::parse(&file[..head], file.len() as u64);
     let mapped = Volume::open(&path);
     let in_ram = Volume::open_with(&path, ram());
     match (mapped, in_ram) {
