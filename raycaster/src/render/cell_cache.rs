@@ -31,28 +31,37 @@ enum Differences {
 }
 
 /// One ray's current cell in one brick.
+///
+/// Its state lives in [`Cell`]s, so that the loop's samples can share it by
+/// reference ([`super::compositor::SampleSite`], built once per brick visit)
+/// while each sample's [`Self::value`] moves it on.
 #[derive(Debug)]
 pub(crate) struct CellCache {
     /// The cell's lower corner in brick-local voxels (`u32::MAX`: none yet).
-    cell: [u32; 3],
+    cell: Cell<[u32; 3]>,
     /// The same corner as floats (infinite: none yet), for the test of a
     /// position against the cell without conversions.
-    lower: Vec3A,
+    lower: Cell<Vec3A>,
     /// Its corner values.
-    corners: Corners,
+    corners: Cell<Corners>,
     /// The central differences at its corners, when `state` is `Known`.
     differences: Cell<CornerDifferences>,
     state: Cell<Differences>,
+    /// Where the position of the last [`Self::value`] lies in the cell (its
+    /// [`cell_fraction`]), when that position is in the cached cell: the
+    /// gradient of the same sample ([`Self::gradient_here`]) needs no second test.
+    here: Cell<Option<Vec3A>>,
 }
 
 impl Default for CellCache {
     fn default() -> Self {
         CellCache {
-            cell: [u32::MAX; 3],
-            lower: Vec3A::INFINITY,
-            corners: [0.0; 8],
+            cell: Cell::new([u32::MAX; 3]),
+            lower: Cell::new(Vec3A::INFINITY),
+            corners: Cell::new([0.0; 8]),
             differences: Cell::new([Vec3A::ZERO; 8]),
             state: Cell::new(Differences::Unknown),
+            here: Cell::new(None),
         }
     }
 }
@@ -66,41 +75,47 @@ impl CellCache {
     /// except where the difference rounds up to 1 (a position a hair below the
     /// next cell), which is merely not cached.
     #[inline(always)]
-    fn fraction_in_cell(&self, l: Vec3A) -> Option<[f32; 3]> {
-        let f = l - self.lower;
+    fn fraction_in_cell(&self, l: Vec3A) -> Option<Vec3A> {
+        let f = l - self.lower.get();
         (f.cmpge(Vec3A::ZERO) & f.cmplt(Vec3A::ONE))
             .all()
-            .then(|| f.to_array())
+            .then_some(f)
     }
 
     /// The trilinear value at volume position `p` (inside `sampler`'s brick),
     /// making `p`'s cell the cached one.
     #[inline(always)]
-    pub fn value<T: Sample>(&mut self, sampler: &BrickSampler<'_, T>, p: Vec3) -> f32 {
-        let l = p - sampler.origin();
-        match self.fraction_in_cell(l.into()) {
-            Some(f) => trilinear(&self.corners, f),
-            None => self.enter(sampler, l),
+    pub fn value<T: Sample>(&self, sampler: &BrickSampler<'_, T>, p: Vec3A) -> f32 {
+        let l = p - Vec3A::from(sampler.origin());
+        match self.fraction_in_cell(l) {
+            Some(f) => {
+                self.here.set(Some(f));
+                trilinear(&self.corners.get(), f.to_array())
+            }
+            None => self.enter(sampler, l.into()),
         }
     }
 
     /// [`Self::value`] at local position `l` outside the cached cell: makes its
     /// cell the cached one (unless `l` lies on the brick's upper face).
     #[inline(never)]
-    fn enter<T: Sample>(&mut self, sampler: &BrickSampler<'_, T>, l: Vec3) -> f32 {
+    fn enter<T: Sample>(&self, sampler: &BrickSampler<'_, T>, l: Vec3) -> f32 {
         let cell = cell_of(l);
         let max = sampler.max_cell();
         if cell[0] > max[0] || cell[1] > max[1] || cell[2] > max[2] {
             // On the brick's upper face: the cell below, not cached.
+            self.here.set(None);
             return sampler.value_local(l);
         }
-        if cell != self.cell {
-            self.cell = cell;
-            self.lower = Vec3A::from(cell.map(|c| c as i32 as f32));
-            self.corners = sampler.corners(cell);
+        if cell != self.cell.get() {
+            self.cell.set(cell);
+            self.lower.set(Vec3A::from(cell.map(|c| c as i32 as f32)));
+            self.corners.set(sampler.corners(cell));
             self.state.set(Differences::Unknown);
         }
-        trilinear(&self.corners, cell_fraction(l, cell))
+        let f = cell_fraction(l, cell);
+        self.here.set(Some(Vec3A::from(f)));
+        trilinear(&self.corners.get(), f)
     }
 
     /// The gradient at volume position `p` ([`VolumeSampler::gradient`]), from
@@ -112,17 +127,44 @@ impl CellCache {
         sampler: &BrickSampler<'_, T>,
         p: Vec3,
     ) -> Vec3 {
-        let origin = sampler.origin();
         // (A point just below the brick, whose coordinates would truncate into
         // its first cell, is not in the cell: the test is on the fraction.)
-        let Some(f) = self.fraction_in_cell((p - origin).into()) else {
-            return volume.gradient(sampler, p);
-        };
+        match self.fraction_in_cell((p - sampler.origin()).into()) {
+            Some(f) => self.gradient_in_cell(volume, sampler, p, f),
+            None => volume.gradient(sampler, p),
+        }
+    }
+
+    /// [`Self::gradient`] at `p`, the position of the last [`Self::value`].
+    #[inline]
+    pub fn gradient_here<T: Sample>(
+        &self,
+        volume: &VolumeSampler<'_, T>,
+        sampler: &BrickSampler<'_, T>,
+        p: Vec3,
+    ) -> Vec3 {
+        match self.here.get() {
+            Some(f) => self.gradient_in_cell(volume, sampler, p, f),
+            None => volume.gradient(sampler, p),
+        }
+    }
+
+    /// The gradient at `p`, which lies at fraction `f` of the cached cell.
+    #[inline]
+    fn gradient_in_cell<T: Sample>(
+        &self,
+        volume: &VolumeSampler<'_, T>,
+        sampler: &BrickSampler<'_, T>,
+        p: Vec3,
+        f: Vec3A,
+    ) -> Vec3 {
         match self.state.get() {
             Differences::Known => {}
             Differences::AtVolumeFace => return volume.gradient(sampler, p),
             Differences::Unknown => {
-                let global = [0, 1, 2].map(|a| self.cell[a] + origin[a] as u32);
+                let origin = sampler.origin();
+                let cell = self.cell.get();
+                let global = [0, 1, 2].map(|a| cell[a] + origin[a] as u32);
                 match volume.corner_differences(sampler, global) {
                     Some(d) => {
                         self.differences.set(d);
@@ -135,7 +177,7 @@ impl CellCache {
                 }
             }
         }
-        gradient_from_differences(&self.differences.get(), f)
+        gradient_from_differences(&self.differences.get(), f.to_array())
     }
 }
 
@@ -166,14 +208,18 @@ mod tests {
             let e = Vec3::from(grid.extent(b).map(|v| (v - 1) as f32));
             // A ray across the brick's diagonal at a step of 0.05 of it, upper
             // face included.
-            let mut cache = CellCache::default();
+            let cache = CellCache::default();
             for k in 0..=20 {
                 let p = o + e * (k as f32 / 20.0);
-                let before = cache.cell;
-                let value = cache.value(&brick, p);
-                hits += usize::from(before == cache.cell);
+                let before = cache.cell.get();
+                let value = cache.value(&brick, p.into());
+                hits += usize::from(before == cache.cell.get());
                 taken += 1;
                 assert_eq!(value, brick.value(p), "{p}");
+                assert_eq!(
+                    cache.gradient_here(&sampler, &brick, p),
+                    sampler.gradient(&brick, p)
+                );
                 assert_eq!(
                     cache.gradient(&sampler, &brick, p),
                     sampler.gradient(&brick, p)
@@ -203,9 +249,9 @@ mod tests {
         let b = [1, 1, 1];
         let brick = BrickSampler::new(volume.brick(&grid, b));
         let o = Vec3::from(grid.origin(b).map(|v| v as f32));
-        let mut cache = CellCache::default();
+        let cache = CellCache::default();
         let p = o + 0.5;
-        cache.value(&brick, p);
+        cache.value(&brick, p.into());
         assert_eq!(
             cache.gradient(&sampler, &brick, p),
             sampler.gradient(&brick, p)

@@ -90,6 +90,16 @@ pub(crate) trait Compositor: Sync {
     }
 }
 
+/// What the samples of one ray's visit to one brick share, built once per visit.
+pub(crate) struct SampleSite<'s, T: Sample> {
+    pub(crate) ray: &'s PixelRay,
+    pub(crate) brick: &'s BrickContext<'s, T>,
+    pub(crate) volume: &'s VolumeSampler<'s, T>,
+    /// The ray's current cell, with its corners and (once asked) differences.
+    pub(crate) cell: &'s CellCache,
+    pub(crate) gradient_scale: Vec3,
+}
+
 /// One sample as a compositor sees it: its value, where it is, and what it may
 /// ask for (gradient, label, depth) computed only when asked.
 pub(crate) struct SamplePoint<'s, T: Sample> {
@@ -101,51 +111,63 @@ pub(crate) struct SamplePoint<'s, T: Sample> {
     pub index: u32,
     /// The part of a step this sample stands for (below 1 only for a ray's last).
     pub fraction: f32,
-    pub(crate) ray: &'s PixelRay,
-    pub(crate) brick: &'s BrickContext<'s, T>,
-    pub(crate) volume: &'s VolumeSampler<'s, T>,
-    /// The ray's current cell, with its corners and (once asked) differences.
-    pub(crate) cell: &'s CellCache,
-    pub(crate) gradient_scale: Vec3,
+    /// The ray, the brick and the cell the sample lies in.
+    pub(crate) site: &'s SampleSite<'s, T>,
 }
 
-impl<T: Sample> SamplePoint<'_, T> {
+impl<'s, T: Sample> SamplePoint<'s, T> {
+    /// The sample's ray.
+    #[inline]
+    pub(crate) fn ray(&self) -> &'s PixelRay {
+        self.site.ray
+    }
+
+    /// The whole volume's sampler.
+    #[inline]
+    pub(crate) fn volume(&self) -> &'s VolumeSampler<'s, T> {
+        self.site.volume
+    }
+
     /// The gradient at the sample in normalised value per world unit of the
     /// smallest spacing.
     #[inline]
     pub fn gradient(&self) -> Vec3 {
-        self.gradient_at(self.position)
+        let site = self.site;
+        site.cell
+            .gradient_here(site.volume, &site.brick.sampler, self.position)
+            * site.gradient_scale
     }
 
     /// The gradient at voxel position `p` (near the sample).
     #[inline]
     pub fn gradient_at(&self, p: Vec3) -> Vec3 {
-        self.cell.gradient(self.volume, &self.brick.sampler, p) * self.gradient_scale
+        let site = self.site;
+        site.cell.gradient(site.volume, &site.brick.sampler, p) * site.gradient_scale
     }
 
     /// The unit world direction of the ray.
     #[inline]
     pub fn view_dir(&self) -> Vec3 {
-        self.ray.view_dir
+        self.ray().view_dir
     }
 
     /// The sample's ray parameter (world distance from the ray origin).
     #[inline]
     pub fn t(&self) -> f32 {
-        self.ray.t(self.index)
+        self.ray().t(self.index)
     }
 
     /// Distance from the eye normalised by where the ray leaves the volume.
     #[inline]
     pub fn depth(&self) -> f32 {
-        (self.t() / self.ray.t(self.ray.samples).max(1e-6)).min(1.0)
+        (self.t() / self.ray().t(self.ray().samples).max(1e-6)).min(1.0)
     }
 
     /// Where the sample lies between the ray's first sample (0) and the end of
     /// its last (1): the depth inside the (cut) volume along this ray.
     #[inline]
     pub fn relative_depth(&self) -> f32 {
-        let ray = self.ray;
+        let ray = self.ray();
         let start = ray.t(ray.first);
         let end = ray.t(ray.samples - 1) + ray.last_fraction * ray.dt;
         if end > start {
@@ -158,34 +180,34 @@ impl<T: Sample> SamplePoint<'_, T> {
     /// The object id of the label volume at the sample (0 without labels).
     #[inline]
     pub fn label(&self) -> u16 {
-        self.brick.label_at(self.position)
+        self.site.brick.label_at(self.position)
     }
 
     /// The value of the sample before this one on the ray, if the ray takes one
     /// (not before its first sample, nor before the front of a clip region).
     pub fn value_before(&self) -> Option<f32> {
-        if self.index <= self.ray.first {
+        if self.index <= self.ray().first {
             return None;
         }
         let k = self.index - 1;
-        Some(self.value_at(self.ray.position(k, self.volume.last())))
+        Some(self.value_at(self.ray().position(k, self.volume().last())))
     }
 
     /// The trilinear value at voxel position `p` (inside the volume), from the
     /// brick when it holds `p`.
     #[inline]
     pub fn value_at(&self, p: Vec3) -> f32 {
-        if self.brick.sampler.contains(p) {
-            self.brick.sampler.value(p)
+        if self.site.brick.sampler.contains(p) {
+            self.site.brick.sampler.value(p)
         } else {
-            self.volume.value(p)
+            self.volume().value(p)
         }
     }
 
     /// The voxel position at ray parameter `t`, clamped into the volume.
     #[inline]
     pub fn position_at(&self, t: f32) -> Vec3 {
-        (self.ray.origin + self.ray.direction * t).clamp(Vec3::ZERO, self.volume.last())
+        (self.ray().origin + self.ray().direction * t).clamp(Vec3::ZERO, self.volume().last())
     }
 }
 

@@ -9,6 +9,7 @@ use glam::Vec3;
 
 use super::camera::Camera;
 use super::error::RenderError;
+use super::truncate::{MAX_TRUNCATED, truncate_clamped};
 use crate::volume::BlockGrid;
 
 /// The most samples one ray may take: 2^22 (a 16384³ volume's diagonal at step 0.007).
@@ -149,7 +150,7 @@ impl VolumeGeometry {
     /// in `c`.
     #[inline]
     pub fn owner_along(&self, c: f32, axis: usize) -> u32 {
-        ((c / self.step) as u32).min(self.grid.counts()[axis] - 1)
+        truncate_clamped(c / self.step, MAX_TRUNCATED).min(self.grid.counts()[axis] - 1)
     }
 
     /// The brick side in owned cells (the grid's step) as a float.

@@ -207,7 +207,7 @@ impl Dvr {
             && let Some(before) = s.value_before()
         {
             // The sample before was skipped as empty: its segment ends here.
-            let mid = (s.ray.position(k - 1, s.volume.last()) + s.position) * 0.5;
+            let mid = (s.ray().position(k - 1, s.volume().last()) + s.position) * 0.5;
             self.segment(
                 pre,
                 st,
@@ -230,7 +230,7 @@ impl Dvr {
                 s.view_dir(),
             );
         } else {
-            let p = s.ray.position(k + 1, s.volume.last());
+            let p = s.ray().position(k + 1, s.volume().last());
             let back = s.value_at(p);
             self.segment(
                 pre,
@@ -463,7 +463,7 @@ impl Compositor for FirstHit {
             && before < iso
             && s.value > before
         {
-            t_hit = s.t() - s.ray.dt + (iso - before) / (s.value - before) * s.ray.dt;
+            t_hit = s.t() - s.ray().dt + (iso - before) / (s.value - before) * s.ray().dt;
         }
         let [r, g, b, _] = self.table.lookup(iso);
         st.color = match &self.shading {

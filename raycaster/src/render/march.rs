@@ -7,10 +7,10 @@
 //! ([`super::ownership::owned_samples`]), so a ray's
 //! samples are processed exactly once, in order, however the volume is cut.
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 
 use super::cell_cache::CellCache;
-use super::compositor::{Compositor, SamplePoint};
+use super::compositor::{Compositor, SamplePoint, SampleSite};
 use super::counters::Counters;
 use super::pixel::{PixelRay, PixelState};
 use super::prepared::{FramePlan, RenderVolume};
@@ -129,28 +129,34 @@ pub(crate) fn march_brick<T: Sample, C: Compositor>(
         let mut stopped_before = None;
         let cells = if ess { brick.cells.as_ref() } else { None };
         let mut runs = SampleRuns::new(c, ray, cells, last_voxel, first, last);
-        let mut cell = CellCache::default();
+        let cell = CellCache::default();
+        let site = SampleSite {
+            ray,
+            brick,
+            volume,
+            cell: &cell,
+            gradient_scale: plan.gradient_scale,
+        };
+        // Positions in SIMD lanes: `PixelRay::position`'s arithmetic, lane by lane.
+        let (start, step) = (Vec3A::from(ray.start), Vec3A::from(ray.step));
+        let last_voxel_a = Vec3A::from(last_voxel);
         'runs: for run in runs.by_ref() {
             if C::STATE_SKIPS && ess && c.below_interest(&acc, run.hi) {
                 skipped += u64::from(run.len());
                 continue;
             }
             for k in run.first..run.end {
-                let position = ray.position(k, last_voxel);
+                let position = (start + step * k as f32).clamp(Vec3A::ZERO, last_voxel_a);
                 let sample = SamplePoint {
                     value: cell.value(&brick.sampler, position),
-                    position,
+                    position: position.into(),
                     index: k,
                     fraction: if k == last_sample {
                         ray.last_fraction
                     } else {
                         1.0
                     },
-                    ray,
-                    brick,
-                    volume,
-                    cell: &cell,
-                    gradient_scale: plan.gradient_scale,
+                    site: &site,
                 };
                 c.sample(&mut acc, &sample);
                 taken += 1;

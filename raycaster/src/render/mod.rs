@@ -47,6 +47,7 @@ mod simd;
 mod state_buffer;
 mod tile;
 mod transfer;
+mod truncate;
 mod two_level;
 
 pub use camera::{Camera, CameraError, PixelRect, Projection};

@@ -15,6 +15,7 @@ use std::sync::{Arc, Mutex};
 use rayon::prelude::*;
 
 use super::optics::{corrected_alpha, smoothstep};
+use super::truncate::truncate_clamped;
 
 /// Entries in a frame's 1D table.
 pub const TABLE_SIZE: usize = 1024;
@@ -507,11 +508,11 @@ impl TransferTable {
     /// The table entry that raw value `v` reads (nearest entry; monotone in `v`).
     #[inline]
     pub fn index(&self, v: f32) -> usize {
-        // max/min rather than clamp: NaN maps to entry 0.
-        let i = ((v - self.offset) * self.scale + 0.5)
-            .max(0.0)
-            .min((TABLE_SIZE - 1) as f32);
-        i as usize
+        // NaN maps to entry 0.
+        truncate_clamped(
+            (v - self.offset) * self.scale + 0.5,
+            (TABLE_SIZE - 1) as f32,
+        ) as usize
     }
 
     /// The entries, RGB and step-corrected opacity, that [`Self::index`] selects.
