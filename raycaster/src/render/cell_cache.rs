@@ -14,9 +14,9 @@ use std::cell::Cell;
 use glam::{Vec3, Vec3A};
 
 use super::sampler::{
-    BrickSampler, CornerDifferences, Corners, VolumeSampler, cell_fraction, cell_of,
-    gradient_from_differences, trilinear,
+    BrickSampler, CornerDifferences, Corners, VolumeSampler, gradient_from_differences, trilinear,
 };
+use super::truncate::{MAX_TRUNCATED, truncate_clamped};
 use crate::volume::Sample;
 
 /// What the cache knows of its cell's gradient.
@@ -48,7 +48,7 @@ pub(crate) struct CellCache {
     differences: Cell<CornerDifferences>,
     state: Cell<Differences>,
     /// Where the position of the last [`Self::value`] lies in the cell (its
-    /// [`cell_fraction`]), when that position is in the cached cell: the
+    /// [`super::sampler::cell_fraction`]), when that position is in the cached cell: the
     /// gradient of the same sample ([`Self::gradient_here`]) needs no second test.
     here: Cell<Option<Vec3A>>,
 }
@@ -67,7 +67,7 @@ impl Default for CellCache {
 }
 
 impl CellCache {
-    /// Where local position `l` lies in the cached cell (its [`cell_fraction`]),
+    /// Where local position `l` lies in the cached cell (its [`super::sampler::cell_fraction`]),
     /// if it lies there.
     ///
     /// `l − lower` is exact for positions in or near the brick, and a rounding
@@ -86,36 +86,42 @@ impl CellCache {
     /// making `p`'s cell the cached one.
     #[inline(always)]
     pub fn value<T: Sample>(&self, sampler: &BrickSampler<'_, T>, p: Vec3A) -> f32 {
-        let l = p - Vec3A::from(sampler.origin());
+        let l = p - sampler.origin_lanes();
         match self.fraction_in_cell(l) {
             Some(f) => {
                 self.here.set(Some(f));
                 trilinear(&self.corners.get(), f.to_array())
             }
-            None => self.enter(sampler, l.into()),
+            None => self.enter(sampler, l),
         }
     }
 
     /// [`Self::value`] at local position `l` outside the cached cell: makes its
-    /// cell the cached one (unless `l` lies on the brick's upper face).
+    /// cell the cached one (unless `l` lies on the brick's upper face, or below
+    /// its first voxel).
+    ///
+    /// The cell's corner is `floor(l)`, which is [`super::sampler::cell_of`]`(l)` for `l ≥ 0`,
+    /// computed in lanes; a single conversion per axis addresses the corners.
     #[inline(never)]
-    fn enter<T: Sample>(&self, sampler: &BrickSampler<'_, T>, l: Vec3) -> f32 {
-        let cell = cell_of(l);
-        let max = sampler.max_cell();
-        if cell[0] > max[0] || cell[1] > max[1] || cell[2] > max[2] {
-            // On the brick's upper face: the cell below, not cached.
+    fn enter<T: Sample>(&self, sampler: &BrickSampler<'_, T>, l: Vec3A) -> f32 {
+        let lower = l.floor();
+        if !(lower.cmpge(Vec3A::ZERO) & lower.cmple(sampler.max_cell_lanes())).all() {
+            // Not one of the brick's cells: the cell below its upper face (or its
+            // first cell), not cached.
             self.here.set(None);
-            return sampler.value_local(l);
+            return sampler.value_local(l.into());
         }
-        if cell != self.cell.get() {
+        if lower.cmpne(self.lower.get()).any() {
+            let cell = lower.to_array().map(|c| truncate_clamped(c, MAX_TRUNCATED));
             self.cell.set(cell);
-            self.lower.set(Vec3A::from(cell.map(|c| c as i32 as f32)));
+            self.lower.set(lower);
             self.corners.set(sampler.corners(cell));
             self.state.set(Differences::Unknown);
         }
-        let f = cell_fraction(l, cell);
-        self.here.set(Some(Vec3A::from(f)));
-        trilinear(&self.corners.get(), f)
+        // `l − floor(l)`: exact, in [0, 1) (see `fraction_in_cell`).
+        let f = l - lower;
+        self.here.set(Some(f));
+        trilinear(&self.corners.get(), f.to_array())
     }
 
     /// The gradient at volume position `p` ([`VolumeSampler::gradient`]), from

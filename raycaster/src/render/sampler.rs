@@ -33,6 +33,9 @@ pub struct BrickSampler<'a, T: Sample> {
     last: Vec3,
     /// Largest lower cell corner per axis (extent − 2, or 0 for a one-voxel axis).
     max_cell: [u32; 3],
+    /// `origin` and `max_cell` as SIMD lanes, for the marching loop's cell cache.
+    origin_lanes: Vec3A,
+    max_cell_lanes: Vec3A,
     /// Stride to the upper corner per axis (0 on a one-voxel axis).
     corner_stride: [usize; 3],
 }
@@ -42,11 +45,15 @@ impl<'a, T: Sample> BrickSampler<'a, T> {
     pub fn new(view: BrickView<'a, T>) -> Self {
         let extent = view.extent();
         let strides = view.strides();
+        let origin = Vec3::from(view.origin().map(|o| o as f32));
+        let max_cell = extent.map(|e| e.saturating_sub(2));
         BrickSampler {
             view,
-            origin: Vec3::from(view.origin().map(|o| o as f32)),
+            origin,
             last: Vec3::from(extent.map(|e| (e - 1) as f32)),
-            max_cell: extent.map(|e| e.saturating_sub(2)),
+            max_cell,
+            origin_lanes: origin.into(),
+            max_cell_lanes: Vec3A::from(max_cell.map(|m| m as f32)),
             corner_stride: [0, 1, 2].map(|a| if extent[a] > 1 { strides[a] } else { 0 }),
         }
     }
@@ -100,10 +107,17 @@ impl<'a, T: Sample> BrickSampler<'a, T> {
         trilinear(&self.corners(cell), cell_fraction(l, cell))
     }
 
-    /// Largest lower cell corner per axis: local cells `0..=max_cell`.
+    /// [`Self::origin`] in SIMD lanes.
     #[inline]
-    pub(crate) fn max_cell(&self) -> [u32; 3] {
-        self.max_cell
+    pub(crate) fn origin_lanes(&self) -> Vec3A {
+        self.origin_lanes
+    }
+
+    /// The largest lower cell corner per axis (local cells `0..=max_cell`), as
+    /// floats in SIMD lanes.
+    #[inline]
+    pub(crate) fn max_cell_lanes(&self) -> Vec3A {
+        self.max_cell_lanes
     }
 
     /// The eight corner values of local cell `cell` (each coordinate at most
