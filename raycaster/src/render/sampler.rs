@@ -411,17 +411,55 @@ impl<'a, T: Sample> VolumeSampler<'a, T> {
         {
             return Some(d);
         }
-        // Bricked storage across a brick's face: voxel by voxel.
-        let v = |x: u32, y: u32, z: u32| {
-            let g = [cell[0] + x - 1, cell[1] + y - 1, cell[2] + z - 1];
-            f32::from(self.volume.voxel(g).to_u16())
-        };
-        let run = |x: usize, y: usize| {
-            let (x, y) = (x as u32, y as u32);
-            [v(x, y, 0), v(x, y, 1), v(x, y, 2), v(x, y, 3)]
-        };
-        let pair = |x: usize, y: usize| [v(x as u32, y as u32, 1), v(x as u32, y as u32, 2)];
+        // Bricked storage across a brick's face: each voxel from the brick
+        // `BlockGrid::brick_of_voxel` gives (the one `TypedVolume::voxel` reads),
+        // addressed by per-axis offsets computed once per cell.
+        let [ox, oy, oz] = self.block_offsets(cell);
+        let samples = self.volume.samples();
+        let v = |x: usize, y: usize, z: usize| f32::from(samples[ox[x] + oy[y] + oz[z]].to_u16());
+        let run = |x: usize, y: usize| [v(x, y, 0), v(x, y, 1), v(x, y, 2), v(x, y, 3)];
+        let pair = |x: usize, y: usize| [v(x, y, 1), v(x, y, 2)];
         Some(differences(&Neighbourhood::from_columns(run, pair)))
+    }
+
+    /// For bricked storage, the sample offsets of the 4×4×4 voxels around cell
+    /// `cell` (whose lower corner has block coordinates (1, 1, 1)) split per
+    /// axis: voxel `(x, y, z)` of the block is sample `ox[x] + oy[y] + oz[z]`,
+    /// in the brick [`BlockGrid::brick_of_voxel`] assigns it. `cell` must be an
+    /// inner cell (its block lies in the volume).
+    #[inline]
+    fn block_offsets(&self, cell: [u32; 3]) -> [[usize; 4]; 3] {
+        let grid = &self.grid;
+        let (step, side) = (grid.step(), grid.side() as usize);
+        let counts = grid.counts();
+        let brick_len = side * side * side;
+        // A brick index is `(bx·ny + by)·nz + bz`; a local voxel `(lx·s + ly)·s + lz`.
+        let scale = [
+            (
+                counts[1] as usize * counts[2] as usize * brick_len,
+                side * side,
+            ),
+            (counts[2] as usize * brick_len, side),
+            (brick_len, 1),
+        ];
+        std::array::from_fn(|a| {
+            let (per_brick, per_voxel) = scale[a];
+            let first = cell[a] - 1;
+            let mut brick = (first / step).min(counts[a] - 1);
+            let mut local = first - brick * step;
+            std::array::from_fn(|d| {
+                if d > 0 {
+                    // The next voxel: the next brick's first when this one's
+                    // owned voxels end (`brick_of_voxel` = `g / step`, capped).
+                    local += 1;
+                    if local == step && brick + 1 < counts[a] {
+                        brick += 1;
+                        local = 0;
+                    }
+                }
+                brick as usize * per_brick + local as usize * per_voxel
+            })
+        })
     }
 
     /// The value at `q` (inside the volume), from `local` when it covers `q`.
@@ -560,6 +598,44 @@ mod tests {
             from_neighbours > total / 10,
             "{from_neighbours} across brick faces"
         );
+    }
+
+    #[test]
+    fn corner_differences_across_brick_faces_equal_the_linear_volumes_for_every_cell() {
+        // Sizes whose last brick is whole, short, or one voxel past a whole
+        // number of steps (the capped `brick_of_voxel` of the last brick).
+        for (dims, side) in [([15, 9, 12], 4), ([22, 16, 13], 8), ([17, 17, 18], 5)] {
+            let mut seed = 0x9e37_79b9_u32 ^ dims[0];
+            let samples: Vec<u16> = (0..dims.iter().product::<u32>())
+                .map(|_| {
+                    seed ^= seed << 13;
+                    seed ^= seed >> 17;
+                    seed ^= seed << 5;
+                    (seed % 4096) as u16
+                })
+                .collect();
+            let linear = TypedVolume::new(&samples, dims, Layout::Linear);
+            let bricked_samples = to_bricks(&samples, dims, side);
+            let bricked =
+                TypedVolume::new(&bricked_samples, dims, Layout::Bricked { side: side as u8 });
+            let (whole, across) = (VolumeSampler::new(linear), VolumeSampler::new(bricked));
+            let whole_brick = BrickSampler::new(linear.brick(&BlockGrid::new(dims, 64), [0, 0, 0]));
+            // A brick that holds none of the cells, so every read goes across.
+            let grid = bricked.natural_grid(2);
+            let far = BrickSampler::new(bricked.brick(&grid, [0, 0, 0]));
+            let mut checked = 0;
+            for x in 0..dims[0] - 1 {
+                for y in 0..dims[1] - 1 {
+                    for z in 0..dims[2] - 1 {
+                        let cell = [x, y, z];
+                        let expected = whole.corner_differences(&whole_brick, cell);
+                        assert_eq!(across.corner_differences(&far, cell), expected, "{cell:?}");
+                        checked += usize::from(expected.is_some());
+                    }
+                }
+            }
+            assert!(checked > 0);
+        }
     }
 
     #[test]
