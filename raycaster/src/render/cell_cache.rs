@@ -11,10 +11,10 @@
 
 use std::cell::Cell;
 
-use glam::{Vec3, Vec3A};
+use glam::{Vec3, Vec3A, Vec4, Vec4Swizzles};
 
 use super::sampler::{
-    BrickSampler, CornerDifferences, Corners, VolumeSampler, gradient_from_differences, trilinear,
+    BrickSampler, CornerDifferences, Corners, VolumeSampler, gradient_from_differences,
 };
 use super::truncate::{MAX_TRUNCATED, truncate_clamped};
 use crate::volume::Sample;
@@ -30,6 +30,40 @@ enum Differences {
     AtVolumeFace,
 }
 
+/// A cell's corners in SIMD lanes for [`super::sampler::trilinear`]: its z-interpolation's four
+/// starts (`[c0, c2, c4, c6]`) and the differences to their ends
+/// (`[c1 − c0, c3 − c2, c5 − c4, c7 − c6]`), computed once per cell. Each lane
+/// then runs `a + (b − a)·t` exactly as `trilinear` does, so the value has its
+/// bits.
+#[derive(Clone, Copy, Debug)]
+struct CornerLanes {
+    starts: Vec4,
+    spans: Vec4,
+}
+
+impl CornerLanes {
+    #[inline]
+    fn new(c: &Corners) -> Self {
+        let starts = Vec4::new(c[0], c[2], c[4], c[6]);
+        CornerLanes {
+            starts,
+            spans: Vec4::new(c[1], c[3], c[5], c[7]) - starts,
+        }
+    }
+
+    /// `trilinear` at fraction `f` of the cell: z in four lanes, then y in
+    /// two, then x.
+    #[inline(always)]
+    fn trilinear(self, f: Vec3A) -> f32 {
+        // [c00, c01, c10, c11]
+        let z = self.starts + self.spans * Vec4::splat(f.z);
+        // [lerp(c00, c01, fy), lerp(c10, c11, fy)] in lanes 0 and 1.
+        let (front, back) = (z.xzxz(), z.ywyw());
+        let y = front + (back - front) * Vec4::splat(f.y);
+        y.x + (y.y - y.x) * f.x
+    }
+}
+
 /// One ray's current cell in one brick.
 ///
 /// Its state lives in [`Cell`]s, so that the loop's samples can share it by
@@ -42,8 +76,8 @@ pub(crate) struct CellCache {
     /// The same corner as floats (infinite: none yet), for the test of a
     /// position against the cell without conversions.
     lower: Cell<Vec3A>,
-    /// Its corner values.
-    corners: Cell<Corners>,
+    /// Its corner values, laid out for the trilinear interpolation.
+    corners: Cell<CornerLanes>,
     /// The central differences at its corners, when `state` is `Known`.
     differences: Cell<CornerDifferences>,
     state: Cell<Differences>,
@@ -58,7 +92,7 @@ impl Default for CellCache {
         CellCache {
             cell: Cell::new([u32::MAX; 3]),
             lower: Cell::new(Vec3A::INFINITY),
-            corners: Cell::new([0.0; 8]),
+            corners: Cell::new(CornerLanes::new(&[0.0; 8])),
             differences: Cell::new([Vec3A::ZERO; 8]),
             state: Cell::new(Differences::Unknown),
             here: Cell::new(None),
@@ -90,7 +124,7 @@ impl CellCache {
         match self.fraction_in_cell(l) {
             Some(f) => {
                 self.here.set(Some(f));
-                trilinear(&self.corners.get(), f.to_array())
+                self.corners.get().trilinear(f)
             }
             None => self.enter(sampler, l),
         }
@@ -115,13 +149,13 @@ impl CellCache {
             let cell = lower.to_array().map(|c| truncate_clamped(c, MAX_TRUNCATED));
             self.cell.set(cell);
             self.lower.set(lower);
-            self.corners.set(sampler.corners(cell));
+            self.corners.set(CornerLanes::new(&sampler.corners(cell)));
             self.state.set(Differences::Unknown);
         }
         // `l − floor(l)`: exact, in [0, 1) (see `fraction_in_cell`).
         let f = l - lower;
         self.here.set(Some(f));
-        trilinear(&self.corners.get(), f.to_array())
+        self.corners.get().trilinear(f)
     }
 
     /// The gradient at volume position `p` ([`VolumeSampler::gradient`]), from
@@ -190,6 +224,28 @@ impl CellCache {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::render::sampler::trilinear;
+
+    #[test]
+    fn corner_lanes_interpolate_with_trilinears_bits() {
+        let mut seed = 0x2545_f491_u32;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed
+        };
+        for _ in 0..20_000 {
+            let corners: Corners = std::array::from_fn(|_| (next() % 65_536) as f32);
+            let f = [0; 3].map(|_| (next() % 1_000_001) as f32 / 1_000_000.0);
+            let lanes = CornerLanes::new(&corners).trilinear(Vec3A::from(f));
+            assert_eq!(
+                lanes.to_bits(),
+                trilinear(&corners, f).to_bits(),
+                "{corners:?} {f:?}"
+            );
+        }
+    }
     use crate::volume::{BlockGrid, Layout, TypedVolume};
 
     #[test]
