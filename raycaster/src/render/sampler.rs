@@ -121,8 +121,8 @@ impl<'a, T: Sample> BrickSampler<'a, T> {
     }
 
     /// The eight corner values of local cell `cell` (each coordinate at most
-    /// [`Self::max_cell`]), in [`Corners`] order.
-    #[inline]
+    /// [`Self::max_cell_lanes`]), in [`Corners`] order.
+    #[inline(always)]
     pub(crate) fn corners(&self, [ix, iy, iz]: [u32; 3]) -> Corners {
         let [sx, sy, _] = self.view.strides();
         let base = ix as usize * sx + iy as usize * sy + iz as usize;
