@@ -6,7 +6,7 @@
 //! `[0, dims − 1]`). Every read is clamped to the volume, so nothing outside it is
 //! ever addressed.
 
-use glam::{Vec3, Vec3A};
+use glam::{Vec3, Vec3A, Vec4};
 
 use crate::volume::{BlockGrid, BrickView, Layout, Sample, TypedVolume};
 
@@ -144,8 +144,14 @@ impl<'a, T: Sample> BrickSampler<'a, T> {
 
     /// The central differences at the corners of local cell `cell` when the
     /// 4×4×4 voxels around it lie in this brick, else `None` (near the brick's
-    /// faces). Each z-run of the neighbourhood is loaded once, with one bounds
-    /// check per run.
+    /// faces).
+    ///
+    /// Four corners at a time in SIMD lanes (those of the cell's lower x face,
+    /// then its upper, each in [`Corners`] order), one lane per `(y, z)`: each
+    /// axis's differences are one subtraction of two such quads, each quad two
+    /// z-pairs of the neighbourhood. The voxels are integers, so every
+    /// difference is exact and equals [`differences`]' whichever way it is
+    /// computed.
     #[inline]
     pub(crate) fn corner_differences(&self, [ix, iy, iz]: [u32; 3]) -> Option<CornerDifferences> {
         let extent = self.view.extent();
@@ -167,7 +173,28 @@ impl<'a, T: Sample> BrickSampler<'a, T> {
             let r = &block[x * sx + y * sy + 1..][..2];
             [f(r[0]), f(r[1])]
         };
-        Some(differences(&Neighbourhood::from_columns(run, pair)))
+        let n = Neighbourhood::from_columns(run, pair);
+        // Lanes (y, z) = (0, 0), (0, 1), (1, 0), (1, 1) of the corners at x.
+        let quad = |[a0, a1]: [f32; 2], [b0, b1]: [f32; 2]| Vec4::new(a0, a1, b0, b1);
+        let mid = |x: usize, y: usize| [n.inner[x][y][1], n.inner[x][y][2]];
+        let lanes = |x: usize| {
+            let [front, back] = &n.inner[x];
+            let dz = quad([front[2], front[3]], [back[2], back[3]])
+                - quad([front[0], front[1]], [back[0], back[1]]);
+            let dy = quad(mid(x, 1), n.y_above[x]) - quad(n.y_below[x], mid(x, 0));
+            (dy, dz)
+        };
+        let ((dy0, dz0), (dy1, dz1)) = (lanes(0), lanes(1));
+        let dx0 = quad(mid(1, 0), mid(1, 1)) - quad(n.x_below[0], n.x_below[1]);
+        let dx1 = quad(n.x_above[0], n.x_above[1]) - quad(mid(0, 0), mid(0, 1));
+        Some(std::array::from_fn(|c| {
+            let (dx, dy, dz) = if c < 4 {
+                (dx0, dy0, dz0)
+            } else {
+                (dx1, dy1, dz1)
+            };
+            Vec3A::new(dx[c & 3], dy[c & 3], dz[c & 3])
+        }))
     }
 }
 
