@@ -164,15 +164,18 @@ impl<'a, T: Sample> BrickSampler<'a, T> {
         let [sx, sy, _] = self.view.strides();
         let base = (ix - 1) as usize * sx + (iy - 1) as usize * sy + (iz - 1) as usize;
         let block = &self.view.samples_from(base)[..3 * sx + 3 * sy + 4];
-        let f = |v: T| f32::from(v.to_u16());
-        let run = |x: usize, y: usize| {
-            let r = &block[x * sx + y * sy..][..4];
-            [f(r[0]), f(r[1]), f(r[2]), f(r[3])]
+        let v = |x: usize, y: usize, z: usize| {
+            // Constants at every call: the check folds away.
+            assert!(x < 4 && y < 4 && z < 4, "outside the cell's block");
+            let at = x * sx + y * sy + z;
+            // SAFETY: x, y, z ≤ 3, so `at` ≤ 3·sx + 3·sy + 3 < block.len() (the
+            // slice above was cut to that length, so the sum does not overflow).
+            #[allow(unsafe_code)] // measured: one bounds check per cell instead of 12
+            let sample = unsafe { block.get_unchecked(at) };
+            f32::from(sample.to_u16())
         };
-        let pair = |x: usize, y: usize| {
-            let r = &block[x * sx + y * sy + 1..][..2];
-            [f(r[0]), f(r[1])]
-        };
+        let run = |x: usize, y: usize| [v(x, y, 0), v(x, y, 1), v(x, y, 2), v(x, y, 3)];
+        let pair = |x: usize, y: usize| [v(x, y, 1), v(x, y, 2)];
         let n = Neighbourhood::from_columns(run, pair);
         // Lanes (y, z) = (0, 0), (0, 1), (1, 0), (1, 1) of the corners at x.
         let quad = |[a0, a1]: [f32; 2], [b0, b1]: [f32; 2]| Vec4::new(a0, a1, b0, b1);
