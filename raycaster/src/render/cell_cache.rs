@@ -13,9 +13,7 @@ use std::cell::Cell;
 
 use glam::{Vec3, Vec3A, Vec4, Vec4Swizzles};
 
-use super::sampler::{
-    BrickSampler, CornerDifferences, Corners, VolumeSampler, gradient_from_differences,
-};
+use super::sampler::{BrickSampler, CornerDifferences, Corners, VolumeSampler};
 use super::truncate::{MAX_TRUNCATED, truncate_clamped};
 use crate::volume::Sample;
 
@@ -64,6 +62,36 @@ impl CornerLanes {
     }
 }
 
+/// A cell's corner differences laid out for the gradient's interpolation, as
+/// [`CornerLanes`] for the value: the z-interpolations' starts (corners 0, 2, 4,
+/// 6) and spans to their ends, each read straight into a register (no copy of
+/// the whole table per sample). The gradient has
+/// [`super::sampler::gradient_from_differences`]' bits.
+#[derive(Debug, Default)]
+struct DifferenceLanes {
+    starts: [Cell<Vec3A>; 4],
+    spans: [Cell<Vec3A>; 4],
+}
+
+impl DifferenceLanes {
+    #[inline]
+    fn set(&self, d: &CornerDifferences) {
+        for i in 0..4 {
+            self.starts[i].set(d[2 * i]);
+            self.spans[i].set(d[2 * i + 1] - d[2 * i]);
+        }
+    }
+
+    /// The gradient at fraction `f` of the cell.
+    #[inline(always)]
+    fn gradient(&self, f: Vec3A) -> Vec3 {
+        let z = |i: usize| self.starts[i].get() + self.spans[i].get() * f.z;
+        let lerp = |a: Vec3A, b: Vec3A, t: f32| a + (b - a) * t;
+        let (c00, c01, c10, c11) = (z(0), z(1), z(2), z(3));
+        Vec3::from(lerp(lerp(c00, c01, f.y), lerp(c10, c11, f.y), f.x) * 0.5)
+    }
+}
+
 /// One ray's current cell in one brick.
 ///
 /// Its state lives in [`Cell`]s, so that the loop's samples can share it by
@@ -79,7 +107,7 @@ pub(crate) struct CellCache {
     /// Its corner values, laid out for the trilinear interpolation.
     corners: Cell<CornerLanes>,
     /// The central differences at its corners, when `state` is `Known`.
-    differences: Cell<CornerDifferences>,
+    differences: DifferenceLanes,
     state: Cell<Differences>,
     /// Where the position of the last [`Self::value`] lies in the cell (its
     /// [`super::sampler::cell_fraction`]), when that position is in the cached cell: the
@@ -93,7 +121,7 @@ impl Default for CellCache {
             cell: Cell::new([u32::MAX; 3]),
             lower: Cell::new(Vec3A::INFINITY),
             corners: Cell::new(CornerLanes::new(&[0.0; 8])),
-            differences: Cell::new([Vec3A::ZERO; 8]),
+            differences: DifferenceLanes::default(),
             state: Cell::new(Differences::Unknown),
             here: Cell::new(None),
         }
@@ -207,7 +235,7 @@ impl CellCache {
                 let global = [0, 1, 2].map(|a| cell[a] + origin[a] as u32);
                 match volume.corner_differences(sampler, global) {
                     Some(d) => {
-                        self.differences.set(d);
+                        self.differences.set(&d);
                         self.state.set(Differences::Known);
                     }
                     None => {
@@ -217,17 +245,17 @@ impl CellCache {
                 }
             }
         }
-        gradient_from_differences(&self.differences.get(), f.to_array())
+        self.differences.gradient(f)
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::sampler::trilinear;
+    use crate::render::sampler::{gradient_from_differences, trilinear};
 
     #[test]
-    fn corner_lanes_interpolate_with_trilinears_bits() {
+    fn corner_and_difference_lanes_interpolate_with_the_samplers_bits() {
         let mut seed = 0x2545_f491_u32;
         let mut next = || {
             seed ^= seed << 13;
@@ -243,6 +271,17 @@ mod tests {
                 lanes.to_bits(),
                 trilinear(&corners, f).to_bits(),
                 "{corners:?} {f:?}"
+            );
+            let differences: CornerDifferences = std::array::from_fn(|_| {
+                Vec3A::from([0; 3].map(|_| (next() % 131_071) as f32 - 65_535.0))
+            });
+            let lanes = DifferenceLanes::default();
+            lanes.set(&differences);
+            let g = lanes.gradient(Vec3A::from(f));
+            let expected = gradient_from_differences(&differences, f);
+            assert_eq!(
+                g.to_array().map(f32::to_bits),
+                expected.to_array().map(f32::to_bits)
             );
         }
     }
