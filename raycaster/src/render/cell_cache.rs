@@ -253,16 +253,11 @@ impl CellCache {
 mod tests {
     use super::*;
     use crate::render::sampler::{gradient_from_differences, trilinear};
+    use crate::render::test_rng::xorshift32;
 
     #[test]
     fn corner_and_difference_lanes_interpolate_with_the_samplers_bits() {
-        let mut seed = 0x2545_f491_u32;
-        let mut next = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 17;
-            seed ^= seed << 5;
-            seed
-        };
+        let mut next = xorshift32(0x2545_f491);
         for _ in 0..20_000 {
             let corners: Corners = std::array::from_fn(|_| (next() % 65_536) as f32);
             let f = [0; 3].map(|_| (next() % 1_000_001) as f32 / 1_000_000.0);
@@ -290,15 +285,8 @@ mod tests {
     #[test]
     fn cached_values_and_gradients_equal_the_samplers_bit_for_bit() {
         let dims = [13, 11, 12];
-        let mut seed = 0x9e37_79b9_u32;
-        let samples: Vec<u8> = (0..13 * 11 * 12)
-            .map(|_| {
-                seed ^= seed << 13;
-                seed ^= seed >> 17;
-                seed ^= seed << 5;
-                (seed % 251) as u8
-            })
-            .collect();
+        let mut next = xorshift32(0x9e37_79b9);
+        let samples: Vec<u8> = (0..13 * 11 * 12).map(|_| (next() % 251) as u8).collect();
         let volume = TypedVolume::new(&samples, dims, Layout::Linear);
         let sampler = VolumeSampler::new(volume);
         let grid = BlockGrid::new(dims, 6);

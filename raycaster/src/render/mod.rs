@@ -45,6 +45,8 @@ mod settings;
 mod shading;
 mod simd;
 mod state_buffer;
+#[cfg(test)]
+mod test_rng;
 mod tile;
 mod transfer;
 mod truncate;

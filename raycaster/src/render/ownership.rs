@@ -217,6 +217,7 @@ mod tests {
     use super::*;
     use crate::render::clip::{ClipPlane, ClipRegion, CropBox};
     use crate::render::ray::Ray;
+    use crate::render::test_rng::xorshift32;
     use crate::volume::BlockGrid;
 
     /// Every sample of a ray is owned by exactly the brick the owner function
@@ -272,13 +273,8 @@ mod tests {
 
     #[test]
     fn owned_intervals_match_the_owner_of_every_sample() {
-        let mut seed = 0x9e37_79b9_u32;
-        let mut next = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 17;
-            seed ^= seed << 5;
-            (seed % 10_000) as f32 / 10_000.0
-        };
+        let mut random = xorshift32(0x9e37_79b9);
+        let mut next = move || (random() % 10_000) as f32 / 10_000.0;
         for (dims, side, spacing) in [
             ([33, 17, 25], 9, [1.0, 1.0, 1.0]),
             ([40, 40, 40], 8, [0.7, 1.3, 2.0]),

@@ -506,6 +506,7 @@ impl<'a, T: Sample> VolumeSampler<'a, T> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::render::test_rng::xorshift32;
 
     fn ramp(dims: [u32; 3]) -> Vec<u16> {
         let [dx, dy, dz] = dims;
@@ -571,13 +572,7 @@ mod tests {
     #[test]
     fn the_gradient_equals_central_differences_of_trilinear_reads_whichever_brick_asks() {
         let dims = [20, 18, 22];
-        let mut seed = 0x2545_f491_u32;
-        let mut next = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 17;
-            seed ^= seed << 5;
-            seed
-        };
+        let mut next = xorshift32(0x2545_f491);
         let samples: Vec<u16> = (0..20 * 18 * 22).map(|_| (next() % 4096) as u16).collect();
         let linear = TypedVolume::new(&samples, dims, Layout::Linear);
         let bricked_samples = to_bricks(&samples, dims, 8);
@@ -635,14 +630,9 @@ mod tests {
         // Sizes whose last brick is whole, short, or one voxel past a whole
         // number of steps (the capped `brick_of_voxel` of the last brick).
         for (dims, side) in [([15, 9, 12], 4), ([22, 16, 13], 8), ([17, 17, 18], 5)] {
-            let mut seed = 0x9e37_79b9_u32 ^ dims[0];
+            let mut next = xorshift32(0x9e37_79b9 ^ dims[0]);
             let samples: Vec<u16> = (0..dims.iter().product::<u32>())
-                .map(|_| {
-                    seed ^= seed << 13;
-                    seed ^= seed >> 17;
-                    seed ^= seed << 5;
-                    (seed % 4096) as u16
-                })
+                .map(|_| (next() % 4096) as u16)
                 .collect();
             let linear = TypedVolume::new(&samples, dims, Layout::Linear);
             let bricked_samples = to_bricks(&samples, dims, side);
