@@ -5,7 +5,7 @@
 //! *owns* the cells `[b·step, (b+1)·step]` per axis (the last one up to `dims − 1`):
 //! every sample position belongs to exactly one brick, found by [`Self::owner`].
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 
 use super::camera::Camera;
 use super::error::RenderError;
@@ -137,12 +137,10 @@ impl VolumeGeometry {
     /// The brick owning voxel position `p` (clamped into the volume first).
     #[inline]
     pub fn owner(&self, p: Vec3) -> [u32; 3] {
-        let p = p.clamp(Vec3::ZERO, self.last);
-        [
-            self.owner_along(p.x, 0),
-            self.owner_along(p.y, 1),
-            self.owner_along(p.z, 2),
-        ]
+        // `owner_along` per axis, in lanes: the same clamp and division.
+        let q = (Vec3A::from(p).clamp(Vec3A::ZERO, self.last.into()) / self.step).to_array();
+        let counts = self.grid.counts();
+        [0, 1, 2].map(|a| truncate_clamped(q[a], MAX_TRUNCATED).min(counts[a] - 1))
     }
 
     /// Coordinate `axis` of the brick owning a position whose coordinate `axis` is

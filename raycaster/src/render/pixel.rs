@@ -5,7 +5,7 @@
 //! choose which `k` they handle, so splitting the volume never moves, drops or
 //! doubles a sample.
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 
 use super::clip::ClipRegion;
 use super::geometry::VolumeGeometry;
@@ -213,7 +213,9 @@ impl PixelRay {
     /// ([`super::ownership::owned_samples`]).
     #[inline]
     pub fn position(&self, k: u32, last: Vec3) -> Vec3 {
-        (self.start + self.step * k as f32).clamp(Vec3::ZERO, last)
+        // In lanes: each coordinate's operations are the scalar ones.
+        let p = Vec3A::from(self.start) + Vec3A::from(self.step) * k as f32;
+        p.clamp(Vec3A::ZERO, last.into()).into()
     }
 
     /// Coordinate `axis` of [`Self::position`] (the same arithmetic, one axis).

@@ -55,9 +55,18 @@ impl Shading {
             return color;
         }
         let normal = gradient / magnitude;
-        let (to_light, half) = light_vectors(Some(self.light), view_dir);
-        let diffuse = normal.dot(to_light).abs();
-        let specular = self.specular * specular_power(normal.dot(half).abs(), self.shininess);
+        let (diffuse, facing) = match self.light {
+            // The headlight's half vector is its light vector: one dot product.
+            Light::Headlight => {
+                let d = normal.dot(-view_dir).abs();
+                (d, d)
+            }
+            Light::Fixed(_) => {
+                let (to_light, half) = light_vectors(Some(self.light), view_dir);
+                (normal.dot(to_light).abs(), normal.dot(half).abs())
+            }
+        };
+        let specular = self.specular * specular_power(facing, self.shininess);
         let k = self.ambient + self.diffuse * diffuse;
         color.map(|c| (c * k + specular).min(1.0))
     }
