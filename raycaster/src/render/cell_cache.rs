@@ -28,11 +28,11 @@ enum Differences {
     AtVolumeFace,
 }
 
-/// A cell's corners in SIMD lanes for [`super::sampler::trilinear`]: its z-interpolation's four
-/// starts (`[c0, c2, c4, c6]`) and the differences to their ends
-/// (`[c1 − c0, c3 − c2, c5 − c4, c7 − c6]`), computed once per cell. Each lane
-/// then runs `a + (b − a)·t` exactly as `trilinear` does, so the value has its
-/// bits.
+/// A cell's corners in SIMD lanes for [`super::sampler::trilinear`]: its
+/// z-interpolation's four starts (`[c0, c2, c4, c6]`) and the differences to
+/// their ends (`[c1 − c0, c3 − c2, c5 − c4, c7 − c6]`), computed once per cell.
+/// Each lane then runs `a + (b − a)·t` exactly as `trilinear` does, so the value
+/// has its bits.
 #[derive(Clone, Copy, Debug)]
 struct CornerLanes {
     starts: Vec4,
@@ -110,8 +110,9 @@ pub(crate) struct CellCache {
     differences: DifferenceLanes,
     state: Cell<Differences>,
     /// Where the position of the last [`Self::value`] lies in the cell (its
-    /// [`super::sampler::cell_fraction`]), when that position is in the cached cell: the
-    /// gradient of the same sample ([`Self::gradient_here`]) needs no second test.
+    /// [`super::sampler::cell_fraction`]), when that position is in the cached
+    /// cell: the gradient of the same sample ([`Self::gradient_here`]) needs no
+    /// second test.
     here: Cell<Option<Vec3A>>,
 }
 
@@ -129,8 +130,8 @@ impl Default for CellCache {
 }
 
 impl CellCache {
-    /// Where local position `l` lies in the cached cell (its [`super::sampler::cell_fraction`]),
-    /// if it lies there.
+    /// Where local position `l` lies in the cached cell (its
+    /// [`super::sampler::cell_fraction`]), if it lies there.
     ///
     /// `l − lower` is exact for positions in or near the brick, and a rounding
     /// never changes a difference's sign, so the test is `cell_of(l) == cell`
@@ -162,8 +163,9 @@ impl CellCache {
     /// cell the cached one (unless `l` lies on the brick's upper face, or below
     /// its first voxel).
     ///
-    /// The cell's corner is `floor(l)`, which is [`super::sampler::cell_of`]`(l)` for `l ≥ 0`,
-    /// computed in lanes; a single conversion per axis addresses the corners.
+    /// The cell's corner is `floor(l)`, which is [`super::sampler::cell_of`]`(l)`
+    /// for `l ≥ 0`, computed in lanes; a single conversion per axis addresses
+    /// the corners.
     #[inline(never)]
     fn enter<T: Sample>(&self, sampler: &BrickSampler<'_, T>, l: Vec3A) -> f32 {
         let lower = l.floor();
