@@ -236,6 +236,35 @@ mod tests {
     }
 
     #[test]
+    fn ceil_is_the_libm_ceiling_saturated_into_u32() {
+        for x in [
+            0.0,
+            -0.0,
+            0.2,
+            1.0,
+            1.000_000_1,
+            2.5,
+            1_023.999_94,
+            16_777_215.0,
+            16_777_216.0,
+            33_554_432.0,
+            4.0e9,
+            5.0e9,
+        ] {
+            assert_eq!(ceil(x), x.ceil().min(u32::MAX as f32) as u32, "{x}");
+        }
+        for x in [-0.5, -3.0, f32::NEG_INFINITY, f32::NAN] {
+            assert_eq!(ceil(x), 0, "{x}");
+        }
+        assert_eq!(ceil(f32::INFINITY), u32::MAX);
+        let mut x = 0.0f32;
+        while x < 3000.0 {
+            assert_eq!(ceil(x), x.ceil() as u32, "{x}");
+            x += 0.173;
+        }
+    }
+
+    #[test]
     fn runs_cover_every_sample_that_is_not_empty_in_order() {
         let dims = [30, 26, 33];
         // Blobs of high values in a low background.
