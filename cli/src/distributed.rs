@@ -42,7 +42,8 @@ mod mpi_rank {
     use crate::output::check_output;
     use crate::render::{RenderArgs, Setup, check_arguments, finish, parallel_options};
 
-    /// An error another rank has already reported: exit quietly with failure.
+    /// An error already reported (by this rank or another): exit quietly with
+    /// failure.
     #[derive(Debug)]
     pub struct ReportedElsewhere;
 
@@ -107,22 +108,32 @@ mod mpi_rank {
         }
     }
 
-    /// Whether every rank got `result`: `Ok` everywhere, or the lowest failing
-    /// rank's error there and [`ReportedElsewhere`] on the others.
+    /// Whether every rank got `result`: `Ok` everywhere, or else
+    /// [`ReportedElsewhere`] everywhere once the lowest failing rank has said why.
+    ///
+    /// The error is printed here, before a barrier that every rank passes
+    /// before it returns: a rank that exits with failure makes `mpirun` end the
+    /// job, and a rank still on its way to printing would be ended silently.
     fn agree<T>(world: &SimpleCommunicator, result: Result<T>) -> Result<T> {
         let rank = world.rank();
         let mine = if result.is_err() { rank } else { i32::MAX };
         let mut first = i32::MAX;
         world.all_reduce_into(&mine, &mut first, SystemOperation::min());
-        match result {
-            Ok(value) if first == i32::MAX => Ok(value),
-            Err(e) if first == rank => Err(if world.size() > 1 {
+        if first == i32::MAX {
+            return result;
+        }
+        if let Err(e) = result
+            && first == rank
+        {
+            let e = if world.size() > 1 {
                 e.context(format!("rank {rank} of {}", world.size()))
             } else {
                 e
-            }),
-            _ => Err(ReportedElsewhere.into()),
+            };
+            eprintln!("error: {}", raycaster::errors::error_text(e.as_ref()));
         }
+        world.barrier();
+        Err(ReportedElsewhere.into())
     }
 
     /// A panic on one rank aborts the whole job instead of leaving the others
