@@ -232,9 +232,8 @@ impl CellCache {
             Differences::Known => {}
             Differences::AtVolumeFace => return volume.gradient(sampler, p),
             Differences::Unknown => {
-                let origin = sampler.origin();
-                let cell = self.cell.get();
-                let global = [0, 1, 2].map(|a| cell[a] + origin[a] as u32);
+                let (origin, cell) = (sampler.origin_voxel(), self.cell.get());
+                let global = [0, 1, 2].map(|a| cell[a] + origin[a]);
                 match volume.corner_differences(sampler, global) {
                     Some(d) => {
                         self.differences.set(&d);

@@ -107,6 +107,12 @@ impl<'a, T: Sample> BrickSampler<'a, T> {
         trilinear(&self.corners(cell), cell_fraction(l, cell))
     }
 
+    /// [`Self::origin`] as voxel indices.
+    #[inline]
+    pub(crate) fn origin_voxel(&self) -> [u32; 3] {
+        self.view.origin()
+    }
+
     /// [`Self::origin`] in SIMD lanes.
     #[inline]
     pub(crate) fn origin_lanes(&self) -> Vec3A {
