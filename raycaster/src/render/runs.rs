@@ -14,6 +14,7 @@ use glam::Vec3;
 use super::cells::BrickCells;
 use super::compositor::Compositor;
 use super::pixel::PixelRay;
+use super::truncate::truncate_clamped;
 
 /// Consecutive samples `first..end` of a ray, all in one non-empty small cell
 /// (or, without empty-space skipping, all the samples asked for).
@@ -111,8 +112,9 @@ impl<'r, C: Compositor> SampleRuns<'r, C> {
             let step = ray.step.to_array();
             let m = grid.per_axis - 1;
             for a in 0..3 {
-                // Positions inside the brick are ≥ its origin: `as` floors.
-                runs.cell[a] = (local[a] as u32).min(m);
+                // Positions inside the brick are ≥ its origin: truncation floors
+                // (`(x as u32).min(m)` in one instruction).
+                runs.cell[a] = truncate_clamped(local[a], m as f32);
                 runs.direction[a] = if step[a] > 0.0 {
                     1
                 } else if step[a] < 0.0 {
