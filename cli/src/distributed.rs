@@ -130,7 +130,7 @@ mod mpi_rank {
             } else {
                 e
             };
-            eprintln!("error: {}", raycaster::errors::error_text(e.as_ref()));
+            crate::report_error(&e);
         }
         world.barrier();
         Err(ReportedElsewhere.into())

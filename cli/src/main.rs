@@ -45,9 +45,14 @@ fn main() {
         if distributed::reported_elsewhere(&e) {
             std::process::exit(1);
         }
-        eprintln!("error: {}", raycaster::errors::error_text(e.as_ref()));
+        report_error(&e);
         std::process::exit(1);
     }
+}
+
+/// Prints `e` the one way the command reports a failure (`error: …`).
+pub(crate) fn report_error(e: &anyhow::Error) {
+    eprintln!("error: {}", raycaster::errors::error_text(e.as_ref()));
 }
 
 /// A closed stdout (`raycaster render --stats-json | head -c 10`) ends the process
