@@ -137,10 +137,10 @@ impl VolumeGeometry {
     /// The brick owning voxel position `p` (clamped into the volume first).
     #[inline]
     pub fn owner(&self, p: Vec3) -> [u32; 3] {
-        // `owner_along` per axis, in lanes: the same clamp and division.
+        // `owner_along` per axis, the clamp and the division in lanes.
         let q = (Vec3A::from(p).clamp(Vec3A::ZERO, self.last.into()) / self.step).to_array();
         let counts = self.grid.counts();
-        [0, 1, 2].map(|a| truncate_clamped(q[a], MAX_TRUNCATED).min(counts[a] - 1))
+        [0, 1, 2].map(|a| owner_of(q[a], counts[a]))
     }
 
     /// Coordinate `axis` of the brick owning a position whose coordinate `axis` is
@@ -148,7 +148,7 @@ impl VolumeGeometry {
     /// in `c`.
     #[inline]
     pub fn owner_along(&self, c: f32, axis: usize) -> u32 {
-        truncate_clamped(c / self.step, MAX_TRUNCATED).min(self.grid.counts()[axis] - 1)
+        owner_of(c / self.step, self.grid.counts()[axis])
     }
 
     /// The brick side in owned cells (the grid's step) as a float.
@@ -156,4 +156,11 @@ impl VolumeGeometry {
     pub fn brick_step(&self) -> f32 {
         self.step
     }
+}
+
+/// The brick coordinate holding a coordinate that lies at `q` brick steps along
+/// an axis of `count` bricks (the last brick owns everything beyond).
+#[inline(always)]
+fn owner_of(q: f32, count: u32) -> u32 {
+    truncate_clamped(q, MAX_TRUNCATED).min(count - 1)
 }

@@ -7,7 +7,7 @@
 //! ([`super::ownership::owned_samples`]), so a ray's
 //! samples are processed exactly once, in order, however the volume is cut.
 
-use glam::{Vec3, Vec3A};
+use glam::Vec3;
 
 use super::cell_cache::CellCache;
 use super::compositor::{Compositor, SamplePoint, SampleSite};
@@ -137,16 +137,14 @@ pub(crate) fn march_brick<T: Sample, C: Compositor>(
             cell: &cell,
             gradient_scale: plan.gradient_scale,
         };
-        // Positions in SIMD lanes: `PixelRay::position`'s arithmetic, lane by lane.
-        let (start, step) = (Vec3A::from(ray.start), Vec3A::from(ray.step));
-        let last_voxel_a = Vec3A::from(last_voxel);
+        let positions = ray.positions(last_voxel);
         'runs: for run in runs.by_ref() {
             if C::STATE_SKIPS && ess && c.below_interest(&acc, run.hi) {
                 skipped += u64::from(run.len());
                 continue;
             }
             for k in run.first..run.end {
-                let position = (start + step * k as f32).clamp(Vec3A::ZERO, last_voxel_a);
+                let position = positions.at(k);
                 let sample = SamplePoint {
                     value: cell.value(&brick.sampler, position),
                     position: position.into(),

@@ -213,9 +213,18 @@ impl PixelRay {
     /// ([`super::ownership::owned_samples`]).
     #[inline]
     pub fn position(&self, k: u32, last: Vec3) -> Vec3 {
-        // In lanes: each coordinate's operations are the scalar ones.
-        let p = Vec3A::from(self.start) + Vec3A::from(self.step) * k as f32;
-        p.clamp(Vec3A::ZERO, last.into()).into()
+        self.positions(last).at(k).into()
+    }
+
+    /// [`Self::position`] for many `k`: the ray's start, step and box converted
+    /// to SIMD lanes once (the marching loop's form).
+    #[inline]
+    pub(crate) fn positions(&self, last: Vec3) -> SamplePositions {
+        SamplePositions {
+            start: self.start.into(),
+            step: self.step.into(),
+            last: last.into(),
+        }
     }
 
     /// Coordinate `axis` of [`Self::position`] (the same arithmetic, one axis).
@@ -223,6 +232,24 @@ impl PixelRay {
     pub fn coordinate(&self, k: u32, axis: usize, last: f32) -> f32 {
         let (start, step) = (self.start.to_array(), self.step.to_array());
         (start[axis] + step[axis] * k as f32).clamp(0.0, last)
+    }
+}
+
+/// A ray's sample positions in SIMD lanes ([`PixelRay::positions`]): the one
+/// definition of where sample `k` lies, each coordinate's operations the scalar
+/// ones.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct SamplePositions {
+    start: Vec3A,
+    step: Vec3A,
+    last: Vec3A,
+}
+
+impl SamplePositions {
+    /// The position of sample `k`, clamped into the box `[0, last]`.
+    #[inline(always)]
+    pub(crate) fn at(&self, k: u32) -> Vec3A {
+        (self.start + self.step * k as f32).clamp(Vec3A::ZERO, self.last)
     }
 }
 
