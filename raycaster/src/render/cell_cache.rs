@@ -99,7 +99,10 @@ impl DifferenceLanes {
 /// while each sample's [`Self::value`] moves it on.
 #[derive(Debug)]
 pub(crate) struct CellCache {
-    /// The cell's lower corner in brick-local voxels (`u32::MAX`: none yet).
+    /// The cell's lower corner in brick-local voxels (`u32::MAX`: none yet):
+    /// `lower` as indices, kept because entering converts it anyway (deriving
+    /// it again for each cell's differences measured 4 instructions per sample
+    /// more).
     cell: Cell<[u32; 3]>,
     /// The same corner as floats (infinite: none yet), for the test of a
     /// position against the cell without conversions.
