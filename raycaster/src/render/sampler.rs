@@ -151,13 +151,6 @@ impl<'a, T: Sample> BrickSampler<'a, T> {
     /// The central differences at the corners of local cell `cell` when the
     /// 4×4×4 voxels around it lie in this brick, else `None` (near the brick's
     /// faces).
-    ///
-    /// Four corners at a time in SIMD lanes (those of the cell's lower x face,
-    /// then its upper, each in [`Corners`] order), one lane per `(y, z)`: each
-    /// axis's differences are one subtraction of two such quads, each quad two
-    /// z-pairs of the neighbourhood. The voxels are integers, so every
-    /// difference is exact and equals [`differences`]' whichever way it is
-    /// computed.
     #[inline]
     pub(crate) fn corner_differences(&self, [ix, iy, iz]: [u32; 3]) -> Option<CornerDifferences> {
         let extent = self.view.extent();
@@ -182,28 +175,7 @@ impl<'a, T: Sample> BrickSampler<'a, T> {
         };
         let run = |x: usize, y: usize| [v(x, y, 0), v(x, y, 1), v(x, y, 2), v(x, y, 3)];
         let pair = |x: usize, y: usize| [v(x, y, 1), v(x, y, 2)];
-        let n = Neighbourhood::from_columns(run, pair);
-        // Lanes (y, z) = (0, 0), (0, 1), (1, 0), (1, 1) of the corners at x.
-        let quad = |[a0, a1]: [f32; 2], [b0, b1]: [f32; 2]| Vec4::new(a0, a1, b0, b1);
-        let mid = |x: usize, y: usize| [n.inner[x][y][1], n.inner[x][y][2]];
-        let lanes = |x: usize| {
-            let [front, back] = &n.inner[x];
-            let dz = quad([front[2], front[3]], [back[2], back[3]])
-                - quad([front[0], front[1]], [back[0], back[1]]);
-            let dy = quad(mid(x, 1), n.y_above[x]) - quad(n.y_below[x], mid(x, 0));
-            (dy, dz)
-        };
-        let ((dy0, dz0), (dy1, dz1)) = (lanes(0), lanes(1));
-        let dx0 = quad(mid(1, 0), mid(1, 1)) - quad(n.x_below[0], n.x_below[1]);
-        let dx1 = quad(n.x_above[0], n.x_above[1]) - quad(mid(0, 0), mid(0, 1));
-        Some(std::array::from_fn(|c| {
-            let (dx, dy, dz) = if c < 4 {
-                (dx0, dy0, dz0)
-            } else {
-                (dx1, dy1, dz1)
-            };
-            Vec3A::new(dx[c & 3], dy[c & 3], dz[c & 3])
-        }))
+        Some(differences(&Neighbourhood::from_columns(run, pair)))
     }
 }
 
@@ -275,11 +247,38 @@ impl<V: Copy> Neighbourhood<V> {
     }
 }
 
-/// The corner differences of a cell from its [`Neighbourhood`].
+/// The corner differences of a cell from its [`Neighbourhood`]
+/// ([`Neighbourhood::differences_by`]'s, assembled four corners at a time).
+///
+/// Four corners at a time in SIMD lanes (those of the cell's lower x face, then
+/// its upper, each in [`Corners`] order), one lane per `(y, z)`: each axis's
+/// differences are one subtraction of two such quads, each quad two z-pairs of
+/// the neighbourhood. The voxels are integers, so every difference is exact and
+/// equals `differences_by`'s (which the packet kernels use) whichever way it is
+/// computed.
 #[inline(always)]
 pub(crate) fn differences(n: &Neighbourhood<f32>) -> CornerDifferences {
-    let [x, y, z] = n.differences_by(|a, b| a - b);
-    std::array::from_fn(|c| Vec3A::new(x[c], y[c], z[c]))
+    // Lanes (y, z) = (0, 0), (0, 1), (1, 0), (1, 1) of the corners at x.
+    let quad = |[a0, a1]: [f32; 2], [b0, b1]: [f32; 2]| Vec4::new(a0, a1, b0, b1);
+    let mid = |x: usize, y: usize| [n.inner[x][y][1], n.inner[x][y][2]];
+    let lanes = |x: usize| {
+        let [front, back] = &n.inner[x];
+        let dz = quad([front[2], front[3]], [back[2], back[3]])
+            - quad([front[0], front[1]], [back[0], back[1]]);
+        let dy = quad(mid(x, 1), n.y_above[x]) - quad(n.y_below[x], mid(x, 0));
+        (dy, dz)
+    };
+    let ((dy0, dz0), (dy1, dz1)) = (lanes(0), lanes(1));
+    let dx0 = quad(mid(1, 0), mid(1, 1)) - quad(n.x_below[0], n.x_below[1]);
+    let dx1 = quad(n.x_above[0], n.x_above[1]) - quad(mid(0, 0), mid(0, 1));
+    std::array::from_fn(|c| {
+        let (dx, dy, dz) = if c < 4 {
+            (dx0, dy0, dz0)
+        } else {
+            (dx1, dy1, dz1)
+        };
+        Vec3A::new(dx[c & 3], dy[c & 3], dz[c & 3])
+    })
 }
 
 /// A cell's eight corner values, x slowest: (0,0,0), (0,0,1), (0,1,0), (0,1,1),
@@ -629,6 +628,26 @@ mod tests {
             from_neighbours > total / 10,
             "{from_neighbours} across brick faces"
         );
+    }
+
+    #[test]
+    fn differences_in_quads_equal_differences_by_axis() {
+        let mut next = xorshift32(0x51ed_270b);
+        for _ in 0..2_000 {
+            let mut v = || (next() % 65_536) as f32;
+            let inner = [0; 2].map(|_| [0; 2].map(|_| [0; 4].map(|_| v())));
+            let mut pairs = || [0; 2].map(|_| [0; 2].map(|_| v()));
+            let n = Neighbourhood {
+                inner,
+                x_below: pairs(),
+                x_above: pairs(),
+                y_below: pairs(),
+                y_above: pairs(),
+            };
+            let [x, y, z] = n.differences_by(|a, b| a - b);
+            let expected: CornerDifferences = std::array::from_fn(|c| Vec3A::new(x[c], y[c], z[c]));
+            assert_eq!(differences(&n), expected);
+        }
     }
 
     #[test]
