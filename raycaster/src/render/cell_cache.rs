@@ -202,10 +202,8 @@ impl CellCache {
     ) -> Vec3 {
         // (A point just below the brick, whose coordinates would truncate into
         // its first cell, is not in the cell: the test is on the fraction.)
-        match self.fraction_in_cell((p - sampler.origin()).into()) {
-            Some(f) => self.gradient_in_cell(volume, sampler, p, f),
-            None => volume.gradient(sampler, p),
-        }
+        let f = self.fraction_in_cell((p - sampler.origin()).into());
+        self.gradient_in_cell(volume, sampler, p, f)
     }
 
     /// [`Self::gradient`] at `p`, the position of the last [`Self::value`].
@@ -216,21 +214,22 @@ impl CellCache {
         sampler: &BrickSampler<'_, T>,
         p: Vec3,
     ) -> Vec3 {
-        match self.here.get() {
-            Some(f) => self.gradient_in_cell(volume, sampler, p, f),
-            None => volume.gradient(sampler, p),
-        }
+        self.gradient_in_cell(volume, sampler, p, self.here.get())
     }
 
-    /// The gradient at `p`, which lies at fraction `f` of the cached cell.
+    /// The gradient at `p`, which lies at fraction `f` of the cached cell, or
+    /// outside it (`None`: the volume's own gradient).
     #[inline]
     fn gradient_in_cell<T: Sample>(
         &self,
         volume: &VolumeSampler<'_, T>,
         sampler: &BrickSampler<'_, T>,
         p: Vec3,
-        f: Vec3A,
+        f: Option<Vec3A>,
     ) -> Vec3 {
+        let Some(f) = f else {
+            return volume.gradient(sampler, p);
+        };
         match self.state.get() {
             Differences::Known => {}
             Differences::AtVolumeFace => return volume.gradient(sampler, p),
