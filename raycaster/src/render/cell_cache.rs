@@ -34,7 +34,7 @@ enum Differences {
 /// Each lane then runs `a + (b − a)·t` exactly as `trilinear` does, so the value
 /// has its bits.
 #[derive(Clone, Copy, Debug)]
-struct CornerLanes {
+pub(crate) struct CornerLanes {
     starts: Vec4,
     spans: Vec4,
 }
@@ -60,6 +60,19 @@ impl CornerLanes {
         let y = front + (back - front) * Vec4::splat(f.y);
         y.x + (y.y - y.x) * f.x
     }
+
+    /// [`Self::trilinear`] at four fractions of the cell at once (`f[axis]`
+    /// holds each axis for the four), each lane with `trilinear`'s operations
+    /// and so its bits.
+    #[inline(always)]
+    pub(crate) fn trilinear_lanes(self, [fx, fy, fz]: [Vec4; 3]) -> Vec4 {
+        let z = |start: f32, span: f32| Vec4::splat(start) + Vec4::splat(span) * fz;
+        let (s, d) = (self.starts, self.spans);
+        let (c00, c01, c10, c11) = (z(s.x, d.x), z(s.y, d.y), z(s.z, d.z), z(s.w, d.w));
+        let y0 = c00 + (c01 - c00) * fy;
+        let y1 = c10 + (c11 - c10) * fy;
+        y0 + (y1 - y0) * fx
+    }
 }
 
 /// A cell's corner differences laid out for the gradient's interpolation, as
@@ -68,7 +81,7 @@ impl CornerLanes {
 /// the whole table per sample). The gradient has
 /// [`super::sampler::gradient_from_differences`]' bits.
 #[derive(Debug, Default)]
-struct DifferenceLanes {
+pub(crate) struct DifferenceLanes {
     starts: [Cell<Vec3A>; 4],
     spans: [Cell<Vec3A>; 4],
 }
@@ -84,7 +97,7 @@ impl DifferenceLanes {
 
     /// The gradient at fraction `f` of the cell.
     #[inline(always)]
-    fn gradient(&self, f: Vec3A) -> Vec3 {
+    pub(crate) fn gradient(&self, f: Vec3A) -> Vec3 {
         let z = |i: usize| self.starts[i].get() + self.spans[i].get() * f.z;
         let lerp = |a: Vec3A, b: Vec3A, t: f32| a + (b - a) * t;
         let (c00, c01, c10, c11) = (z(0), z(1), z(2), z(3));
@@ -172,12 +185,34 @@ impl CellCache {
     #[inline(never)]
     fn enter<T: Sample>(&self, sampler: &BrickSampler<'_, T>, l: Vec3A) -> f32 {
         let lower = l.floor();
-        if !(lower.cmpge(Vec3A::ZERO) & lower.cmple(sampler.max_cell_lanes())).all() {
+        if !Self::is_cell(sampler, lower) {
             // Not one of the brick's cells: the cell below its upper face (or its
             // first cell), not cached.
             self.here.set(None);
             return sampler.value_local(l.into());
         }
+        let corners = self.corners_of(sampler, lower);
+        // `l − floor(l)`: exact, in [0, 1) (see `fraction_in_cell`).
+        let f = l - lower;
+        self.here.set(Some(f));
+        corners.trilinear(f)
+    }
+
+    /// Whether `lower` (whole numbers) is the lower corner of one of the brick's
+    /// cells: what [`Self::corners_of`] takes.
+    #[inline(always)]
+    pub fn is_cell<T: Sample>(sampler: &BrickSampler<'_, T>, lower: Vec3A) -> bool {
+        (lower.cmpge(Vec3A::ZERO) & lower.cmple(sampler.max_cell_lanes())).all()
+    }
+
+    /// The corners of the brick's cell with lower corner `lower` (one that
+    /// [`Self::is_cell`]), making it the cached cell.
+    #[inline(always)]
+    pub fn corners_of<T: Sample>(
+        &self,
+        sampler: &BrickSampler<'_, T>,
+        lower: Vec3A,
+    ) -> CornerLanes {
         if lower.cmpne(self.lower.get()).any() {
             let cell = lower.to_array().map(|c| truncate_clamped(c, MAX_TRUNCATED));
             self.cell.set(cell);
@@ -185,10 +220,7 @@ impl CellCache {
             self.corners.set(CornerLanes::new(&sampler.corners(cell)));
             self.state.set(Differences::Unknown);
         }
-        // `l − floor(l)`: exact, in [0, 1) (see `fraction_in_cell`).
-        let f = l - lower;
-        self.here.set(Some(f));
-        self.corners.get().trilinear(f)
+        self.corners.get()
     }
 
     /// The gradient at volume position `p` ([`VolumeSampler::gradient`]), from
@@ -227,12 +259,26 @@ impl CellCache {
         p: Vec3,
         f: Option<Vec3A>,
     ) -> Vec3 {
-        let Some(f) = f else {
-            return volume.gradient(sampler, p);
-        };
+        // (No cell is cached when `f` is `None` for a fresh cache.)
+        match f.and_then(|f| Some((f, self.differences(volume, sampler)?))) {
+            Some((f, d)) => d.gradient(f),
+            None => volume.gradient(sampler, p),
+        }
+    }
+
+    /// The cached cell's corner differences (computed at the first call per
+    /// cell), or `None` where the cell touches the volume's faces (gradients
+    /// there take [`VolumeSampler::gradient`]'s one-sided path). Only after a
+    /// cell was entered ([`Self::value`], [`Self::corners_of`]).
+    #[inline]
+    pub fn differences<T: Sample>(
+        &self,
+        volume: &VolumeSampler<'_, T>,
+        sampler: &BrickSampler<'_, T>,
+    ) -> Option<&DifferenceLanes> {
         match self.state.get() {
             Differences::Known => {}
-            Differences::AtVolumeFace => return volume.gradient(sampler, p),
+            Differences::AtVolumeFace => return None,
             Differences::Unknown => {
                 let (origin, cell) = (sampler.origin_voxel(), self.cell.get());
                 let global = [0, 1, 2].map(|a| cell[a] + origin[a]);
@@ -243,12 +289,12 @@ impl CellCache {
                     }
                     None => {
                         self.state.set(Differences::AtVolumeFace);
-                        return volume.gradient(sampler, p);
+                        return None;
                     }
                 }
             }
         }
-        self.differences.gradient(f)
+        Some(&self.differences)
     }
 }
 
@@ -270,6 +316,14 @@ mod tests {
                 trilinear(&corners, f).to_bits(),
                 "{corners:?} {f:?}"
             );
+            // Four fractions at once: lane i holds fraction `f` moved by i / 7.
+            let moved = |i: usize| f.map(|x| (x + i as f32 / 7.0).fract());
+            let four = CornerLanes::new(&corners).trilinear_lanes(
+                [0, 1, 2].map(|a| Vec4::from_array([0, 1, 2, 3].map(|i| moved(i)[a]))),
+            );
+            for i in 0..4 {
+                assert_eq!(four[i].to_bits(), trilinear(&corners, moved(i)).to_bits());
+            }
             let differences: CornerDifferences = std::array::from_fn(|_| {
                 Vec3A::from([0; 3].map(|_| (next() % 131_071) as f32 - 65_535.0))
             });

@@ -12,7 +12,7 @@ use glam::Vec3;
 use super::cell_cache::CellCache;
 use super::compositor::{Compositor, SamplePoint, SampleSite};
 use super::counters::Counters;
-use super::pixel::{PixelRay, PixelState};
+use super::pixel::{PixelRay, PixelState, SamplePositions};
 use super::prepared::{FramePlan, RenderVolume};
 use super::runs::{CellGrid, SampleRuns};
 use super::sampler::{BrickSampler, VolumeSampler};
@@ -70,13 +70,6 @@ impl<'a, T: Sample> BrickContext<'a, T> {
         }
     }
 
-    /// The brick's small cells, when the frame skips empty space and some ray may
-    /// need the brick.
-    #[inline]
-    pub(crate) fn cell_grid(&self) -> Option<&CellGrid> {
-        self.cells.as_ref()
-    }
-
     /// The label of the voxel nearest to volume position `p` (inside the brick).
     #[inline]
     pub(crate) fn label_at(&self, p: Vec3) -> u16 {
@@ -100,6 +93,9 @@ impl<'a, T: Sample> BrickContext<'a, T> {
 /// of the pixel's state), and inside it the loop walks only the non-empty
 /// [`SampleRuns`]. The ray stops at the opacity threshold or when the compositor
 /// is finished (a first hit).
+///
+/// `cell` caches the last voxel cell a ray entered: one cache serves the visits
+/// of one brick (its cells are the brick's), never two bricks.
 #[allow(clippy::too_many_arguments)]
 #[inline]
 pub(crate) fn march_brick<T: Sample, C: Compositor>(
@@ -107,73 +103,155 @@ pub(crate) fn march_brick<T: Sample, C: Compositor>(
     plan: &FramePlan,
     volume: &VolumeSampler<'_, T>,
     brick: &BrickContext<'_, T>,
+    cell: &CellCache,
     ray: &PixelRay,
     first: u32,
     last: u32,
     state: &mut PixelState<C::State>,
     counters: &mut Counters,
 ) {
-    if state.done || first > last {
-        return;
+    let visit = BrickVisit {
+        plan,
+        volume,
+        brick,
+        ray,
+    };
+    visit.march(c, first, last, state, counters, || SampleLoop {
+        c,
+        visit,
+        cell,
+        positions: ray.positions(volume.last()),
+    });
+}
+
+/// One ray's visit of one brick: what the marching of its runs reads.
+pub(crate) struct BrickVisit<'v, 'b, T: Sample> {
+    pub plan: &'v FramePlan,
+    pub volume: &'v VolumeSampler<'b, T>,
+    pub brick: &'v BrickContext<'b, T>,
+    pub ray: &'v PixelRay,
+}
+
+impl<T: Sample> Clone for BrickVisit<'_, '_, T> {
+    fn clone(&self) -> Self {
+        *self
     }
-    let ess = plan.empty_space_skipping;
-    if ess && (brick.transparent || c.below_interest(&state.acc, brick.range[1])) {
-        counters.samples_skipped_empty += u64::from(last - first + 1);
-        counters.brick_visits_skipped += 1;
-    } else {
-        counters.brick_visits += 1;
-        let last_voxel = volume.last();
-        let last_sample = ray.samples - 1;
-        let mut acc = state.acc;
-        let (mut taken, mut skipped) = (0u64, 0u64);
-        let mut stopped_before = None;
-        let cells = if ess { brick.cells.as_ref() } else { None };
-        let mut runs = SampleRuns::new(c, ray, cells, last_voxel, first, last);
-        let cell = CellCache::default();
+}
+
+impl<T: Sample> Copy for BrickVisit<'_, '_, T> {}
+
+/// What folds the samples of a run into a pixel's state: the generic loop
+/// ([`SampleLoop`]) or a compositor's own kernel ([`super::packet`]).
+pub(crate) trait RunMarcher<S> {
+    /// Folds samples `first..end` of the ray into `acc`, front to back;
+    /// `Some(k)` when the ray stopped (opacity threshold, a finished compositor)
+    /// with sample `k − 1` the last it took.
+    fn march_run(&mut self, acc: &mut S, first: u32, end: u32) -> Option<u32>;
+}
+
+impl<T: Sample> BrickVisit<'_, '_, T> {
+    /// Marches samples `first..=last` into `state` with `c`'s emptiness rules,
+    /// the runs folded by the marcher `start` makes (only if the brick is not
+    /// skipped): the visit's skipping, counting and ending, shared by every
+    /// kernel.
+    #[inline(always)]
+    pub(crate) fn march<C: Compositor, M: RunMarcher<C::State>>(
+        &self,
+        c: &C,
+        first: u32,
+        last: u32,
+        state: &mut PixelState<C::State>,
+        counters: &mut Counters,
+        start: impl FnOnce() -> M,
+    ) {
+        if state.done || first > last {
+            return;
+        }
+        let (plan, brick, ray) = (self.plan, self.brick, self.ray);
+        let ess = plan.empty_space_skipping;
+        if ess && (brick.transparent || c.below_interest(&state.acc, brick.range[1])) {
+            counters.samples_skipped_empty += u64::from(last - first + 1);
+            counters.brick_visits_skipped += 1;
+        } else {
+            counters.brick_visits += 1;
+            let mut acc = state.acc;
+            let (mut taken, mut skipped) = (0u64, 0u64);
+            let mut stopped_before = None;
+            let cells = if ess { brick.cells.as_ref() } else { None };
+            let mut runs = SampleRuns::new(c, ray, cells, self.volume.last(), first, last);
+            let mut marcher = start();
+            for run in runs.by_ref() {
+                if C::STATE_SKIPS && ess && c.below_interest(&acc, run.hi) {
+                    skipped += u64::from(run.len());
+                    continue;
+                }
+                if let Some(next) = marcher.march_run(&mut acc, run.first, run.end) {
+                    taken += u64::from(next - run.first);
+                    stopped_before = Some(next);
+                    break;
+                }
+                taken += u64::from(run.len());
+            }
+            skipped += runs.skipped;
+            state.acc = acc;
+            counters.samples += taken;
+            counters.samples_skipped_empty += skipped;
+            if let Some(k) = stopped_before {
+                stop_ray(c, state, k, counters);
+                return;
+            }
+        }
+        end_visit(c, state, ray, last + 1);
+    }
+}
+
+/// The generic loop: every sample through [`Compositor::sample`], its value
+/// from the ray's [`CellCache`].
+struct SampleLoop<'v, 'b, T: Sample, C> {
+    c: &'v C,
+    visit: BrickVisit<'v, 'b, T>,
+    cell: &'v CellCache,
+    positions: SamplePositions,
+}
+
+impl<T: Sample, C: Compositor> RunMarcher<C::State> for SampleLoop<'_, '_, T, C> {
+    #[inline(always)]
+    fn march_run(&mut self, acc: &mut C::State, first: u32, end: u32) -> Option<u32> {
+        let BrickVisit {
+            plan,
+            volume,
+            brick,
+            ray,
+        } = self.visit;
+        let (c, cell, positions) = (self.c, self.cell, self.positions);
         let site = SampleSite {
             ray,
             brick,
             volume,
-            cell: &cell,
+            cell,
             gradient_scale: plan.gradient_scale,
         };
-        let positions = ray.positions(last_voxel);
-        'runs: for run in runs.by_ref() {
-            if C::STATE_SKIPS && ess && c.below_interest(&acc, run.hi) {
-                skipped += u64::from(run.len());
-                continue;
-            }
-            for k in run.first..run.end {
-                let position = positions.at(k);
-                let sample = SamplePoint {
-                    value: cell.value(&brick.sampler, position),
-                    position: position.into(),
-                    index: k,
-                    fraction: if k == last_sample {
-                        ray.last_fraction
-                    } else {
-                        1.0
-                    },
-                    site: &site,
-                };
-                c.sample(&mut acc, &sample);
-                taken += 1;
-                if c.opacity(&acc) >= plan.ert_threshold || c.finished(&acc) {
-                    stopped_before = Some(k + 1);
-                    break 'runs;
-                }
+        let last_sample = ray.samples - 1;
+        for k in first..end {
+            let position = positions.at(k);
+            let sample = SamplePoint {
+                value: cell.value(&brick.sampler, position),
+                position: position.into(),
+                index: k,
+                fraction: if k == last_sample {
+                    ray.last_fraction
+                } else {
+                    1.0
+                },
+                site: &site,
+            };
+            c.sample(acc, &sample);
+            if c.opacity(acc) >= plan.ert_threshold || c.finished(acc) {
+                return Some(k + 1);
             }
         }
-        skipped += runs.skipped;
-        state.acc = acc;
-        counters.samples += taken;
-        counters.samples_skipped_empty += skipped;
-        if let Some(k) = stopped_before {
-            stop_ray(c, state, k, counters);
-            return;
-        }
+        None
     }
-    end_visit(c, state, ray, last + 1);
 }
 
 /// Ends a ray's visit of a brick with sample `next` the next it expects; past its

@@ -2,7 +2,9 @@
 //! step, opacity correction for a fraction of a step, smoothstep, light and half
 //! vectors, and the importance-aware compositing step.
 
-use glam::Vec3;
+use std::ops::Mul;
+
+use glam::{Vec3, Vec4};
 
 use super::shading::{Light, Shading};
 
@@ -67,19 +69,43 @@ pub(crate) fn smoothstep(e0: f32, e1: f32, x: f32) -> f32 {
 /// `powf` call), else `powf`.
 #[inline]
 pub(crate) fn specular_power(x: f32, e: f32) -> f32 {
-    if (0.0..=255.0).contains(&e) && e.fract() == 0.0 {
-        let (mut n, mut base, mut out) = (e as u32, x, 1.0f32);
-        while n > 0 {
-            if n & 1 == 1 {
-                out *= base;
-            }
-            base *= base;
-            n >>= 1;
-        }
-        out
-    } else {
-        x.powf(e)
+    match whole_exponent(e) {
+        Some(n) => power_by_squaring(x, 1.0, n),
+        None => x.powf(e),
     }
+}
+
+/// [`specular_power`] of four values at once, each lane with its operations.
+#[inline]
+pub(crate) fn specular_power_lanes(x: Vec4, e: f32) -> Vec4 {
+    match whole_exponent(e) {
+        Some(n) => power_by_squaring(x, Vec4::ONE, n),
+        None => Vec4::from_array(x.to_array().map(|x| x.powf(e))),
+    }
+}
+
+/// `x^n` by repeated squaring (`one` is 1 of `x`'s type).
+#[inline(always)]
+fn power_by_squaring<V: Copy + Mul<Output = V>>(x: V, one: V, mut n: u32) -> V {
+    let (mut base, mut out) = (x, one);
+    while n > 0 {
+        if n & 1 == 1 {
+            out = out * base;
+        }
+        base = base * base;
+        n >>= 1;
+    }
+    out
+}
+
+/// `e` as a whole number, if it is one from 0 to 255: the exponents
+/// [`specular_power`] takes by repeated squaring. (`e as u32` saturates, and NaN
+/// gives 0, so the round trip holds only for whole numbers; no `fract`, which
+/// is a library call where the compiler does not hoist it.)
+#[inline]
+fn whole_exponent(e: f32) -> Option<u32> {
+    let n = e as u32;
+    (n as f32 == e && e <= 255.0).then_some(n)
 }
 
 /// Unit vectors towards the light and halfway between it and the eye, for a ray
@@ -142,6 +168,39 @@ pub fn importance_composite(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn whole_exponents_are_the_whole_numbers_from_0_to_255() {
+        let old_rule = |e: f32| (0.0..=255.0).contains(&e) && e.fract() == 0.0;
+        for e in [
+            0.0,
+            -0.0,
+            1.0,
+            24.0,
+            255.0,
+            256.0,
+            255.5,
+            0.5,
+            -1.0,
+            7.5,
+            4_294_967_296.0,
+            1e20,
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+        ] {
+            assert_eq!(whole_exponent(e).is_some(), old_rule(e), "{e}");
+        }
+        for n in 0..=300u32 {
+            let e = n as f32;
+            assert_eq!(whole_exponent(e), old_rule(e).then_some(n), "{e}");
+            let (squared, pow) = (specular_power(0.9, e), 0.9f32.powf(e));
+            assert!(
+                (squared - pow).abs() <= 1e-5 * pow.max(1e-30),
+                "{e}: {squared} {pow}"
+            );
+        }
+    }
 
     #[test]
     fn importance_at_or_below_the_accumulated_one_is_plain_compositing() {

@@ -18,6 +18,7 @@ use crossbeam_channel::{Receiver, Sender};
 use parking_lot::Mutex;
 
 use super::camera::{Camera, PixelRect};
+use super::cell_cache::CellCache;
 use super::compositor::{Compositor, CompositorJob};
 use super::counters::{Counters, FrameStats};
 use super::error::RenderError;
@@ -462,6 +463,7 @@ impl FrameJob<'_> {
                         level,
                     );
                 if !in_packets {
+                    let cell = CellCache::default();
                     for item in &items {
                         let (Some(ray), state) =
                             (&tile.rays[item.pixel], &mut tile.states[item.pixel])
@@ -473,6 +475,7 @@ impl FrameJob<'_> {
                             self.plan,
                             &sampler,
                             &context,
+                            &cell,
                             ray,
                             item.first,
                             item.last,

@@ -5,7 +5,7 @@
 //! choose which `k` they handle, so splitting the volume never moves, drops or
 //! doubles a sample.
 
-use glam::{Vec3, Vec3A};
+use glam::{Vec3, Vec3A, Vec4};
 
 use super::clip::ClipRegion;
 use super::geometry::VolumeGeometry;
@@ -251,6 +251,19 @@ impl SamplePositions {
     pub(crate) fn at(&self, k: u32) -> Vec3A {
         (self.start + self.step * k as f32).clamp(Vec3A::ZERO, self.last)
     }
+
+    /// The positions of samples `k..k + 4`, per axis in four lanes: [`Self::at`]
+    /// for each, with its operations.
+    #[inline(always)]
+    pub(crate) fn at_lanes(&self, k: u32) -> [Vec4; 3] {
+        let ks = Vec4::from_array([0, 1, 2, 3].map(|i| k.saturating_add(i) as f32));
+        let (start, step, last) = (self.start, self.step, self.last);
+        [0, 1, 2].map(|a| {
+            (Vec4::splat(start[a]) + Vec4::splat(step[a]) * ks)
+                .max(Vec4::ZERO)
+                .min(Vec4::splat(last[a]))
+        })
+    }
 }
 
 /// The ray-start jitter of pixel `(x, y)`, in `[0, 1)`: interleaved gradient
@@ -298,4 +311,33 @@ pub fn over_background(rgba: [f32; 4], background: [f32; 3]) -> [u8; 3] {
         let v = rgba[c] + rest * background[c];
         (v * 255.0 + 0.5).max(0.0).min(255.0) as u8
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn positions_in_lanes_are_the_scalar_positions() {
+        let mut next = crate::render::test_rng::xorshift32(0x1234_5677);
+        let mut unit = || (next() % 2_000_001) as f32 / 1_000_000.0 - 1.0;
+        let mut clamped = 0;
+        for _ in 0..2_000 {
+            let positions = SamplePositions {
+                start: Vec3A::new(unit() * 40.0, unit() * 40.0, unit() * 40.0),
+                step: Vec3A::new(unit(), unit(), unit()) * 0.3,
+                last: Vec3A::new(31.0, 17.0, 40.0),
+            };
+            let k = (unit().abs() * 300.0) as u32;
+            let lanes = positions.at_lanes(k);
+            for (i, k) in (k..k + 4).enumerate() {
+                let scalar = positions.at(k);
+                for a in 0..3 {
+                    assert_eq!(lanes[a][i].to_bits(), scalar[a].to_bits(), "{k} {a}");
+                    clamped += usize::from(scalar[a] == 0.0 || scalar[a] == positions.last[a]);
+                }
+            }
+        }
+        assert!(clamped > 100, "the clamp was exercised {clamped} times");
+    }
 }

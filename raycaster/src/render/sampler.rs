@@ -10,20 +10,6 @@ use glam::{Vec3, Vec3A, Vec4};
 
 use crate::volume::{BlockGrid, BrickView, Layout, Sample, TypedVolume};
 
-/// How a brick's samples are addressed: what [`BrickSampler::value_local`] and
-/// [`BrickSampler::corner_differences`] compute their reads from.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct CellGeometry {
-    /// Distance in samples between neighbours along x, y, z.
-    pub strides: [usize; 3],
-    /// Stride to a cell's upper corner per axis (0 on a one-voxel axis).
-    pub corner_stride: [usize; 3],
-    /// Largest lower cell corner per axis.
-    pub max_cell: [u32; 3],
-    /// Voxels per axis.
-    pub extent: [u32; 3],
-}
-
 /// Trilinear interpolation in one brick, by local coordinates.
 #[derive(Clone, Copy, Debug)]
 pub struct BrickSampler<'a, T: Sample> {
@@ -61,24 +47,6 @@ impl<'a, T: Sample> BrickSampler<'a, T> {
     /// The brick's first voxel, in volume voxel coordinates.
     pub fn origin(&self) -> Vec3 {
         self.origin
-    }
-
-    /// The brick's samples in storage order (what [`Self::cell_geometry`]'s
-    /// strides address).
-    #[inline]
-    pub(crate) fn samples(&self) -> &'a [T] {
-        self.view.samples_from(0)
-    }
-
-    /// How the brick's cells are addressed (for kernels that gather themselves).
-    #[inline]
-    pub(crate) fn cell_geometry(&self) -> CellGeometry {
-        CellGeometry {
-            strides: self.view.strides(),
-            corner_stride: self.corner_stride,
-            max_cell: self.max_cell,
-            extent: self.view.extent(),
-        }
     }
 
     /// Whether volume position `p` can be interpolated from this brick alone.
@@ -220,8 +188,8 @@ pub(crate) type CornerDifferences = [Vec3A; 8];
 impl<V: Copy> Neighbourhood<V> {
     /// The central differences at the cell's corners per axis (`[x, y, z]`,
     /// each in [`Corners`] order), with `sub(a, b)` = a − b: the one definition
-    /// every kernel uses (so their gradients agree to the bit).
-    #[inline(always)]
+    /// the tests hold [`differences`] to.
+    #[cfg(test)]
     pub(crate) fn differences_by(&self, sub: impl Fn(V, V) -> V) -> [[V; 8]; 3] {
         let x = std::array::from_fn(|c| {
             let (x, y, z) = (c >> 2, (c >> 1) & 1, c & 1);
@@ -254,8 +222,7 @@ impl<V: Copy> Neighbourhood<V> {
 /// its upper, each in [`Corners`] order), one lane per `(y, z)`: each axis's
 /// differences are one subtraction of two such quads, each quad two z-pairs of
 /// the neighbourhood. The voxels are integers, so every difference is exact and
-/// equals `differences_by`'s (which the packet kernels use) whichever way it is
-/// computed.
+/// equals `differences_by`'s whichever way it is computed.
 #[inline(always)]
 pub(crate) fn differences(n: &Neighbourhood<f32>) -> CornerDifferences {
     // Lanes (y, z) = (0, 0), (0, 1), (1, 0), (1, 1) of the corners at x.

@@ -9,6 +9,7 @@
 use std::time::Instant;
 
 use super::camera::{Camera, PixelRect};
+use super::cell_cache::CellCache;
 use super::compositor::{Compositor, CompositorJob};
 use super::counters::Counters;
 use super::error::RenderError;
@@ -183,6 +184,7 @@ impl<T: Sample> CompositorJob for SequentialPass<'_, '_, '_, T> {
                         plan,
                         &sampler,
                         &brick,
+                        &CellCache::default(),
                         &ray,
                         k,
                         last,

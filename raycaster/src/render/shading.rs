@@ -1,9 +1,9 @@
 //! Blinn-Phong shading, applied where the gradient is strong enough to define a
 //! surface normal (the thesis's threshold).
 
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 
-use super::optics::{light_vectors, specular_power};
+use super::optics::{light_vectors, specular_power, specular_power_lanes};
 
 /// Where the light comes from.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -69,6 +69,42 @@ impl Shading {
         let specular = self.specular * specular_power(facing, self.shininess);
         let k = self.ambient + self.diffuse * diffuse;
         color.map(|c| (c * k + specular).min(1.0))
+    }
+
+    /// The unit vectors towards the light and halfway to the eye for a ray of
+    /// unit direction `view_dir`, once per ray for [`Self::shade_lanes`].
+    #[inline]
+    pub(crate) fn ray_lights(&self, view_dir: Vec3) -> (Vec3, Vec3) {
+        light_vectors(Some(self.light), view_dir)
+    }
+
+    /// [`Self::shade`] of four samples of one ray at once: lane `i` of `color`
+    /// and `gradient` (per channel, per axis) is one sample, `lights` the ray's
+    /// [`Self::ray_lights`]. Each lane takes `shade`'s operations, so has its
+    /// bits.
+    #[inline(always)]
+    pub(crate) fn shade_lanes(
+        &self,
+        color: [Vec4; 3],
+        [gx, gy, gz]: [Vec4; 3],
+        (to_light, half): (Vec3, Vec3),
+    ) -> [Vec4; 3] {
+        // `Vec3::length`: `(x·x + y·y) + z·z`, then the root.
+        let magnitude = (gx * gx + gy * gy + gz * gz).sqrt();
+        let lit = !magnitude.cmple(Vec4::splat(self.gradient_threshold));
+        let normal = [gx / magnitude, gy / magnitude, gz / magnitude];
+        let dot = |v: Vec3| {
+            let [nx, ny, nz] = normal;
+            (nx * Vec4::splat(v.x) + ny * Vec4::splat(v.y) + nz * Vec4::splat(v.z)).abs()
+        };
+        let diffuse = dot(to_light);
+        let facing = match self.light {
+            Light::Headlight => diffuse,
+            Light::Fixed(_) => dot(half),
+        };
+        let specular = Vec4::splat(self.specular) * specular_power_lanes(facing, self.shininess);
+        let k = Vec4::splat(self.ambient) + Vec4::splat(self.diffuse) * diffuse;
+        color.map(|c| Vec4::select(lit, (c * k + specular).min(Vec4::ONE), c))
     }
 }
 

@@ -515,19 +515,6 @@ impl TransferTable {
         ) as usize
     }
 
-    /// The entries, RGB and step-corrected opacity, that [`Self::index`] selects.
-    #[inline]
-    pub(crate) fn entries(&self) -> &[[f32; 4]] {
-        &self.entries
-    }
-
-    /// `(offset, scale, last)` of [`Self::index`]: the entry of raw value `v` is
-    /// `((v − offset)·scale + 0.5).max(0).min(last)`, truncated.
-    #[inline]
-    pub(crate) fn index_parameters(&self) -> (f32, f32, f32) {
-        (self.offset, self.scale, (TABLE_SIZE - 1) as f32)
-    }
-
     /// RGB and step-corrected opacity for raw value `v` (1D part only).
     #[inline]
     pub fn lookup(&self, v: f32) -> [f32; 4] {
