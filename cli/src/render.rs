@@ -236,12 +236,12 @@ pub struct RenderArgs {
     #[arg(long, conflicts_with_all = ["threads", "compositors", "tile", "simd"])]
     sequential: bool,
 
-    /// Marching kernel of the parallel renderer: `scalar` (one ray at a time: the
-    /// reference), or ray packets in SIMD lanes compiled for `sse4.1`, `avx2`,
-    /// `avx512` (x86-64) or `neon` (aarch64), which composite the same image.
-    /// `auto` is `scalar` for now: packets are not yet faster (docs/benchmarks.md).
-    /// Packets serve DVR with a 1D, not pre-integrated transfer function; other
-    /// frames use the scalar kernel.
+    /// Marching kernel of the parallel renderer: `scalar` (one sample at a time:
+    /// the reference), or four samples of a ray at a time in SIMD lanes, compiled
+    /// for `sse4.1`, `avx2`, `avx512` (x86-64) or `neon` (aarch64), which
+    /// composite the same image. `auto` is `scalar` for now: the SIMD kernel is
+    /// not yet faster (docs/benchmarks.md). It serves DVR with a 1D, not
+    /// pre-integrated transfer function; other frames use the scalar kernel.
     #[arg(long, default_value = "auto", value_parser = parse_simd, value_name = "LEVEL")]
     simd: SimdChoice,
 

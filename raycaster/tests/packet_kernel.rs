@@ -1,5 +1,5 @@
-//! The packet kernel (rays in SIMD lanes) against the scalar kernel it replaces,
-//! on every instruction set this machine runs: the same frames to the bit and the
+//! The SIMD kernel (the samples of a ray in SIMD lanes) against the scalar
+//! kernel, on every instruction set this machine runs: the same frames to the bit and the
 //! same counts, over scenes, sample types, layouts, shading, lights, early
 //! termination and empty-space skipping; and against the sequential renderer.
 

@@ -259,9 +259,12 @@ impl CellCache {
         p: Vec3,
         f: Option<Vec3A>,
     ) -> Vec3 {
-        // (No cell is cached when `f` is `None` for a fresh cache.)
-        match f.and_then(|f| Some((f, self.differences(volume, sampler)?))) {
-            Some((f, d)) => d.gradient(f),
+        // (A fresh cache has no cell, and then `f` is `None`.)
+        let Some(f) = f else {
+            return volume.gradient(sampler, p);
+        };
+        match self.differences(volume, sampler) {
+            Some(d) => d.gradient(f),
             None => volume.gradient(sampler, p),
         }
     }

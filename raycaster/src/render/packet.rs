@@ -5,7 +5,7 @@
 //! visit, one non-empty small cell: [`super::march::BrickVisit`] walks the runs
 //! as for the scalar loop). Its samples' positions and cells come in lanes; the
 //! samples that share a voxel cell (consecutive ones: a ray crosses a cell once)
-//! take their values from the cell's corners in lanes, through the ray's
+//! take their values from the cell's corners in lanes, through the task's
 //! [`CellCache`], which loads each cell's corners and corner differences once,
 //! as for the scalar loop. Classification reads the transfer table per sample;
 //! a visible sample's gradient comes from its cell's differences; Blinn-Phong
@@ -18,10 +18,12 @@
 //! the same bits as [`super::march::march_brick`] with [`super::local`]'s `Dvr` —
 //! which the tests check on every level this machine has.
 //!
-//! Rays in lanes (a packet of neighbouring rays, the first design) were measured
-//! slower than the scalar kernel: each lane's ray needs its own cell, run and
-//! brick bookkeeping, and gathering eight cells per step cost more than the
-//! lanes saved (docs/benchmarks.md, section 5).
+//! Rays in lanes (a packet of eight neighbouring rays, the first design) was
+//! 2.1–2.6× slower than this kernel and the scalar one: each lane's ray needs
+//! its own cell, run and brick bookkeeping, and gathering eight cells and
+//! neighbourhoods per step cost more than the lanes saved. This kernel is as
+//! fast as the scalar one, not faster: what both share per ray, brick visit and
+//! cell dominates (docs/benchmarks.md, section 5).
 
 use glam::{Mat4, Vec3, Vec3A, Vec4};
 
@@ -219,11 +221,10 @@ impl<T: Sample> DvrChunks<'_, '_, T> {
             brick,
             ray,
         } = self.visit;
-        if acc.alpha >= plan.ert_threshold {
-            // (A threshold of 0 or less: the scalar loop stops after a sample
-            // even when it is transparent.)
-            return Some(1);
-        }
+        // Opacity changes only at visible samples, so checking the threshold
+        // after those alone stops where the scalar loop's check after every
+        // sample does (a ray starts below the threshold, which is above 0).
+        debug_assert!(acc.alpha < plan.ert_threshold);
         let sampler = &brick.sampler;
         let table = self.dvr.table;
         // Positions, and where they lie in the brick's cells.
@@ -239,7 +240,6 @@ impl<T: Sample> DvrChunks<'_, '_, T> {
         let lane = |v: &[[f32; LANES]; 3], i: usize| Vec3A::new(v[0][i], v[1][i], v[2][i]);
         // Values: a cell's lanes from its corners (consecutive samples share
         // it), a sample outside the brick's cells (its upper face) on its own.
-        let mut value = [0.0; LANES];
         let mut rgba = [Vec4::ZERO; LANES];
         let mut visible = [false; LANES];
         let mut any_visible = false;
@@ -253,12 +253,14 @@ impl<T: Sample> DvrChunks<'_, '_, T> {
                 while to < n && lane(&lower_at, to).cmpeq(cell_lower).all() {
                     to += 1;
                 }
-                let corners = self.cell.corners_of(sampler, cell_lower);
-                let values = corners.trilinear_lanes(fraction).to_array();
-                value[i..to].copy_from_slice(&values[i..to]);
-            } else {
-                value[i] = sampler.value_local(lane(&local_at, i).into());
             }
+            // The group's values at their lanes (the others' are not used).
+            let value = if in_cell {
+                let corners = self.cell.corners_of(sampler, cell_lower);
+                corners.trilinear_lanes(fraction).to_array()
+            } else {
+                [sampler.value_local(lane(&local_at, i).into()); LANES]
+            };
             // Classification, and the gradients of the visible samples.
             let mut differences = None;
             for j in i..to {

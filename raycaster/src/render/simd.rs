@@ -1,8 +1,9 @@
-//! The instruction sets the packet kernel runs on, detected once per process.
+//! The instruction sets the SIMD kernel runs on, detected once per process.
 //!
-//! [`SimdLevel::Scalar`] is the reference: one ray at a time through the generic
-//! marching loop. Every other level marches packets of rays in SIMD lanes
-//! ([`super::packet`]) with the same arithmetic, compiled for that instruction set.
+//! [`SimdLevel::Scalar`] is the reference: one sample at a time through the
+//! generic marching loop. Every other level marches the samples of each ray a
+//! few at a time in SIMD lanes ([`super::packet`]) with the same arithmetic,
+//! compiled for that instruction set.
 
 use std::fmt;
 use std::sync::OnceLock;
@@ -10,15 +11,15 @@ use std::sync::OnceLock;
 /// How the marching kernel runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum SimdLevel {
-    /// One ray at a time, no packets: the reference kernel.
+    /// One sample at a time: the reference kernel.
     Scalar,
-    /// Packets compiled for SSE4.1 (x86-64).
+    /// The SIMD kernel compiled for SSE4.1 (x86-64).
     Sse41,
-    /// Packets compiled for AVX2 and FMA (x86-64).
+    /// The SIMD kernel compiled for AVX2 and FMA (x86-64).
     Avx2,
-    /// Packets compiled for AVX-512 (F, VL, BW; x86-64).
+    /// The SIMD kernel compiled for AVX-512 (F, VL, BW; x86-64).
     Avx512,
-    /// Packets compiled for NEON (aarch64).
+    /// The SIMD kernel compiled for NEON (aarch64).
     Neon,
 }
 
@@ -59,11 +60,11 @@ impl SimdLevel {
     }
 
     /// The level a frame uses unless told otherwise: [`SimdLevel::Scalar`] for
-    /// now. The packet kernel composites the same bits, but measured on this
-    /// project's 2-core VM it is not yet faster than the scalar kernel (about 4 %
-    /// fewer instructions per sample with AVX2, the same wall time within the
-    /// noise; docs/benchmarks.md, section 5): the per-ray and per-cell work both
-    /// kernels share dominates. Packet levels are chosen explicitly
+    /// now. The SIMD kernel composites the same bits, but measured on this
+    /// project's 2-core VM it is not yet faster than the scalar kernel (3 % fewer
+    /// instructions per sample with AVX2, 6 % more wall time, median of paired
+    /// runs; docs/benchmarks.md, section 5): the per-ray, per-cell and per-brick
+    /// work both kernels share dominates. SIMD levels are chosen explicitly
     /// ([`super::RenderSettings::simd`], `raycaster render --simd`).
     pub fn automatic() -> SimdLevel {
         SimdLevel::Scalar
