@@ -126,12 +126,18 @@ pub(crate) fn march_brick<T: Sample, C: Compositor>(
 
 /// One ray's visit of one brick: what the marching of its runs reads.
 pub(crate) struct BrickVisit<'v, 'b, T: Sample> {
+    /// The frame.
     pub plan: &'v FramePlan,
+    /// Reads anywhere in the volume (gradients across the brick's faces).
     pub volume: &'v VolumeSampler<'b, T>,
+    /// The brick.
     pub brick: &'v BrickContext<'b, T>,
+    /// The ray.
     pub ray: &'v PixelRay,
 }
 
+// By hand: a derive would ask `T: Clone` of the sample type, which holds only
+// references here.
 impl<T: Sample> Clone for BrickVisit<'_, '_, T> {
     fn clone(&self) -> Self {
         *self
