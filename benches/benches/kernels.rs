@@ -1,5 +1,5 @@
 //! The marching kernels side by side: one render thread, shaded DVR at step 0.2,
-//! the scalar reference and every packet level this machine runs (`--simd`).
+//! the scalar reference and every SIMD level this machine runs (`--simd`).
 //! Samples per second are the throughput; every kernel takes the same samples.
 
 use std::hint::black_box;
