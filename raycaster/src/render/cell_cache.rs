@@ -81,7 +81,7 @@ impl CornerLanes {
 /// the whole table per sample). The gradient has
 /// [`super::sampler::gradient_from_differences`]' bits.
 #[derive(Debug, Default)]
-pub(crate) struct DifferenceLanes {
+struct DifferenceLanes {
     starts: [Cell<Vec3A>; 4],
     spans: [Cell<Vec3A>; 4],
 }
@@ -97,7 +97,7 @@ impl DifferenceLanes {
 
     /// The gradient at fraction `f` of the cell.
     #[inline(always)]
-    pub(crate) fn gradient(&self, f: Vec3A) -> Vec3 {
+    fn gradient(&self, f: Vec3A) -> Vec3 {
         let z = |i: usize| self.starts[i].get() + self.spans[i].get() * f.z;
         let lerp = |a: Vec3A, b: Vec3A, t: f32| a + (b - a) * t;
         let (c00, c01, c10, c11) = (z(0), z(1), z(2), z(3));
@@ -252,7 +252,7 @@ impl CellCache {
     /// The gradient at `p`, which lies at fraction `f` of the cached cell, or
     /// outside it (`None`: the volume's own gradient).
     #[inline]
-    fn gradient_in_cell<T: Sample>(
+    pub(crate) fn gradient_in_cell<T: Sample>(
         &self,
         volume: &VolumeSampler<'_, T>,
         sampler: &BrickSampler<'_, T>,
@@ -274,7 +274,7 @@ impl CellCache {
     /// there take [`VolumeSampler::gradient`]'s one-sided path). Only after a
     /// cell was entered ([`Self::value`], [`Self::corners_of`]).
     #[inline]
-    pub fn differences<T: Sample>(
+    fn differences<T: Sample>(
         &self,
         volume: &VolumeSampler<'_, T>,
         sampler: &BrickSampler<'_, T>,

@@ -178,7 +178,7 @@ fn march_dvr_chunks<T: Sample>(dvr: &DvrLanes<'_>, work: &mut PacketWork<'_, '_,
                 visit,
                 cell: &cell,
                 positions: ray.positions(work.volume.last()),
-                lights: dvr.shading.map(|s| s.ray_lights(ray.view_dir)),
+                shade: dvr.shading.map(|s| (s, s.ray_lights(ray.view_dir))),
             },
         );
     }
@@ -191,8 +191,9 @@ struct DvrChunks<'v, 'b, T: Sample> {
     /// The last cell a ray of the task entered.
     cell: &'v CellCache,
     positions: SamplePositions,
-    /// The ray's light vectors ([`Shading::ray_lights`]), when shading.
-    lights: Option<(Vec3, Vec3)>,
+    /// Blinn-Phong and the ray's light vectors ([`Shading::ray_lights`]), when
+    /// shading.
+    shade: Option<(Shading, (Vec3, Vec3))>,
 }
 
 impl<T: Sample> RunMarcher<Accumulation> for DvrChunks<'_, '_, T> {
@@ -262,7 +263,6 @@ impl<T: Sample> DvrChunks<'_, '_, T> {
                 [sampler.value_local(lane(&local_at, i).into()); LANES]
             };
             // Classification, and the gradients of the visible samples.
-            let mut differences = None;
             for j in i..to {
                 rgba[j] = Vec4::from_array(table.lookup(value[j]));
                 visible[j] = rgba[j].w > 0.0;
@@ -270,19 +270,15 @@ impl<T: Sample> DvrChunks<'_, '_, T> {
                     continue;
                 }
                 any_visible = true;
-                if self.lights.is_none() {
+                if self.shade.is_none() {
                     continue;
                 }
-                let g = if in_cell {
-                    differences =
-                        differences.or_else(|| Some(self.cell.differences(volume, sampler)));
-                    differences
-                        .flatten()
-                        .map(|d| d.gradient(lane(&fraction_at, j)))
-                } else {
-                    None
-                };
-                let g = g.unwrap_or_else(|| volume.gradient(sampler, lane(&p_at, j).into()));
+                let g = self.cell.gradient_in_cell(
+                    volume,
+                    sampler,
+                    lane(&p_at, j).into(),
+                    in_cell.then(|| lane(&fraction_at, j)),
+                );
                 gradient[j] = (g * plan.gradient_scale).extend(0.0);
             }
             i = to;
@@ -291,13 +287,13 @@ impl<T: Sample> DvrChunks<'_, '_, T> {
             return None;
         }
         // Blinn-Phong in lanes, channels and axes transposed into lanes.
-        if let (Some(shading), Some(lights)) = (&self.dvr.shading, self.lights) {
+        if let Some((shading, lights)) = &self.shade {
             let colors = Mat4::from_cols(rgba[0], rgba[1], rgba[2], rgba[3]).transpose();
             let g = Mat4::from_cols(gradient[0], gradient[1], gradient[2], gradient[3]).transpose();
             let [r, gr, b] = shading.shade_lanes(
                 [colors.x_axis, colors.y_axis, colors.z_axis],
                 [g.x_axis, g.y_axis, g.z_axis],
-                lights,
+                *lights,
             );
             let shaded = Mat4::from_cols(r, gr, b, colors.w_axis).transpose();
             rgba = [shaded.x_axis, shaded.y_axis, shaded.z_axis, shaded.w_axis];
