@@ -3,7 +3,7 @@
 
 mod render_support;
 
-use raycaster::render::{Mode, RenderSettings, TransferFunction};
+use raycaster::render::{Mode, RenderSettings, RenderVolume, TransferFunction};
 use raycaster::synth::SceneKind;
 use raycaster::volume::{Access, Layout, SampleType};
 use render_support::*;
@@ -72,6 +72,24 @@ fn empty_space_skipping_stays_exact_with_preintegration() {
                 },
             );
             assert_ne!(plain.to_image(), a.to_image(), "{name}");
+        }
+        // The limit the library reports (what the viewer's moving frames stay
+        // below): brick 5 steps 4 voxels, one cell of 4; at that step skipping
+        // is off, just below it on.
+        let prepared = RenderVolume::new(&volume, Some(5)).unwrap();
+        let limit = prepared.preintegrated_skipping_below();
+        assert_eq!(limit, 4.0);
+        for (step, skips) in [(limit - 0.01, true), (limit, false)] {
+            let with = RenderSettings {
+                step,
+                preintegrated: true,
+                ..settings(kind, Some(0.99), true)
+            };
+            let skipped = render_bricked(&volume, Some(5), &camera, &with)
+                .stats
+                .counters
+                .samples_skipped_empty;
+            assert_eq!(skipped > 0, skips, "{} at step {step}", kind.name());
         }
     }
 }

@@ -115,9 +115,13 @@ struct State {
     scene: Option<SegmentScene>,
     /// The newest request: id and whether it was an interactive (coarse) frame.
     latest: Option<(u64, bool)>,
+    /// How the newest request samples its rays.
+    latest_sampling: Sampling,
     /// Frame id and tiles of the image on screen.
     shown: (u64, u64),
     last_stats: Option<(FrameStats, bool)>,
+    /// How the frame of `last_stats` sampled its rays.
+    last_sampling: Sampling,
     /// The id of the newest request that ended (done or failed).
     ended: Option<u64>,
     /// The camera moved while a moving frame was in flight: the newest view is
@@ -235,6 +239,8 @@ impl Viewer {
                 editor,
                 scene: None,
                 latest: None,
+                latest_sampling: Sampling::default(),
+                last_sampling: Sampling::default(),
                 shown: (0, 0),
                 last_stats: None,
                 ended: None,
@@ -1267,6 +1273,8 @@ impl Controller {
         ui.set_ert(settings.early_termination.is_some());
         ui.set_ess(settings.empty_space_skipping);
         ui.set_shading(settings.shading.is_some());
+        ui.set_preintegrate(settings.preintegrated);
+        ui.set_jitter(settings.jitter);
         let preset = PRESETS.iter().position(|(name, _)| {
             TransferFunction::preset(name).is_ok_and(|p| p.points() == settings.transfer.points())
         });
@@ -1297,6 +1305,8 @@ impl Controller {
                 .then_some(fixed.early_termination.unwrap_or(DEFAULT_ERT_THRESHOLD)),
             empty_space_skipping: ui.get_ess(),
             shading: ui.get_shading().then(|| fixed.shading.unwrap_or_default()),
+            preintegrated: ui.get_preintegrate(),
+            jitter: ui.get_jitter(),
             transfer: st.editor.transfer(),
             segments: st.scene.clone(),
             clip: Self::clip(ui, st),
@@ -1411,7 +1421,27 @@ impl Controller {
         } else {
             quality.step
         };
-        let settings = Self::view_settings(&ui, &st, step);
+        let Some(skipping_below) = st
+            .current
+            .as_ref()
+            .map(|c| c.front.preintegrated_skipping_below())
+        else {
+            return;
+        };
+        let mut settings = Self::view_settings(&ui, &st, step);
+        // Moving frames at coarse steps pre-integrate (no rings or stripes)
+        // where it changes the picture (DVR and two-level scenes) and keeps
+        // empty-space skipping (else it would cost several times the frame).
+        if quality.preintegrated
+            && (settings.mode == Mode::Dvr || settings.segments.is_some())
+            && settings.step < skipping_below
+        {
+            settings.preintegrated = true;
+        }
+        st.latest_sampling = Sampling {
+            step: settings.step,
+            preintegrated: settings.preintegrated,
+        };
         let options = ParallelOptions {
             render_threads: ui.get_threads().max(1) as usize,
             tile_size: TILE_SIZES
@@ -1493,6 +1523,7 @@ impl Controller {
                         }
                         if latest.is_some_and(|(l, _)| l == id) {
                             st.last_stats = Some((stats, moving));
+                            st.last_sampling = st.latest_sampling;
                             st.ended = Some(id);
                             st.first_frame = false;
                         }
@@ -1510,12 +1541,12 @@ impl Controller {
         if let Some(e) = failures.last() {
             self.show_message(&format!("cannot render: {e}"), true);
         }
-        let status = self
-            .state
-            .borrow()
-            .last_stats
-            .as_ref()
-            .map(|(s, m)| status_line(s, *m, raycaster::io::process_bytes_read()));
+        let status = {
+            let st = self.state.borrow();
+            st.last_stats.as_ref().map(|(s, m)| {
+                status_line(s, *m, st.last_sampling, raycaster::io::process_bytes_read())
+            })
+        };
         if let (Some(ui), Some(status)) = (self.ui(), status) {
             ui.set_status(status.into());
         }
@@ -1792,13 +1823,27 @@ fn from_ui_row(r: &ObjectRow) -> ObjectRowData {
     }
 }
 
+/// How a frame samples its rays: what the status line says of it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Sampling {
+    /// The step, in voxels of the level sampled.
+    pub step: f32,
+    /// Whether the transfer function was pre-integrated.
+    pub preintegrated: bool,
+}
+
 /// The status line of a finished frame.
-pub fn status_line(s: &FrameStats, interactive: bool, bytes_read: u64) -> String {
+pub fn status_line(
+    s: &FrameStats,
+    interactive: bool,
+    sampling: Sampling,
+    bytes_read: u64,
+) -> String {
     let c = &s.counters;
     let ms = s.time.as_secs_f64() * 1e3;
     let rays = c.rays.max(1) as f64;
     format!(
-        "{}{}×{} in {ms:.0} ms · {} · {:.1} MB read from disk · {:.1} M samples/s · {:.2} M samples ({:.1}/ray) · \
+        "{}{}×{} in {ms:.0} ms · {} · step {}{} · {:.1} MB read from disk · {:.1} M samples/s · {:.2} M samples ({:.1}/ray) · \
          {:.0} % skipped empty · {:.0} % rays ended early · {} tasks ({} occluded) · {} bricks \
          ({} transparent) · {} threads",
         if interactive { "interactive " } else { "" },
@@ -1808,6 +1853,15 @@ pub fn status_line(s: &FrameStats, interactive: bool, bytes_read: u64) -> String
             format!("levels {}–{} by depth", s.level, s.coarsest_level)
         } else {
             format!("level {}", s.level)
+        },
+        // Steps are rungs of 2^(1/4): two decimals tell them apart.
+        format!("{:.2}", sampling.step)
+            .trim_end_matches('0')
+            .trim_end_matches('.'),
+        if sampling.preintegrated {
+            " pre-integrated"
+        } else {
+            ""
         },
         bytes_read as f64 / 1e6,
         s.samples_per_second() / 1e6,

@@ -15,6 +15,14 @@ const START_LEVEL_BIAS: u32 = 1;
 /// with the pacing at still quality, the next finer (a level halves the samples,
 /// so the hysteresis keeps the choice from swinging back).
 const LEVEL_STEP_RATIO: f32 = 1.5;
+/// Moving frames coarsen their step in rungs of this many per doubling: the
+/// pre-integration table depends on the step, and a step that followed the
+/// pacing continuously would rebuild it for nearly every moving frame (the
+/// library caches a few tables: with rungs the pacing settles on one or two).
+const STEP_RUNGS_PER_DOUBLING: f32 = 4.0;
+/// Moving frames coarser than the still step pre-integrate from this step (in
+/// voxels) on: below it, rings and stripes are too fine to see.
+const PREINTEGRATE_FROM_STEP: f32 = 1.0;
 
 /// The step presets of the settings panel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -45,6 +53,10 @@ pub struct FrameQuality {
     pub resolution: f32,
     /// Sampling step in voxels.
     pub step: f32,
+    /// Pre-integrate the transfer function whatever the settings panel says:
+    /// moving frames at coarse steps, so that they show no rings or stripes
+    /// (the panel's "Pre-integration" decides for still frames).
+    pub preintegrated: bool,
 }
 
 /// Chooses the quality of still and moving frames, and paces moving frames:
@@ -87,6 +99,7 @@ impl QualityPolicy {
         FrameQuality {
             resolution: 1.0,
             step,
+            preintegrated: false,
         }
     }
 
@@ -95,9 +108,14 @@ impl QualityPolicy {
         if self.full_quality_only {
             return self.still();
         }
+        let still = self.still().step;
+        // 2·P times the still step, rounded to a rung (P = 0.5: the still step).
+        let rungs = ((2.0 * self.pacing).log2() * STEP_RUNGS_PER_DOUBLING).round();
+        let step = still * (rungs / STEP_RUNGS_PER_DOUBLING).exp2();
         FrameQuality {
             resolution: 0.5 / self.pacing,
-            step: 2.0 * self.still().step * self.pacing,
+            step,
+            preintegrated: step > still && step >= PREINTEGRATE_FROM_STEP,
         }
     }
 
@@ -227,10 +245,58 @@ mod tests {
     }
 
     #[test]
+    fn moving_steps_take_rungs_and_pre_integrate_when_coarse() {
+        for preset in [StepPreset::Fine, StepPreset::Coarse, StepPreset::Adaptive] {
+            let mut q = QualityPolicy {
+                preset,
+                ..QualityPolicy::default()
+            };
+            let still = q.still().step;
+            let mut steps = Vec::new();
+            // Frames slower and slower, then faster and faster: the pacing
+            // factor sweeps its range.
+            for ms in (1..=40).chain((1..=40).rev()) {
+                q.moving_frame_took(Duration::from_millis(ms * 10), false);
+                let moving = q.moving();
+                let rungs = (moving.step / still).log2() * STEP_RUNGS_PER_DOUBLING;
+                assert!(
+                    (rungs - rungs.round()).abs() < 1e-3,
+                    "{preset:?}: step {} is not a rung above {still}",
+                    moving.step
+                );
+                assert!(moving.step >= still && moving.step <= 8.0 * still);
+                assert_eq!(
+                    moving.preintegrated,
+                    moving.step > still && moving.step >= 1.0,
+                    "{preset:?} at step {}",
+                    moving.step
+                );
+                steps.push(moving.step.to_bits());
+            }
+            steps.sort_unstable();
+            steps.dedup();
+            assert!(
+                steps.len() >= 4 && steps.len() <= 13,
+                "{preset:?}: {} distinct steps",
+                steps.len()
+            );
+            assert!(
+                !q.still().preintegrated,
+                "the panel decides for still frames"
+            );
+        }
+        // The fine preset's first moving frame (twice its half-voxel step) is at
+        // one voxel: pre-integrated.
+        let q = QualityPolicy::default();
+        assert_eq!((q.moving().step, q.moving().preintegrated), (1.0, true));
+    }
+
+    #[test]
     fn frame_sizes_scale_and_never_vanish() {
         let half = FrameQuality {
             resolution: 0.5,
             step: 1.0,
+            preintegrated: false,
         };
         assert_eq!(QualityPolicy::frame_size(half, 801, 600), (401, 300));
         assert_eq!(QualityPolicy::frame_size(half, 1, 1), (1, 1));

@@ -114,6 +114,22 @@ fn the_viewer_runs_headless() {
     let (iw, ih, _) = frame(&v);
     let (stats, moving) = v.last_stats().unwrap();
     assert!(moving, "the wheel frame is interactive");
+    // Its step is coarser than the still frames' half voxel (unless this
+    // machine is fast enough for still quality), pre-integrated from 1 voxel
+    // (up to the smallest cell, 3 voxels here, where skipping would stop).
+    let status = v.ui().get_status().to_string();
+    let step: f32 = status
+        .split(" · step ")
+        .nth(1)
+        .and_then(|rest| rest.split([' ', '·']).next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("no step in {status:?}"));
+    assert!((0.5..=4.0).contains(&step), "{status}");
+    assert_eq!(
+        status.contains("pre-integrated"),
+        (1.0..3.0).contains(&step),
+        "{status}"
+    );
     assert!(iw < w && ih < h, "interactive frame {iw}×{ih} vs {w}×{h}");
     assert_eq!((stats.width, stats.height), (iw, ih));
     i_slint_backend_testing::mock_elapsed_time(Duration::from_millis(300));
@@ -147,6 +163,24 @@ fn the_viewer_runs_headless() {
     wait_for_frame(&v);
     assert_eq!(v.last_stats().map(|(_, m)| m), Some(false));
     assert_eq!(frame(&v).0, w);
+
+    // "Pre-integration" in the panel: still frames too.
+    assert!(!v.ui().get_status().contains("pre-integrated"));
+    let before_preintegration = frame(&v).2;
+    v.ui().set_preintegrate(true);
+    v.ui().invoke_settings_changed();
+    wait_for_frame(&v);
+    i_slint_backend_testing::mock_elapsed_time(Duration::from_millis(300));
+    slint::platform::update_timers_and_animations();
+    wait_for_frame(&v);
+    let status = v.ui().get_status().to_string();
+    assert!(
+        !status.starts_with("interactive") && status.contains("step 0.5 pre-integrated"),
+        "{status}"
+    );
+    assert_ne!(frame(&v).2, before_preintegration, "pre-integration shows");
+    v.ui().set_preintegrate(false);
+    v.ui().invoke_settings_changed();
 
     // "Full quality only": moving frames are full size too.
     v.ui().set_full_quality_only(true);

@@ -253,11 +253,24 @@ fn sessions_save_render_and_restore_the_picture() {
     row.visible = false;
     v.ui().invoke_object_changed(0, row);
     settle(&v);
+    let (_, _, edited) = frame(&v);
+    assert!(edited != shown, "the scene renders differently");
+    // With pre-integration and ray-start jitter from the settings panel.
+    v.ui().set_preintegrate(true);
+    v.ui().set_jitter(true);
+    v.ui().invoke_settings_changed();
+    settle(&v);
+    assert!(
+        v.ui().get_status().contains("pre-integrated"),
+        "{}",
+        v.ui().get_status()
+    );
     let (_, _, with_scene) = frame(&v);
-    assert!(with_scene != shown, "the scene renders differently");
+    assert!(with_scene != edited, "jitter and pre-integration show");
     let scene_path = dir.path().join("scene-view.toml");
     save_session(&v, &scene_path);
     let session = Session::load(&scene_path).unwrap();
+    assert!(session.settings.preintegrated && session.settings.jitter);
     let scene = session
         .settings
         .segments
@@ -269,5 +282,6 @@ fn sessions_save_render_and_restore_the_picture() {
     let v = viewer(Source::Session(scene_path));
     assert_eq!(v.ui().get_objects().row_count(), 2);
     assert!(!v.ui().get_objects().row_data(0).unwrap().visible);
+    assert!(v.ui().get_preintegrate() && v.ui().get_jitter());
     assert!(frame(&v).2 == with_scene, "the scene's picture is restored");
 }

@@ -135,6 +135,8 @@ pub struct RenderFront {
     events: Receiver<FrameEvent>,
     framebuffer: Arc<Mutex<FrameBuffer>>,
     thread: Option<JoinHandle<()>>,
+    /// The smallest of the levels' [`RenderVolume::preintegrated_skipping_below`].
+    preintegrated_skipping_below: f32,
 }
 
 impl RenderFront {
@@ -188,7 +190,11 @@ impl RenderFront {
                     .collect();
                 match prepared {
                     Ok(levels) => {
-                        let _ = ready_tx.send(Ok(()));
+                        let limit = levels
+                            .iter()
+                            .map(RenderVolume::preintegrated_skipping_below)
+                            .fold(f32::INFINITY, f32::min);
+                        let _ = ready_tx.send(Ok(limit));
                         worker.serve(&volume, &levels, &command_rx);
                     }
                     Err(e) => {
@@ -198,12 +204,13 @@ impl RenderFront {
             })
             .expect("spawning the renderer thread");
         match ready_rx.recv() {
-            Ok(Ok(())) => Ok(RenderFront {
+            Ok(Ok(limit)) => Ok(RenderFront {
                 commands: command_tx,
                 latest,
                 events: event_rx,
                 framebuffer,
                 thread: Some(thread),
+                preintegrated_skipping_below: limit,
             }),
             Ok(Err(e)) => {
                 let _ = thread.join();
@@ -211,6 +218,15 @@ impl RenderFront {
             }
             Err(_) => panic!("the renderer thread died while preparing the volume"),
         }
+    }
+
+    /// The step (in voxels of any level) below which pre-integrated frames keep
+    /// empty-space skipping: the smallest
+    /// [`RenderVolume::preintegrated_skipping_below`] of the prepared levels.
+    /// Coarser pre-integrated frames render without it, which can make them
+    /// several times slower than plain ones.
+    pub fn preintegrated_skipping_below(&self) -> f32 {
+        self.preintegrated_skipping_below
     }
 
     /// Requests a frame; returns its id at once. Any frame in progress is cancelled.

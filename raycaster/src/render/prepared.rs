@@ -158,6 +158,15 @@ impl<'a> RenderVolume<'a> {
         &self.cells
     }
 
+    /// The step (voxels) below which pre-integrated frames of this volume keep
+    /// empty-space skipping: the smallest extent of a small cell of its bricks.
+    /// From this step on, two consecutive samples can lie in cells that do not
+    /// touch, skipping them could drop a visible segment, and the frame plan
+    /// turns skipping off (see [`Dvr::range_empty`](super::local::Dvr)).
+    pub fn preintegrated_skipping_below(&self) -> f32 {
+        min_cell_extent(self)
+    }
+
     /// The small cells' ranges of brick `b`, computed from `data` (this volume's
     /// samples) on the first visit.
     pub fn cells_of<T: Sample>(&self, data: &TypedVolume<'_, T>, b: [u32; 3]) -> BrickCells {
