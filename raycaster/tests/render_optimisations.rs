@@ -38,43 +38,57 @@ fn empty_space_skipping_stays_exact_with_preintegration() {
     for kind in SCENES {
         let volume = scene_volume(kind, 40);
         let camera = default_camera(&volume, 48);
-        // Brick 5 has cells of 3 and 2 voxels: step 1.5 is still below both.
+        // Steps below and above the cells (4 voxels, the last of a brick of
+        // step 15 3, of step 8 4): the run walker checks the cells between
+        // samples; below the brick step in every case.
         for (step, brick, jitter) in [
             (0.5, Some(5), false),
             (1.0, None, true),
             (1.5, Some(5), true),
             (1.0, Some(8), false),
+            (3.5, None, true),
+            (6.0, None, false),
+            (9.5, None, false),
+            (5.0, Some(9), true),
         ] {
-            let with = RenderSettings {
-                step,
-                preintegrated: true,
-                jitter,
-                ..settings(kind, Some(0.99), true)
-            };
-            let without = RenderSettings {
-                empty_space_skipping: false,
-                ..with.clone()
-            };
-            let a = render_bricked(&volume, brick, &camera, &with);
-            let b = render_bricked(&volume, brick, &camera, &without);
-            let name = format!("ess-pre-{}-{step}-{brick:?}-jitter{jitter}", kind.name());
-            assert_images_match(&name, &a.to_image(), &b.to_image(), 1);
-            let (sa, sb) = (a.stats.counters.samples, b.stats.counters.samples);
-            assert!(sa < sb, "{name}: skipping must skip ({sa} vs {sb})");
-            // Not vacuous: pre-integration changes the picture.
-            let plain = render_bricked(
-                &volume,
-                brick,
-                &camera,
-                &RenderSettings {
-                    preintegrated: false,
+            // Without ERT the same bits. With it, a marched sample that also
+            // composites the skipped sample's segment stops after both, where
+            // the unskipped ray may stop between them: within ERT's residual.
+            for (ert, tolerance) in [(None, 0), (Some(0.99), 3)] {
+                let with = RenderSettings {
+                    step,
+                    preintegrated: true,
+                    jitter,
+                    ..settings(kind, ert, true)
+                };
+                let without = RenderSettings {
+                    empty_space_skipping: false,
                     ..with.clone()
-                },
-            );
-            assert_ne!(plain.to_image(), a.to_image(), "{name}");
+                };
+                let a = render_bricked(&volume, brick, &camera, &with);
+                let b = render_bricked(&volume, brick, &camera, &without);
+                let name = format!(
+                    "ess-pre-{}-{step}-{brick:?}-jitter{jitter}-ert{ert:?}",
+                    kind.name()
+                );
+                assert_images_match(&name, &a.to_image(), &b.to_image(), tolerance);
+                let (sa, sb) = (a.stats.counters.samples, b.stats.counters.samples);
+                assert!(sa < sb, "{name}: skipping must skip ({sa} vs {sb})");
+                // Not vacuous: pre-integration changes the picture.
+                let plain = render_bricked(
+                    &volume,
+                    brick,
+                    &camera,
+                    &RenderSettings {
+                        preintegrated: false,
+                        ..with.clone()
+                    },
+                );
+                assert_ne!(plain.to_image(), a.to_image(), "{name}");
+            }
         }
         // The limit the library reports (what the viewer's moving frames stay
-        // below): brick 5 steps 4 voxels, one cell of 4; at that step skipping
+        // below): the brick step, 4 voxels for brick 5; at that step skipping
         // is off, just below it on.
         let prepared = RenderVolume::new(&volume, Some(5)).unwrap();
         let limit = prepared.preintegrated_skipping_below();
@@ -91,6 +105,58 @@ fn empty_space_skipping_stays_exact_with_preintegration() {
                 .samples_skipped_empty;
             assert_eq!(skipped > 0, skips, "{} at step {step}", kind.name());
         }
+    }
+}
+
+#[test]
+fn preintegrated_skipping_sees_surfaces_between_coarse_samples() {
+    // Solid balls (255) in an empty (0) background, with a transfer function
+    // that shows only the values in between: a surface less than a voxel thick
+    // that a coarse step jumps, with samples on both sides in empty cells.
+    // Only the pre-integrated segment between them shows it, so skipping must
+    // march one of them (the cells crossed between samples).
+    let centres = [
+        (14.0, 16.0, 20.0, 9.0),
+        (32.0, 30.0, 26.0, 11.0),
+        (30.0, 12.0, 34.0, 7.0),
+    ];
+    let volume = volume_u8([48, 44, 46], [1.0; 3], |x, y, z| {
+        let inside = centres.iter().any(|&(cx, cy, cz, r)| {
+            let d = |a: u32, c: f32| a as f32 - c;
+            d(x, cx).powi(2) + d(y, cy).powi(2) + d(z, cz).powi(2) < r * r
+        });
+        if inside { 255 } else { 0 }
+    });
+    let tf = white_tf(&[
+        (0.0, 0.0),
+        (0.35, 0.0),
+        (0.45, 0.9),
+        (0.55, 0.9),
+        (0.65, 0.0),
+        (1.0, 0.0),
+    ]);
+    let camera = default_camera(&volume, 64);
+    for (step, brick) in [(5.0, None), (6.5, Some(9)), (9.0, None), (3.0, Some(5))] {
+        let with = RenderSettings {
+            step,
+            preintegrated: true,
+            early_termination: None,
+            empty_space_skipping: true,
+            transfer: tf.clone(),
+            ..RenderSettings::default()
+        };
+        let without = RenderSettings {
+            empty_space_skipping: false,
+            ..with.clone()
+        };
+        let a = render_bricked(&volume, brick, &camera, &with);
+        let b = render_bricked(&volume, brick, &camera, &without);
+        let name = format!("ess-pre-surfaces-{step}-{brick:?}");
+        assert_images_match(&name, &a.to_image(), &b.to_image(), 0);
+        let (sa, sb) = (a.stats.counters.samples, b.stats.counters.samples);
+        assert!(sa < sb / 2, "{name}: skipping must skip ({sa} vs {sb})");
+        let lit = b.to_image().data().chunks(3).filter(|p| p[0] > 20).count();
+        assert!(lit > 200, "{name}: the surfaces show ({lit} pixels)");
     }
 }
 

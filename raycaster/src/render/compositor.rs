@@ -41,6 +41,17 @@ pub(crate) trait Compositor: Sync {
     /// skippable cell only then).
     const STATE_SKIPS: bool = false;
 
+    /// Whether each sample stands for the segment to the next one (pre-integrated
+    /// transfer functions). Skipping two consecutive samples then drops the
+    /// segment between them, which is empty only when every cell the ray crosses
+    /// between them is: the run walker marches a run it would skip when a
+    /// non-empty cell lies between it and the sample before or after
+    /// ([`super::runs::SampleRuns`]).
+    #[inline]
+    fn composites_segments(&self) -> bool {
+        false
+    }
+
     /// Whether no sample of at most raw value `hi` can change `state` (the
     /// state-dependent part of empty-space skipping, e.g. MIP's running maximum).
     #[inline]

@@ -258,11 +258,13 @@ impl Compositor for Dvr {
     /// Skipping sample `k` (it lies in an empty cell or a transparent brick, so
     /// its value is in a transparent range) drops that segment, which can be
     /// visible only when sample `k + 1` is marched:
-    /// - if sample `k + 1` is skipped too, both lie in empty cells that touch
-    ///   (consecutive samples are less than a cell apart: the plan turns skipping
-    ///   off for steps of a smallest cell's extent or more), and touching cells
-    ///   share voxels, so their transparent value ranges overlap and their union
-    ///   is one transparent interval holding the whole linear segment;
+    /// - if sample `k + 1` is skipped too, every cell the ray crosses between
+    ///   them is empty: the run walker marches a run it would skip otherwise
+    ///   ([`Compositor::composites_segments`]; within one brick visit, and a
+    ///   brick is never crossed between two samples: the plan turns skipping off
+    ///   for steps of a brick or more). The field is continuous along the ray, so
+    ///   every value between the two samples' lies in one of those cells'
+    ///   transparent ranges, and the whole linear segment is transparent;
     /// - if sample `k + 1` is marched, it sees that the sample before it was not
     ///   (the state's `next_index`) and composites the dropped segment first,
     ///   from [`SamplePoint::value_before`] to its own value, shaded at the same
@@ -274,6 +276,10 @@ impl Compositor for Dvr {
     #[inline]
     fn range_empty(&self, lo: u16, hi: u16) -> bool {
         self.table.is_transparent(lo, hi)
+    }
+    #[inline]
+    fn composites_segments(&self) -> bool {
+        self.table.preintegrated().is_some()
     }
     // Always inlined into the marching loop (a transparent sample costs a
     // table read); pre-integration is a call.
@@ -800,6 +806,9 @@ impl Compositor for LocalCompositor {
     }
     fn range_empty(&self, lo: u16, hi: u16) -> bool {
         with_local!(self, c => c.range_empty(lo, hi))
+    }
+    fn composites_segments(&self) -> bool {
+        with_local!(self, c => c.composites_segments())
     }
     #[inline]
     fn sample<T: Sample>(&self, st: &mut Accumulation, s: &SamplePoint<'_, T>) {

@@ -12,6 +12,7 @@ use glam::Vec3;
 use super::cell_cache::CellCache;
 use super::compositor::{Compositor, SamplePoint, SampleSite};
 use super::counters::Counters;
+use super::ownership::owned_box;
 use super::pixel::{PixelRay, PixelState, SamplePositions};
 use super::prepared::{FramePlan, RenderVolume};
 use super::runs::{CellGrid, SampleRuns};
@@ -56,6 +57,8 @@ impl<'a, T: Sample> BrickContext<'a, T> {
                     cell_step,
                     inv_cell_step: 1.0 / cell_step,
                     origin: sampler.origin(),
+                    owned: owned_box(volume.geometry(), b),
+                    min_extent: volume.min_cell_extent(),
                 }
             });
         BrickContext {

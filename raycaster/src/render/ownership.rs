@@ -10,6 +10,8 @@
 //! result is exactly the set of samples the owner function assigns to the brick —
 //! the sequential and parallel renderers can rely on it to agree.
 
+use glam::Vec3;
+
 use super::geometry::VolumeGeometry;
 use super::pixel::PixelRay;
 use super::runs::ceil;
@@ -85,32 +87,43 @@ fn sample_slab(ray: &PixelRay, geometry: &VolumeGeometry, b: [u32; 3], margin: f
     // Plain comparisons: no NaN can arise (a zero step is skipped).
     let min = |a: f32, b: f32| if a < b { a } else { b };
     let max = |a: f32, b: f32| if a > b { a } else { b };
-    let counts = geometry.grid().counts();
-    let side = geometry.brick_step();
     let (mut enter, mut exit) = (0.0f32, ray.samples as f32);
     let (inv_step, start) = (ray.inv_step.to_array(), ray.start.to_array());
+    let [lower, upper] = owned_box(geometry, b).map(|v| v.to_array());
     for a in 0..3 {
         let inv = inv_step[a];
         if inv == 0.0 {
             continue;
         }
-        // The first brick of an axis owns everything below it, the last
-        // everything above (positions are clamped into the volume).
-        let lower = if b[a] == 0 {
-            f32::NEG_INFINITY
-        } else {
-            b[a] as f32 * side - margin
-        };
-        let upper = if b[a] + 1 >= counts[a] {
-            f32::INFINITY
-        } else {
-            (b[a] + 1) as f32 * side + margin
-        };
+        let (lower, upper) = (lower[a] - margin, upper[a] + margin);
         let (t0, t1) = ((lower - start[a]) * inv, (upper - start[a]) * inv);
         enter = max(enter, min(t0, t1));
         exit = min(exit, max(t0, t1));
     }
     (enter, exit)
+}
+
+/// The box of positions brick `b` owns: lower and upper corner. The first brick
+/// of an axis owns everything below it, the last everything above (positions
+/// are clamped into the volume), so those faces are infinite.
+pub(crate) fn owned_box(geometry: &VolumeGeometry, b: [u32; 3]) -> [Vec3; 2] {
+    let counts = geometry.grid().counts();
+    let side = geometry.brick_step();
+    let lower = std::array::from_fn(|a| {
+        if b[a] == 0 {
+            f32::NEG_INFINITY
+        } else {
+            b[a] as f32 * side
+        }
+    });
+    let upper = std::array::from_fn(|a| {
+        if b[a] + 1 >= counts[a] {
+            f32::INFINITY
+        } else {
+            (b[a] + 1) as f32 * side
+        }
+    });
+    [Vec3::from_array(lower), Vec3::from_array(upper)]
 }
 
 /// The owned interval axis by axis, each end found exactly with the owner

@@ -159,12 +159,26 @@ impl<'a> RenderVolume<'a> {
     }
 
     /// The step (voxels) below which pre-integrated frames of this volume keep
-    /// empty-space skipping: the smallest extent of a small cell of its bricks.
-    /// From this step on, two consecutive samples can lie in cells that do not
-    /// touch, skipping them could drop a visible segment, and the frame plan
-    /// turns skipping off (see [`Dvr::range_empty`](super::local::Dvr)).
+    /// empty-space skipping: its bricks' step. From this step on, a ray can
+    /// cross a brick between two samples without a sample in it, which no visit
+    /// of that brick sees, and the frame plan turns skipping off (see
+    /// [`Dvr::range_empty`](super::local::Dvr)); below it the run walker checks
+    /// the cells between samples ([`super::runs::SampleRuns`]).
     pub fn preintegrated_skipping_below(&self) -> f32 {
-        min_cell_extent(self)
+        self.geometry.brick_step()
+    }
+
+    /// The smallest extent, in voxels, of a small cell of the bricks along an
+    /// axis (a brick's last cell may be shorter than the others).
+    pub(crate) fn min_cell_extent(&self) -> f32 {
+        let brick = self.geometry.grid().step();
+        let last = brick.saturating_sub((self.cells.per_axis() - 1) * self.cells.cell_step());
+        let extent = if last == 0 {
+            self.cells.cell_step()
+        } else {
+            last.min(self.cells.cell_step())
+        };
+        extent as f32
     }
 
     /// The small cells' ranges of brick `b`, computed from `data` (this volume's
@@ -204,22 +218,6 @@ pub(crate) struct FramePlan {
     pub clip: ClipRegion,
     /// The depths this level samples in a frame of several levels; `None`: all.
     pub band: Option<DepthBand>,
-}
-
-/// The smallest extent, in voxels, of a small cell of `volume`'s bricks along an
-/// axis (a brick's last cell may be shorter than the others). Pre-integrated
-/// empty-space skipping is exact only for steps below it (see
-/// [`Dvr::range_empty`](super::local::Dvr)); larger steps render without skipping.
-fn min_cell_extent(volume: &RenderVolume<'_>) -> f32 {
-    let brick = volume.geometry().grid().step();
-    let cells = volume.cells();
-    let last = brick.saturating_sub((cells.per_axis() - 1) * cells.cell_step());
-    let extent = if last == 0 {
-        cells.cell_step()
-    } else {
-        last.min(cells.cell_step())
-    };
-    extent as f32
 }
 
 impl FramePlan {
@@ -288,7 +286,8 @@ impl FramePlan {
             compositor,
             ert_threshold: settings.early_termination.unwrap_or(f32::INFINITY),
             empty_space_skipping: settings.empty_space_skipping
-                && !(settings.preintegrated && settings.step >= min_cell_extent(volume)),
+                && !(settings.preintegrated
+                    && settings.step >= volume.preintegrated_skipping_below()),
             dt: settings.step * geometry.min_spacing(),
             jitter: settings.jitter,
             gradient_scale: Vec3::splat(geometry.min_spacing() / (d1 - d0)) / geometry.spacing(),

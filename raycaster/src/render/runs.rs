@@ -49,6 +49,13 @@ pub(crate) struct CellGrid {
     pub inv_cell_step: f32,
     /// The brick's first voxel (volume voxel coordinates).
     pub origin: Vec3,
+    /// The box of positions the brick owns ([`super::geometry::VolumeGeometry::owner`]):
+    /// lower and upper corner, infinite on the volume's outer faces.
+    pub owned: [Vec3; 2],
+    /// The smallest extent of a cell of the volume's bricks along an axis (a
+    /// brick's last cell may be shorter): samples closer than that along every
+    /// axis lie in cells that touch.
+    pub min_extent: f32,
 }
 
 /// Iterator over the [`SampleRun`]s of samples `first..=last` of a ray in one brick.
@@ -62,6 +69,16 @@ pub(crate) struct CellGrid {
 /// the other side: its trilinear reads lie in that cell's range too when it is a
 /// hair past an exit face (a cell's range covers the voxel after it), and within
 /// a rounding error of it otherwise.
+///
+/// For a compositor whose samples stand for segments
+/// ([`Compositor::composites_segments`]) a run is skipped only when the cells the
+/// ray crosses between it and the samples around it are empty too: the walk
+/// starts where the ray enters the brick (past the sample before), notes each
+/// non-empty cell it crosses without a sample, and before skipping the visit's
+/// last run looks at the cells up to the brick's exit. Every value on a segment
+/// between two skipped samples then lies in an empty cell's range (the field is
+/// continuous along the ray), so the segment is empty; a skipped sample's
+/// segment to a marched one is composited by the marched one.
 pub(crate) struct SampleRuns<'r, C> {
     compositor: &'r C,
     cells: Option<&'r CellGrid>,
@@ -78,6 +95,16 @@ pub(crate) struct SampleRuns<'r, C> {
     /// What the exit faces are computed from.
     start: [f32; 3],
     inv_step: [f32; 3],
+    /// The compositor's samples stand for segments.
+    segments: bool,
+    /// A non-empty cell was crossed since the last cell with a sample, and that
+    /// cell's samples were skipped.
+    gap_visible: bool,
+    /// The last sample before the walk's position was skipped (or lies before
+    /// the visit: not known, so taken as skipped).
+    previous_skipped: bool,
+    /// The ray's sample count (no segment follows its last sample).
+    ray_samples: u32,
     /// Samples skipped so far (in empty cells).
     pub skipped: u64,
 }
@@ -104,10 +131,25 @@ impl<'r, C: Compositor> SampleRuns<'r, C> {
             exit: [f32::INFINITY; 3],
             start: ray.start.to_array(),
             inv_step: ray.inv_step.to_array(),
+            // Consecutive samples less than a cell apart along every axis lie in
+            // cells that share voxels, so their ranges overlap: then no cell
+            // between them matters (with a margin for rounding).
+            segments: compositor.composites_segments()
+                && cells.is_some_and(|g| ray.step.abs().max_element() * 1.01 >= g.min_extent),
+            gap_visible: false,
+            previous_skipped: true,
+            ray_samples: ray.samples,
             skipped: 0,
         };
         if let Some(grid) = cells {
-            let p = ray.position(first, last_voxel);
+            // With segments, from where the ray enters the brick after the sample
+            // before (when the ray takes one): the cells in between count.
+            let p = if runs.segments && first > ray.first {
+                let t = brick_entry(ray, grid).clamp((first - 1) as f32, first as f32);
+                (ray.start + ray.step * t).clamp(Vec3::ZERO, last_voxel)
+            } else {
+                ray.position(first, last_voxel)
+            };
             let local = ((p - grid.origin) * grid.inv_cell_step).to_array();
             let step = ray.step.to_array();
             let m = grid.per_axis - 1;
@@ -133,7 +175,12 @@ impl<'r, C: Compositor> SampleRuns<'r, C> {
     /// brick's last that way (its samples end with the brick's).
     #[inline]
     fn exit_along(&self, grid: &CellGrid, axis: usize) -> f32 {
-        let c = self.cell[axis];
+        self.exit_of(grid, self.cell[axis], axis)
+    }
+
+    /// [`Self::exit_along`] for cell coordinate `c` along `axis`.
+    #[inline]
+    fn exit_of(&self, grid: &CellGrid, c: u32, axis: usize) -> f32 {
         let face = match self.direction[axis] {
             1 if c + 1 < grid.per_axis => c + 1,
             -1 if c > 0 => c,
@@ -142,6 +189,25 @@ impl<'r, C: Compositor> SampleRuns<'r, C> {
         let origin = grid.origin.to_array()[axis];
         (origin + face as f32 * grid.cell_step - self.start[axis]) * self.inv_step[axis]
     }
+}
+
+/// The sample-index position where `ray` enters the box `grid`'s brick owns
+/// (before its first sample when it starts outside).
+#[inline]
+fn brick_entry(ray: &PixelRay, grid: &CellGrid) -> f32 {
+    let (start, inv_step) = (ray.start.to_array(), ray.inv_step.to_array());
+    let [lower, upper] = grid.owned.map(|v| v.to_array());
+    let mut enter = f32::NEG_INFINITY;
+    for a in 0..3 {
+        if inv_step[a] != 0.0 {
+            let (t0, t1) = (
+                (lower[a] - start[a]) * inv_step[a],
+                (upper[a] - start[a]) * inv_step[a],
+            );
+            enter = enter.max(t0.min(t1));
+        }
+    }
+    enter
 }
 
 /// `⌈x⌉` for `x ≥ 0`, saturating (negative and NaN give 0), without a libm call:
@@ -182,24 +248,35 @@ impl<C: Compositor> Iterator for SampleRuns<'_, C> {
                 2
             };
             let run_end = ceil(self.exit[axis]).min(self.end);
-            let [cx, cy, cz] = self.cell;
-            let index = ((cx * grid.per_axis + cy) * grid.per_axis + cz) as usize;
+            let index = grid.index(self.cell);
             // On to the neighbour (a cell the ray only grazes between two
             // samples yields nothing).
-            if self.exit[axis].is_finite() {
+            let leaves = self.exit[axis].is_finite();
+            if leaves {
                 self.cell[axis] = self.cell[axis].wrapping_add_signed(self.direction[axis]);
                 self.exit[axis] = self.exit_along(grid, axis);
             }
             if run_end <= k {
+                // (A marched sample composites its own segment: the cells after
+                // it do not matter.)
+                if self.segments && self.previous_skipped && !self.gap_visible {
+                    self.gap_visible = self.visible(grid, index);
+                }
                 continue;
             }
             self.next = run_end;
             let [lo, hi] = grid.ranges[index];
             // `lo > hi`: a cell past an edge brick's voxels (owns no sample).
-            if lo > hi || self.compositor.range_empty(lo, hi) {
+            if (lo > hi || self.compositor.range_empty(lo, hi))
+                && !(self.segments && self.segment_visible(grid, run_end, leaves))
+            {
                 self.skipped += u64::from(run_end - k);
+                self.previous_skipped = true;
                 continue;
             }
+            self.gap_visible = false;
+            // (A compositor that skips runs by its state may skip this one.)
+            self.previous_skipped = C::STATE_SKIPS;
             return Some(SampleRun {
                 first: k,
                 end: run_end,
@@ -207,6 +284,59 @@ impl<C: Compositor> Iterator for SampleRuns<'_, C> {
             });
         }
         None
+    }
+}
+
+impl<C: Compositor> SampleRuns<'_, C> {
+    /// Whether cell `index` is non-empty.
+    #[inline]
+    fn visible(&self, grid: &CellGrid, index: usize) -> bool {
+        let [lo, hi] = grid.ranges[index];
+        lo <= hi && !self.compositor.range_empty(lo, hi)
+    }
+
+    /// Whether an empty run ending before sample `run_end` must be marched all
+    /// the same (segments only): a non-empty cell lies between it and the sample
+    /// before, or — for the visit's last run, whose cell the ray `leaves` for
+    /// another of the brick — between it and the brick's exit, which the segment
+    /// to the ray's next sample crosses. (The walk state is already past the
+    /// run's cell.)
+    #[cold]
+    fn segment_visible(&mut self, grid: &CellGrid, run_end: u32, leaves: bool) -> bool {
+        if self.gap_visible {
+            self.gap_visible = false;
+            return true;
+        }
+        if run_end < self.end || self.end >= self.ray_samples || !leaves {
+            return false;
+        }
+        let (mut cell, mut exit) = (self.cell, self.exit);
+        loop {
+            if self.visible(grid, grid.index(cell)) {
+                return true;
+            }
+            let [ex, ey, ez] = exit;
+            let axis = if ex <= ey && ex <= ez {
+                0
+            } else if ey <= ez {
+                1
+            } else {
+                2
+            };
+            if !exit[axis].is_finite() {
+                return false;
+            }
+            cell[axis] = cell[axis].wrapping_add_signed(self.direction[axis]);
+            exit[axis] = self.exit_of(grid, cell[axis], axis);
+        }
+    }
+}
+
+impl CellGrid {
+    /// The index of cell `[x, y, z]` in `ranges`.
+    #[inline]
+    fn index(&self, [x, y, z]: [u32; 3]) -> usize {
+        ((x * self.per_axis + y) * self.per_axis + z) as usize
     }
 }
 
@@ -315,6 +445,8 @@ mod tests {
                     cell_step: cells.cell_step() as f32,
                     inv_cell_step: 1.0 / cells.cell_step() as f32,
                     origin: sampler.origin(),
+                    owned: crate::render::ownership::owned_box(&geometry, b),
+                    min_extent: 1.0,
                 };
                 let mut runs =
                     SampleRuns::new(&Threshold, &pixel, Some(&cell_grid), last, first, last_k);

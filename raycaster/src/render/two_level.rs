@@ -231,6 +231,11 @@ impl Compositor for TwoLevel {
         self.all_dvr && self.is_transparent(lo, hi)
     }
 
+    /// When a DVR object's table is pre-integrated.
+    fn composites_segments(&self) -> bool {
+        self.tables.iter().any(|t| t.preintegrated().is_some())
+    }
+
     /// Samples are folded into the open segment of their object; a change of
     /// object closes the segment (composited globally).
     #[inline]
