@@ -186,6 +186,13 @@ fn parallel_equals_sequential_over_the_parameter_matrix() {
         // turn, without disturbing the picks above.
         let preintegrated = round % 3 == 0;
         let jitter = round % 4 < 2;
+        // Every other pre-integrated frame at a step coarser than the cells,
+        // where skipping checks the cells between samples.
+        let step = if round % 6 == 0 {
+            5.5
+        } else {
+            RenderSettings::default().step
+        };
         // A crop box, clipping planes, both or neither in turn.
         let clip = clip_region(round % 5);
         let settings = RenderSettings {
@@ -197,6 +204,7 @@ fn parallel_equals_sequential_over_the_parameter_matrix() {
             preintegrated,
             jitter,
             clip,
+            step,
             ..RenderSettings::default()
         };
         let cam = camera(view, volume);
@@ -215,7 +223,7 @@ fn parallel_equals_sequential_over_the_parameter_matrix() {
             render_parallel(&prepared, &cam, &settings, &options).unwrap()
         };
         let name = format!(
-            "par-{round}-b{brick}-t{tile}-r{threads}-{view:?}-{}-ert{ert}-ess{ess}-bricked{bricked}-{access:?}-{simd}-pre{preintegrated}-jitter{jitter}-clip{}",
+            "par-{round}-b{brick}-t{tile}-r{threads}-{view:?}-{}-ert{ert}-ess{ess}-bricked{bricked}-{access:?}-{simd}-pre{preintegrated}-step{step}-jitter{jitter}-clip{}",
             mode.name(),
             round % 5
         );
