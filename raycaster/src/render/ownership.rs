@@ -87,15 +87,17 @@ fn sample_slab(ray: &PixelRay, geometry: &VolumeGeometry, b: [u32; 3], margin: f
     // Plain comparisons: no NaN can arise (a zero step is skipped).
     let min = |a: f32, b: f32| if a < b { a } else { b };
     let max = |a: f32, b: f32| if a > b { a } else { b };
+    let counts = geometry.grid().counts();
+    let side = geometry.brick_step();
     let (mut enter, mut exit) = (0.0f32, ray.samples as f32);
     let (inv_step, start) = (ray.inv_step.to_array(), ray.start.to_array());
-    let [lower, upper] = owned_box(geometry, b).map(|v| v.to_array());
     for a in 0..3 {
         let inv = inv_step[a];
         if inv == 0.0 {
             continue;
         }
-        let (lower, upper) = (lower[a] - margin, upper[a] + margin);
+        let (lower, upper) = owned_faces(b[a], counts[a], side);
+        let (lower, upper) = (lower - margin, upper + margin);
         let (t0, t1) = ((lower - start[a]) * inv, (upper - start[a]) * inv);
         enter = max(enter, min(t0, t1));
         exit = min(exit, max(t0, t1));
@@ -109,21 +111,28 @@ fn sample_slab(ray: &PixelRay, geometry: &VolumeGeometry, b: [u32; 3], margin: f
 pub(crate) fn owned_box(geometry: &VolumeGeometry, b: [u32; 3]) -> [Vec3; 2] {
     let counts = geometry.grid().counts();
     let side = geometry.brick_step();
-    let lower = std::array::from_fn(|a| {
-        if b[a] == 0 {
-            f32::NEG_INFINITY
-        } else {
-            b[a] as f32 * side
-        }
-    });
-    let upper = std::array::from_fn(|a| {
-        if b[a] + 1 >= counts[a] {
-            f32::INFINITY
-        } else {
-            (b[a] + 1) as f32 * side
-        }
-    });
-    [Vec3::from_array(lower), Vec3::from_array(upper)]
+    let faces: [(f32, f32); 3] = std::array::from_fn(|a| owned_faces(b[a], counts[a], side));
+    [
+        Vec3::from_array(faces.map(|f| f.0)),
+        Vec3::from_array(faces.map(|f| f.1)),
+    ]
+}
+
+/// The lower and upper face of the positions brick coordinate `b` (of `count`
+/// along the axis, `side` voxels apart) owns: see [`owned_box`].
+#[inline(always)]
+fn owned_faces(b: u32, count: u32, side: f32) -> (f32, f32) {
+    let lower = if b == 0 {
+        f32::NEG_INFINITY
+    } else {
+        b as f32 * side
+    };
+    let upper = if b + 1 >= count {
+        f32::INFINITY
+    } else {
+        (b + 1) as f32 * side
+    };
+    (lower, upper)
 }
 
 /// The owned interval axis by axis, each end found exactly with the owner

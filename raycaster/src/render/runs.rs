@@ -112,7 +112,7 @@ pub(crate) struct SampleRuns<'r, C> {
 impl<'r, C: Compositor> SampleRuns<'r, C> {
     /// The runs of samples `first..=last` of `ray`; with `cells` `None` (no
     /// empty-space skipping) one run of them all.
-    #[inline]
+    #[inline(always)]
     pub fn new(
         compositor: &'r C,
         ray: &'r PixelRay,
@@ -145,8 +145,7 @@ impl<'r, C: Compositor> SampleRuns<'r, C> {
             // With segments, from where the ray enters the brick after the sample
             // before (when the ray takes one): the cells in between count.
             let p = if runs.segments && first > ray.first {
-                let t = brick_entry(ray, grid).clamp((first - 1) as f32, first as f32);
-                (ray.start + ray.step * t).clamp(Vec3::ZERO, last_voxel)
+                entry_after(ray, grid, first - 1, last_voxel)
             } else {
                 ray.position(first, last_voxel)
             };
@@ -191,6 +190,15 @@ impl<'r, C: Compositor> SampleRuns<'r, C> {
     }
 }
 
+/// Where `ray` enters the box `grid`'s brick owns after sample `before` (or at
+/// the sample after it, whichever comes first).
+#[cold]
+#[inline(never)]
+fn entry_after(ray: &PixelRay, grid: &CellGrid, before: u32, last_voxel: Vec3) -> Vec3 {
+    let t = brick_entry(ray, grid).clamp(before as f32, (before + 1) as f32);
+    (ray.start + ray.step * t).clamp(Vec3::ZERO, last_voxel)
+}
+
 /// The sample-index position where `ray` enters the box `grid`'s brick owns
 /// (before its first sample when it starts outside).
 #[inline]
@@ -208,6 +216,19 @@ fn brick_entry(ray: &PixelRay, grid: &CellGrid) -> f32 {
         }
     }
     enter
+}
+
+/// The axis whose face the ray leaves a cell by first, given its exits along
+/// each.
+#[inline]
+fn first_exit([ex, ey, ez]: [f32; 3]) -> usize {
+    if ex <= ey && ex <= ez {
+        0
+    } else if ey <= ez {
+        1
+    } else {
+        2
+    }
 }
 
 /// `⌈x⌉` for `x ≥ 0`, saturating (negative and NaN give 0), without a libm call:
@@ -238,15 +259,7 @@ impl<C: Compositor> Iterator for SampleRuns<'_, C> {
         };
         while self.next < self.end {
             let k = self.next;
-            // The axis whose face the ray leaves the cell by first.
-            let [ex, ey, ez] = self.exit;
-            let axis = if ex <= ey && ex <= ez {
-                0
-            } else if ey <= ez {
-                1
-            } else {
-                2
-            };
+            let axis = first_exit(self.exit);
             let run_end = ceil(self.exit[axis]).min(self.end);
             let index = grid.index(self.cell);
             // On to the neighbour (a cell the ray only grazes between two
@@ -315,14 +328,7 @@ impl<C: Compositor> SampleRuns<'_, C> {
             if self.visible(grid, grid.index(cell)) {
                 return true;
             }
-            let [ex, ey, ez] = exit;
-            let axis = if ex <= ey && ex <= ez {
-                0
-            } else if ey <= ez {
-                1
-            } else {
-                2
-            };
+            let axis = first_exit(exit);
             if !exit[axis].is_finite() {
                 return false;
             }
