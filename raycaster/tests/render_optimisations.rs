@@ -161,6 +161,38 @@ fn preintegrated_skipping_sees_surfaces_between_coarse_samples() {
 }
 
 #[test]
+fn preintegrated_two_level_skipping_stays_exact_at_coarse_steps() {
+    // Ten value layers, each its own DVR object: a segment may change object
+    // between two coarse samples.
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../volumes/scenes/shapes-layers10.toml");
+    let scene = raycaster::render::SegmentScene::load(&path).unwrap();
+    let volume = scene_volume(SceneKind::Shapes, 48);
+    let camera = default_camera(&volume, 56);
+    for step in [2.0, 5.0, 8.0] {
+        let with = RenderSettings {
+            step,
+            preintegrated: true,
+            early_termination: None,
+            empty_space_skipping: true,
+            transfer: scene_preset(SceneKind::Shapes),
+            segments: Some(scene.clone()),
+            ..RenderSettings::default()
+        };
+        let without = RenderSettings {
+            empty_space_skipping: false,
+            ..with.clone()
+        };
+        let a = render_bricked(&volume, None, &camera, &with);
+        let b = render_bricked(&volume, None, &camera, &without);
+        let name = format!("ess-pre-layers-{step}");
+        assert_images_match(&name, &a.to_image(), &b.to_image(), 0);
+        let (sa, sb) = (a.stats.counters.samples, b.stats.counters.samples);
+        assert!(sa < sb, "{name}: skipping must skip ({sa} vs {sb})");
+    }
+}
+
+#[test]
 fn empty_space_skipping_leaves_every_mode_identical() {
     for kind in SCENES {
         let volume = scene_volume(kind, 40);
