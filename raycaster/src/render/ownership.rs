@@ -84,20 +84,36 @@ fn guess(ray: &PixelRay, geometry: &VolumeGeometry, b: [u32; 3]) -> Guess {
 /// which the ray is inside brick `b`'s owned box grown by `margin` voxels.
 #[inline]
 fn sample_slab(ray: &PixelRay, geometry: &VolumeGeometry, b: [u32; 3], margin: f32) -> (f32, f32) {
+    let counts = geometry.grid().counts();
+    let side = geometry.brick_step();
+    slab(
+        ray,
+        |a| {
+            let (lower, upper) = owned_faces(b[a], counts[a], side);
+            (lower - margin, upper + margin)
+        },
+        (0.0, ray.samples as f32),
+    )
+}
+
+/// The part of the sample-index interval `[enter, exit)` given in which `ray` is
+/// inside the box whose lower and upper face along axis `a` are `faces(a)`.
+#[inline(always)]
+pub(crate) fn slab(
+    ray: &PixelRay,
+    faces: impl Fn(usize) -> (f32, f32),
+    (mut enter, mut exit): (f32, f32),
+) -> (f32, f32) {
     // Plain comparisons: no NaN can arise (a zero step is skipped).
     let min = |a: f32, b: f32| if a < b { a } else { b };
     let max = |a: f32, b: f32| if a > b { a } else { b };
-    let counts = geometry.grid().counts();
-    let side = geometry.brick_step();
-    let (mut enter, mut exit) = (0.0f32, ray.samples as f32);
     let (inv_step, start) = (ray.inv_step.to_array(), ray.start.to_array());
     for a in 0..3 {
         let inv = inv_step[a];
         if inv == 0.0 {
             continue;
         }
-        let (lower, upper) = owned_faces(b[a], counts[a], side);
-        let (lower, upper) = (lower - margin, upper + margin);
+        let (lower, upper) = faces(a);
         let (t0, t1) = ((lower - start[a]) * inv, (upper - start[a]) * inv);
         enter = max(enter, min(t0, t1));
         exit = min(exit, max(t0, t1));

@@ -13,6 +13,7 @@ use glam::Vec3;
 
 use super::cells::BrickCells;
 use super::compositor::Compositor;
+use super::ownership::slab;
 use super::pixel::PixelRay;
 use super::truncate::truncate_clamped;
 
@@ -195,27 +196,14 @@ impl<'r, C: Compositor> SampleRuns<'r, C> {
 #[cold]
 #[inline(never)]
 fn entry_after(ray: &PixelRay, grid: &CellGrid, before: u32, last_voxel: Vec3) -> Vec3 {
-    let t = brick_entry(ray, grid).clamp(before as f32, (before + 1) as f32);
-    (ray.start + ray.step * t).clamp(Vec3::ZERO, last_voxel)
-}
-
-/// The sample-index position where `ray` enters the box `grid`'s brick owns
-/// (before its first sample when it starts outside).
-#[inline]
-fn brick_entry(ray: &PixelRay, grid: &CellGrid) -> f32 {
-    let (start, inv_step) = (ray.start.to_array(), ray.inv_step.to_array());
     let [lower, upper] = grid.owned.map(|v| v.to_array());
-    let mut enter = f32::NEG_INFINITY;
-    for a in 0..3 {
-        if inv_step[a] != 0.0 {
-            let (t0, t1) = (
-                (lower[a] - start[a]) * inv_step[a],
-                (upper[a] - start[a]) * inv_step[a],
-            );
-            enter = enter.max(t0.min(t1));
-        }
-    }
-    enter
+    let (enter, _) = slab(
+        ray,
+        |a| (lower[a], upper[a]),
+        (before as f32, f32::INFINITY),
+    );
+    let t = enter.min((before + 1) as f32);
+    (ray.start + ray.step * t).clamp(Vec3::ZERO, last_voxel)
 }
 
 /// The axis whose face the ray leaves a cell by first, given its exits along
