@@ -3,9 +3,9 @@
 
 mod render_support;
 
-use raycaster::render::{Mode, RenderSettings, RenderVolume, TransferFunction};
+use raycaster::render::{Camera, Frame, Mode, RenderSettings, RenderVolume, TransferFunction};
 use raycaster::synth::SceneKind;
-use raycaster::volume::{Access, Layout, SampleType};
+use raycaster::volume::{Access, Layout, SampleType, Volume};
 use render_support::*;
 
 const SCENES: [SceneKind; 3] = [SceneKind::Shapes, SceneKind::Shells, SceneKind::Noise];
@@ -17,6 +17,27 @@ fn settings(kind: SceneKind, ert: Option<f32>, ess: bool) -> RenderSettings {
         transfer: scene_preset(kind),
         ..RenderSettings::default()
     }
+}
+
+/// Renders `with` (empty-space skipping on) and the same settings without
+/// skipping, asserts that their images match within `tolerance`, and returns
+/// both frames (with skipping first).
+fn with_and_without_skipping(
+    name: &str,
+    volume: &Volume,
+    brick: Option<u32>,
+    camera: &Camera,
+    with: &RenderSettings,
+    tolerance: u8,
+) -> (Frame, Frame) {
+    let without = RenderSettings {
+        empty_space_skipping: false,
+        ..with.clone()
+    };
+    let a = render_bricked(volume, brick, camera, with);
+    let b = render_bricked(volume, brick, camera, &without);
+    assert_images_match(name, &a.to_image(), &b.to_image(), tolerance);
+    (a, b)
 }
 
 #[test]
@@ -61,17 +82,12 @@ fn empty_space_skipping_stays_exact_with_preintegration() {
                     jitter,
                     ..settings(kind, ert, true)
                 };
-                let without = RenderSettings {
-                    empty_space_skipping: false,
-                    ..with.clone()
-                };
-                let a = render_bricked(&volume, brick, &camera, &with);
-                let b = render_bricked(&volume, brick, &camera, &without);
                 let name = format!(
                     "ess-pre-{}-{step}-{brick:?}-jitter{jitter}-ert{ert:?}",
                     kind.name()
                 );
-                assert_images_match(&name, &a.to_image(), &b.to_image(), tolerance);
+                let (a, b) =
+                    with_and_without_skipping(&name, &volume, brick, &camera, &with, tolerance);
                 let (sa, sb) = (a.stats.counters.samples, b.stats.counters.samples);
                 assert!(sa < sb, "{name}: skipping must skip ({sa} vs {sb})");
                 // Not vacuous: pre-integration changes the picture.
@@ -145,14 +161,8 @@ fn preintegrated_skipping_sees_surfaces_between_coarse_samples() {
             transfer: tf.clone(),
             ..RenderSettings::default()
         };
-        let without = RenderSettings {
-            empty_space_skipping: false,
-            ..with.clone()
-        };
-        let a = render_bricked(&volume, brick, &camera, &with);
-        let b = render_bricked(&volume, brick, &camera, &without);
         let name = format!("ess-pre-surfaces-{step}-{brick:?}");
-        assert_images_match(&name, &a.to_image(), &b.to_image(), 0);
+        let (a, b) = with_and_without_skipping(&name, &volume, brick, &camera, &with, 0);
         let (sa, sb) = (a.stats.counters.samples, b.stats.counters.samples);
         assert!(sa < sb / 2, "{name}: skipping must skip ({sa} vs {sb})");
         let lit = b.to_image().data().chunks(3).filter(|p| p[0] > 20).count();
@@ -179,14 +189,8 @@ fn preintegrated_two_level_skipping_stays_exact_at_coarse_steps() {
             segments: Some(scene.clone()),
             ..RenderSettings::default()
         };
-        let without = RenderSettings {
-            empty_space_skipping: false,
-            ..with.clone()
-        };
-        let a = render_bricked(&volume, None, &camera, &with);
-        let b = render_bricked(&volume, None, &camera, &without);
         let name = format!("ess-pre-layers-{step}");
-        assert_images_match(&name, &a.to_image(), &b.to_image(), 0);
+        let (a, b) = with_and_without_skipping(&name, &volume, None, &camera, &with, 0);
         let (sa, sb) = (a.stats.counters.samples, b.stats.counters.samples);
         assert!(sa < sb, "{name}: skipping must skip ({sa} vs {sb})");
     }
@@ -203,14 +207,8 @@ fn empty_space_skipping_leaves_every_mode_identical() {
                     mode,
                     ..settings(kind, Some(0.99), true)
                 };
-                let without = RenderSettings {
-                    empty_space_skipping: false,
-                    ..with.clone()
-                };
-                let a = render_bricked(&volume, brick, &camera, &with);
-                let b = render_bricked(&volume, brick, &camera, &without);
                 let name = format!("ess-{}-{}-{brick:?}", kind.name(), mode.name());
-                assert_images_match(&name, &a.to_image(), &b.to_image(), 0);
+                let (a, b) = with_and_without_skipping(&name, &volume, brick, &camera, &with, 0);
                 assert_eq!(a.depth, b.depth, "{name}");
                 assert!(
                     a.stats.counters.samples <= b.stats.counters.samples,
