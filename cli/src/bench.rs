@@ -309,9 +309,7 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
         first.volume.name(),
         args.step,
         args.frames,
-        args.simd
-            .0
-            .unwrap_or(raycaster::render::SimdLevel::automatic())
+        args.simd.0.map_or("auto".to_string(), |l| l.to_string())
     );
     if let Some(warning) = load_warning(load_average(), available_cores()) {
         eprintln!("{warning}");

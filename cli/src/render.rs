@@ -237,11 +237,13 @@ pub struct RenderArgs {
     sequential: bool,
 
     /// Marching kernel of the parallel renderer: `scalar` (one sample at a time:
-    /// the reference), or four samples of a ray at a time in SIMD lanes, compiled
-    /// for `sse4.1`, `avx2`, `avx512` (x86-64) or `neon` (aarch64), which
-    /// composite the same image. `auto` is `scalar` for now: the SIMD kernel is
-    /// not yet faster (docs/benchmarks.md). It serves DVR with a 1D, not
-    /// pre-integrated transfer function; other frames use the scalar kernel.
+    /// the reference), or several samples of a ray at a time in SIMD lanes,
+    /// compiled for `sse4.1`, `avx2`, `avx512` (x86-64) or `neon` (aarch64),
+    /// which composite the same image. They serve DVR with a 1D, not
+    /// pre-integrated transfer function (unshaded with hardware gathers on
+    /// `avx2` and `avx512`); other frames use the scalar kernel. `auto`: `avx2`
+    /// for unshaded DVR where the CPU has it (about 1.7× faster), else `scalar`
+    /// (the shaded SIMD kernel is not faster; docs/benchmarks.md).
     #[arg(long, default_value = "auto", value_parser = parse_simd, value_name = "LEVEL")]
     simd: SimdChoice,
 

@@ -110,7 +110,7 @@ fn frames_of_several_levels_are_the_same_in_parallel_and_sequentially() {
                     early_termination: (variant & 2 == 0).then_some(0.95),
                     empty_space_skipping: variant != 3,
                     simd: Some(if variant == 1 && mode == Mode::Dvr {
-                        SimdLevel::automatic()
+                        SimdLevel::widest()
                     } else {
                         SimdLevel::Scalar
                     }),

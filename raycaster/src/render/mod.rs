@@ -18,6 +18,7 @@ mod direct_send;
 mod error;
 mod frame;
 mod front;
+mod gather;
 mod geometry;
 mod image;
 mod level;

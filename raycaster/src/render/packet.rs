@@ -29,6 +29,7 @@ use glam::{Mat4, Vec3, Vec3A, Vec4};
 
 use super::cell_cache::CellCache;
 use super::counters::Counters;
+use super::gather::{GatherBrick, GatherRay};
 use super::local::{Accumulation, Dvr};
 use super::march::{BrickContext, BrickVisit, RunMarcher};
 use super::optics::{over, partial_step};
@@ -37,7 +38,7 @@ use super::prepared::FramePlan;
 use super::sampler::VolumeSampler;
 use super::shading::Shading;
 use super::simd::SimdLevel;
-use super::transfer::TransferTable;
+use super::transfer::{TABLE_SIZE, TransferTable};
 use crate::volume::Sample;
 
 /// Samples per chunk.
@@ -117,7 +118,7 @@ pub(crate) fn march_dvr<T: Sample>(
             }
         }
         // NEON is the aarch64 baseline; other levels never reach here.
-        _ => march_dvr_chunks(dvr, work),
+        _ => march_dvr_chunks(dvr, work, false),
     }
 }
 
@@ -128,7 +129,7 @@ unsafe fn march_dvr_avx512<T: Sample>(
     dvr: &DvrLanes<'_>,
     work: &mut PacketWork<'_, '_, T, Accumulation>,
 ) {
-    march_dvr_chunks(dvr, work)
+    march_dvr_chunks(dvr, work, true)
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -138,7 +139,7 @@ unsafe fn march_dvr_avx2<T: Sample>(
     dvr: &DvrLanes<'_>,
     work: &mut PacketWork<'_, '_, T, Accumulation>,
 ) {
-    march_dvr_chunks(dvr, work)
+    march_dvr_chunks(dvr, work, true)
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -148,15 +149,27 @@ unsafe fn march_dvr_sse41<T: Sample>(
     dvr: &DvrLanes<'_>,
     work: &mut PacketWork<'_, '_, T, Accumulation>,
 ) {
-    march_dvr_chunks(dvr, work)
+    march_dvr_chunks(dvr, work, false)
 }
 
-/// Each of the task's rays through the brick, its runs in chunks.
+/// Each of the task's rays through the brick, its runs in chunks; unshaded,
+/// with hardware gathers where `gathers` ([`super::gather`]).
 #[inline(always)]
-fn march_dvr_chunks<T: Sample>(dvr: &DvrLanes<'_>, work: &mut PacketWork<'_, '_, T, Accumulation>) {
+fn march_dvr_chunks<T: Sample>(
+    dvr: &DvrLanes<'_>,
+    work: &mut PacketWork<'_, '_, T, Accumulation>,
+    gathers: bool,
+) {
     // One cell cache for the task: its cells are the brick's, whichever ray
     // enters them.
     let cell = CellCache::default();
+    // (The gathers read table entries by clamped indices below `TABLE_SIZE`.)
+    let gather_brick =
+        if gathers && dvr.shading.is_none() && dvr.table.entries().len() == TABLE_SIZE {
+            GatherBrick::new(&work.brick.sampler)
+        } else {
+            None
+        };
     for item in work.items {
         let (Some(ray), state) = (&work.rays[item.pixel], &mut work.states[item.pixel]) else {
             continue;
@@ -179,6 +192,15 @@ fn march_dvr_chunks<T: Sample>(dvr: &DvrLanes<'_>, work: &mut PacketWork<'_, '_,
                 cell: &cell,
                 positions: ray.positions(work.volume.last()),
                 shade: dvr.shading.map(|s| (s, s.ray_lights(ray.view_dir))),
+                gather: gather_brick.map(|brick| GatherRay {
+                    brick,
+                    sampler: &work.brick.sampler,
+                    table: dvr.table,
+                    positions: ray.positions(work.volume.last()),
+                    last_sample: ray.samples - 1,
+                    last_fraction: ray.last_fraction,
+                    ert_threshold: work.plan.ert_threshold,
+                }),
             },
         );
     }
@@ -194,11 +216,16 @@ struct DvrChunks<'v, 'b, T: Sample> {
     /// Blinn-Phong and the ray's light vectors ([`Shading::ray_lights`]), when
     /// shading.
     shade: Option<(Shading, (Vec3, Vec3))>,
+    /// The unshaded kernel with hardware gathers, where it runs.
+    gather: Option<GatherRay<'v, 'b, T>>,
 }
 
 impl<T: Sample> RunMarcher<Accumulation> for DvrChunks<'_, '_, T> {
     #[inline(always)]
     fn march_run(&mut self, acc: &mut Accumulation, first: u32, end: u32) -> Option<u32> {
+        if let Some(gather) = &self.gather {
+            return gather.march_run(acc, first, end);
+        }
         let mut k = first;
         while k < end {
             let n = (end - k).min(LANES as u32) as usize;

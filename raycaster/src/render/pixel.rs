@@ -252,6 +252,23 @@ impl SamplePositions {
         (self.start + self.step * k as f32).clamp(Vec3A::ZERO, self.last)
     }
 
+    /// The positions `start + step·k`, clamped into the box `[0, last]`.
+    #[cfg(test)]
+    pub(crate) fn new(start: Vec3A, step: Vec3A, last: Vec3A) -> Self {
+        SamplePositions { start, step, last }
+    }
+
+    /// The ray's first position, its step and the box's far corner, for kernels
+    /// that compute [`Self::at`] in lanes of their own.
+    #[inline(always)]
+    pub(crate) fn parts(&self) -> ([f32; 3], [f32; 3], [f32; 3]) {
+        (
+            self.start.to_array(),
+            self.step.to_array(),
+            self.last.to_array(),
+        )
+    }
+
     /// The positions of samples `k..k + 4`, per axis in four lanes: [`Self::at`]
     /// for each, with its operations.
     #[inline(always)]

@@ -94,6 +94,18 @@ impl<'a, T: Sample> BrickSampler<'a, T> {
         self.max_cell_lanes
     }
 
+    /// The brick's samples from its first voxel on, the strides between
+    /// neighbours per axis, and the stride to a cell's upper corner per axis (0
+    /// on a one-voxel axis): how [`Self::corners`] addresses a cell, for kernels
+    /// that read corners in lanes of their own.
+    pub(crate) fn addressing(&self) -> (&'a [T], [usize; 3], [usize; 3]) {
+        (
+            self.view.samples_from(0),
+            self.view.strides(),
+            self.corner_stride,
+        )
+    }
+
     /// The eight corner values of local cell `cell` (each coordinate at most
     /// [`Self::max_cell_lanes`]), in [`Corners`] order.
     #[inline(always)]

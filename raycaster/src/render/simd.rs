@@ -59,15 +59,28 @@ impl SimdLevel {
         *available().last().expect("scalar is always available")
     }
 
-    /// The level a frame uses unless told otherwise: [`SimdLevel::Scalar`] for
-    /// now. The SIMD kernel composites the same bits, but measured on this
-    /// project's 2-core VM it is not yet faster than the scalar kernel (3 % fewer
-    /// instructions per sample with AVX2, 6 % more wall time, median of paired
-    /// runs; docs/benchmarks.md, section 5): the per-ray, per-cell and per-brick
-    /// work both kernels share dominates. SIMD levels are chosen explicitly
-    /// ([`super::RenderSettings::simd`], `raycaster render --simd`).
-    pub fn automatic() -> SimdLevel {
-        SimdLevel::Scalar
+    /// The level a frame of `settings` uses unless told otherwise
+    /// ([`super::RenderSettings::simd`] `None`).
+    ///
+    /// For unshaded DVR with a 1D, not pre-integrated transfer function (no
+    /// segment scene): AVX2 where this CPU has it, the kernel with hardware
+    /// gathers ([`super::gather`]), 1.6–2× the scalar kernel's samples per
+    /// second on this project's 2-core VM (docs/benchmarks.md, section 5).
+    /// Otherwise [`SimdLevel::Scalar`]: the shaded SIMD kernel composites the
+    /// same bits but is not faster than the scalar one there (the per-ray,
+    /// per-cell and per-brick work both share dominates). Every frame is the
+    /// same whichever level renders it.
+    pub fn automatic(settings: &super::RenderSettings) -> SimdLevel {
+        let gathers = settings.mode == super::Mode::Dvr
+            && settings.shading.is_none()
+            && settings.segments.is_none()
+            && !settings.preintegrated
+            && settings.transfer.gradient_ramp.is_none();
+        if gathers && SimdLevel::Avx2.is_available() {
+            SimdLevel::Avx2
+        } else {
+            SimdLevel::Scalar
+        }
     }
 }
 
@@ -125,6 +138,12 @@ mod tests {
         assert_eq!(available()[0], SimdLevel::Scalar);
         assert!(SimdLevel::Scalar.is_available());
         assert!(available().contains(&SimdLevel::widest()));
-        assert!(SimdLevel::automatic().is_available());
+        let unshaded = crate::render::RenderSettings {
+            shading: None,
+            ..Default::default()
+        };
+        for settings in [unshaded, crate::render::RenderSettings::default()] {
+            assert!(SimdLevel::automatic(&settings).is_available());
+        }
     }
 }

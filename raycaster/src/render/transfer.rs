@@ -515,6 +515,20 @@ impl TransferTable {
         ) as usize
     }
 
+    /// Every entry's RGB and step-corrected opacity, as [`Self::index`] numbers
+    /// them.
+    #[inline]
+    pub(crate) fn entries(&self) -> &[[f32; 4]] {
+        &self.entries
+    }
+
+    /// The offset and scale [`Self::index`] maps a raw value with:
+    /// `(v − offset)·scale + 0.5`, clamped and truncated.
+    #[inline]
+    pub(crate) fn index_map(&self) -> (f32, f32) {
+        (self.offset, self.scale)
+    }
+
     /// RGB and step-corrected opacity for raw value `v` (1D part only).
     #[inline]
     pub fn lookup(&self, v: f32) -> [f32; 4] {
