@@ -29,7 +29,7 @@ use glam::{Mat4, Vec3, Vec3A, Vec4};
 
 use super::cell_cache::CellCache;
 use super::counters::Counters;
-use super::gather::{GatherBrick, GatherRay};
+use super::gather::{GatherBrick, GatherRay, GatherShading};
 use super::local::{Accumulation, Dvr};
 use super::march::{BrickContext, BrickVisit, RunMarcher};
 use super::optics::{over, partial_step};
@@ -152,8 +152,8 @@ unsafe fn march_dvr_sse41<T: Sample>(
     march_dvr_chunks(dvr, work, false)
 }
 
-/// Each of the task's rays through the brick, its runs in chunks; unshaded,
-/// with hardware gathers where `gathers` ([`super::gather`]).
+/// Each of the task's rays through the brick, its runs in chunks, with
+/// hardware gathers where `gathers` ([`super::gather`]).
 #[inline(always)]
 fn march_dvr_chunks<T: Sample>(
     dvr: &DvrLanes<'_>,
@@ -164,12 +164,11 @@ fn march_dvr_chunks<T: Sample>(
     // enters them.
     let cell = CellCache::default();
     // (The gathers read table entries by clamped indices below `TABLE_SIZE`.)
-    let gather_brick =
-        if gathers && dvr.shading.is_none() && dvr.table.entries().len() == TABLE_SIZE {
-            GatherBrick::new(&work.brick.sampler)
-        } else {
-            None
-        };
+    let gather_brick = if gathers && dvr.table.entries().len() == TABLE_SIZE {
+        GatherBrick::new(&work.brick.sampler, work.volume)
+    } else {
+        None
+    };
     for item in work.items {
         let (Some(ray), state) = (&work.rays[item.pixel], &mut work.states[item.pixel]) else {
             continue;
@@ -200,6 +199,12 @@ fn march_dvr_chunks<T: Sample>(
                     last_sample: ray.samples - 1,
                     last_fraction: ray.last_fraction,
                     ert_threshold: work.plan.ert_threshold,
+                    shade: dvr.shading.map(|shading| GatherShading {
+                        shading,
+                        lights: shading.ray_lights(ray.view_dir),
+                        gradient_scale: work.plan.gradient_scale,
+                        volume: work.volume,
+                    }),
                 }),
             },
         );
@@ -216,7 +221,7 @@ struct DvrChunks<'v, 'b, T: Sample> {
     /// Blinn-Phong and the ray's light vectors ([`Shading::ray_lights`]), when
     /// shading.
     shade: Option<(Shading, (Vec3, Vec3))>,
-    /// The unshaded kernel with hardware gathers, where it runs.
+    /// The kernel with hardware gathers, where it runs.
     gather: Option<GatherRay<'v, 'b, T>>,
 }
 

@@ -95,14 +95,15 @@ impl<'a, T: Sample> BrickSampler<'a, T> {
     }
 
     /// The brick's samples from its first voxel on, the strides between
-    /// neighbours per axis, and the stride to a cell's upper corner per axis (0
-    /// on a one-voxel axis): how [`Self::corners`] addresses a cell, for kernels
-    /// that read corners in lanes of their own.
-    pub(crate) fn addressing(&self) -> (&'a [T], [usize; 3], [usize; 3]) {
+    /// neighbours per axis, the stride to a cell's upper corner per axis (0 on
+    /// a one-voxel axis) and the brick's extent: how [`Self::corners`]
+    /// addresses a cell, for kernels that read corners in lanes of their own.
+    pub(crate) fn addressing(&self) -> (&'a [T], [usize; 3], [usize; 3], [u32; 3]) {
         (
             self.view.samples_from(0),
             self.view.strides(),
             self.corner_stride,
+            self.view.extent(),
         )
     }
 
@@ -356,6 +357,18 @@ impl<'a, T: Sample> VolumeSampler<'a, T> {
             last: Vec3::from(dims.map(|d| (d - 1) as f32)),
             last_inner_cell: dims.map(|d| i64::from(d) - 3),
         }
+    }
+
+    /// The whole volume as one brick, for linear storage.
+    pub(crate) fn whole(&self) -> Option<&BrickSampler<'a, T>> {
+        self.whole.as_ref()
+    }
+
+    /// The largest lower corner of a cell whose 4×4×4 neighbourhood lies in
+    /// the volume, per axis (`dims − 3`; cells from 1 to it have central
+    /// differences).
+    pub(crate) fn last_inner_cell(&self) -> [i64; 3] {
+        self.last_inner_cell
     }
 
     /// The volume box's upper corner in voxel coordinates (`dims − 1`).
