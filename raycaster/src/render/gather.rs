@@ -24,6 +24,7 @@
 use glam::{Vec3, Vec3A, Vec4};
 
 use super::local::Accumulation;
+use super::march::RunMarcher;
 use super::optics::{over, partial_step};
 use super::pixel::SamplePositions;
 use super::sampler::{BrickSampler, CornerDifferences, VolumeSampler, gradient_from_differences};
@@ -74,11 +75,19 @@ pub(crate) struct GatherBrick<'a> {
     sample_size: i32,
     origin: [f32; 3],
     max_cell: [f32; 3],
-    /// The samples around the brick's cells, for gradients: the brick's own
-    /// (bricked storage) or the whole volume's (linear storage, so that only
-    /// the volume's face cells lack a neighbourhood); `None` if a gather
-    /// cannot address them.
+    /// The samples around the brick's cells, for gradients: the volume's
+    /// around the brick (so that only the volume's face cells lack a
+    /// neighbourhood), or the brick's own (a logical sub-brick of bricked
+    /// storage); `None` if a gather cannot address them.
     neighbourhoods: Option<GatherSource<'a>>,
+    /// Per axis, what a read one voxel beyond the brick's upper face adds to
+    /// its in-brick byte offset, and one below its lower face takes away: 0
+    /// for linear storage, the brick stride less `side − 1` voxel strides for
+    /// stored bricks.
+    wrap: [i32; 3],
+    /// The farthest a neighbourhood read lies above its cell's lower corner,
+    /// in bytes: two voxels per axis and the wraps.
+    reach: i32,
     /// The lower cell corners (brick-local) whose neighbourhood lies in
     /// `neighbourhoods`, per axis from `interior[0]` to `interior[1]`.
     interior: [[f32; 3]; 2],
@@ -111,26 +120,47 @@ impl<'a> GatherBrick<'a> {
         let corners = [0, oz, oy, oy + oz, ox, ox + oz, ox + oy, ox + oy + oz];
         let max_cell = sampler.max_cell_lanes().to_array();
         let origin = sampler.origin_voxel();
-        let (neighbourhoods, interior) = match volume.whole() {
-            // Linear storage: the volume's samples around the brick, from one
-            // voxel below its first to one beyond its last per axis (a cell's
-            // neighbourhood reaches one voxel below it on one axis at a time,
-            // and two above).
-            Some(whole) => {
-                let all: &[u8] = bytemuck::cast_slice(whole.addressing().0);
-                let at = (0..3)
-                    .map(|a| origin[a] as usize * byte_strides[a])
-                    .sum::<usize>();
-                let reach: usize = byte_strides.iter().sum();
+        // The volume's samples around the brick: where the brick starts in
+        // them, how far a neighbourhood read reaches beyond it (one voxel, or
+        // into the next stored brick, per axis), and the wrap across faces.
+        let around = match (volume.whole(), volume.stored_brick_layout(sampler)) {
+            (Some(whole), _) => {
+                let at: usize = (0..3).map(|a| origin[a] as usize * strides[a]).sum();
+                Some((whole.addressing().0, at, strides, [0; 3]))
+            }
+            (None, Some((samples, at, wrap))) => {
+                let reach = [0, 1, 2].map(|a| wrap[a] + extent[a] as usize * strides[a]);
+                Some((samples, at, reach, wrap))
+            }
+            (None, None) => None,
+        };
+        let (neighbourhoods, wrap, interior) = match around {
+            Some((samples, at, reach, wrap)) => {
+                let all: &[u8] = bytemuck::cast_slice(samples);
+                let (at, reach) = (at * size, reach.iter().sum::<usize>() * size);
                 let start = at.saturating_sub(reach);
-                let end = (at + last_voxel + size + 2 * reach).min(all.len());
+                let end = (at + last_voxel + size + reach).min(all.len());
                 let inner = volume.last_inner_cell();
                 let lo = origin.map(|o| 1.0 - o as f32);
                 let hi = [0, 1, 2].map(|a| inner[a] as f32 - origin[a] as f32);
-                (GatherSource::new(&all[start..end], at - start), [lo, hi])
+                let wrap = [
+                    to_i32(wrap[0] * size)?,
+                    to_i32(wrap[1] * size)?,
+                    to_i32(wrap[2] * size)?,
+                ];
+                (
+                    GatherSource::new(&all[start..end], at - start),
+                    wrap,
+                    [lo, hi],
+                )
             }
-            // Bricked storage: the cells whose neighbourhood the brick holds.
-            None => (Some(brick_source), [[1.0; 3], max_cell.map(|m| m - 1.0)]),
+            // A sub-brick of bricked storage: the cells whose neighbourhood
+            // the view holds.
+            None => (
+                Some(brick_source),
+                [0; 3],
+                [[1.0; 3], max_cell.map(|m| m - 1.0)],
+            ),
         };
         Some(GatherBrick {
             samples: brick_source,
@@ -144,6 +174,11 @@ impl<'a> GatherBrick<'a> {
             origin: origin.map(|o| o as f32),
             max_cell,
             neighbourhoods,
+            wrap,
+            reach: to_i32(
+                (2 * byte_strides.iter().sum::<usize>())
+                    + wrap.iter().map(|&w| w as usize).sum::<usize>(),
+            )?,
             interior,
         })
     }
@@ -193,19 +228,19 @@ pub(crate) struct GatherShading<'v, 'a, T: Sample> {
     pub volume: &'v VolumeSampler<'a, T>,
 }
 
-impl<T: Sample> GatherRay<'_, '_, T> {
+impl<T: Sample> RunMarcher<Accumulation> for GatherRay<'_, '_, T> {
     /// Samples `first..end` into `acc`, front to back; `Some(k)` when the ray
     /// reached the opacity threshold with sample `k − 1`.
-    ///
-    /// Only called on a CPU with AVX2 ([`GatherBrick::new`] checked).
     #[inline(always)]
-    pub(crate) fn march_run(&self, acc: &mut Accumulation, first: u32, end: u32) -> Option<u32> {
+    fn march_run(&mut self, acc: &mut Accumulation, first: u32, end: u32) -> Option<u32> {
         match &self.shade {
             Some(shade) => self.march_shaded(shade, acc, first, end),
             None => self.march_unshaded(acc, first, end),
         }
     }
+}
 
+impl<T: Sample> GatherRay<'_, '_, T> {
     /// [`Self::march_run`] without shading.
     #[inline(always)]
     fn march_unshaded(&self, acc: &mut Accumulation, first: u32, end: u32) -> Option<u32> {
@@ -680,7 +715,6 @@ mod x86 {
         gradient: &mut [[f32; GATHER_LANES]; 3],
     ) -> (u32, u32, u32) {
         let brick = &ray.brick;
-        let [sx, sy, sz] = brick.strides;
         // SAFETY: the CPU has AVX2 (this function's contract).
         let lanes = unsafe { chunk_lanes(ray, k, n, local) };
         // SAFETY: `indices` holds eight `i32`s; an unaligned store.
@@ -716,7 +750,7 @@ mod x86 {
         // SAFETY: the lanes of `mask` are on cells whose 4×4×4 neighbourhood
         // lies in the source's slice; the CPU has AVX2.
         unsafe {
-            if near_end(source, lanes.offset, 2 * (sx + sy + sz)) {
+            if near_end(source, lanes.offset, brick.reach) {
                 neighbourhood_gradient::<true>(ray, source, &lanes, mask, gradient)
             } else {
                 neighbourhood_gradient::<false>(ray, source, &lanes, mask, gradient)
@@ -743,15 +777,36 @@ mod x86 {
         mask: __m256i,
         gradient: &mut [[f32; GATHER_LANES]; 3],
     ) {
-        let [sx, sy, sz] = ray.brick.strides;
-        let size = ray.brick.sample_size;
+        let brick = &ray.brick;
+        let [sx, sy, sz] = brick.strides;
+        let size = brick.sample_size;
+        // Per axis, the lanes whose block coordinate 0 lies below the brick's
+        // lower face (lower corner 0) or 3 beyond its upper face (lower
+        // corner `max_cell`): what their offsets add.
+        let zero = _mm256_setzero_ps();
+        let fix = |a: usize, at: __m256, by: i32| {
+            let crossing = _mm256_castps_si256(_mm256_cmp_ps::<_CMP_EQ_OQ>(lanes.lower[a], at));
+            _mm256_and_si256(crossing, _mm256_set1_epi32(by))
+        };
+        let below: [__m256i; 3] = std::array::from_fn(|a| fix(a, zero, -brick.wrap[a]));
+        let above: [__m256i; 3] =
+            std::array::from_fn(|a| fix(a, _mm256_set1_ps(brick.max_cell[a]), brick.wrap[a]));
         // Voxel (x, y, z) of the neighbourhood, the cell's lower corner at
         // (1, 1, 1).
         // SAFETY: every voxel of a lane of `mask` is a sample of the source's
-        // slice (this function's contract); the CPU has AVX2.
+        // slice (this function's contract: the wrap across a face addresses it
+        // in the next stored brick); the CPU has AVX2.
         let v = |x: i32, y: i32, z: i32| unsafe {
             let relative = (x - 1) * sx + (y - 1) * sy + (z - 1) * sz;
-            read(source, size, lanes.offset, relative, mask, NEAR)
+            let mut offset = lanes.offset;
+            for (a, c) in [x, y, z].into_iter().enumerate() {
+                if c == 0 {
+                    offset = _mm256_add_epi32(offset, below[a]);
+                } else if c == 3 {
+                    offset = _mm256_add_epi32(offset, above[a]);
+                }
+            }
+            read(source, size, offset, relative, mask, NEAR)
         };
         let c = &lanes.corners;
         let half = _mm256_set1_ps(0.5);
@@ -927,7 +982,7 @@ mod tests {
                 }
                 let view_dir = Vec3::from(dir.normalize_or(Vec3A::Z));
                 let shading = shadings[round % 3];
-                let ray = GatherRay {
+                let mut ray = GatherRay {
                     brick,
                     sampler: &sampler,
                     table: &table,

@@ -179,35 +179,33 @@ fn march_dvr_chunks<T: Sample>(
             brick: work.brick,
             ray,
         };
-        visit.march(
-            dvr.runs_compositor,
-            item.first,
-            item.last,
-            state,
-            work.counters,
-            || DvrChunks {
+        let (c, first, last) = (dvr.runs_compositor, item.first, item.last);
+        let positions = || ray.positions(work.volume.last());
+        if let Some(brick) = gather_brick {
+            visit.march(c, first, last, state, work.counters, || GatherRay {
+                brick,
+                sampler: &work.brick.sampler,
+                table: dvr.table,
+                positions: positions(),
+                last_sample: ray.samples - 1,
+                last_fraction: ray.last_fraction,
+                ert_threshold: work.plan.ert_threshold,
+                shade: dvr.shading.map(|shading| GatherShading {
+                    shading,
+                    lights: shading.ray_lights(ray.view_dir),
+                    gradient_scale: work.plan.gradient_scale,
+                    volume: work.volume,
+                }),
+            });
+        } else {
+            visit.march(c, first, last, state, work.counters, || DvrChunks {
                 dvr,
                 visit,
                 cell: &cell,
-                positions: ray.positions(work.volume.last()),
+                positions: positions(),
                 shade: dvr.shading.map(|s| (s, s.ray_lights(ray.view_dir))),
-                gather: gather_brick.map(|brick| GatherRay {
-                    brick,
-                    sampler: &work.brick.sampler,
-                    table: dvr.table,
-                    positions: ray.positions(work.volume.last()),
-                    last_sample: ray.samples - 1,
-                    last_fraction: ray.last_fraction,
-                    ert_threshold: work.plan.ert_threshold,
-                    shade: dvr.shading.map(|shading| GatherShading {
-                        shading,
-                        lights: shading.ray_lights(ray.view_dir),
-                        gradient_scale: work.plan.gradient_scale,
-                        volume: work.volume,
-                    }),
-                }),
-            },
-        );
+            });
+        }
     }
 }
 
@@ -221,16 +219,11 @@ struct DvrChunks<'v, 'b, T: Sample> {
     /// Blinn-Phong and the ray's light vectors ([`Shading::ray_lights`]), when
     /// shading.
     shade: Option<(Shading, (Vec3, Vec3))>,
-    /// The kernel with hardware gathers, where it runs.
-    gather: Option<GatherRay<'v, 'b, T>>,
 }
 
 impl<T: Sample> RunMarcher<Accumulation> for DvrChunks<'_, '_, T> {
     #[inline(always)]
     fn march_run(&mut self, acc: &mut Accumulation, first: u32, end: u32) -> Option<u32> {
-        if let Some(gather) = &self.gather {
-            return gather.march_run(acc, first, end);
-        }
         let mut k = first;
         while k < end {
             let n = (end - k).min(LANES as u32) as usize;

@@ -364,6 +364,53 @@ impl<'a, T: Sample> VolumeSampler<'a, T> {
         self.whole.as_ref()
     }
 
+    /// For bricked storage, how the voxels just beyond `local`'s faces are
+    /// addressed from it when `local` is a whole stored brick: the file's
+    /// samples, the index of `local`'s first sample in them, and per axis what
+    /// a step across the brick's upper face adds to the in-brick offset (and a
+    /// step below its lower face takes away): the brick stride less `side − 1`
+    /// voxel strides (the bricks overlap by one voxel). `None` for linear
+    /// storage or any other view.
+    pub(crate) fn stored_brick_layout(
+        &self,
+        local: &BrickSampler<'a, T>,
+    ) -> Option<(&'a [T], usize, [usize; 3])> {
+        if self.whole.is_some() {
+            return None;
+        }
+        let grid = &self.grid;
+        let (step, side, counts) = (grid.step(), grid.side() as usize, grid.counts());
+        let origin = local.view.origin();
+        if origin.iter().any(|&o| o % step != 0) {
+            return None;
+        }
+        let b = origin.map(|o| o / step);
+        let strides = [side * side, side, 1];
+        if (0..3).any(|a| b[a] >= counts[a])
+            || local.view.extent() != grid.extent(b)
+            || local.view.strides() != strides
+        {
+            return None;
+        }
+        let [_, n1, n2] = counts.map(|c| c as usize);
+        let brick_len = side * side * side;
+        let per_brick = [n1 * n2 * brick_len, n2 * brick_len, brick_len];
+        let index = ((b[0] as usize * n1 + b[1] as usize) * n2 + b[2] as usize) * brick_len;
+        let samples = self.volume.samples();
+        // The view is that brick's samples (not a copy).
+        if !std::ptr::eq(
+            samples.get(index..)?.as_ptr(),
+            local.view.samples_from(0).as_ptr(),
+        ) {
+            return None;
+        }
+        Some((
+            samples,
+            index,
+            [0, 1, 2].map(|a| per_brick[a] - (side - 1) * strides[a]),
+        ))
+    }
+
     /// The largest lower corner of a cell whose 4×4×4 neighbourhood lies in
     /// the volume, per axis (`dims − 3`; cells from 1 to it have central
     /// differences).
