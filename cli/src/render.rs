@@ -240,10 +240,10 @@ pub struct RenderArgs {
     /// the reference), or several samples of a ray at a time in SIMD lanes,
     /// compiled for `sse4.1`, `avx2`, `avx512` (x86-64) or `neon` (aarch64),
     /// which composite the same image. They serve DVR with a 1D, not
-    /// pre-integrated transfer function (unshaded with hardware gathers on
-    /// `avx2` and `avx512`); other frames use the scalar kernel. `auto`: `avx2`
-    /// for unshaded DVR where the CPU has it (about 1.7× faster), else `scalar`
-    /// (the shaded SIMD kernel is not faster; docs/benchmarks.md).
+    /// pre-integrated transfer function (with hardware gathers on `avx2` and
+    /// `avx512`); other frames use the scalar kernel. `auto`: `avx2` for those
+    /// frames where the CPU has it (unshaded about 1.7×, shaded 1.1–1.25× the
+    /// scalar kernel's speed; docs/benchmarks.md), else `scalar`.
     #[arg(long, default_value = "auto", value_parser = parse_simd, value_name = "LEVEL")]
     simd: SimdChoice,
 

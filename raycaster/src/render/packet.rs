@@ -1,5 +1,7 @@
-//! The SIMD kernel of shaded DVR: the samples of one ray marched [`LANES`] at a
-//! time, their positions, cells, values, shading and opacity in SIMD lanes.
+//! The SIMD kernels of DVR: on AVX2 and AVX-512 the gather kernel
+//! ([`super::gather`]); on SSE4.1 and NEON (no gathers) the samples of one ray
+//! marched [`LANES`] at a time, their positions, cells, values, shading and
+//! opacity in SIMD lanes, described here.
 //!
 //! A chunk is up to [`LANES`] consecutive samples of one run of a ray (one brick
 //! visit, one non-empty small cell: [`super::march::BrickVisit`] walks the runs

@@ -2,8 +2,10 @@
 //!
 //! [`SimdLevel::Scalar`] is the reference: one sample at a time through the
 //! generic marching loop. Every other level marches the samples of each ray a
-//! few at a time in SIMD lanes ([`super::packet`]) with the same arithmetic,
-//! compiled for that instruction set.
+//! few at a time in SIMD lanes with the same arithmetic, compiled for that
+//! instruction set: eight at a time with hardware gathers on AVX2 and AVX-512
+//! ([`super::gather`]), four at a time through the cell cache on SSE4.1 and
+//! NEON ([`super::packet`]).
 
 use std::fmt;
 use std::sync::OnceLock;
@@ -62,17 +64,15 @@ impl SimdLevel {
     /// The level a frame of `settings` uses unless told otherwise
     /// ([`super::RenderSettings::simd`] `None`).
     ///
-    /// For unshaded DVR with a 1D, not pre-integrated transfer function (no
-    /// segment scene): AVX2 where this CPU has it, the kernel with hardware
-    /// gathers ([`super::gather`]), 1.6–2× the scalar kernel's samples per
-    /// second on this project's 2-core VM (docs/benchmarks.md, section 5).
-    /// Otherwise [`SimdLevel::Scalar`]: the shaded SIMD kernel composites the
-    /// same bits but is not faster than the scalar one there (the per-ray,
-    /// per-cell and per-brick work both share dominates). Every frame is the
-    /// same whichever level renders it.
+    /// For DVR with a 1D, not pre-integrated transfer function (no segment
+    /// scene): AVX2 where this CPU has it, the kernel with hardware gathers
+    /// ([`super::gather`]): on this project's 2-core VM 1.6–2× the scalar
+    /// kernel's samples per second unshaded, 1.1–1.25× shaded
+    /// (docs/benchmarks.md, section 5). Otherwise [`SimdLevel::Scalar`], the
+    /// only kernel of the other compositors. Every frame is the same whichever
+    /// level renders it.
     pub fn automatic(settings: &super::RenderSettings) -> SimdLevel {
         let gathers = settings.mode == super::Mode::Dvr
-            && settings.shading.is_none()
             && settings.segments.is_none()
             && !settings.preintegrated
             && settings.transfer.gradient_ramp.is_none();
