@@ -533,10 +533,12 @@ mod x86 {
                 mask,
             )
         };
-        _mm256_cvtepi32_ps(_mm256_and_si256(
-            _mm256_srlv_epi32(words, shift),
-            value_mask,
-        ))
+        // To float: the sample (below 2^16) as the mantissa of 2^23, less
+        // 2^23 (exact, as a conversion; which the compiler would otherwise
+        // lower as an unsigned one, blends and all).
+        let value = _mm256_and_si256(_mm256_srlv_epi32(words, shift), value_mask);
+        let biased = _mm256_or_si256(value, _mm256_set1_epi32(0x4b00_0000));
+        _mm256_sub_ps(_mm256_castsi256_ps(biased), _mm256_set1_ps(8_388_608.0))
     }
 
     /// `a + (b − a)·t`, as the scalar `lerp`.
