@@ -25,7 +25,7 @@ use glam::{Vec3, Vec3A, Vec4};
 
 use super::local::Accumulation;
 use super::march::RunMarcher;
-use super::optics::{over, partial_step};
+use super::optics::over_sample;
 use super::pixel::SamplePositions;
 use super::sampler::{BrickSampler, CornerDifferences, VolumeSampler, gradient_from_differences};
 use super::shading::Shading;
@@ -266,20 +266,8 @@ impl<T: Sample> GatherRay<'_, '_, T> {
                 let j = visible.trailing_zeros() as usize;
                 visible &= visible - 1;
                 let [r, g, b, a] = entries[indices[j] as usize];
-                let sample = k + j as u32;
-                let fraction = if sample == self.last_sample {
-                    self.last_fraction
-                } else {
-                    1.0
-                };
-                over(
-                    &mut acc.color,
-                    &mut acc.alpha,
-                    [r, g, b],
-                    partial_step(a, fraction),
-                );
-                if acc.alpha >= self.ert_threshold {
-                    return Some(sample + 1);
+                if self.over(acc, ([r, g, b], a), k + j as u32) {
+                    return Some(k + j as u32 + 1);
                 }
             }
             k += n as u32;
@@ -356,25 +344,29 @@ impl<T: Sample> GatherRay<'_, '_, T> {
                 let j = visible.trailing_zeros() as usize;
                 visible &= visible - 1;
                 let a = entries[indices[j] as usize][3];
-                let sample = k + j as u32;
-                let fraction = if sample == self.last_sample {
-                    self.last_fraction
-                } else {
-                    1.0
-                };
-                over(
-                    &mut acc.color,
-                    &mut acc.alpha,
-                    [rgb[0][j], rgb[1][j], rgb[2][j]],
-                    partial_step(a, fraction),
-                );
-                if acc.alpha >= self.ert_threshold {
-                    return Some(sample + 1);
+                let color = [rgb[0][j], rgb[1][j], rgb[2][j]];
+                if self.over(acc, (color, a), k + j as u32) {
+                    return Some(k + j as u32 + 1);
                 }
             }
             k += n as u32;
         }
         None
+    }
+
+    /// Composites visible sample `k` of colour and opacity `sample`; whether
+    /// the ray reached the opacity threshold.
+    #[inline(always)]
+    fn over(&self, acc: &mut Accumulation, sample: ([f32; 3], f32), k: u32) -> bool {
+        let last = (self.last_sample, self.last_fraction);
+        over_sample(
+            &mut acc.color,
+            &mut acc.alpha,
+            sample,
+            k,
+            last,
+            self.ert_threshold,
+        )
     }
 
     /// The gradients of the lanes in `lanes` (visible samples whose cell's
@@ -872,6 +864,7 @@ mod tests {
     use super::*;
     use crate::render::TransferFunction;
     use crate::render::cell_cache::CellCache;
+    use crate::render::optics::{over, partial_step};
     use crate::render::test_rng::xorshift32;
     use crate::volume::{BlockGrid, Layout, TypedVolume};
 

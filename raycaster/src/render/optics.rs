@@ -41,6 +41,24 @@ pub(crate) fn over(acc_color: &mut [f32; 3], acc_alpha: &mut f32, color: [f32; 3
     *acc_alpha += w;
 }
 
+/// The "over" step of DVR sample `k` of a ray whose last sample `last` stands
+/// for `fraction` of a step ([`partial_step`]); whether the opacity reached
+/// `threshold` after it (the SIMD kernels' compositing, the scalar `Dvr`'s
+/// bits).
+#[inline(always)]
+pub(crate) fn over_sample(
+    acc_color: &mut [f32; 3],
+    acc_alpha: &mut f32,
+    (color, a): ([f32; 3], f32),
+    k: u32,
+    (last, fraction): (u32, f32),
+    threshold: f32,
+) -> bool {
+    let fraction = if k == last { fraction } else { 1.0 };
+    over(acc_color, acc_alpha, color, partial_step(a, fraction));
+    *acc_alpha >= threshold
+}
+
 /// The "over" step of a premultiplied colour `color` with opacity `a` (a
 /// segment's result): `c += (1 − α)·color; α += (1 − α)·a`.
 #[inline]

@@ -34,7 +34,7 @@ use super::counters::Counters;
 use super::gather::{GatherBrick, GatherRay, GatherShading};
 use super::local::{Accumulation, Dvr};
 use super::march::{BrickContext, BrickVisit, RunMarcher};
-use super::optics::{over, partial_step};
+use super::optics::over_sample;
 use super::pixel::{PixelRay, PixelState, SamplePositions};
 use super::prepared::FramePlan;
 use super::sampler::VolumeSampler;
@@ -332,18 +332,16 @@ impl<T: Sample> DvrChunks<'_, '_, T> {
                 continue;
             }
             let [r, g, b, a] = rgba[j].to_array();
-            let fraction = if k + j as u32 == last_sample {
-                ray.last_fraction
-            } else {
-                1.0
-            };
-            over(
-                &mut acc.color,
-                &mut acc.alpha,
-                [r, g, b],
-                partial_step(a, fraction),
-            );
-            if acc.alpha >= plan.ert_threshold {
+            let last = (last_sample, ray.last_fraction);
+            let (color, alpha) = (&mut acc.color, &mut acc.alpha);
+            if over_sample(
+                color,
+                alpha,
+                ([r, g, b], a),
+                k + j as u32,
+                last,
+                plan.ert_threshold,
+            ) {
                 return Some(j as u32 + 1);
             }
         }
