@@ -35,6 +35,12 @@ use crate::volume::Sample;
 /// Samples per chunk.
 pub(crate) const GATHER_LANES: usize = 8;
 
+/// The most bytes a gather addresses from one base (a source's length, its
+/// shift, a read's reach above a cell), so that every sum of them stays far
+/// inside `i32` (three of them: under 2^31). Bricks beyond it take the 4-lane
+/// kernel.
+const MAX_GATHER_BYTES: usize = 1 << 29;
+
 /// Bytes the gathers read: a slice, where a brick-local byte offset lies in
 /// it, and the last offset a four-byte read may start at.
 #[derive(Clone, Copy, Debug)]
@@ -47,14 +53,16 @@ pub(crate) struct GatherSource<'a> {
 }
 
 impl<'a> GatherSource<'a> {
-    /// `bytes` addressed from byte `shift` on; `None` beyond `i32` offsets or
-    /// under eight bytes.
+    /// `bytes` addressed from byte `shift` on; `None` for over
+    /// [`MAX_GATHER_BYTES`] or under eight bytes.
     fn new(bytes: &'a [u8], shift: usize) -> Option<Self> {
-        let len = i32::try_from(bytes.len()).ok()?;
-        (len >= 8).then_some(GatherSource {
+        if !(8..=MAX_GATHER_BYTES).contains(&bytes.len()) || shift > MAX_GATHER_BYTES {
+            return None;
+        }
+        Some(GatherSource {
             bytes,
-            shift: i32::try_from(shift).ok()?,
-            last_whole_read: len - 4,
+            shift: shift as i32,
+            last_whole_read: bytes.len() as i32 - 4,
         })
     }
 }
@@ -78,8 +86,8 @@ pub(crate) struct GatherBrick<'a> {
     /// The samples around the brick's cells, for gradients: the volume's
     /// around the brick (so that only the volume's face cells lack a
     /// neighbourhood), or the brick's own (a logical sub-brick of bricked
-    /// storage); `None` if a gather cannot address them.
-    neighbourhoods: Option<GatherSource<'a>>,
+    /// storage, or more than a gather addresses around it).
+    neighbourhoods: GatherSource<'a>,
     /// Per axis, what a read one voxel beyond the brick's upper face adds to
     /// its in-brick byte offset, and one below its lower face takes away: 0
     /// for linear storage, the brick stride less `side − 1` voxel strides for
@@ -134,33 +142,31 @@ impl<'a> GatherBrick<'a> {
             }
             (None, None) => None,
         };
-        let (neighbourhoods, wrap, interior) = match around {
-            Some((samples, at, reach, wrap)) => {
-                let all: &[u8] = bytemuck::cast_slice(samples);
-                let (at, reach) = (at * size, reach.iter().sum::<usize>() * size);
-                let start = at.saturating_sub(reach);
-                let end = (at + last_voxel + size + reach).min(all.len());
+        // The source of the volume around the brick, where a gather can
+        // address it.
+        let volume_source = around.and_then(|(samples, at, reach, wrap)| {
+            let all: &[u8] = bytemuck::cast_slice(samples);
+            let (at, reach) = (at * size, reach.iter().sum::<usize>() * size);
+            let start = at.saturating_sub(reach);
+            let end = (at + last_voxel + size + reach).min(all.len());
+            let source = GatherSource::new(&all[start..end], at - start)?;
+            let wrap = [
+                to_i32(wrap[0] * size)?,
+                to_i32(wrap[1] * size)?,
+                to_i32(wrap[2] * size)?,
+            ];
+            Some((source, wrap))
+        });
+        let (neighbourhoods, wrap, interior) = match volume_source {
+            Some((source, wrap)) => {
                 let inner = volume.last_inner_cell();
                 let lo = origin.map(|o| 1.0 - o as f32);
                 let hi = [0, 1, 2].map(|a| inner[a] as f32 - origin[a] as f32);
-                let wrap = [
-                    to_i32(wrap[0] * size)?,
-                    to_i32(wrap[1] * size)?,
-                    to_i32(wrap[2] * size)?,
-                ];
-                (
-                    GatherSource::new(&all[start..end], at - start),
-                    wrap,
-                    [lo, hi],
-                )
+                (source, wrap, [lo, hi])
             }
-            // A sub-brick of bricked storage: the cells whose neighbourhood
-            // the view holds.
-            None => (
-                Some(brick_source),
-                [0; 3],
-                [[1.0; 3], max_cell.map(|m| m - 1.0)],
-            ),
+            // A sub-brick of bricked storage, or a volume too large around
+            // the brick: the cells whose neighbourhood the brick holds.
+            None => (brick_source, [0; 3], [[1.0; 3], max_cell.map(|m| m - 1.0)]),
         };
         Some(GatherBrick {
             samples: brick_source,
@@ -175,10 +181,11 @@ impl<'a> GatherBrick<'a> {
             max_cell,
             neighbourhoods,
             wrap,
-            reach: to_i32(
-                (2 * byte_strides.iter().sum::<usize>())
-                    + wrap.iter().map(|&w| w as usize).sum::<usize>(),
-            )?,
+            reach: {
+                let reach = 2 * byte_strides.iter().sum::<usize>()
+                    + wrap.iter().map(|&w| w as usize).sum::<usize>();
+                (reach <= MAX_GATHER_BYTES).then_some(reach as i32)?
+            },
             interior,
         })
     }
@@ -716,9 +723,7 @@ mod x86 {
         if lanes.visible == 0 {
             return (lanes.outside, 0, 0);
         }
-        let Some(source) = &brick.neighbourhoods else {
-            return (lanes.outside, lanes.visible, lanes.visible);
-        };
+        let source = &brick.neighbourhoods;
         // Cells whose neighbourhood lies in the source.
         let mut interior = lanes.in_cell;
         for a in 0..3 {
