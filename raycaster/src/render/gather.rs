@@ -23,10 +23,12 @@
 
 use glam::{Vec3, Vec3A, Vec4};
 
+use super::compositor::Compositor;
 use super::local::Accumulation;
-use super::march::RunMarcher;
+use super::march::{RunMarcher, march_each_run};
 use super::optics::over_sample;
 use super::pixel::SamplePositions;
+use super::runs::SampleRuns;
 use super::sampler::{BrickSampler, CornerDifferences, VolumeSampler, gradient_from_differences};
 use super::shading::Shading;
 use super::transfer::TransferTable;
@@ -240,123 +242,195 @@ impl<T: Sample> RunMarcher<Accumulation> for GatherRay<'_, '_, T> {
     /// reached the opacity threshold with sample `k − 1`.
     #[inline(always)]
     fn march_run(&mut self, acc: &mut Accumulation, first: u32, end: u32) -> Option<u32> {
-        match &self.shade {
-            Some(shade) => self.march_shaded(shade, acc, first, end),
-            None => self.march_unshaded(acc, first, end),
-        }
-    }
-}
-
-impl<T: Sample> GatherRay<'_, '_, T> {
-    /// [`Self::march_run`] without shading.
-    #[inline(always)]
-    fn march_unshaded(&self, acc: &mut Accumulation, first: u32, end: u32) -> Option<u32> {
-        let entries = self.table.entries();
-        let mut indices = [0i32; GATHER_LANES];
-        let mut local = [[0f32; GATHER_LANES]; 3];
         let mut k = first;
         while k < end {
             let n = (end - k).min(GATHER_LANES as u32) as usize;
-            #[cfg(target_arch = "x86_64")]
-            #[allow(unsafe_code)]
-            // SAFETY: `GatherBrick::new` checked that this CPU has AVX2.
-            let (outside, mut visible) =
-                unsafe { x86::chunk_indices(self, k, n, &mut indices, &mut local) };
-            #[cfg(not(target_arch = "x86_64"))]
-            let (outside, mut visible): (u32, u32) = unreachable!("no gather layout off x86-64");
-            if outside != 0 {
-                visible |= self.indices_outside_cells(outside, &local, &mut indices);
-            }
-            // The visible samples (opacity above 0: what the scalar `Dvr`
-            // composites), in order.
-            while visible != 0 {
-                let j = visible.trailing_zeros() as usize;
-                visible &= visible - 1;
-                let [r, g, b, a] = entries[indices[j] as usize];
-                if self.over(acc, ([r, g, b], a), k + j as u32) {
-                    return Some(k + j as u32 + 1);
-                }
+            let samples = std::array::from_fn(|j| k + j as u32);
+            if let Some(j) = self.chunk(acc, &samples, n) {
+                return Some(samples[j] + 1);
             }
             k += n as u32;
         }
         None
     }
 
-    /// [`Self::march_run`] with shading: the scalar `Dvr`'s colour, shaded as
-    /// the 4-lane kernel shades it (`Shading::shade_lanes`, the bits of
+    /// Every run of `runs`, eight samples per chunk whatever run they belong
+    /// to (a chunk of one run would end at every empty cell and brick face).
+    /// A ray that stops counts the samples skipped before its last sample's
+    /// run only, as one run at a time does.
+    #[inline(always)]
+    fn march_runs<C: Compositor<State = Accumulation>>(
+        &mut self,
+        c: &C,
+        ess: bool,
+        acc: &mut Accumulation,
+        runs: &mut SampleRuns<'_, C>,
+    ) -> (u64, u64, Option<u32>) {
+        // (Without skipping the visit is one run: no chunk to fill across.)
+        if C::STATE_SKIPS || !runs.skips_cells() {
+            return march_each_run(self, c, ess, acc, runs);
+        }
+        let mut samples = [0u32; GATHER_LANES];
+        // The samples skipped before each lane's run, for chunks that gather
+        // lanes of several runs.
+        let mut skipped = [0u64; GATHER_LANES];
+        let (mut n, mut taken) = (0, 0u64);
+        while let Some(run) = runs.next() {
+            let skipped_before = runs.skipped;
+            let mut k = run.first;
+            while k < run.end {
+                if n == 0 && run.end - k >= GATHER_LANES as u32 {
+                    // A whole chunk of this run.
+                    let whole = std::array::from_fn(|j| k + j as u32);
+                    if let Some(j) = self.chunk(acc, &whole, GATHER_LANES) {
+                        return (taken + j as u64 + 1, skipped_before, Some(whole[j] + 1));
+                    }
+                    taken += GATHER_LANES as u64;
+                    k += GATHER_LANES as u32;
+                    continue;
+                }
+                samples[n] = k;
+                skipped[n] = skipped_before;
+                n += 1;
+                k += 1;
+                if n == GATHER_LANES {
+                    n = 0;
+                    if let Some(j) = self.chunk(acc, &samples, GATHER_LANES) {
+                        return (taken + j as u64 + 1, skipped[j], Some(samples[j] + 1));
+                    }
+                    taken += GATHER_LANES as u64;
+                }
+            }
+        }
+        if n > 0 {
+            if let Some(j) = self.chunk(acc, &samples, n) {
+                return (taken + j as u64 + 1, skipped[j], Some(samples[j] + 1));
+            }
+            taken += n as u64;
+        }
+        (taken, runs.skipped, None)
+    }
+}
+
+impl<T: Sample> GatherRay<'_, '_, T> {
+    /// Samples `samples[..n]` (ascending) into `acc`, in order; `Some(j)` when
+    /// the ray reached the opacity threshold at `samples[j]`.
+    #[inline(always)]
+    fn chunk(
+        &self,
+        acc: &mut Accumulation,
+        samples: &[u32; GATHER_LANES],
+        n: usize,
+    ) -> Option<usize> {
+        match &self.shade {
+            Some(shade) => self.chunk_shaded(shade, acc, samples, n),
+            None => self.chunk_unshaded(acc, samples, n),
+        }
+    }
+
+    /// [`Self::chunk`] without shading.
+    #[inline(always)]
+    fn chunk_unshaded(
+        &self,
+        acc: &mut Accumulation,
+        samples: &[u32; GATHER_LANES],
+        n: usize,
+    ) -> Option<usize> {
+        let entries = self.table.entries();
+        let mut indices = [0i32; GATHER_LANES];
+        let mut local = [[0f32; GATHER_LANES]; 3];
+        #[cfg(target_arch = "x86_64")]
+        #[allow(unsafe_code)]
+        // SAFETY: `GatherBrick::new` checked that this CPU has AVX2.
+        let (outside, mut visible) =
+            unsafe { x86::chunk_indices(self, samples, n, &mut indices, &mut local) };
+        #[cfg(not(target_arch = "x86_64"))]
+        let (outside, mut visible): (u32, u32) = unreachable!("no gather layout off x86-64");
+        if outside != 0 {
+            visible |= self.indices_outside_cells(outside, &local, &mut indices);
+        }
+        // The visible samples (opacity above 0: what the scalar `Dvr`
+        // composites), in order.
+        while visible != 0 {
+            let j = visible.trailing_zeros() as usize;
+            visible &= visible - 1;
+            let [r, g, b, a] = entries[indices[j] as usize];
+            if self.over(acc, ([r, g, b], a), samples[j]) {
+                return Some(j);
+            }
+        }
+        None
+    }
+
+    /// [`Self::chunk`] with shading: the scalar `Dvr`'s colour, shaded as the
+    /// 4-lane kernel shades it (`Shading::shade_lanes`, the bits of
     /// `Shading::shade`), for the visible samples.
     #[inline(always)]
-    fn march_shaded(
+    fn chunk_shaded(
         &self,
         shade: &GatherShading<'_, '_, T>,
         acc: &mut Accumulation,
-        first: u32,
-        end: u32,
-    ) -> Option<u32> {
+        samples: &[u32; GATHER_LANES],
+        n: usize,
+    ) -> Option<usize> {
         let entries = self.table.entries();
         let mut indices = [0i32; GATHER_LANES];
         let mut local = [[0f32; GATHER_LANES]; 3];
         let mut gradient = [[0f32; GATHER_LANES]; 3];
-        let mut k = first;
-        while k < end {
-            let n = (end - k).min(GATHER_LANES as u32) as usize;
-            #[cfg(target_arch = "x86_64")]
-            #[allow(unsafe_code)]
-            // SAFETY: `GatherBrick::new` checked that this CPU has AVX2.
-            let (outside, mut visible, mut fallback) = unsafe {
-                x86::chunk_gradients(self, k, n, &mut indices, &mut local, &mut gradient)
-            };
-            #[cfg(not(target_arch = "x86_64"))]
-            let (outside, mut visible, mut fallback): (u32, u32, u32) =
-                unreachable!("no gather layout off x86-64");
-            if outside != 0 {
-                let seen = self.indices_outside_cells(outside, &local, &mut indices);
-                visible |= seen;
-                fallback |= seen;
+        #[cfg(target_arch = "x86_64")]
+        #[allow(unsafe_code)]
+        // SAFETY: `GatherBrick::new` checked that this CPU has AVX2.
+        let (outside, mut visible, mut fallback) = unsafe {
+            x86::chunk_gradients(self, samples, n, &mut indices, &mut local, &mut gradient)
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let (outside, mut visible, mut fallback): (u32, u32, u32) =
+            unreachable!("no gather layout off x86-64");
+        if outside != 0 {
+            let seen = self.indices_outside_cells(outside, &local, &mut indices);
+            visible |= seen;
+            fallback |= seen;
+        }
+        if visible == 0 {
+            return None;
+        }
+        if fallback != 0 {
+            self.gradients_by_lane(shade, samples, fallback, outside, &local, &mut gradient);
+        }
+        // Colours and gradients per channel and axis in lanes, shaded four at
+        // a time.
+        let mut rgb = [[0f32; GATHER_LANES]; 3];
+        let mut bits = visible;
+        while bits != 0 {
+            let j = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            let entry = entries[indices[j] as usize];
+            for c in 0..3 {
+                rgb[c][j] = entry[c];
             }
-            if visible == 0 {
-                k += n as u32;
+        }
+        let scale = shade.gradient_scale.to_array();
+        for half in 0..2 {
+            if visible >> (4 * half) & 0xf == 0 {
                 continue;
             }
-            if fallback != 0 {
-                self.gradients_by_lane(shade, k, fallback, outside, &local, &mut gradient);
+            let quad = |v: &[f32; GATHER_LANES]| Vec4::from_slice(&v[4 * half..4 * half + 4]);
+            let g = [0, 1, 2].map(|a| quad(&gradient[a]) * scale[a]);
+            let shaded = shade
+                .shading
+                .shade_lanes(rgb.each_ref().map(quad), g, shade.lights);
+            for c in 0..3 {
+                shaded[c].write_to_slice(&mut rgb[c][4 * half..4 * half + 4]);
             }
-            // Colours and gradients per channel and axis in lanes, shaded four
-            // at a time.
-            let mut rgb = [[0f32; GATHER_LANES]; 3];
-            let mut bits = visible;
-            while bits != 0 {
-                let j = bits.trailing_zeros() as usize;
-                bits &= bits - 1;
-                let entry = entries[indices[j] as usize];
-                for c in 0..3 {
-                    rgb[c][j] = entry[c];
-                }
+        }
+        while visible != 0 {
+            let j = visible.trailing_zeros() as usize;
+            visible &= visible - 1;
+            let a = entries[indices[j] as usize][3];
+            let color = [rgb[0][j], rgb[1][j], rgb[2][j]];
+            if self.over(acc, (color, a), samples[j]) {
+                return Some(j);
             }
-            let scale = shade.gradient_scale.to_array();
-            for half in 0..2 {
-                if visible >> (4 * half) & 0xf == 0 {
-                    continue;
-                }
-                let quad = |v: &[f32; GATHER_LANES]| Vec4::from_slice(&v[4 * half..4 * half + 4]);
-                let g = [0, 1, 2].map(|a| quad(&gradient[a]) * scale[a]);
-                let shaded = shade
-                    .shading
-                    .shade_lanes(rgb.each_ref().map(quad), g, shade.lights);
-                for c in 0..3 {
-                    shaded[c].write_to_slice(&mut rgb[c][4 * half..4 * half + 4]);
-                }
-            }
-            while visible != 0 {
-                let j = visible.trailing_zeros() as usize;
-                visible &= visible - 1;
-                let a = entries[indices[j] as usize][3];
-                let color = [rgb[0][j], rgb[1][j], rgb[2][j]];
-                if self.over(acc, (color, a), k + j as u32) {
-                    return Some(k + j as u32 + 1);
-                }
-            }
-            k += n as u32;
         }
         None
     }
@@ -384,7 +458,7 @@ impl<T: Sample> GatherRay<'_, '_, T> {
     fn gradients_by_lane(
         &self,
         shade: &GatherShading<'_, '_, T>,
-        k: u32,
+        samples: &[u32; GATHER_LANES],
         lanes: u32,
         outside: u32,
         local: &[[f32; GATHER_LANES]; 3],
@@ -396,7 +470,7 @@ impl<T: Sample> GatherRay<'_, '_, T> {
             if lanes & (1 << j) == 0 {
                 continue;
             }
-            let p = Vec3::from(self.positions.at(k + j as u32));
+            let p = Vec3::from(self.positions.at(samples[j]));
             let l = Vec3A::new(local[0][j], local[1][j], local[2][j]);
             let differences = if outside & (1 << j) != 0 {
                 None
@@ -559,7 +633,7 @@ mod x86 {
         lerp(lerp(c00, c01, fy), lerp(c10, c11, fy), fx)
     }
 
-    /// The lanes of samples `k..k + n` (`n ≤ 8`), their brick-local positions
+    /// The lanes of samples `samples[..n]`, their brick-local positions
     /// stored into `local`.
     ///
     /// # Safety
@@ -568,7 +642,7 @@ mod x86 {
     #[target_feature(enable = "avx2")]
     unsafe fn chunk_lanes<T: Sample>(
         ray: &GatherRay<'_, '_, T>,
-        k: u32,
+        samples: &[u32; GATHER_LANES],
         n: usize,
         local: &mut [[f32; GATHER_LANES]; 3],
     ) -> ChunkLanes {
@@ -577,7 +651,9 @@ mod x86 {
         let zero = _mm256_setzero_ps();
         let lane_numbers = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
         // Sample numbers as floats (exact: below 2^24), as `k as f32`.
-        let kf = _mm256_cvtepi32_ps(_mm256_add_epi32(_mm256_set1_epi32(k as i32), lane_numbers));
+        // SAFETY: `samples` holds eight `u32`s; an unaligned load.
+        let ks = unsafe { _mm256_loadu_si256(samples.as_ptr().cast::<__m256i>()) };
+        let kf = _mm256_cvtepi32_ps(ks);
         // Lanes below `n`.
         let used = _mm256_cmpgt_epi32(_mm256_set1_epi32(n as i32), lane_numbers);
         let mut in_cell = _mm256_castsi256_ps(used);
@@ -671,7 +747,7 @@ mod x86 {
         }
     }
 
-    /// The table indices of samples `k..k + n` (`n ≤ 8`) into `indices` and
+    /// The table indices of samples `samples[..n]` into `indices` and
     /// their brick-local positions into `local`; returns the lanes (below `n`)
     /// whose position lies on none of the brick's cells, whose indices are
     /// left to the caller, and the other lanes below `n` whose entry's opacity
@@ -683,13 +759,13 @@ mod x86 {
     #[target_feature(enable = "avx2")]
     pub(super) unsafe fn chunk_indices<T: Sample>(
         ray: &GatherRay<'_, '_, T>,
-        k: u32,
+        samples: &[u32; GATHER_LANES],
         n: usize,
         indices: &mut [i32; GATHER_LANES],
         local: &mut [[f32; GATHER_LANES]; 3],
     ) -> (u32, u32) {
         // SAFETY: the CPU has AVX2 (this function's contract).
-        let lanes = unsafe { chunk_lanes(ray, k, n, local) };
+        let lanes = unsafe { chunk_lanes(ray, samples, n, local) };
         // SAFETY: `indices` holds eight `i32`s; an unaligned store.
         unsafe { _mm256_storeu_si256(indices.as_mut_ptr().cast::<__m256i>(), lanes.index) };
         (lanes.outside, lanes.visible)
@@ -709,7 +785,7 @@ mod x86 {
     #[target_feature(enable = "avx2")]
     pub(super) unsafe fn chunk_gradients<T: Sample>(
         ray: &GatherRay<'_, '_, T>,
-        k: u32,
+        samples: &[u32; GATHER_LANES],
         n: usize,
         indices: &mut [i32; GATHER_LANES],
         local: &mut [[f32; GATHER_LANES]; 3],
@@ -717,7 +793,7 @@ mod x86 {
     ) -> (u32, u32, u32) {
         let brick = &ray.brick;
         // SAFETY: the CPU has AVX2 (this function's contract).
-        let lanes = unsafe { chunk_lanes(ray, k, n, local) };
+        let lanes = unsafe { chunk_lanes(ray, samples, n, local) };
         // SAFETY: `indices` holds eight `i32`s; an unaligned store.
         unsafe { _mm256_storeu_si256(indices.as_mut_ptr().cast::<__m256i>(), lanes.index) };
         if lanes.visible == 0 {

@@ -156,6 +156,50 @@ pub(crate) trait RunMarcher<S> {
     /// `Some(k)` when the ray stopped (opacity threshold, a finished compositor)
     /// with sample `k − 1` the last it took.
     fn march_run(&mut self, acc: &mut S, first: u32, end: u32) -> Option<u32>;
+
+    /// Folds every run of `runs` into `acc` (skipping, with `ess`, the runs
+    /// `c`'s state says cannot change the pixel): the samples taken, the
+    /// samples skipped before the ray stopped or ended (`runs`' own and the
+    /// runs skipped here), and `Some(k)` when the ray stopped before sample
+    /// `k`. One run at a time ([`march_each_run`]) unless a kernel marches
+    /// samples of several runs together.
+    #[inline(always)]
+    fn march_runs<C: Compositor<State = S>>(
+        &mut self,
+        c: &C,
+        ess: bool,
+        acc: &mut S,
+        runs: &mut SampleRuns<'_, C>,
+    ) -> (u64, u64, Option<u32>)
+    where
+        Self: Sized,
+    {
+        march_each_run(self, c, ess, acc, runs)
+    }
+}
+
+/// [`RunMarcher::march_runs`] one run at a time.
+#[inline(always)]
+pub(crate) fn march_each_run<S, C: Compositor<State = S>>(
+    marcher: &mut impl RunMarcher<S>,
+    c: &C,
+    ess: bool,
+    acc: &mut S,
+    runs: &mut SampleRuns<'_, C>,
+) -> (u64, u64, Option<u32>) {
+    let (mut taken, mut skipped) = (0u64, 0u64);
+    while let Some(run) = runs.next() {
+        if C::STATE_SKIPS && ess && c.below_interest(acc, run.hi) {
+            skipped += u64::from(run.len());
+            continue;
+        }
+        if let Some(next) = marcher.march_run(acc, run.first, run.end) {
+            taken += u64::from(next - run.first);
+            return (taken, skipped + runs.skipped, Some(next));
+        }
+        taken += u64::from(run.len());
+    }
+    (taken, skipped + runs.skipped, None)
 }
 
 impl<T: Sample> BrickVisit<'_, '_, T> {
@@ -184,24 +228,9 @@ impl<T: Sample> BrickVisit<'_, '_, T> {
         } else {
             counters.brick_visits += 1;
             let mut acc = state.acc;
-            let (mut taken, mut skipped) = (0u64, 0u64);
-            let mut stopped_before = None;
             let cells = if ess { brick.cells.as_ref() } else { None };
             let mut runs = SampleRuns::new(c, ray, cells, self.volume.last(), first, last);
-            let mut marcher = start();
-            for run in runs.by_ref() {
-                if C::STATE_SKIPS && ess && c.below_interest(&acc, run.hi) {
-                    skipped += u64::from(run.len());
-                    continue;
-                }
-                if let Some(next) = marcher.march_run(&mut acc, run.first, run.end) {
-                    taken += u64::from(next - run.first);
-                    stopped_before = Some(next);
-                    break;
-                }
-                taken += u64::from(run.len());
-            }
-            skipped += runs.skipped;
+            let (taken, skipped, stopped_before) = start().march_runs(c, ess, &mut acc, &mut runs);
             state.acc = acc;
             counters.samples += taken;
             counters.samples_skipped_empty += skipped;

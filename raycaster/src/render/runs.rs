@@ -111,6 +111,13 @@ pub(crate) struct SampleRuns<'r, C> {
 }
 
 impl<'r, C: Compositor> SampleRuns<'r, C> {
+    /// Whether the walk skips empty cells (else it yields one run of every
+    /// sample).
+    #[inline]
+    pub(crate) fn skips_cells(&self) -> bool {
+        self.cells.is_some()
+    }
+
     /// The runs of samples `first..=last` of `ray`; with `cells` `None` (no
     /// empty-space skipping) one run of them all.
     #[inline(always)]
