@@ -66,8 +66,8 @@ impl SimdLevel {
     ///
     /// For DVR with a 1D, not pre-integrated transfer function (no segment
     /// scene): AVX2 where this CPU has it, the kernel with hardware gathers
-    /// ([`super::gather`]): on this project's 2-core VM 1.6–2× the scalar
-    /// kernel's samples per second unshaded, 1.1–1.25× shaded
+    /// ([`super::gather`]): on this project's 2-core VM 1.6–1.9× the scalar
+    /// kernel's samples per second unshaded, 1.08–1.26× shaded
     /// (docs/benchmarks.md, section 5). Otherwise [`SimdLevel::Scalar`], the
     /// only kernel of the other compositors. Every frame is the same whichever
     /// level renders it.
