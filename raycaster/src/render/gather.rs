@@ -546,8 +546,6 @@ mod x86 {
         in_cell: __m256,
         /// The corner values, in [`crate::render::sampler::Corners`] order.
         corners: [__m256; 8],
-        /// Table indices.
-        index: __m256i,
         /// Lanes below `n` on no cell (bits).
         outside: u32,
         /// In-cell lanes whose entry's opacity is above 0 (bits).
@@ -633,8 +631,8 @@ mod x86 {
         lerp(lerp(c00, c01, fy), lerp(c10, c11, fy), fx)
     }
 
-    /// The lanes of samples `samples[..n]`, their brick-local positions
-    /// stored into `local`.
+    /// The lanes of samples `samples[..n]`, their table indices stored into
+    /// `indices` and their brick-local positions into `local`.
     ///
     /// # Safety
     /// The CPU has AVX2.
@@ -644,6 +642,7 @@ mod x86 {
         ray: &GatherRay<'_, '_, T>,
         samples: &[u32; GATHER_LANES],
         n: usize,
+        indices: &mut [i32; GATHER_LANES],
         local: &mut [[f32; GATHER_LANES]; 3],
     ) -> ChunkLanes {
         let brick = &ray.brick;
@@ -719,6 +718,8 @@ mod x86 {
             _mm256_set1_ps((TABLE_SIZE - 1) as f32),
         );
         let index = _mm256_cvttps_epi32(x);
+        // SAFETY: `indices` holds eight `i32`s; an unaligned store.
+        unsafe { _mm256_storeu_si256(indices.as_mut_ptr().cast::<__m256i>(), index) };
         // The entries' opacities: element `4·index + 3` of the table as floats.
         let entries = ray.table.entries();
         debug_assert_eq!(entries.len(), TABLE_SIZE);
@@ -741,7 +742,6 @@ mod x86 {
             offset,
             in_cell,
             corners,
-            index,
             outside,
             visible,
         }
@@ -765,9 +765,7 @@ mod x86 {
         local: &mut [[f32; GATHER_LANES]; 3],
     ) -> (u32, u32) {
         // SAFETY: the CPU has AVX2 (this function's contract).
-        let lanes = unsafe { chunk_lanes(ray, samples, n, local) };
-        // SAFETY: `indices` holds eight `i32`s; an unaligned store.
-        unsafe { _mm256_storeu_si256(indices.as_mut_ptr().cast::<__m256i>(), lanes.index) };
+        let lanes = unsafe { chunk_lanes(ray, samples, n, indices, local) };
         (lanes.outside, lanes.visible)
     }
 
@@ -793,9 +791,7 @@ mod x86 {
     ) -> (u32, u32, u32) {
         let brick = &ray.brick;
         // SAFETY: the CPU has AVX2 (this function's contract).
-        let lanes = unsafe { chunk_lanes(ray, samples, n, local) };
-        // SAFETY: `indices` holds eight `i32`s; an unaligned store.
-        unsafe { _mm256_storeu_si256(indices.as_mut_ptr().cast::<__m256i>(), lanes.index) };
+        let lanes = unsafe { chunk_lanes(ray, samples, n, indices, local) };
         if lanes.visible == 0 {
             return (lanes.outside, 0, 0);
         }
