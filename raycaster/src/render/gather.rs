@@ -26,7 +26,7 @@ use glam::{Vec3, Vec3A, Vec4};
 use super::compositor::Compositor;
 use super::local::Accumulation;
 use super::march::{RunMarcher, march_each_run};
-use super::optics::over_sample;
+use super::optics::{over_sample, whole_exponent};
 use super::pixel::SamplePositions;
 use super::runs::SampleRuns;
 use super::sampler::{BrickSampler, CornerDifferences, VolumeSampler, gradient_from_differences};
@@ -410,6 +410,42 @@ impl<T: Sample> GatherRay<'_, '_, T> {
             }
         }
         let scale = shade.gradient_scale.to_array();
+        #[cfg(target_arch = "x86_64")]
+        if let Some(n) = whole_exponent(shade.shading.shininess) {
+            #[allow(unsafe_code)]
+            // SAFETY: `GatherBrick::new` checked that this CPU has AVX2.
+            unsafe {
+                x86::shade(&shade.shading, n, &mut rgb, &gradient, scale, shade.lights)
+            };
+        } else {
+            self.shade_quads(shade, visible, &mut rgb, &gradient);
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        self.shade_quads(shade, visible, &mut rgb, &gradient);
+        while visible != 0 {
+            let j = visible.trailing_zeros() as usize;
+            visible &= visible - 1;
+            let a = entries[indices[j] as usize][3];
+            let color = [rgb[0][j], rgb[1][j], rgb[2][j]];
+            if self.over(acc, (color, a), samples[j]) {
+                return Some(j);
+            }
+        }
+        None
+    }
+
+    /// Blinn-Phong of the visible lanes' colours `rgb` (per channel) at their
+    /// gradients (per axis, before the gradient scale), four lanes at a time
+    /// (`Shading::shade_lanes`): for exponents that are not whole numbers.
+    #[cold]
+    fn shade_quads(
+        &self,
+        shade: &GatherShading<'_, '_, T>,
+        visible: u32,
+        rgb: &mut [[f32; GATHER_LANES]; 3],
+        gradient: &[[f32; GATHER_LANES]; 3],
+    ) {
+        let scale = shade.gradient_scale.to_array();
         for half in 0..2 {
             if visible >> (4 * half) & 0xf == 0 {
                 continue;
@@ -423,16 +459,6 @@ impl<T: Sample> GatherRay<'_, '_, T> {
                 shaded[c].write_to_slice(&mut rgb[c][4 * half..4 * half + 4]);
             }
         }
-        while visible != 0 {
-            let j = visible.trailing_zeros() as usize;
-            visible &= visible - 1;
-            let a = entries[indices[j] as usize][3];
-            let color = [rgb[0][j], rgb[1][j], rgb[2][j]];
-            if self.over(acc, (color, a), samples[j]) {
-                return Some(j);
-            }
-        }
-        None
     }
 
     /// Composites visible sample `k` of colour and opacity `sample`; whether
@@ -530,7 +556,10 @@ impl<T: Sample> GatherRay<'_, '_, T> {
 mod x86 {
     use std::arch::x86_64::*;
 
+    use glam::Vec3;
+
     use super::{GATHER_LANES, GatherRay, GatherSource};
+    use crate::render::shading::{Light, Shading};
     use crate::render::transfer::TABLE_SIZE;
     use crate::volume::Sample;
 
@@ -550,6 +579,72 @@ mod x86 {
         outside: u32,
         /// In-cell lanes whose entry's opacity is above 0 (bits).
         visible: u32,
+    }
+
+    /// `Shading::shade_lanes` of eight lanes for a whole exponent `n`
+    /// (`specular_power` by repeated squaring): the colours `rgb` (per
+    /// channel) at the gradients `gradient` (per axis) times `scale`, each lane
+    /// with `Shading::shade`'s operations, so its bits.
+    ///
+    /// # Safety
+    /// The CPU has AVX2.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn shade(
+        shading: &Shading,
+        n: u32,
+        rgb: &mut [[f32; GATHER_LANES]; 3],
+        gradient: &[[f32; GATHER_LANES]; 3],
+        scale: [f32; 3],
+        (to_light, half): (Vec3, Vec3),
+    ) {
+        // SAFETY: each array holds eight `f32`s; unaligned loads.
+        let load = |v: &[f32; GATHER_LANES]| unsafe { _mm256_loadu_ps(v.as_ptr()) };
+        let splat = _mm256_set1_ps;
+        let [gx, gy, gz] = [0, 1, 2].map(|a| _mm256_mul_ps(load(&gradient[a]), splat(scale[a])));
+        // `Vec3::length`: `(x·x + y·y) + z·z`, then the root.
+        let magnitude = _mm256_sqrt_ps(_mm256_add_ps(
+            _mm256_add_ps(_mm256_mul_ps(gx, gx), _mm256_mul_ps(gy, gy)),
+            _mm256_mul_ps(gz, gz),
+        ));
+        // Not `magnitude ≤ threshold` (NaN lit, as `!cmple`).
+        let lit = _mm256_cmp_ps::<_CMP_NLE_UQ>(magnitude, splat(shading.gradient_threshold));
+        let normal = [gx, gy, gz].map(|g| _mm256_div_ps(g, magnitude));
+        let abs_mask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fff_ffff));
+        let dot = |v: Vec3| {
+            let [nx, ny, nz] = normal;
+            let d = _mm256_add_ps(
+                _mm256_add_ps(_mm256_mul_ps(nx, splat(v.x)), _mm256_mul_ps(ny, splat(v.y))),
+                _mm256_mul_ps(nz, splat(v.z)),
+            );
+            _mm256_and_ps(d, abs_mask)
+        };
+        let diffuse = dot(to_light);
+        let facing = match shading.light {
+            Light::Headlight => diffuse,
+            Light::Fixed(_) => dot(half),
+        };
+        // `power_by_squaring(facing, 1, n)`, multiplication for
+        // multiplication.
+        let (mut base, mut power, mut e) = (facing, splat(1.0), n);
+        while e > 0 {
+            if e & 1 == 1 {
+                power = _mm256_mul_ps(power, base);
+            }
+            base = _mm256_mul_ps(base, base);
+            e >>= 1;
+        }
+        let specular = _mm256_mul_ps(splat(shading.specular), power);
+        let k = _mm256_add_ps(
+            splat(shading.ambient),
+            _mm256_mul_ps(splat(shading.diffuse), diffuse),
+        );
+        for channel in rgb.iter_mut() {
+            let c = load(channel);
+            let shaded = _mm256_min_ps(_mm256_add_ps(_mm256_mul_ps(c, k), specular), splat(1.0));
+            // SAFETY: `channel` holds eight `f32`s; an unaligned store.
+            unsafe { _mm256_storeu_ps(channel.as_mut_ptr(), _mm256_blendv_ps(c, shaded, lit)) };
+        }
     }
 
     /// Whether a read of `source` within `far` bytes above the brick-local

@@ -121,7 +121,7 @@ fn power_by_squaring<V: Copy + Mul<Output = V>>(x: V, one: V, mut n: u32) -> V {
 /// gives 0, so the round trip holds only for whole numbers; no `fract`, which
 /// is a library call where the compiler does not hoist it.)
 #[inline]
-fn whole_exponent(e: f32) -> Option<u32> {
+pub(crate) fn whole_exponent(e: f32) -> Option<u32> {
     let n = e as u32;
     (n as f32 == e && e <= 255.0).then_some(n)
 }
