@@ -1,9 +1,10 @@
 //! The DVR kernel with hardware gathers (AVX2 and AVX-512, x86-64): eight
-//! consecutive samples of one ray at a time, their positions, cells, corner
-//! reads, trilinear values and transfer-table indices in eight SIMD lanes; when
-//! shading, the visible samples' gradients too (the central differences at
-//! their cells' corners from the 32-voxel neighbourhood, gathered, then
-//! interpolated) and Blinn-Phong in lanes; then the "over" steps in order.
+//! samples of one ray at a time (filled across its runs), their positions,
+//! cells, corner reads, trilinear values and transfer-table indices in eight
+//! SIMD lanes; when shading, the visible samples' gradients too (the central
+//! differences at their cells' corners from the 32-voxel neighbourhood,
+//! gathered, then interpolated) and Blinn-Phong in lanes; then the "over"
+//! steps in order.
 //!
 //! The 4-lane kernel ([`super::packet`]) shares each voxel cell's corners and
 //! differences between the samples in it through the
