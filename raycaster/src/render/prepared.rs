@@ -236,7 +236,7 @@ impl FramePlan {
         }
         settings.clip.validate()?;
         let simd = match settings.simd {
-            None => SimdLevel::automatic(settings),
+            None => SimdLevel::automatic(),
             Some(level) if level.is_available() => level,
             Some(level) => return Err(RenderError::Simd(level)),
         };

@@ -61,22 +61,19 @@ impl SimdLevel {
         *available().last().expect("scalar is always available")
     }
 
-    /// The level a frame of `settings` uses unless told otherwise
-    /// ([`super::RenderSettings::simd`] `None`).
+    /// The level a frame uses unless told otherwise
+    /// ([`super::RenderSettings::simd`] `None`): AVX2 where this CPU has it,
+    /// else [`SimdLevel::Scalar`].
     ///
-    /// For DVR with a 1D, not pre-integrated transfer function (no segment
-    /// scene): AVX2 where this CPU has it, the kernel with hardware gathers
-    /// ([`super::gather`]): on this project's 2-core VM 1.6–1.9× the scalar
-    /// kernel's samples per second unshaded, 1.08–1.26× shaded
-    /// (docs/benchmarks.md, section 5). Otherwise [`SimdLevel::Scalar`], the
-    /// only kernel of the other compositors. Every frame is the same whichever
-    /// level renders it.
-    pub fn automatic(settings: &super::RenderSettings) -> SimdLevel {
-        let gathers = settings.mode == super::Mode::Dvr
-            && settings.segments.is_none()
-            && !settings.preintegrated
-            && settings.transfer.gradient_ramp.is_none();
-        if gathers && SimdLevel::Avx2.is_available() {
+    /// On AVX2, DVR with a 1D, not pre-integrated transfer function runs the
+    /// kernel with hardware gathers ([`super::gather`]): on this project's
+    /// 2-core VM 1.6–1.9× the scalar kernel's samples per second unshaded,
+    /// 1.08–1.26× shaded (docs/benchmarks.md, section 5). Every other frame
+    /// takes the scalar kernel whatever the level (its compositor declines
+    /// `Compositor::march_packets`, per task). Every frame is the
+    /// same whichever level renders it.
+    pub fn automatic() -> SimdLevel {
+        if SimdLevel::Avx2.is_available() {
             SimdLevel::Avx2
         } else {
             SimdLevel::Scalar
@@ -138,12 +135,6 @@ mod tests {
         assert_eq!(available()[0], SimdLevel::Scalar);
         assert!(SimdLevel::Scalar.is_available());
         assert!(available().contains(&SimdLevel::widest()));
-        let unshaded = crate::render::RenderSettings {
-            shading: None,
-            ..Default::default()
-        };
-        for settings in [unshaded, crate::render::RenderSettings::default()] {
-            assert!(SimdLevel::automatic(&settings).is_available());
-        }
+        assert!(SimdLevel::automatic().is_available());
     }
 }
