@@ -418,8 +418,14 @@ impl FrameJob<'_> {
             y1: 0,
         });
         let mut items: Vec<PacketItem> = Vec::new();
-        for Task { mut tile, brick } in tasks.iter() {
-            if !(self.cancelled)() {
+        for task in tasks.iter() {
+            let Task {
+                mut tile,
+                mut brick,
+            } = task;
+            // March the tile through its queue's bricks while it has one to
+            // march; hand it back when its queue is done or the frame cancelled.
+            while !(self.cancelled)() {
                 tile.prepare_rays(self.camera, geometry, self.plan, &volume_rect);
                 let scheduled = self.schedule.bricks[brick as usize];
                 let context = BrickContext::new(data, self.volume, self.plan, scheduled.coords);
@@ -485,6 +491,14 @@ impl FrameJob<'_> {
                     }
                 }
                 tile.counters = counters;
+                tile.next += 1;
+                match self.next_task(tile) {
+                    Ok(task) => (tile, brick) = (task.tile, task.brick),
+                    Err(done) => {
+                        tile = done;
+                        break;
+                    }
+                }
             }
             // The compositor may have stopped listening (cancelled): nothing to do.
             let _ = results[tile.compositor as usize].send(tile);
@@ -514,40 +528,40 @@ impl FrameJob<'_> {
                     }
                 }
             }
-            if let Some(task) = self.next_task(c, tile, &mut counters) {
-                in_flight += 1;
-                tasks
-                    .send(task)
-                    .expect("render threads outlive the compositors");
+            match self.next_task(tile) {
+                Ok(task) => {
+                    in_flight += 1;
+                    tasks
+                        .send(task)
+                        .expect("render threads outlive the compositors");
+                }
+                Err(tile) => {
+                    self.finish(c, &tile);
+                    counters += tile.counters;
+                }
             }
         }
         let mut cancelled = false;
         while in_flight > 0 {
-            let mut tile = results.recv().expect("render threads return every tile");
+            let tile = results.recv().expect("render threads return every tile");
             in_flight -= 1;
             cancelled = cancelled || (self.cancelled)();
             if cancelled {
                 continue;
             }
-            tile.next += 1;
-            if let Some(task) = self.next_task(c, tile, &mut counters) {
-                in_flight += 1;
-                tasks
-                    .send(task)
-                    .expect("render threads outlive the compositors");
-            }
+            // Not cancelled when the render thread gave it back: its queue is done.
+            self.finish(c, &tile);
+            counters += tile.counters;
         }
         (!cancelled).then_some(counters)
     }
 
     /// The tile's next task, skipping bricks whose covered pixels have all
-    /// terminated; or `None` after resolving a finished tile into the sink.
-    fn next_task<C: Compositor>(
-        &self,
-        c: &C,
-        mut tile: Tile<C::State>,
-        counters: &mut Counters,
-    ) -> Option<Task<C::State>> {
+    /// terminated; or the tile back when its queue is done. Render threads ask
+    /// after each task, so a tile stays with one thread (and in its caches)
+    /// from its first brick to its last, without a round trip through the
+    /// compositing thread per brick.
+    fn next_task<S: Copy>(&self, mut tile: Tile<S>) -> Result<Task<S>, Tile<S>> {
         let queue = &self.schedule.tiles[tile.index as usize].bricks;
         // A tile whose every pixel is finished skips the rest of its queue at
         // once (close to a large volume, a tile's queue holds up to hundreds of
@@ -559,14 +573,12 @@ impl FrameJob<'_> {
         }
         while let Some(&brick) = queue.get(tile.next) {
             if !tile.finished_within(&self.schedule.bricks[brick as usize].rect) {
-                return Some(Task { tile, brick });
+                return Ok(Task { tile, brick });
             }
             tile.counters.tasks_skipped_occluded += 1;
             tile.next += 1;
         }
-        self.finish(c, &tile);
-        *counters += tile.counters;
-        None
+        Err(tile)
     }
 
     /// Resolves a finished tile's pixels and hands them to the sink, or hands
