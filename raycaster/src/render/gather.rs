@@ -675,23 +675,72 @@ mod x86 {
         mask: __m256i,
         near_end: bool,
     ) -> __m256 {
+        // SAFETY: this function's contract, for one sample.
+        let words = unsafe { read_words(source, size, offset, relative, mask, near_end) };
+        sample_to_float(words, size)
+    }
+
+    /// [`read`] of two consecutive samples (`size` bytes apart) with one
+    /// gather: the sample at `offset + relative` and the next.
+    ///
+    /// # Safety
+    /// The CPU has AVX2, and each lane of `mask` addresses two samples of the
+    /// source's slice; `near_end` when one of them may lie in its last four
+    /// bytes ([`near_end`]).
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn read_pair(
+        source: &GatherSource<'_>,
+        size: i32,
+        offset: __m256i,
+        relative: i32,
+        mask: __m256i,
+        near_end: bool,
+    ) -> [__m256; 2] {
+        // SAFETY: this function's contract, for `2·size` bytes.
+        let words = unsafe { read_words(source, 2 * size, offset, relative, mask, near_end) };
+        let next = if size == 1 {
+            _mm256_srli_epi32::<8>(words)
+        } else {
+            _mm256_srli_epi32::<16>(words)
+        };
+        [sample_to_float(words, size), sample_to_float(next, size)]
+    }
+
+    /// The four bytes at brick-local byte offset `offset + relative` in
+    /// `source`, for the lanes of `mask` (0 in the others), shifted down so
+    /// that the `span` bytes from there on are their lowest.
+    ///
+    /// # Safety
+    /// The CPU has AVX2, `span` is 1 to 4, and each lane of `mask` addresses
+    /// `span` bytes of the source's slice; `near_end` when one of them may lie
+    /// in its last four bytes ([`near_end`]).
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn read_words(
+        source: &GatherSource<'_>,
+        span: i32,
+        offset: __m256i,
+        relative: i32,
+        mask: __m256i,
+        near_end: bool,
+    ) -> __m256i {
         let at = _mm256_add_epi32(offset, _mm256_set1_epi32(relative + source.shift));
         let (at, shift) = if near_end {
             // A four-byte read that would pass the slice's end reads the four
-            // bytes ending with the sample instead (the slice holds at least
-            // eight), its sample in the high bytes.
+            // bytes ending with the `span` bytes instead (the slice holds at
+            // least eight), those in the high bytes.
             let over = _mm256_cmpgt_epi32(at, _mm256_set1_epi32(source.last_whole_read));
-            let back = _mm256_and_si256(over, _mm256_set1_epi32(4 - size));
+            let back = _mm256_and_si256(over, _mm256_set1_epi32(4 - span));
             (_mm256_sub_epi32(at, back), _mm256_slli_epi32::<3>(back))
         } else {
             (at, _mm256_setzero_si256())
         };
-        let value_mask = _mm256_set1_epi32(if size == 1 { 0xff } else { 0xffff });
         // SAFETY: each lane of `mask` reads four bytes at `bytes + at`, with
-        // `0 ≤ at ≤ len − 4`: its sample lies in the slice (this function's
-        // contract), and an `at` past `len − 4` was moved back by `4 − size`
-        // bytes, still at or above 0 (the slice has at least 8 bytes, the sample
-        // at least 4 − size from its start then). The CPU has AVX2.
+        // `0 ≤ at ≤ len − 4`: its `span` bytes lie in the slice (this
+        // function's contract), and an `at` past `len − 4` was moved back by
+        // `4 − span` bytes, still at or above 0 (the slice has at least 8
+        // bytes, `at` is above 4 then). The CPU has AVX2.
         let words = unsafe {
             _mm256_mask_i32gather_epi32::<1>(
                 _mm256_setzero_si256(),
@@ -700,10 +749,18 @@ mod x86 {
                 mask,
             )
         };
-        // To float: the sample (below 2^16) as the mantissa of 2^23, less
-        // 2^23 (exact, as a conversion; which the compiler would otherwise
-        // lower as an unsigned one, blends and all).
-        let value = _mm256_and_si256(_mm256_srlv_epi32(words, shift), value_mask);
+        _mm256_srlv_epi32(words, shift)
+    }
+
+    /// The sample of `size` bytes in the low bytes of `words`, as a float.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn sample_to_float(words: __m256i, size: i32) -> __m256 {
+        let value_mask = _mm256_set1_epi32(if size == 1 { 0xff } else { 0xffff });
+        // The sample (below 2^16) as the mantissa of 2^23, less 2^23 (exact,
+        // as a conversion; which the compiler would otherwise lower as an
+        // unsigned one, blends and all).
+        let value = _mm256_and_si256(words, value_mask);
         let biased = _mm256_or_si256(value, _mm256_set1_epi32(0x4b00_0000));
         _mm256_sub_ps(_mm256_castsi256_ps(biased), _mm256_set1_ps(8_388_608.0))
     }
@@ -791,7 +848,22 @@ mod x86 {
         // lower corner. The CPU has AVX2. (Two copies, each with `near_end` a
         // constant.)
         let corners: [__m256; 8] = unsafe {
-            if near_end(source, offset, brick.corners[7]) {
+            let near = near_end(source, offset, brick.corners[7]);
+            if brick.corners[1] == size {
+                // Corners 2p and 2p + 1 differ in z alone, whose stride is
+                // a sample: one gather reads both. (A read from corner 2p
+                // starts below corner 7, so `near` covers it.)
+                let pairs: [[__m256; 2]; 4] = if near {
+                    std::array::from_fn(|p| {
+                        read_pair(source, size, offset, brick.corners[2 * p], mask, true)
+                    })
+                } else {
+                    std::array::from_fn(|p| {
+                        read_pair(source, size, offset, brick.corners[2 * p], mask, false)
+                    })
+                };
+                std::array::from_fn(|c| pairs[c / 2][c % 2])
+            } else if near {
                 std::array::from_fn(|c| read(source, size, offset, brick.corners[c], mask, true))
             } else {
                 std::array::from_fn(|c| read(source, size, offset, brick.corners[c], mask, false))
@@ -963,7 +1035,7 @@ mod x86 {
         // SAFETY: every voxel of a lane of `mask` is a sample of the source's
         // slice (this function's contract: the wrap across a face addresses it
         // in the next stored brick); the CPU has AVX2.
-        let v = |x: i32, y: i32, z: i32| unsafe {
+        let at = |x: i32, y: i32, z: i32| {
             let relative = (x - 1) * sx + (y - 1) * sy + (z - 1) * sz;
             let mut offset = lanes.offset;
             for (a, c) in [x, y, z].into_iter().enumerate() {
@@ -973,7 +1045,23 @@ mod x86 {
                     offset = _mm256_add_epi32(offset, above[a]);
                 }
             }
+            (offset, relative)
+        };
+        let v = |x: i32, y: i32, z: i32| unsafe {
+            let (offset, relative) = at(x, y, z);
             read(source, size, offset, relative, mask, NEAR)
+        };
+        // Voxels (x, y, 1) and (x, y, 2): consecutive samples (z's stride is
+        // one sample; neither crosses a z face), one gather.
+        // SAFETY: as `v`'s, for both voxels; a read from (x, y, 1) starts
+        // below the farthest, which `NEAR` covers.
+        let pair = |x: i32, y: i32| unsafe {
+            if sz == size {
+                let (offset, relative) = at(x, y, 1);
+                read_pair(source, size, offset, relative, mask, NEAR)
+            } else {
+                [v(x, y, 1), v(x, y, 2)]
+            }
         };
         let c = &lanes.corners;
         let half = _mm256_set1_ps(0.5);
@@ -986,8 +1074,10 @@ mod x86 {
         // z = i & 1), one axis at a time; exact in any order (whole numbers).
         // Along x: the voxels below the lower x face and above the upper, at
         // (y, z) = i & 3.
-        let below = [v(0, 1, 1), v(0, 1, 2), v(0, 2, 1), v(0, 2, 2)];
-        let above = [v(3, 1, 1), v(3, 1, 2), v(3, 2, 1), v(3, 2, 2)];
+        let ([b11, b12], [b21, b22]) = (pair(0, 1), pair(0, 2));
+        let ([a11, a12], [a21, a22]) = (pair(3, 1), pair(3, 2));
+        let below = [b11, b12, b21, b22];
+        let above = [a11, a12, a21, a22];
         store(
             0,
             std::array::from_fn(|i| {
@@ -1000,8 +1090,10 @@ mod x86 {
             }),
         );
         // Along y, at (x, z) = (i >> 2, i & 1).
-        let below = [v(1, 0, 1), v(1, 0, 2), v(2, 0, 1), v(2, 0, 2)];
-        let above = [v(1, 3, 1), v(1, 3, 2), v(2, 3, 1), v(2, 3, 2)];
+        let ([b11, b12], [b21, b22]) = (pair(1, 0), pair(2, 0));
+        let ([a11, a12], [a21, a22]) = (pair(1, 3), pair(2, 3));
+        let below = [b11, b12, b21, b22];
+        let above = [a11, a12, a21, a22];
         store(
             1,
             std::array::from_fn(|i| {
