@@ -35,6 +35,9 @@ use super::shading::Shading;
 use super::transfer::TransferTable;
 use crate::volume::Sample;
 
+/// The kernel reads the table's visibility bits as four 256-bit registers.
+const _: () = assert!(super::transfer::TABLE_SIZE == 1024);
+
 /// Samples per chunk.
 pub(crate) const GATHER_LANES: usize = 8;
 
@@ -765,6 +768,37 @@ mod x86 {
         _mm256_sub_ps(_mm256_castsi256_ps(biased), _mm256_set1_ps(8_388_608.0))
     }
 
+    /// The lanes (bits) whose entry `index` (each below 1024) has its bit set
+    /// in `bits` (bit `i % 32` of word `i / 32`): the table's 1024 bits in
+    /// four registers, word `index / 32` by a permutation of each and a
+    /// choice among the four, then bit `index % 32` of it. No gather, whose
+    /// wait on the index would stall the chunk.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    pub(super) fn table_bits(bits: &[u32; 32], index: __m256i) -> u32 {
+        // SAFETY: `bits` holds 32 `u32`s, four registers' worth; unaligned
+        // loads.
+        let registers: [__m256i; 4] = std::array::from_fn(|r| unsafe {
+            _mm256_loadu_si256(bits.as_ptr().add(8 * r).cast::<__m256i>())
+        });
+        let word_index = _mm256_srli_epi32::<5>(index);
+        let words = registers.map(|r| _mm256_permutevar8x32_epi32(r, word_index));
+        let register = _mm256_srli_epi32::<3>(word_index);
+        let one = _mm256_set1_epi32(1);
+        let odd = _mm256_cmpeq_epi32(_mm256_and_si256(register, one), one);
+        let upper = _mm256_cmpgt_epi32(register, one);
+        let word = _mm256_blendv_epi8(
+            _mm256_blendv_epi8(words[0], words[1], odd),
+            _mm256_blendv_epi8(words[2], words[3], odd),
+            upper,
+        );
+        let bit = _mm256_and_si256(
+            _mm256_srlv_epi32(word, _mm256_and_si256(index, _mm256_set1_epi32(31))),
+            one,
+        );
+        _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(bit, one))) as u32
+    }
+
     /// `a + (b − a)·t`, as the scalar `lerp`.
     #[inline]
     #[target_feature(enable = "avx2")]
@@ -888,22 +922,7 @@ mod x86 {
         let index = _mm256_cvttps_epi32(x);
         // SAFETY: `indices` holds eight `i32`s; an unaligned store.
         unsafe { _mm256_storeu_si256(indices.as_mut_ptr().cast::<__m256i>(), index) };
-        // The entries' opacities: element `4·index + 3` of the table as floats.
-        let entries = ray.table.entries();
-        debug_assert_eq!(entries.len(), TABLE_SIZE);
-        // SAFETY: each lane of `in_cell` reads the opacity of entry `index`,
-        // which the clamp above keeps in `0..TABLE_SIZE`, the table's length
-        // (`GatherRay`s are made only with such tables). The CPU has AVX2.
-        let alpha = unsafe {
-            _mm256_mask_i32gather_ps::<4>(
-                zero,
-                entries.as_ptr().cast::<f32>().add(3),
-                _mm256_slli_epi32::<2>(index),
-                in_cell,
-            )
-        };
-        let visible =
-            _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_GT_OQ>(alpha, zero)) as u32 & in_cell_bits;
+        let visible = table_bits(ray.table.visible_bits(), index) & in_cell_bits;
         ChunkLanes {
             fraction,
             lower,
@@ -1280,6 +1299,44 @@ mod tests {
             compared > 25_000 && visible > 500 && stopped > 100,
             "{compared} {visible} {stopped}"
         );
+    }
+
+    #[test]
+    #[cfg(target_arch = "x86_64")]
+    #[allow(unsafe_code)]
+    fn table_bits_read_every_entry_s_bit() {
+        use std::arch::x86_64::{_mm256_loadu_si256, _mm256_set1_epi32};
+        if !has_avx2() {
+            return;
+        }
+        let mut random = xorshift32(0x2545_f491);
+        for pattern in 0..8 {
+            // Random words, and words alone set or clear among clear or set ones.
+            let bits: [u32; 32] = std::array::from_fn(|w| match pattern {
+                0 => u32::from(w == 0),
+                1 => !0 ^ (1 << (w % 32)),
+                2 => 1 << 31,
+                _ => random(),
+            });
+            for first in (0..1024).step_by(8) {
+                // Eight entries in a scrambled order.
+                let index: [i32; 8] = std::array::from_fn(|l| ((first + l * 131) % 1024) as i32);
+                // SAFETY: `index` holds eight `i32`s; the CPU has AVX2 (checked).
+                let lanes =
+                    unsafe { x86::table_bits(&bits, _mm256_loadu_si256(index.as_ptr().cast())) };
+                for (l, &i) in index.iter().enumerate() {
+                    let expected = bits[i as usize / 32] >> (i % 32) & 1 == 1;
+                    assert_eq!(
+                        lanes >> l & 1 == 1,
+                        expected,
+                        "entry {i}, pattern {pattern}"
+                    );
+                }
+            }
+            // SAFETY: the CPU has AVX2 (checked).
+            let last = unsafe { x86::table_bits(&bits, _mm256_set1_epi32(1023)) };
+            assert_eq!(last == 0xff, bits[31] >> 31 == 1);
+        }
     }
 
     #[test]

@@ -423,6 +423,9 @@ pub struct TransferTable {
     alpha0: Vec<f32>,
     /// `opaque_prefix[i]` = entries below `i` with opacity > 0.
     opaque_prefix: Vec<u32>,
+    /// Bit `i % 32` of word `i / 32`: entry `i`'s step-corrected opacity is
+    /// above 0.
+    visible_bits: [u32; TABLE_SIZE / 32],
     /// Raw value of entry 0 and entries per raw unit.
     offset: f32,
     scale: f32,
@@ -474,10 +477,15 @@ impl TransferTable {
                 .collect(),
             scale: (GRADIENT_BINS - 1) as f32 / GRADIENT_RANGE,
         });
+        let mut visible_bits = [0u32; TABLE_SIZE / 32];
+        for (i, entry) in entries.iter().enumerate() {
+            visible_bits[i / 32] |= u32::from(entry[3] > 0.0) << (i % 32);
+        }
         TransferTable {
             entries,
             alpha0,
             opaque_prefix,
+            visible_bits,
             offset: d0,
             scale: (n - 1) as f32 / (d1 - d0),
             gradient,
@@ -520,6 +528,13 @@ impl TransferTable {
     #[inline]
     pub(crate) fn entries(&self) -> &[[f32; 4]] {
         &self.entries
+    }
+
+    /// Which entries' step-corrected opacity (`entries()[i][3]`) is above 0:
+    /// bit `i % 32` of word `i / 32`.
+    #[inline]
+    pub(crate) fn visible_bits(&self) -> &[u32; TABLE_SIZE / 32] {
+        &self.visible_bits
     }
 
     /// The offset and scale [`Self::index`] maps a raw value with:
