@@ -1049,6 +1049,10 @@ mod x86 {
         let below: [__m256i; 3] = std::array::from_fn(|a| fix(a, zero, -brick.wrap[a]));
         let above: [__m256i; 3] =
             std::array::from_fn(|a| fix(a, _mm256_set1_ps(brick.max_cell[a]), brick.wrap[a]));
+        // Whether a lane of `mask` reads across a z face into another stored
+        // brick (its z voxels 0 to 3 not consecutive then).
+        let wraps_in_z =
+            _mm256_movemask_epi8(_mm256_and_si256(mask, _mm256_or_si256(below[2], above[2]))) != 0;
         // Voxel (x, y, z) of the neighbourhood, the cell's lower corner at
         // (1, 1, 1).
         // SAFETY: every voxel of a lane of `mask` is a sample of the source's
@@ -1125,8 +1129,22 @@ mod x86 {
             }),
         );
         // Along z, at (x, y) = i >> 1.
-        let below = [v(1, 1, 0), v(1, 2, 0), v(2, 1, 0), v(2, 2, 0)];
-        let above = [v(1, 1, 3), v(1, 2, 3), v(2, 1, 3), v(2, 2, 3)];
+        let rows = [(1, 1), (1, 2), (2, 1), (2, 2)];
+        let (below, above) = if size == 1 && sz == 1 && !wraps_in_z {
+            // One-byte samples: the four bytes from (x, y, 0) are z = 0 to 3.
+            // SAFETY: as `v`'s: the four voxels lie in the source's slice, so
+            // a four-byte read from the first never passes its end.
+            let words = rows.map(|(x, y)| unsafe {
+                let (offset, relative) = at(x, y, 0);
+                read_words(source, 4, offset, relative, mask, NEAR)
+            });
+            (
+                words.map(|w| sample_to_float(w, 1)),
+                words.map(|w| sample_to_float(_mm256_srli_epi32::<24>(w), 1)),
+            )
+        } else {
+            (rows.map(|(x, y)| v(x, y, 0)), rows.map(|(x, y)| v(x, y, 3)))
+        };
         store(
             2,
             std::array::from_fn(|i| {
