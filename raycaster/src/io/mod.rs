@@ -13,5 +13,5 @@ mod writer;
 pub use bytes_read::process_bytes_read;
 pub use decode::{Endian, RawType};
 pub use input::{Input, InputType, RawData, RawOrder, RawSpec};
-pub(crate) use writer::{CellSink, stream_samples};
+pub(crate) use writer::{CellSink, physical_memory, stream_samples};
 pub use writer::{WriteOptions, WriteSummary, write_volume};

@@ -336,7 +336,7 @@ fn check_resources<T: Sample>(
 
 /// The machine's physical memory in bytes (0 when unknown).
 #[allow(unsafe_code)] // sysconf has no safe wrapper in std
-fn physical_memory() -> u64 {
+pub(crate) fn physical_memory() -> u64 {
     // SAFETY: sysconf only reads system configuration.
     let (pages, page) = unsafe {
         (

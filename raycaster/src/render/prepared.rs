@@ -4,6 +4,7 @@
 use std::sync::Arc;
 
 use glam::Vec3;
+use parking_lot::Mutex;
 use rayon::prelude::*;
 
 use super::camera::Camera;
@@ -15,6 +16,7 @@ use super::geometry::VolumeGeometry;
 use super::level::DepthBand;
 use super::local::LocalCompositor;
 use super::pixel::{PixelRay, ray_jitter};
+use super::read_ahead::ReadAheadLog;
 use super::segments::Membership;
 use super::settings::{Mode, RenderSettings};
 use super::simd::SimdLevel;
@@ -34,6 +36,8 @@ pub struct RenderVolume<'a> {
     ranges: &'a BrickRanges,
     cells: CellRanges,
     labels: Option<&'a Volume>,
+    /// The bricks read ahead so far ([`super::read_ahead`]).
+    read_ahead: Mutex<ReadAheadLog>,
 }
 
 pub use crate::volume::{LARGE_LINEAR_BRICKS, default_linear_brick_side};
@@ -77,6 +81,7 @@ impl<'a> RenderVolume<'a> {
             ranges: volume.ranges(),
             cells: CellRanges::stored_or_lazy(&grid, volume.stored_cells()),
             labels: None,
+            read_ahead: Mutex::new(ReadAheadLog::new(grid.block_count())),
         })
     }
 
@@ -151,6 +156,11 @@ impl<'a> RenderVolume<'a> {
     /// agree).
     pub fn brick_range(&self, b: [u32; 3]) -> [u16; 2] {
         self.ranges.covering_range(self.geometry.grid(), b)
+    }
+
+    /// Which bricks were read ahead so far.
+    pub(crate) fn read_ahead_log(&self) -> &Mutex<ReadAheadLog> {
+        &self.read_ahead
     }
 
     /// Value ranges of the small cells inside each brick (those computed so far).

@@ -10,6 +10,7 @@
 //! in queue order and its samples are composited in sequence.
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use super::camera::{Camera, PixelRect};
 use super::partition::BrickBox;
@@ -64,30 +65,34 @@ impl FrameSchedule {
         let volume_rect = camera.project_box(lo, hi);
         let spacing = geometry.spacing();
         let step = grid.step() as f32;
-        // One record per scheduled brick, sorted in place: no second list and no
-        // merge-sort buffer (equal keys keep grid order, as a stable sort would).
-        let mut bricks: Vec<ScheduledBrick> = Vec::new();
-        if volume_rect.is_some() {
-            for b in grid.iter() {
-                let empty = plan.brick_droppable(volume, b);
-                if empty || part.is_some_and(|p| !p.contains(b)) {
-                    continue;
-                }
-                let (blo, bhi) = geometry.brick_world_box(b);
-                let Some(rect) = camera.project_box(blo, bhi) else {
-                    continue;
-                };
-                let centre =
-                    geometry.origin() + (Vec3::from(b.map(|c| c as f32)) + 0.5) * step * spacing;
-                bricks.push(ScheduledBrick {
-                    coords: b,
-                    rect,
-                    depth: camera.depth_key(centre),
-                });
-            }
-        }
-        bricks.shrink_to_fit();
-        bricks.sort_unstable_by(|a, b| {
+        // One record per scheduled brick, in grid order (rayon's collect keeps
+        // it), sorted in place: no second list and no merge-sort buffer (equal
+        // keys keep grid order, as a stable sort would). Both in parallel: the
+        // schedule comes before the frame's threads start (17 ms of a 270 ms
+        // frame of the thesis's 2000³ case on one thread).
+        let mut bricks: Vec<ScheduledBrick> = if volume_rect.is_some() {
+            (0..grid.block_count())
+                .into_par_iter()
+                .filter_map(|index| {
+                    let b = grid.coords(index);
+                    if plan.brick_droppable(volume, b) || part.is_some_and(|p| !p.contains(b)) {
+                        return None;
+                    }
+                    let (blo, bhi) = geometry.brick_world_box(b);
+                    let rect = camera.project_box(blo, bhi)?;
+                    let centre = geometry.origin()
+                        + (Vec3::from(b.map(|c| c as f32)) + 0.5) * step * spacing;
+                    Some(ScheduledBrick {
+                        coords: b,
+                        rect,
+                        depth: camera.depth_key(centre),
+                    })
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        bricks.par_sort_unstable_by(|a, b| {
             a.depth
                 .total_cmp(&b.depth)
                 .then_with(|| grid.index(a.coords).cmp(&grid.index(b.coords)))
