@@ -238,20 +238,32 @@ impl Camera {
     /// or behind the camera plane of a perspective camera.
     pub fn project(&self, p: Vec3) -> Option<[f32; 2]> {
         let v = p - self.position;
-        let (sx, sy) = match self.projection {
-            Projection::Perspective { .. } => {
-                let depth = v.dot(self.direction);
-                if depth <= 1e-6 {
-                    return None;
-                }
-                (v.dot(self.right) / depth, v.dot(self.up) / depth)
+        match self.projection {
+            Projection::Perspective { .. } => self.project_at_depth(v, v.dot(self.direction)),
+            Projection::Orthographic { .. } => {
+                Some(self.to_pixels(v.dot(self.right), v.dot(self.up)))
             }
-            Projection::Orthographic { .. } => (v.dot(self.right), v.dot(self.up)),
-        };
-        Some([
+        }
+    }
+
+    /// [`Self::project`] of the point `v` from the eye of a perspective camera,
+    /// `depth` its `v.dot(direction)`.
+    #[inline]
+    fn project_at_depth(&self, v: Vec3, depth: f32) -> Option<[f32; 2]> {
+        if depth <= 1e-6 {
+            return None;
+        }
+        Some(self.to_pixels(v.dot(self.right) / depth, v.dot(self.up) / depth))
+    }
+
+    /// A point's image-plane coordinates (`v.dot(right)`, `v.dot(up)`, over
+    /// its depth for a perspective camera) in pixels.
+    #[inline]
+    fn to_pixels(&self, sx: f32, sy: f32) -> [f32; 2] {
+        [
             (sx / self.half_plane[0] + 1.0) / 2.0 * self.width as f32,
             (1.0 - sy / self.half_plane[1]) / 2.0 * self.height as f32,
-        ])
+        ]
     }
 
     /// The pixels whose centre rays can hit the box `[lo, hi]`: the bounding
@@ -289,10 +301,11 @@ impl Camera {
                 }
             }
             Projection::Perspective { .. } => {
-                let depth = |p: Vec3| (p - self.position).dot(self.direction);
+                // Each corner's depth once (the bits `project` computes).
+                let depths = corners.map(|p| (p - self.position).dot(self.direction));
                 // Rounding of sample positions, with a wide margin.
                 let hair = 1e-4 * (hi - lo).max_element().max(1e-3);
-                if corners.iter().all(|&p| depth(p) < -hair) {
+                if depths.iter().all(|&d| d < -hair) {
                     return None;
                 }
                 let reach = (self.position - self.position.clamp(lo, hi)).length();
@@ -303,10 +316,16 @@ impl Camera {
                     .sqrt()
                     .recip();
                 let cut = (reach * widest * 0.5).max(2e-6);
+                // No edge crosses depth `cut` when every corner lies beyond it
+                // (the usual case: the box well in front of the camera).
+                let crossing = depths.iter().any(|&d| d < cut);
                 for (i, &p) in corners.iter().enumerate() {
-                    let dp = depth(p);
+                    let dp = depths[i];
                     if dp >= cut {
-                        add(self.project(p)?);
+                        add(self.project_at_depth(p - self.position, dp)?);
+                    }
+                    if !crossing {
+                        continue;
                     }
                     // Edges to the corners differing in one coordinate.
                     for bit in [1, 2, 4] {
@@ -314,7 +333,7 @@ impl Camera {
                         if j == i {
                             continue;
                         }
-                        let (q, dq) = (corners[j], depth(corners[j]));
+                        let (q, dq) = (corners[j], depths[j]);
                         if (dp < cut) != (dq < cut) {
                             let at = p + (q - p) * ((cut - dp) / (dq - dp));
                             match self.project(at) {
