@@ -241,7 +241,7 @@ impl Camera {
         match self.projection {
             Projection::Perspective { .. } => self.project_at_depth(v, v.dot(self.direction)),
             Projection::Orthographic { .. } => {
-                Some(self.to_pixels(v.dot(self.right), v.dot(self.up)))
+                Some(self.pixel_of(v.dot(self.right), v.dot(self.up)))
             }
         }
     }
@@ -253,13 +253,13 @@ impl Camera {
         if depth <= 1e-6 {
             return None;
         }
-        Some(self.to_pixels(v.dot(self.right) / depth, v.dot(self.up) / depth))
+        Some(self.pixel_of(v.dot(self.right) / depth, v.dot(self.up) / depth))
     }
 
     /// A point's image-plane coordinates (`v.dot(right)`, `v.dot(up)`, over
     /// its depth for a perspective camera) in pixels.
     #[inline]
-    fn to_pixels(&self, sx: f32, sy: f32) -> [f32; 2] {
+    fn pixel_of(&self, sx: f32, sy: f32) -> [f32; 2] {
         [
             (sx / self.half_plane[0] + 1.0) / 2.0 * self.width as f32,
             (1.0 - sy / self.half_plane[1]) / 2.0 * self.height as f32,

@@ -299,6 +299,12 @@ struct Task<S> {
     brick: u32,
 }
 
+/// What comes after a tile's task: its next brick, or its queue is done.
+enum NextTask<S> {
+    March(Task<S>),
+    Done(Tile<S>),
+}
+
 /// Everything one frame's threads share (read only).
 pub(crate) struct FrameJob<'f> {
     pub volume: &'f RenderVolume<'f>,
@@ -493,8 +499,8 @@ impl FrameJob<'_> {
                 tile.counters = counters;
                 tile.next += 1;
                 match self.next_task(tile) {
-                    Ok(task) => (tile, brick) = (task.tile, task.brick),
-                    Err(done) => {
+                    NextTask::March(task) => (tile, brick) = (task.tile, task.brick),
+                    NextTask::Done(done) => {
                         tile = done;
                         break;
                     }
@@ -529,13 +535,13 @@ impl FrameJob<'_> {
                 }
             }
             match self.next_task(tile) {
-                Ok(task) => {
+                NextTask::March(task) => {
                     in_flight += 1;
                     tasks
                         .send(task)
                         .expect("render threads outlive the compositors");
                 }
-                Err(tile) => {
+                NextTask::Done(tile) => {
                     self.finish(c, &tile);
                     counters += tile.counters;
                 }
@@ -561,7 +567,7 @@ impl FrameJob<'_> {
     /// after each task, so a tile stays with one thread (and in its caches)
     /// from its first brick to its last, without a round trip through the
     /// compositing thread per brick.
-    fn next_task<S: Copy>(&self, mut tile: Tile<S>) -> Result<Task<S>, Tile<S>> {
+    fn next_task<S: Copy>(&self, mut tile: Tile<S>) -> NextTask<S> {
         let queue = &self.schedule.tiles[tile.index as usize].bricks;
         // A tile whose every pixel is finished skips the rest of its queue at
         // once (close to a large volume, a tile's queue holds up to hundreds of
@@ -573,12 +579,12 @@ impl FrameJob<'_> {
         }
         while let Some(&brick) = queue.get(tile.next) {
             if !tile.finished_within(&self.schedule.bricks[brick as usize].rect) {
-                return Ok(Task { tile, brick });
+                return NextTask::March(Task { tile, brick });
             }
             tile.counters.tasks_skipped_occluded += 1;
             tile.next += 1;
         }
-        Err(tile)
+        NextTask::Done(tile)
     }
 
     /// Resolves a finished tile's pixels and hands them to the sink, or hands
