@@ -239,6 +239,12 @@ fn parallel_equals_sequential_over_the_parameter_matrix() {
         if preintegrated || jitter {
             assert_eq!(p, s, "{name}: sample counts");
         }
+        // The parallel frame counts transparent bricks in its schedule's pass,
+        // the sequential one over the grid: the same bricks.
+        assert_eq!(
+            parallel.stats.bricks_transparent, reference.stats.bricks_transparent,
+            "{name}: transparent bricks"
+        );
         combos += 1;
     }
     assert_eq!(combos, 60);

@@ -147,7 +147,9 @@ pub(crate) fn render_frame(
         height: camera.height(),
         counters,
         bricks: volume.geometry().grid().block_count(),
-        bricks_transparent: plan.transparent_bricks(),
+        bricks_transparent: schedule
+            .transparent
+            .unwrap_or_else(|| plan.transparent_bricks(volume)),
         threads: options.render_threads as u32,
         time: start.elapsed(),
         level: volume.volume().level_index(),
@@ -208,7 +210,9 @@ pub(crate) fn render_levels_frame(
         };
         total += counters;
         bricks += volume.geometry().grid().block_count();
-        transparent += plan.transparent_bricks();
+        transparent += schedule
+            .transparent
+            .unwrap_or_else(|| plan.transparent_bricks(volume));
         incoming = outgoing.map(Mutex::into_inner);
     }
     let coarsest = passes.last().map_or(nearest, |&(v, _)| v);

@@ -215,10 +215,6 @@ pub(crate) struct FramePlan {
     /// Per axis: raw value per voxel → value normalised over the transfer
     /// function's domain per world unit of the smallest spacing.
     pub gradient_scale: Vec3,
-    /// Bricks of the grid that no sample of can change a pixel (for the
-    /// statistics; whether a brick is, is asked per brick:
-    /// [`Self::brick_transparent`]).
-    pub transparent_count: u64,
     /// The parallel renderer's kernel (available on this machine).
     pub simd: SimdLevel,
     /// Per-pixel ray-start jitter ([`RenderSettings::jitter`]).
@@ -292,7 +288,7 @@ impl FramePlan {
             }
         };
         let [d0, d1] = domain;
-        let mut plan = FramePlan {
+        let plan = FramePlan {
             compositor,
             ert_threshold: settings.early_termination.unwrap_or(f32::INFINITY),
             empty_space_skipping: settings.empty_space_skipping
@@ -301,18 +297,10 @@ impl FramePlan {
             dt: settings.step * geometry.min_spacing(),
             jitter: settings.jitter,
             gradient_scale: Vec3::splat(geometry.min_spacing() / (d1 - d0)) / geometry.spacing(),
-            transparent_count: 0,
             simd,
             clip: settings.clip.at_level(volume.volume().level_scale()),
             band: None,
         };
-        // Nothing per brick is kept: the count takes one pass over the grid, and
-        // later questions about a brick ask its range again (an O(1) query).
-        let grid = geometry.grid();
-        plan.transparent_count = (0..grid.block_count())
-            .into_par_iter()
-            .filter(|&i| plan.brick_transparent(volume, grid.coords(i)))
-            .count() as u64;
         Ok(plan)
     }
 
@@ -375,13 +363,34 @@ impl FramePlan {
     /// in it can change a pixel, whatever came before, or it lies outside the clip
     /// region.
     pub fn brick_droppable(&self, volume: &RenderVolume<'_>, b: [u32; 3]) -> bool {
-        (self.empty_space_skipping && self.brick_transparent(volume, b))
-            || self.brick_cut_away(volume, b)
+        // (Transparency asked only with empty-space skipping on.)
+        self.droppable_if(
+            self.empty_space_skipping && self.brick_transparent(volume, b),
+            volume,
+            b,
+        )
     }
 
-    /// Bricks that no sample of can change a pixel.
-    pub fn transparent_bricks(&self) -> u64 {
-        self.transparent_count
+    /// [`Self::brick_droppable`] of a brick whose transparency the caller
+    /// knows (`transparent`: [`Self::brick_transparent`]).
+    pub(crate) fn droppable_if(
+        &self,
+        transparent: bool,
+        volume: &RenderVolume<'_>,
+        b: [u32; 3],
+    ) -> bool {
+        (self.empty_space_skipping && transparent) || self.brick_cut_away(volume, b)
+    }
+
+    /// Bricks of `volume`'s grid that no sample of can change a pixel (for the
+    /// statistics): one pass over the grid, nothing per brick kept (a frame's
+    /// schedule counts them in its own pass: `FrameSchedule::transparent`).
+    pub fn transparent_bricks(&self, volume: &RenderVolume<'_>) -> u64 {
+        let grid = volume.geometry().grid();
+        (0..grid.block_count())
+            .into_par_iter()
+            .filter(|&i| self.brick_transparent(volume, grid.coords(i)))
+            .count() as u64
     }
 }
 

@@ -342,7 +342,11 @@ impl FrameSummary {
                 .iter()
                 .map(|(v, _)| v.geometry().grid().block_count())
                 .sum(),
-            bricks_transparent: plans.iter().map(FramePlan::transparent_bricks).sum(),
+            bricks_transparent: passes
+                .iter()
+                .zip(plans)
+                .map(|((v, _), plan)| plan.transparent_bricks(v))
+                .sum(),
             threads: (options.parallel.render_threads.max(1) * ranks) as u32,
             level: level(0),
             coarsest_level: level(passes.len() - 1),

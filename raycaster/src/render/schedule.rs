@@ -46,6 +46,11 @@ pub(crate) struct FrameSchedule {
     pub tiles: Vec<TileQueue>,
     /// Pixels whose rays may hit the volume at all.
     pub volume_rect: Option<PixelRect>,
+    /// The grid's bricks no sample of can change a pixel
+    /// ([`FramePlan::transparent_bricks`]), counted in the schedule's pass
+    /// over the grid; `None` where it made none over the whole grid (a part
+    /// of it, or a volume off the image).
+    pub transparent: Option<u64>,
 }
 
 impl FrameSchedule {
@@ -65,32 +70,48 @@ impl FrameSchedule {
         let volume_rect = camera.project_box(lo, hi);
         let spacing = geometry.spacing();
         let step = grid.step() as f32;
-        // One record per scheduled brick, in grid order (rayon's collect keeps
-        // it), sorted in place: no second list and no merge-sort buffer (equal
-        // keys keep grid order, as a stable sort would). Both in parallel: the
-        // schedule comes before the frame's threads start (17 ms of a 270 ms
-        // frame of the thesis's 2000³ case on one thread).
-        let mut bricks: Vec<ScheduledBrick> = if volume_rect.is_some() {
-            (0..grid.block_count())
+        // One record per scheduled brick, sorted in place: no second list and
+        // no merge-sort buffer (equal keys keep grid order, as a stable sort
+        // would). Both in parallel: the schedule comes before the frame's
+        // threads start (17 ms of a 270 ms frame of the thesis's 2000³ case on
+        // one thread). The same pass counts the transparent bricks.
+        let scheduled = |index: u64, transparent: bool| {
+            let b = grid.coords(index);
+            if plan.droppable_if(transparent, volume, b) || part.is_some_and(|p| !p.contains(b)) {
+                return None;
+            }
+            let (blo, bhi) = geometry.brick_world_box(b);
+            let rect = camera.project_box(blo, bhi)?;
+            let centre =
+                geometry.origin() + (Vec3::from(b.map(|c| c as f32)) + 0.5) * step * spacing;
+            Some(ScheduledBrick {
+                coords: b,
+                rect,
+                depth: camera.depth_key(centre),
+            })
+        };
+        let (mut bricks, transparent) = if volume_rect.is_some() {
+            let (bricks, transparent) = (0..grid.block_count())
                 .into_par_iter()
-                .filter_map(|index| {
-                    let b = grid.coords(index);
-                    if plan.brick_droppable(volume, b) || part.is_some_and(|p| !p.contains(b)) {
-                        return None;
-                    }
-                    let (blo, bhi) = geometry.brick_world_box(b);
-                    let rect = camera.project_box(blo, bhi)?;
-                    let centre = geometry.origin()
-                        + (Vec3::from(b.map(|c| c as f32)) + 0.5) * step * spacing;
-                    Some(ScheduledBrick {
-                        coords: b,
-                        rect,
-                        depth: camera.depth_key(centre),
-                    })
-                })
-                .collect()
+                .fold(
+                    || (Vec::new(), 0u64),
+                    |(mut kept, mut transparent), index| {
+                        let clear = plan.brick_transparent(volume, grid.coords(index));
+                        transparent += u64::from(clear);
+                        kept.extend(scheduled(index, clear));
+                        (kept, transparent)
+                    },
+                )
+                .reduce(
+                    || (Vec::new(), 0),
+                    |(mut a, na), (b, nb)| {
+                        a.extend(b);
+                        (a, na + nb)
+                    },
+                );
+            (bricks, part.is_none().then_some(transparent))
         } else {
-            Vec::new()
+            (Vec::new(), None)
         };
         bricks.par_sort_unstable_by(|a, b| {
             a.depth
@@ -123,6 +144,7 @@ impl FrameSchedule {
             bricks,
             tiles,
             volume_rect,
+            transparent,
         }
     }
 }

@@ -79,7 +79,7 @@ pub fn render_sequential_levels(
             }),
         };
         bricks += volume.geometry().grid().block_count();
-        transparent += plan.transparent_bricks();
+        transparent += plan.transparent_bricks(volume);
         incoming = outgoing;
     }
     frame.stats.counters = counters;
