@@ -122,6 +122,11 @@ impl<'a> GatherBrick<'a> {
         let (samples, strides, corner_strides, extent) = sampler.addressing();
         let to_i32 = |v: usize| i32::try_from(v).ok();
         let byte_strides = strides.map(|s| s * size);
+        // z is the samples' fastest axis, one sample apart: the kernel reads
+        // two or four z-neighbours with one gather.
+        if byte_strides[2] != size {
+            return None;
+        }
         // From the first voxel to the last (a linear volume's view runs on to
         // the volume's end).
         let last_voxel: usize = (0..3)
@@ -1075,16 +1080,13 @@ mod x86 {
             read(source, size, offset, relative, mask, NEAR)
         };
         // Voxels (x, y, 1) and (x, y, 2): consecutive samples (z's stride is
-        // one sample; neither crosses a z face), one gather.
+        // one sample, `GatherBrick::new`; neither crosses a z face), one
+        // gather.
         // SAFETY: as `v`'s, for both voxels; a read from (x, y, 1) starts
         // below the farthest, which `NEAR` covers.
         let pair = |x: i32, y: i32| unsafe {
-            if sz == size {
-                let (offset, relative) = at(x, y, 1);
-                read_pair(source, size, offset, relative, mask, NEAR)
-            } else {
-                [v(x, y, 1), v(x, y, 2)]
-            }
+            let (offset, relative) = at(x, y, 1);
+            read_pair(source, size, offset, relative, mask, NEAR)
         };
         let c = &lanes.corners;
         let half = _mm256_set1_ps(0.5);
@@ -1130,7 +1132,7 @@ mod x86 {
         );
         // Along z, at (x, y) = i >> 1.
         let rows = [(1, 1), (1, 2), (2, 1), (2, 2)];
-        let (below, above) = if size == 1 && sz == 1 && !wraps_in_z {
+        let (below, above) = if size == 1 && !wraps_in_z {
             // One-byte samples: the four bytes from (x, y, 0) are z = 0 to 3.
             // SAFETY: as `v`'s: the four voxels lie in the source's slice, so
             // a four-byte read from the first never passes its end.

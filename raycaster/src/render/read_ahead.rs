@@ -297,7 +297,6 @@ impl LinearRanges {
 mod tests {
     use super::*;
 
-    /// Byte offset of voxel `v` in a linear volume of `dims` (z fastest).
     #[test]
     fn the_log_asks_for_each_brick_once_until_its_budget_is_spent() {
         let mut log = ReadAheadLog::with_budget(100, 1000);
@@ -315,6 +314,7 @@ mod tests {
         assert!(always.first_request(1, 1) && always.first_request(1, 1));
     }
 
+    /// Byte offset of voxel `v` in a linear volume of `dims` (z fastest).
     fn offset(dims: [u32; 3], v: [u32; 3], bytes: u64) -> u64 {
         let [_, dy, dz] = dims.map(u64::from);
         let [x, y, z] = v.map(u64::from);

@@ -395,7 +395,7 @@ impl<'a, T: Sample> VolumeSampler<'a, T> {
         let [_, n1, n2] = counts.map(|c| c as usize);
         let brick_len = side * side * side;
         let per_brick = [n1 * n2 * brick_len, n2 * brick_len, brick_len];
-        let index = ((b[0] as usize * n1 + b[1] as usize) * n2 + b[2] as usize) * brick_len;
+        let index = grid.index(b) as usize * brick_len;
         let samples = self.volume.samples();
         // The view is that brick's samples (not a copy).
         if !std::ptr::eq(
