@@ -27,6 +27,7 @@ mod march;
 mod optics;
 mod orbit;
 mod ownership;
+mod ownership_lanes;
 mod packet;
 mod parallel;
 mod partition;

@@ -36,7 +36,7 @@ pub(crate) fn owned_samples(
 /// How far outside a brick's box a computed sample position can be while the
 /// exact ray is inside, in voxels: rounding of `start + step·k` for coordinates
 /// up to 2^14, with a wide margin.
-const MISS_MARGIN: f32 = 0.05;
+pub(crate) const MISS_MARGIN: f32 = 0.05;
 
 /// What the brick's box in sample space says.
 enum Guess {
@@ -137,7 +137,7 @@ pub(crate) fn owned_box(geometry: &VolumeGeometry, b: [u32; 3]) -> [Vec3; 2] {
 /// The lower and upper face of the positions brick coordinate `b` (of `count`
 /// along the axis, `side` voxels apart) owns: see [`owned_box`].
 #[inline(always)]
-fn owned_faces(b: u32, count: u32, side: f32) -> (f32, f32) {
+pub(crate) fn owned_faces(b: u32, count: u32, side: f32) -> (f32, f32) {
     let lower = if b == 0 {
         f32::NEG_INFINITY
     } else {

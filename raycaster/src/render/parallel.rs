@@ -25,7 +25,7 @@ use super::error::RenderError;
 use super::frame::Frame;
 use super::level::DepthBand;
 use super::march::{BrickContext, march_brick};
-use super::ownership::owned_samples;
+use super::ownership_lanes::BrickOwnership;
 use super::packet::{PacketItem, PacketWork};
 use super::pixel::PixelState;
 use super::prepared::{FramePlan, RenderVolume};
@@ -443,25 +443,16 @@ impl FrameJob<'_> {
                 counters.tasks += 1;
                 items.clear();
                 if let Some(r) = tile.rect.intersect(&scheduled.rect) {
+                    let ownership = BrickOwnership::new(geometry, scheduled.coords, self.plan.simd);
                     for y in r.y0..r.y1 {
-                        for x in r.x0..r.x1 {
-                            let i = tile.local(x, y);
-                            let (Some(ray), state) = (&tile.rays[i], &tile.states[i]) else {
-                                continue;
-                            };
-                            if state.done {
-                                continue;
-                            }
-                            if let Some((first, last)) =
-                                owned_samples(ray, geometry, scheduled.coords)
-                            {
-                                items.push(PacketItem {
-                                    pixel: i,
-                                    first: first.max(state.next_sample),
-                                    last,
-                                });
-                            }
-                        }
+                        let row = tile.local(r.x0, y);
+                        ownership.push_owned(
+                            &tile.ray_lanes,
+                            &tile.rays,
+                            &tile.states,
+                            row..row + (r.x1 - r.x0) as usize,
+                            &mut items,
+                        );
                     }
                 }
                 let level = self.plan.simd;

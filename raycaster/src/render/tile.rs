@@ -4,6 +4,7 @@
 use super::camera::{Camera, PixelRect};
 use super::counters::Counters;
 use super::geometry::VolumeGeometry;
+use super::ownership_lanes::RayLanes;
 use super::pixel::{PixelRay, PixelState};
 use super::prepared::FramePlan;
 
@@ -21,6 +22,8 @@ pub(crate) struct Tile<S> {
     /// Per pixel, row by row: the ray (`None` when it misses the volume), filled
     /// on the tile's first task.
     pub rays: Vec<Option<PixelRay>>,
+    /// The rays as ownership reads them in lanes, filled with `rays`.
+    pub ray_lanes: RayLanes,
     /// Per pixel: the compositing state.
     pub states: Vec<PixelState<S>>,
     /// Work done on this tile.
@@ -37,6 +40,7 @@ impl<S: Copy> Tile<S> {
             rect,
             next: 0,
             rays: Vec::new(),
+            ray_lanes: RayLanes::default(),
             states: vec![PixelState::new(start); rect.area() as usize],
             counters: Counters::default(),
         }
@@ -75,6 +79,7 @@ impl<S: Copy> Tile<S> {
                 self.rays.push(ray);
             }
         }
+        self.ray_lanes = RayLanes::new(&self.rays);
         for (state, ray) in self.states.iter_mut().zip(&self.rays) {
             match ray {
                 Some(ray) => state.next_sample = state.next_sample.max(ray.first),
