@@ -77,20 +77,21 @@ impl RayLanes {
 pub(crate) struct BrickOwnership<'g> {
     geometry: &'g VolumeGeometry,
     brick: [u32; 3],
-    /// Answer in lanes (AVX2 present).
-    lanes: bool,
+    /// The brick's constants, where the questions are answered in lanes (AVX2
+    /// present).
+    lanes: Option<LaneFaces>,
 }
 
 impl<'g> BrickOwnership<'g> {
     /// Brick `brick`'s questions, answered in lanes where `level` has AVX2.
     pub(crate) fn new(geometry: &'g VolumeGeometry, brick: [u32; 3], level: SimdLevel) -> Self {
-        let lanes = cfg!(target_arch = "x86_64")
+        let in_lanes = cfg!(target_arch = "x86_64")
             && matches!(level, SimdLevel::Avx2 | SimdLevel::Avx512)
             && level.is_available();
         BrickOwnership {
             geometry,
             brick,
-            lanes,
+            lanes: in_lanes.then(|| LaneFaces::new(geometry, brick)),
         }
     }
 
@@ -120,18 +121,17 @@ impl<'g> BrickOwnership<'g> {
             _ => None,
         };
         #[cfg(target_arch = "x86_64")]
-        if self.lanes {
+        if let Some(faces) = &self.lanes {
             assert!(pixels.end <= lanes.len() && pixels.end <= rays.len());
-            let faces = LaneFaces::new(self.geometry, self.brick);
             let mut i0 = pixels.start;
             while i0 < pixels.end {
                 let n = (pixels.end - i0).min(GROUP);
                 if (i0..i0 + n).any(|i| live(i).is_some()) {
                     #[allow(unsafe_code)]
-                    // SAFETY: `lanes` is true only where AVX2 was detected
+                    // SAFETY: `faces` exist only where AVX2 was detected
                     // (`SimdLevel::is_available`), and the lanes hold
                     // `i0 + 8` entries: `i0 < pixels.end ≤ len` and the padding.
-                    let group = unsafe { x86::owned_group(lanes, i0, &faces) };
+                    let group = unsafe { x86::owned_group(lanes, i0, faces) };
                     for lane in 0..n {
                         let i = i0 + lane;
                         let Some(ray) = live(i) else {
@@ -170,12 +170,12 @@ struct LaneFaces {
     grown: [(f32, f32); 3],
     /// The volume's last voxel per axis.
     last_voxel: [f32; 3],
-    /// The brick side in owned cells.
-    brick_step: f32,
-    /// The last brick coordinate per axis.
-    last_brick: [u32; 3],
-    /// The brick.
-    brick: [u32; 3],
+    /// Per axis, the clamped positions whose owner along it is the brick's
+    /// coordinate: `from ≤ c < below` (thresholds of
+    /// [`VolumeGeometry::owner_along`], so no division per sample).
+    owned_from: [f32; 3],
+    /// See `owned_from`.
+    owned_below: [f32; 3],
 }
 
 impl LaneFaces {
@@ -186,15 +186,39 @@ impl LaneFaces {
         let exact: [(f32, f32); 3] =
             std::array::from_fn(|a| owned_faces(brick[a], counts[a], side));
         let margin = super::ownership::MISS_MARGIN;
+        let first_owned_by = |axis: usize, target: u32| {
+            if target == 0 {
+                f32::NEG_INFINITY
+            } else if target >= counts[axis] {
+                f32::INFINITY
+            } else {
+                first_owned_by(geometry, axis, target)
+            }
+        };
         LaneFaces {
             exact,
             grown: exact.map(|(lower, upper)| (lower - margin, upper + margin)),
             last_voxel: geometry.last_voxel().to_array(),
-            brick_step: side,
-            last_brick: counts.map(|c| c - 1),
-            brick,
+            owned_from: std::array::from_fn(|a| first_owned_by(a, brick[a])),
+            owned_below: std::array::from_fn(|a| first_owned_by(a, brick[a] + 1)),
         }
     }
+}
+
+/// The smallest coordinate `c ≥ 0` along `axis` whose owner
+/// ([`VolumeGeometry::owner_along`], non-decreasing in `c`) is at least brick
+/// coordinate `target` (`1..count`): found from `target · step` an ulp at a
+/// time, with the owner function itself, so exact.
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+fn first_owned_by(geometry: &VolumeGeometry, axis: usize, target: u32) -> f32 {
+    let mut c = target as f32 * geometry.brick_step();
+    while c > 0.0 && geometry.owner_along(c.next_down(), axis) >= target {
+        c = c.next_down();
+    }
+    while geometry.owner_along(c, axis) < target {
+        c = c.next_up();
+    }
+    c
 }
 
 /// What the lanes say of one ray.
@@ -238,7 +262,6 @@ mod x86 {
     use std::arch::x86_64::*;
 
     use super::{GROUP, GroupAnswers, LaneFaces, MAX_LANE_SAMPLES, RayLanes};
-    use crate::render::truncate::MAX_TRUNCATED;
 
     /// The answers for the rays of pixels `i0..i0 + 8` (padding included).
     ///
@@ -354,9 +377,9 @@ mod x86 {
     }
 
     /// Whether the brick owns sample `k` of each lane's ray:
-    /// `geometry.owner(ray.position(k, last_voxel)) == brick` with the same
-    /// operations (for `k` in `0..=2^24`; other lanes give no answer that
-    /// matters).
+    /// `geometry.owner(ray.position(k, last_voxel)) == brick`, the position
+    /// with the same operations and the owner by its thresholds (for `k` in
+    /// `0..=2^24`; other lanes give no answer that matters).
     #[inline]
     #[target_feature(enable = "avx2")]
     fn owns(faces: &LaneFaces, start: &[__m256; 3], step: &[__m256; 3], k: __m256i) -> __m256i {
@@ -366,20 +389,12 @@ mod x86 {
         for a in 0..3 {
             let last = _mm256_set1_ps(faces.last_voxel[a]);
             let clamp = |v: __m256| _mm256_min_ps(_mm256_max_ps(v, zero), last);
-            // `SamplePositions::at`: `(start + step·k).clamp(0, last)`, then
-            // `owner`'s clamp and division.
+            // `SamplePositions::at`: `(start + step·k).clamp(0, last)` (a
+            // number: `maxps` gives 0 for NaN).
             let p = clamp(_mm256_add_ps(start[a], _mm256_mul_ps(step[a], kf)));
-            let q = _mm256_div_ps(clamp(p), _mm256_set1_ps(faces.brick_step));
-            // `owner_of`: truncated within `[0, 2^24]`, at most the last brick.
-            let c = _mm256_min_ps(_mm256_max_ps(q, zero), _mm256_set1_ps(MAX_TRUNCATED));
-            let owner = _mm256_min_epu32(
-                _mm256_cvttps_epi32(c),
-                _mm256_set1_epi32(faces.last_brick[a] as i32),
-            );
-            all = _mm256_and_si256(
-                all,
-                _mm256_cmpeq_epi32(owner, _mm256_set1_epi32(faces.brick[a] as i32)),
-            );
+            let from = _mm256_cmp_ps::<_CMP_GE_OQ>(p, _mm256_set1_ps(faces.owned_from[a]));
+            let below = _mm256_cmp_ps::<_CMP_LT_OQ>(p, _mm256_set1_ps(faces.owned_below[a]));
+            all = _mm256_and_si256(all, _mm256_castps_si256(_mm256_and_ps(from, below)));
         }
         all
     }
@@ -509,7 +524,7 @@ mod tests {
                                 &mut items,
                             );
                             assert_eq!(items, expected, "{level:?} {b:?} {pixels:?}");
-                            compared[usize::from(ownership.lanes)] += items.len();
+                            compared[usize::from(ownership.lanes.is_some())] += items.len();
                         }
                     }
                 }
@@ -598,6 +613,27 @@ mod tests {
         // Each ray crosses four bricks or more.
         assert!(owned >= 4 * rays.len(), "owned {owned}");
         assert_eq!(unsure, 0, "owned {owned}");
+    }
+
+    /// Each threshold is where the owner function reaches its brick: the
+    /// coordinate itself is owned by the brick or a later one, the float below
+    /// it by an earlier one.
+    #[test]
+    fn thresholds_are_where_the_owner_changes() {
+        for (dims, side) in [([100, 37, 64], 16), ([33, 17, 25], 9), ([40, 41, 7], 4)] {
+            let geometry = VolumeGeometry::new(BlockGrid::new(dims, side), [1.0; 3]);
+            let counts = geometry.grid().counts();
+            for (axis, &count) in counts.iter().enumerate() {
+                for target in 1..count {
+                    let c = first_owned_by(&geometry, axis, target);
+                    assert!(geometry.owner_along(c, axis) >= target, "{axis} {target}");
+                    assert!(
+                        geometry.owner_along(c.next_down(), axis) < target,
+                        "{axis} {target}"
+                    );
+                }
+            }
+        }
     }
 
     /// A ray of the given start, step and sample count (the fields ownership
