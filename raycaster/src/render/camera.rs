@@ -6,7 +6,7 @@
 //! given height (orthographic), and width `Sx = Sy·aspect`. Pixel `(x, y)` (y down)
 //! looks through `D + sx·r + sy·u` with `sx, sy` its centre on that plane.
 
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 
 use super::ray::{Ray, box_corners};
 
@@ -37,6 +37,34 @@ pub struct Camera {
     height: u32,
     /// Half the image plane's size: (Sx/2, Sy/2).
     half_plane: [f32; 2],
+}
+
+/// A box's eight corners ([`box_corners`]' order) less a point, per axis in two
+/// sets of four lanes.
+struct CornerLanes {
+    axes: [[Vec4; 2]; 3],
+}
+
+impl CornerLanes {
+    /// The corners of `[lo, hi]` less `eye`.
+    #[inline]
+    fn new(lo: Vec3, hi: Vec3, eye: Vec3) -> Self {
+        let (lo, hi) = (lo - eye, hi - eye);
+        CornerLanes {
+            axes: [
+                [Vec4::new(lo.x, hi.x, lo.x, hi.x); 2],
+                [Vec4::new(lo.y, lo.y, hi.y, hi.y); 2],
+                [Vec4::splat(lo.z), Vec4::splat(hi.z)],
+            ],
+        }
+    }
+
+    /// Each corner's `dot(v)`, as `Vec3::dot`: `(x·vx + y·vy) + z·vz`.
+    #[inline]
+    fn dot(&self, v: Vec3) -> [Vec4; 2] {
+        let [x, y, z] = &self.axes;
+        [0, 1].map(|h| x[h] * v.x + y[h] * v.y + z[h] * v.z)
+    }
 }
 
 /// A half-open rectangle of pixels `x0..x1 × y0..y1`.
@@ -304,8 +332,12 @@ impl Camera {
                 }
             }
             Projection::Perspective { .. } => {
-                // Each corner's depth once (the bits `project` computes).
-                let depths = corners.map(|p| (p - self.position).dot(self.direction));
+                // Each corner's depth once (the bits `project` computes), four
+                // corners in lanes at a time.
+                let lanes = CornerLanes::new(lo, hi, self.position);
+                let depth_lanes = lanes.dot(self.direction);
+                let depths: [f32; 8] =
+                    std::array::from_fn(|i| depth_lanes[i / 4].to_array()[i % 4]);
                 // Rounding of sample positions, with a wide margin.
                 let hair = 1e-4 * (hi - lo).max_element().max(1e-3);
                 if depths.iter().all(|&d| d < -hair) {
@@ -322,7 +354,20 @@ impl Camera {
                 // No edge crosses depth `cut` when every corner lies beyond it
                 // (the usual case: the box well in front of the camera).
                 let crossing = depths.iter().any(|&d| d < cut);
-                for (i, &p) in corners.iter().enumerate() {
+                if !crossing {
+                    // Every corner in front of the cut: each projected in
+                    // lanes, with `project_at_depth`'s operations.
+                    let (sx, sy) = (lanes.dot(self.right), lanes.dot(self.up));
+                    let (w, h) = (self.width as f32, self.height as f32);
+                    for half in 0..2 {
+                        let (x, y) = (sx[half] / depth_lanes[half], sy[half] / depth_lanes[half]);
+                        let px = (x / self.half_plane[0] + 1.0) / 2.0 * w;
+                        let py = (1.0 - y / self.half_plane[1]) / 2.0 * h;
+                        add([px.min_element(), py.min_element()]);
+                        add([px.max_element(), py.max_element()]);
+                    }
+                }
+                for (i, &p) in corners.iter().enumerate().filter(|_| crossing) {
                     let dp = depths[i];
                     if dp >= cut {
                         add(self.project_at_depth(p - self.position, dp)?);
