@@ -10,8 +10,8 @@
 //! owner function that confirm its ends, each with the scalar code's operations
 //! (no fused multiply-adds; `min`/`max` as `a < b ? a : b`), so every lane gets
 //! the bits of [`owned_samples`]. What the box cannot confirm (a ray grazing a
-//! face or a corner, rays of more than 2^24 samples) goes to [`owned_samples`]
-//! itself.
+//! face or a corner, an axis-parallel ray beside the brick, rays of more than
+//! 2^24 samples) goes to [`owned_samples`] itself.
 
 use std::ops::Range;
 
@@ -208,9 +208,13 @@ impl LaneFaces {
 /// The smallest coordinate `c ≥ 0` along `axis` whose owner
 /// ([`VolumeGeometry::owner_along`], non-decreasing in `c`) is at least brick
 /// coordinate `target` (`1..count`): found from `target · step` an ulp at a
-/// time, with the owner function itself, so exact.
+/// time, with the owner function itself, so exact. Infinite where no
+/// coordinate's owner reaches `target` (the owner saturates at brick 2^24).
 #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
 fn first_owned_by(geometry: &VolumeGeometry, axis: usize, target: u32) -> f32 {
+    if geometry.owner_along(f32::MAX, axis) < target {
+        return f32::INFINITY;
+    }
     let mut c = target as f32 * geometry.brick_step();
     while c > 0.0 && geometry.owner_along(c.next_down(), axis) >= target {
         c = c.next_down();
@@ -634,6 +638,17 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Past brick 2^24 along an axis the owner function saturates: the
+    /// threshold of a brick it never reaches is infinite (no endless search).
+    #[test]
+    fn thresholds_beyond_the_saturated_owner_are_infinite() {
+        let geometry = VolumeGeometry::new(BlockGrid::new([(1 << 25) + 5, 2, 2], 2), [1.0; 3]);
+        let last = 1 << 24;
+        assert!(first_owned_by(&geometry, 0, last).is_finite());
+        assert_eq!(first_owned_by(&geometry, 0, last + 1), f32::INFINITY);
+        assert_eq!(first_owned_by(&geometry, 0, last + 1000), f32::INFINITY);
     }
 
     /// A ray of the given start, step and sample count (the fields ownership
