@@ -248,12 +248,29 @@ fn first_where(lo: u32, hi: u32, estimate: f32, holds: impl Fn(u32) -> bool) -> 
     a
 }
 
+/// A crop box and a clip plane across a volume whose last voxel is `last`:
+/// the clip region the ownership tests cut rays with.
+#[cfg(test)]
+pub(crate) fn test_cut(last: Vec3) -> super::clip::ClipRegion {
+    use super::clip::{ClipPlane, ClipRegion, CropBox};
+    ClipRegion {
+        crop: Some(CropBox {
+            lo: last * 0.2,
+            hi: last * 0.9,
+        }),
+        planes: vec![ClipPlane {
+            point: last * 0.5,
+            normal: Vec3::new(0.3, -1.0, 0.5),
+        }],
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use glam::Vec3;
 
     use super::*;
-    use crate::render::clip::{ClipPlane, ClipRegion, CropBox};
+    use crate::render::clip::ClipRegion;
     use crate::render::ray::Ray;
     use crate::render::test_rng::xorshift32;
     use crate::volume::BlockGrid;
@@ -266,17 +283,7 @@ mod tests {
     }
 
     fn check_jittered(geometry: &VolumeGeometry, ray: &Ray, dt: f32, jitter: f32) {
-        let last = geometry.last_voxel();
-        let cut = ClipRegion {
-            crop: Some(CropBox {
-                lo: last * 0.2,
-                hi: last * 0.9,
-            }),
-            planes: vec![ClipPlane {
-                point: last * 0.5,
-                normal: Vec3::new(0.3, -1.0, 0.5),
-            }],
-        };
+        let cut = test_cut(geometry.last_voxel());
         check_clipped(geometry, ray, dt, jitter, &ClipRegion::default());
         check_clipped(geometry, ray, dt, jitter, &cut);
     }

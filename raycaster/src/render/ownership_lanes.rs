@@ -409,7 +409,7 @@ mod tests {
     use glam::Vec3;
 
     use super::*;
-    use crate::render::clip::{ClipPlane, ClipRegion, CropBox};
+    use crate::render::clip::ClipRegion;
     use crate::render::ray::Ray;
     use crate::render::test_rng::xorshift32;
     use crate::volume::BlockGrid;
@@ -459,16 +459,7 @@ mod tests {
             let last = geometry.last_voxel();
             let (lo, hi) = geometry.world_bounds();
             let centre = (lo + hi) * 0.5;
-            let cut = ClipRegion {
-                crop: Some(CropBox {
-                    lo: last * 0.2,
-                    hi: last * 0.9,
-                }),
-                planes: vec![ClipPlane {
-                    point: last * 0.5,
-                    normal: Vec3::new(0.3, -1.0, 0.5),
-                }],
-            };
+            let cut = crate::render::ownership::test_cut(last);
             for round in 0..12 {
                 // A "tile" of 37 rays from one eye through neighbouring targets,
                 // some axis-parallel or along a brick face.
