@@ -618,15 +618,14 @@ mod x86 {
         ));
         // Not `magnitude ≤ threshold` (NaN lit, as `!cmple`).
         let lit = _mm256_cmp_ps::<_CMP_NLE_UQ>(magnitude, splat(shading.gradient_threshold));
-        let normal = [gx, gy, gz].map(|g| _mm256_div_ps(g, magnitude));
         let abs_mask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fff_ffff));
+        // `|gradient · v| / magnitude`, as `Shading::shade`.
         let dot = |v: Vec3| {
-            let [nx, ny, nz] = normal;
             let d = _mm256_add_ps(
-                _mm256_add_ps(_mm256_mul_ps(nx, splat(v.x)), _mm256_mul_ps(ny, splat(v.y))),
-                _mm256_mul_ps(nz, splat(v.z)),
+                _mm256_add_ps(_mm256_mul_ps(gx, splat(v.x)), _mm256_mul_ps(gy, splat(v.y))),
+                _mm256_mul_ps(gz, splat(v.z)),
             );
-            _mm256_and_ps(d, abs_mask)
+            _mm256_and_ps(_mm256_div_ps(d, magnitude), abs_mask)
         };
         let diffuse = dot(to_light);
         let facing = match shading.light {

@@ -54,16 +54,18 @@ impl Shading {
         if magnitude <= self.gradient_threshold {
             return color;
         }
-        let normal = gradient / magnitude;
+        // `|normal · v|` as `|gradient · v| / magnitude`: one division per
+        // light vector instead of three for the normal.
+        let cosine = |v: Vec3| (gradient.dot(v) / magnitude).abs();
         let (diffuse, facing) = match self.light {
             // The headlight's half vector is its light vector: one dot product.
             Light::Headlight => {
-                let d = normal.dot(-view_dir).abs();
+                let d = cosine(-view_dir);
                 (d, d)
             }
             Light::Fixed(_) => {
                 let (to_light, half) = light_vectors(Some(self.light), view_dir);
-                (normal.dot(to_light).abs(), normal.dot(half).abs())
+                (cosine(to_light), cosine(half))
             }
         };
         let specular = self.specular * specular_power(facing, self.shininess);
@@ -92,10 +94,10 @@ impl Shading {
         // `Vec3::length`: `(x·x + y·y) + z·z`, then the root.
         let magnitude = (gx * gx + gy * gy + gz * gz).sqrt();
         let lit = !magnitude.cmple(Vec4::splat(self.gradient_threshold));
-        let normal = [gx / magnitude, gy / magnitude, gz / magnitude];
+        // `shade`'s `|gradient · v| / magnitude`.
         let dot = |v: Vec3| {
-            let [nx, ny, nz] = normal;
-            (nx * Vec4::splat(v.x) + ny * Vec4::splat(v.y) + nz * Vec4::splat(v.z)).abs()
+            ((gx * Vec4::splat(v.x) + gy * Vec4::splat(v.y) + gz * Vec4::splat(v.z)) / magnitude)
+                .abs()
         };
         let diffuse = dot(to_light);
         let facing = match self.light {
