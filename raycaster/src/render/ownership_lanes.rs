@@ -83,16 +83,22 @@ pub(crate) struct BrickOwnership<'g> {
 }
 
 impl<'g> BrickOwnership<'g> {
-    /// Brick `brick`'s questions, answered in lanes where `level` has AVX2.
+    /// Brick `brick`'s questions, answered in lanes where `level` has AVX2
+    /// ([`Self::in_lanes`]).
     pub(crate) fn new(geometry: &'g VolumeGeometry, brick: [u32; 3], level: SimdLevel) -> Self {
-        let in_lanes = cfg!(target_arch = "x86_64")
-            && matches!(level, SimdLevel::Avx2 | SimdLevel::Avx512)
-            && level.is_available();
         BrickOwnership {
             geometry,
             brick,
-            lanes: in_lanes.then(|| LaneFaces::new(geometry, brick)),
+            lanes: Self::in_lanes(level).then(|| LaneFaces::new(geometry, brick)),
         }
+    }
+
+    /// Whether the questions are answered in lanes at `level` (which then
+    /// needs the tile's [`RayLanes`]).
+    pub(crate) fn in_lanes(level: SimdLevel) -> bool {
+        cfg!(target_arch = "x86_64")
+            && matches!(level, SimdLevel::Avx2 | SimdLevel::Avx512)
+            && level.is_available()
     }
 
     /// Appends to `items` the samples the brick owns of each ray among the

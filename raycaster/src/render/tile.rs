@@ -4,7 +4,7 @@
 use super::camera::{Camera, PixelRect};
 use super::counters::Counters;
 use super::geometry::VolumeGeometry;
-use super::ownership_lanes::RayLanes;
+use super::ownership_lanes::{BrickOwnership, RayLanes};
 use super::pixel::{PixelRay, PixelState};
 use super::prepared::FramePlan;
 
@@ -22,7 +22,8 @@ pub(crate) struct Tile<S> {
     /// Per pixel, row by row: the ray (`None` when it misses the volume), filled
     /// on the tile's first task.
     pub rays: Vec<Option<PixelRay>>,
-    /// The rays as ownership reads them in lanes, filled with `rays`.
+    /// The rays as ownership reads them in lanes, filled with `rays` where
+    /// the frame's SIMD level asks in lanes ([`BrickOwnership::in_lanes`]).
     pub ray_lanes: RayLanes,
     /// Per pixel: the compositing state.
     pub states: Vec<PixelState<S>>,
@@ -79,7 +80,9 @@ impl<S: Copy> Tile<S> {
                 self.rays.push(ray);
             }
         }
-        self.ray_lanes = RayLanes::new(&self.rays);
+        if BrickOwnership::in_lanes(plan.simd) {
+            self.ray_lanes = RayLanes::new(&self.rays);
+        }
         for (state, ray) in self.states.iter_mut().zip(&self.rays) {
             match ray {
                 Some(ray) => state.next_sample = state.next_sample.max(ray.first),
