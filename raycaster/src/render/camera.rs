@@ -366,27 +366,25 @@ impl Camera {
                         add([px.min_element(), py.min_element()]);
                         add([px.max_element(), py.max_element()]);
                     }
-                }
-                for (i, &p) in corners.iter().enumerate().filter(|_| crossing) {
-                    let dp = depths[i];
-                    if dp >= cut {
-                        add(self.project_at_depth(p - self.position, dp)?);
-                    }
-                    if !crossing {
-                        continue;
-                    }
-                    // Edges to the corners differing in one coordinate.
-                    for bit in [1, 2, 4] {
-                        let j = i | bit;
-                        if j == i {
-                            continue;
+                } else {
+                    for (i, &p) in corners.iter().enumerate() {
+                        let dp = depths[i];
+                        if dp >= cut {
+                            add(self.project_at_depth(p - self.position, dp)?);
                         }
-                        let (q, dq) = (corners[j], depths[j]);
-                        if (dp < cut) != (dq < cut) {
-                            let at = p + (q - p) * ((cut - dp) / (dq - dp));
-                            match self.project(at) {
-                                Some(point) => add(point),
-                                None => return Some(image),
+                        // Edges to the corners differing in one coordinate.
+                        for bit in [1, 2, 4] {
+                            let j = i | bit;
+                            if j == i {
+                                continue;
+                            }
+                            let (q, dq) = (corners[j], depths[j]);
+                            if (dp < cut) != (dq < cut) {
+                                let at = p + (q - p) * ((cut - dp) / (dq - dp));
+                                match self.project(at) {
+                                    Some(point) => add(point),
+                                    None => return Some(image),
+                                }
                             }
                         }
                     }
