@@ -90,7 +90,10 @@ pub(crate) fn read_ahead(
 /// log last forgot them, and how many bytes that was.
 #[derive(Debug)]
 pub(crate) struct ReadAheadLog {
-    /// One bit per brick (grid index).
+    /// Bricks in the grid.
+    bricks: u64,
+    /// One bit per brick (grid index), allocated on the first request (a
+    /// volume is opened without work per brick).
     requested: Vec<u64>,
     /// Bytes of the bricks asked for since the bits were last cleared.
     bytes: u64,
@@ -108,7 +111,8 @@ impl ReadAheadLog {
     /// A log of `bricks` bricks that forgets them after `budget` bytes.
     pub(crate) fn with_budget(bricks: u64, budget: u64) -> Self {
         ReadAheadLog {
-            requested: vec![0; bricks.div_ceil(64) as usize],
+            bricks,
+            requested: Vec::new(),
             bytes: 0,
             budget,
         }
@@ -117,10 +121,13 @@ impl ReadAheadLog {
     /// Whether brick `index` (of `bytes` bytes) is to be asked for: not asked
     /// for since the log last forgot. Notes it as asked for.
     pub(crate) fn first_request(&mut self, index: u64, bytes: u64) -> bool {
-        let (word, bit) = ((index / 64) as usize, 1u64 << (index % 64));
-        if self.budget == 0 || word >= self.requested.len() {
+        if self.budget == 0 || index >= self.bricks {
             return true;
         }
+        if self.requested.is_empty() {
+            self.requested = vec![0; self.bricks.div_ceil(64) as usize];
+        }
+        let (word, bit) = ((index / 64) as usize, 1u64 << (index % 64));
         if self.requested[word] & bit != 0 {
             return false;
         }
@@ -312,6 +319,14 @@ mod tests {
         // Without a budget (memory unknown) nothing is skipped.
         let mut always = ReadAheadLog::with_budget(10, 0);
         assert!(always.first_request(1, 1) && always.first_request(1, 1));
+        // Nothing per brick until a brick is asked for (a grid of 2^40 bricks
+        // would take 128 GiB of bits).
+        assert!(
+            ReadAheadLog::with_budget(1 << 40, 1000)
+                .requested
+                .is_empty()
+        );
+        assert!(ReadAheadLog::new(1 << 40).requested.is_empty());
     }
 
     /// Byte offset of voxel `v` in a linear volume of `dims` (z fastest).
