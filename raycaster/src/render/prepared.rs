@@ -387,10 +387,13 @@ impl FramePlan {
     /// schedule counts them in its own pass: `FrameSchedule::transparent`).
     pub fn transparent_bricks(&self, volume: &RenderVolume<'_>) -> u64 {
         let grid = volume.geometry().grid();
-        (0..grid.block_count())
+        (0..grid.counts()[0])
             .into_par_iter()
-            .filter(|&i| self.brick_transparent(volume, grid.coords(i)))
-            .count() as u64
+            .map(|x| {
+                let slab = grid.slab(x);
+                slab.filter(|&b| self.brick_transparent(volume, b)).count() as u64
+            })
+            .sum()
     }
 }
 

@@ -94,19 +94,15 @@ impl FrameSchedule {
             // By slabs of bricks of one x, walked by coordinates: a brick's
             // coordinates from its index take three 64-bit divisions, which
             // were half the pass.
-            let [_, ny, nz] = grid.counts();
             let (bricks, transparent) = (0..grid.counts()[0])
                 .into_par_iter()
                 .fold(
                     || (Vec::new(), 0u64),
                     |(mut kept, mut transparent), x| {
-                        for y in 0..ny {
-                            for z in 0..nz {
-                                let b = [x, y, z];
-                                let clear = plan.brick_transparent(volume, b);
-                                transparent += u64::from(clear);
-                                kept.extend(scheduled(b, clear));
-                            }
+                        for b in grid.slab(x) {
+                            let clear = plan.brick_transparent(volume, b);
+                            transparent += u64::from(clear);
+                            kept.extend(scheduled(b, clear));
                         }
                         (kept, transparent)
                     },

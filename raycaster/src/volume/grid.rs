@@ -77,9 +77,17 @@ impl BlockGrid {
         ]
     }
 
-    /// All brick coordinates in file order.
+    /// All brick coordinates in file order (counted up, not divided out of
+    /// indices).
     pub fn iter(&self) -> impl Iterator<Item = [u32; 3]> + '_ {
-        (0..self.block_count()).map(|i| self.coords(i))
+        (0..self.counts[0]).flat_map(move |x| self.slab(x))
+    }
+
+    /// The coordinates of the bricks whose first coordinate is `x`, in file
+    /// order: one slab of [`Self::iter`], for walking the grid in parallel.
+    pub fn slab(&self, x: u32) -> impl Iterator<Item = [u32; 3]> + use<> {
+        let [_, ny, nz] = self.counts;
+        (0..ny).flat_map(move |y| (0..nz).map(move |z| [x, y, z]))
     }
 
     /// The brick that owns voxel `v`: on a shared face the lower brick.
@@ -112,7 +120,9 @@ mod tests {
         let g = BlockGrid::new([40, 30, 20], 6);
         for (i, b) in g.iter().enumerate() {
             assert_eq!(g.index(b), i as u64);
+            assert_eq!(g.coords(i as u64), b);
         }
+        assert_eq!(g.iter().count() as u64, g.block_count());
     }
 
     #[test]
