@@ -1002,11 +1002,11 @@ mod x86 {
         if computed == 0 {
             return (lanes.outside, lanes.visible, fallback);
         }
-        let mask_bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
-        let mask = _mm256_cmpeq_epi32(
-            _mm256_and_si256(_mm256_set1_epi32(computed as i32), mask_bits),
-            mask_bits,
-        );
+        // The neighbourhoods of every interior lane, visible or not: a mask
+        // that does not wait for the values, their table entries and the
+        // visibility bits lets the gathers start with the value gathers.
+        // (The other lanes' gradients are not used.)
+        let mask = _mm256_castps_si256(interior);
         // The farthest read: the neighbourhood's voxel (3, 2, 2) and the like,
         // from the lower corner at (1, 1, 1).
         // SAFETY: the lanes of `mask` are on cells whose 4×4×4 neighbourhood
