@@ -85,8 +85,6 @@ pub(crate) struct GatherBrick<'a> {
     /// Byte offsets of a cell's eight corners from its lower one, in
     /// [`super::sampler::Corners`] order.
     corners: [i32; 8],
-    /// Bytes per sample (1 or 2).
-    sample_size: i32,
     origin: [f32; 3],
     max_cell: [f32; 3],
     /// The samples around the brick's cells, for gradients: the volume's
@@ -187,7 +185,6 @@ impl<'a> GatherBrick<'a> {
                 to_i32(byte_strides[2])?,
             ],
             corners: corners.map(|c| c as i32),
-            sample_size: size as i32,
             origin: origin.map(|o| o as f32),
             max_cell,
             neighbourhoods,
@@ -879,7 +876,7 @@ mod x86 {
         // Lanes not in a cell read nothing (masked), so their offsets need no
         // bound; the others' cells lie in the brick.
         let offset = _mm256_and_si256(offset, mask);
-        let (source, size) = (&brick.samples, brick.sample_size);
+        let (source, size) = (&brick.samples, std::mem::size_of::<T>() as i32);
         // SAFETY: every lane of `mask` is on one of the brick's cells, whose
         // corners are samples of the brick's slice (as the scalar
         // `BrickSampler::corners` indexes them), all within `corners[7]` of its
@@ -1013,9 +1010,9 @@ mod x86 {
         // lies in the source's slice; the CPU has AVX2.
         unsafe {
             if near_end(source, lanes.offset, brick.reach) {
-                neighbourhood_gradient::<true>(ray, source, &lanes, mask, gradient)
+                neighbourhood_gradient::<T, true>(ray, source, &lanes, mask, gradient)
             } else {
-                neighbourhood_gradient::<false>(ray, source, &lanes, mask, gradient)
+                neighbourhood_gradient::<T, false>(ray, source, &lanes, mask, gradient)
             }
         }
         (lanes.outside, lanes.visible, fallback)
@@ -1032,8 +1029,8 @@ mod x86 {
     /// neighbourhood lies in `source`'s slice.
     #[inline]
     #[target_feature(enable = "avx2")]
-    unsafe fn neighbourhood_gradient<const NEAR: bool>(
-        ray: &GatherRay<'_, '_, impl Sample>,
+    unsafe fn neighbourhood_gradient<T: Sample, const NEAR: bool>(
+        ray: &GatherRay<'_, '_, T>,
         source: &GatherSource<'_>,
         lanes: &ChunkLanes,
         mask: __m256i,
@@ -1041,7 +1038,7 @@ mod x86 {
     ) {
         let brick = &ray.brick;
         let [sx, sy, sz] = brick.strides;
-        let size = brick.sample_size;
+        let size = std::mem::size_of::<T>() as i32;
         // Per axis, the lanes whose block coordinate 0 lies below the brick's
         // lower face (lower corner 0) or 3 beyond its upper face (lower
         // corner `max_cell`): what their offsets add.
