@@ -214,7 +214,7 @@ fn has_avx2() -> bool {
 /// One ray's visit of a brick, marched by gathers.
 pub(crate) struct GatherRay<'v, 'a, T: Sample> {
     /// The brick's layout.
-    pub brick: GatherBrick<'a>,
+    pub brick: &'v GatherBrick<'a>,
     /// The brick, for the samples outside its cells.
     pub sampler: &'v BrickSampler<'a, T>,
     /// The frame's table.
@@ -833,7 +833,7 @@ mod x86 {
         indices: &mut [i32; GATHER_LANES],
         local: &mut [[f32; GATHER_LANES]; 3],
     ) -> ChunkLanes {
-        let brick = &ray.brick;
+        let brick = ray.brick;
         let (start, step, last) = ray.positions.parts();
         let zero = _mm256_setzero_ps();
         let lane_numbers = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
@@ -977,7 +977,7 @@ mod x86 {
         local: &mut [[f32; GATHER_LANES]; 3],
         gradient: &mut [[f32; GATHER_LANES]; 3],
     ) -> (u32, u32, u32) {
-        let brick = &ray.brick;
+        let brick = ray.brick;
         // SAFETY: the CPU has AVX2 (this function's contract).
         let lanes = unsafe { chunk_lanes(ray, samples, n, indices, local) };
         if lanes.visible == 0 {
@@ -1036,7 +1036,7 @@ mod x86 {
         mask: __m256i,
         gradient: &mut [[f32; GATHER_LANES]; 3],
     ) {
-        let brick = &ray.brick;
+        let brick = ray.brick;
         let [sx, sy, sz] = brick.strides;
         let size = std::mem::size_of::<T>() as i32;
         // Per axis, the lanes whose block coordinate 0 lies below the brick's
@@ -1278,7 +1278,7 @@ mod tests {
                 let view_dir = Vec3::from(dir.normalize_or(Vec3A::Z));
                 let shading = shadings[round % 3];
                 let mut ray = GatherRay {
-                    brick,
+                    brick: &brick,
                     sampler: &sampler,
                     table: &table,
                     positions: SamplePositions::new(start + o, step, Vec3A::from(volume.last())),

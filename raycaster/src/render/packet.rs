@@ -183,7 +183,7 @@ fn march_dvr_chunks<T: Sample>(
         };
         let (c, first, last) = (dvr.runs_compositor, item.first, item.last);
         let positions = || ray.positions(work.volume.last());
-        if let Some(brick) = gather_brick {
+        if let Some(brick) = &gather_brick {
             visit.march(c, first, last, state, work.counters, || GatherRay {
                 brick,
                 sampler: &work.brick.sampler,
