@@ -276,32 +276,28 @@ impl<T: Sample> RunMarcher<Accumulation> for GatherRay<'_, '_, T> {
         if C::STATE_SKIPS || !runs.skips_cells() {
             return march_each_run(self, c, ess, acc, runs);
         }
-        let mut samples = [0u32; GATHER_LANES];
+        // A chunk's samples and room for a run's next eight written after
+        // them (the lanes past the run's end are overwritten by the next
+        // run's or left out of the chunk).
+        let mut samples = [0u32; 2 * GATHER_LANES];
         // The samples skipped before each lane's run, for chunks that gather
         // lanes of several runs.
-        let mut skipped = [0u64; GATHER_LANES];
+        let mut skipped = [0u64; 2 * GATHER_LANES];
         let (mut n, mut taken) = (0, 0u64);
         while let Some(run) = runs.next() {
             let skipped_before = runs.skipped;
             let mut k = run.first;
             while k < run.end {
-                if n == 0 && run.end - k >= GATHER_LANES as u32 {
-                    // A whole chunk of this run.
-                    let whole = std::array::from_fn(|j| k + j as u32);
-                    if let Some(j) = self.chunk(acc, &whole, GATHER_LANES) {
-                        return (taken + j as u64 + 1, skipped_before, Some(whole[j] + 1));
-                    }
-                    taken += GATHER_LANES as u64;
-                    k += GATHER_LANES as u32;
-                    continue;
-                }
-                samples[n] = k;
-                skipped[n] = skipped_before;
-                n += 1;
-                k += 1;
+                let more = ((run.end - k) as usize).min(GATHER_LANES - n);
+                let next: [u32; GATHER_LANES] = std::array::from_fn(|j| k.wrapping_add(j as u32));
+                samples[n..n + GATHER_LANES].copy_from_slice(&next);
+                skipped[n..n + GATHER_LANES].fill(skipped_before);
+                n += more;
+                k += more as u32;
                 if n == GATHER_LANES {
                     n = 0;
-                    if let Some(j) = self.chunk(acc, &samples, GATHER_LANES) {
+                    let chunk = samples[..GATHER_LANES].try_into().expect("a chunk");
+                    if let Some(j) = self.chunk(acc, chunk, GATHER_LANES) {
                         return (taken + j as u64 + 1, skipped[j], Some(samples[j] + 1));
                     }
                     taken += GATHER_LANES as u64;
@@ -309,7 +305,8 @@ impl<T: Sample> RunMarcher<Accumulation> for GatherRay<'_, '_, T> {
             }
         }
         if n > 0 {
-            if let Some(j) = self.chunk(acc, &samples, n) {
+            let chunk = samples[..GATHER_LANES].try_into().expect("a chunk");
+            if let Some(j) = self.chunk(acc, chunk, n) {
                 return (taken + j as u64 + 1, skipped[j], Some(samples[j] + 1));
             }
             taken += n as u64;
