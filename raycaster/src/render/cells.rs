@@ -123,7 +123,7 @@ impl CellRanges {
         view: impl FnOnce() -> BrickView<'a, T>,
     ) -> BrickCells {
         if let Some(table) = &self.stored {
-            return table.brick(index).into();
+            return table.brick(index);
         }
         if let Some(cells) = self.cache.read().get(&index) {
             return cells.clone();

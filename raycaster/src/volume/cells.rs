@@ -270,24 +270,27 @@ fn encode_cells(cells: &[[u16; 2]], sample: SampleType) -> Vec<u8> {
     }
 }
 
-/// The cell ranges of [`encode_cells`]'s bytes.
-fn decode_cells(bytes: &[u8], sample: SampleType) -> Vec<[u16; 2]> {
+/// The cell ranges of [`encode_cells`]'s bytes (without a branch per cell:
+/// a brick's are decoded each time a frame's task marches it).
+fn decode_cells<C: FromIterator<[u16; 2]>>(bytes: &[u8], sample: SampleType) -> C {
     match sample {
         SampleType::U8 => bytes
-            .chunks_exact(2)
-            .map(|c| match [u16::from(c[0]), u16::from(c[1])] {
-                [lo, hi] if lo > hi => [u16::MAX, 0],
-                range => range,
+            .as_chunks::<2>()
+            .0
+            .iter()
+            .map(|&[lo, hi]| {
+                let empty = lo > hi;
+                [
+                    if empty { u16::MAX } else { u16::from(lo) },
+                    if empty { 0 } else { u16::from(hi) },
+                ]
             })
             .collect(),
         SampleType::U16 => bytes
-            .chunks_exact(4)
-            .map(|c| {
-                [
-                    u16::from_le_bytes([c[0], c[1]]),
-                    u16::from_le_bytes([c[2], c[3]]),
-                ]
-            })
+            .as_chunks::<4>()
+            .0
+            .iter()
+            .map(|&[a, b, c, d]| [u16::from_le_bytes([a, b]), u16::from_le_bytes([c, d])])
             .collect(),
     }
 }
@@ -424,7 +427,7 @@ impl CellTable {
     }
 
     /// The cells of brick number `index` (file order), x slowest.
-    pub fn brick(&self, index: u64) -> Vec<[u16; 2]> {
+    pub fn brick(&self, index: u64) -> Arc<[[u16; 2]]> {
         let bytes = self.shape.brick_bytes(self.sample) as usize;
         decode_cells(
             &self.bytes()[index as usize * bytes..][..bytes],
@@ -508,7 +511,7 @@ mod tests {
             } else {
                 &wide
             };
-            assert_eq!(decode_cells(&encode_cells(cells, sample), sample), cells);
+            assert_eq!(decode_cells::<Vec<_>>(&encode_cells(cells, sample), sample), cells);
         }
         // Cut short, or read for another shape: no table.
         assert!(
