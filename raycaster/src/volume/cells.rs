@@ -511,7 +511,10 @@ mod tests {
             } else {
                 &wide
             };
-            assert_eq!(decode_cells::<Vec<_>>(&encode_cells(cells, sample), sample), cells);
+            assert_eq!(
+                decode_cells::<Vec<_>>(&encode_cells(cells, sample), sample),
+                cells
+            );
         }
         // Cut short, or read for another shape: no table.
         assert!(
