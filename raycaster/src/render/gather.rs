@@ -612,8 +612,8 @@ mod x86 {
     #[inline(always)]
     fn align_stack() {
         #[repr(align(64))]
-        struct LineAligned;
-        std::hint::black_box(&mut LineAligned);
+        struct CacheLine;
+        std::hint::black_box(&mut CacheLine);
     }
 
     /// `Shading::shade_lanes` of eight lanes for a whole exponent `n`
@@ -991,9 +991,11 @@ mod x86 {
     /// 4×4×4 neighbourhoods lie in the brick's neighbourhood source (the brick,
     /// or for linear storage the volume), per axis into `gradient`: the
     /// central differences at the cell's corners, interpolated as
-    /// `gradient_from_differences`, halved (the scalar kernel's bits). Returns
-    /// the lanes outside cells, the visible ones, and the visible ones whose
-    /// gradient is left to the caller (their neighbourhood leaves the source).
+    /// `gradient_from_differences`, halved (the scalar kernel's bits; the
+    /// invisible lanes of such cells get gradients too, unused: see the
+    /// mask). Returns the lanes outside cells, the visible ones, and the
+    /// visible ones whose gradient is left to the caller (their neighbourhood
+    /// leaves the source).
     ///
     /// # Safety
     /// The CPU has AVX2.
