@@ -27,7 +27,7 @@ use glam::{Vec3, Vec3A, Vec4};
 use super::compositor::Compositor;
 use super::local::Accumulation;
 use super::march::{RunMarcher, march_each_run};
-use super::optics::{over_sample, whole_exponent};
+use super::optics::{over, over_sample, whole_exponent};
 use super::pixel::SamplePositions;
 use super::runs::SampleRuns;
 use super::sampler::{BrickSampler, CornerDifferences, VolumeSampler, gradient_from_differences};
@@ -361,11 +361,12 @@ impl<T: Sample> GatherRay<'_, '_, T> {
         }
         // The visible samples (opacity above 0: what the scalar `Dvr`
         // composites), in order.
+        let ends_ray = samples[n - 1] == self.last_sample;
         while visible != 0 {
             let j = visible.trailing_zeros() as usize;
             visible &= visible - 1;
             let [r, g, b, a] = entries[indices.0[j] as usize];
-            if self.over(acc, ([r, g, b], a), samples[j]) {
+            if self.over(acc, ([r, g, b], a), samples[j], ends_ray) {
                 return Some(j);
             }
         }
@@ -446,12 +447,13 @@ impl<T: Sample> GatherRay<'_, '_, T> {
         }
         #[cfg(not(target_arch = "x86_64"))]
         self.shade_quads(shade, visible, &mut rgb.0, &gradient.0);
+        let ends_ray = samples[n - 1] == self.last_sample;
         while visible != 0 {
             let j = visible.trailing_zeros() as usize;
             visible &= visible - 1;
             let a = entries[indices.0[j] as usize][3];
             let color = [rgb.0[0][j], rgb.0[1][j], rgb.0[2][j]];
-            if self.over(acc, (color, a), samples[j]) {
+            if self.over(acc, (color, a), samples[j], ends_ray) {
                 return Some(j);
             }
         }
@@ -486,14 +488,26 @@ impl<T: Sample> GatherRay<'_, '_, T> {
     }
 
     /// Composites visible sample `k` of colour and opacity `sample`; whether
-    /// the ray reached the opacity threshold.
+    /// the ray reached the opacity threshold. `ends_ray`: the chunk holds the
+    /// ray's last sample (else no sample is a partial step, and the check per
+    /// sample is left out: `partial_step` of a whole step is the opacity).
     #[inline(always)]
-    fn over(&self, acc: &mut Accumulation, sample: ([f32; 3], f32), k: u32) -> bool {
+    fn over(
+        &self,
+        acc: &mut Accumulation,
+        (color, a): ([f32; 3], f32),
+        k: u32,
+        ends_ray: bool,
+    ) -> bool {
+        if !ends_ray {
+            over(&mut acc.color, &mut acc.alpha, color, a);
+            return acc.alpha >= self.ert_threshold;
+        }
         let last = (self.last_sample, self.last_fraction);
         over_sample(
             &mut acc.color,
             &mut acc.alpha,
-            sample,
+            (color, a),
             k,
             last,
             self.ert_threshold,
