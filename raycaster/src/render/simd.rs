@@ -68,7 +68,7 @@ impl SimdLevel {
     /// On AVX2, DVR with a 1D, not pre-integrated transfer function runs the
     /// kernel with hardware gathers ([`super::gather`]): on this project's
     /// 2-core VM 1.6–2.3× the scalar kernel's samples per second unshaded,
-    /// 1.2–1.45× shaded (docs/benchmarks.md, section 5). Every other frame
+    /// 1.2–1.6× shaded (docs/benchmarks.md, section 5). Every other frame
     /// takes the scalar kernel whatever the level (its compositor declines
     /// `Compositor::march_packets`, per task). Every frame is the
     /// same whichever level renders it.
