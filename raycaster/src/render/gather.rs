@@ -234,16 +234,16 @@ pub(crate) struct GatherRay<'v, 'a, T: Sample> {
     pub last_fraction: f32,
     /// The frame's opacity threshold.
     pub ert_threshold: f32,
-    /// Blinn-Phong, when shading.
-    pub shade: Option<GatherShading<'v, 'a, T>>,
+    /// Blinn-Phong, when shading (the task's).
+    pub shade: Option<&'v GatherShading<'v, 'a, T>>,
+    /// The ray's light vectors ([`Shading::ray_lights`]) when shading.
+    pub lights: (Vec3, Vec3),
 }
 
-/// What shading a ray's samples takes.
+/// What shading a task's samples take.
 pub(crate) struct GatherShading<'v, 'a, T: Sample> {
     /// Blinn-Phong.
     pub shading: Shading,
-    /// The ray's light vectors ([`Shading::ray_lights`]).
-    pub lights: (Vec3, Vec3),
     /// The frame's gradient scale (voxel differences to normalised units).
     pub gradient_scale: Vec3,
     /// Reads anywhere in the volume (gradients at the brick's faces).
@@ -332,7 +332,7 @@ impl<T: Sample> GatherRay<'_, '_, T> {
         samples: &[u32; GATHER_LANES],
         n: usize,
     ) -> Option<usize> {
-        match &self.shade {
+        match self.shade {
             Some(shade) => self.chunk_shaded(shade, acc, samples, n),
             None => self.chunk_unshaded(acc, samples, n),
         }
@@ -439,7 +439,7 @@ impl<T: Sample> GatherRay<'_, '_, T> {
                     &mut rgb.0,
                     &gradient.0,
                     scale,
-                    shade.lights,
+                    self.lights,
                 )
             };
         } else {
@@ -480,7 +480,7 @@ impl<T: Sample> GatherRay<'_, '_, T> {
             let g = [0, 1, 2].map(|a| quad(&gradient[a]) * scale[a]);
             let shaded = shade
                 .shading
-                .shade_lanes(rgb.each_ref().map(quad), g, shade.lights);
+                .shade_lanes(rgb.each_ref().map(quad), g, self.lights);
             for c in 0..3 {
                 shaded[c].write_to_slice(&mut rgb[c][4 * half..4 * half + 4]);
             }
@@ -1323,6 +1323,11 @@ mod tests {
                 }
                 let view_dir = Vec3::from(dir.normalize_or(Vec3A::Z));
                 let shading = shadings[round % 3];
+                let gather_shading = shading.map(|shading| GatherShading {
+                    shading,
+                    gradient_scale: Vec3::new(0.9, 1.1, 1.3),
+                    volume: &volume,
+                });
                 let mut ray = GatherRay {
                     brick: &brick,
                     sampler: &sampler,
@@ -1331,12 +1336,8 @@ mod tests {
                     last_sample: count - 1,
                     last_fraction: 0.25 + unit() * 0.5,
                     ert_threshold: if round % 2 == 0 { f32::INFINITY } else { 0.9 },
-                    shade: shading.map(|shading| GatherShading {
-                        shading,
-                        lights: shading.ray_lights(view_dir),
-                        gradient_scale: Vec3::new(0.9, 1.1, 1.3),
-                        volume: &volume,
-                    }),
+                    shade: gather_shading.as_ref(),
+                    lights: shading.map_or((Vec3::ZERO, Vec3::ZERO), |s| s.ray_lights(view_dir)),
                 };
                 let first = ((unit() * 11.0) as u32).min(count - 1);
                 let (mut a, mut b) = (

@@ -171,6 +171,11 @@ fn march_dvr_chunks<T: Sample>(
     } else {
         None
     };
+    let gather_shading = dvr.shading.map(|shading| GatherShading {
+        shading,
+        gradient_scale: work.plan.gradient_scale,
+        volume: work.volume,
+    });
     for item in work.items {
         let (Some(ray), state) = (&work.rays[item.pixel], &mut work.states[item.pixel]) else {
             continue;
@@ -192,12 +197,10 @@ fn march_dvr_chunks<T: Sample>(
                 last_sample: ray.samples - 1,
                 last_fraction: ray.last_fraction,
                 ert_threshold: work.plan.ert_threshold,
-                shade: dvr.shading.map(|shading| GatherShading {
-                    shading,
-                    lights: shading.ray_lights(ray.view_dir),
-                    gradient_scale: work.plan.gradient_scale,
-                    volume: work.volume,
-                }),
+                shade: gather_shading.as_ref(),
+                lights: dvr
+                    .shading
+                    .map_or((Vec3::ZERO, Vec3::ZERO), |s| s.ray_lights(ray.view_dir)),
             });
         } else {
             visit.march(c, first, last, state, work.counters, || DvrChunks {
