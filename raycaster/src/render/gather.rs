@@ -596,7 +596,7 @@ mod x86 {
 
     use glam::Vec3;
 
-    use super::{GATHER_LANES, GatherRay, GatherSource};
+    use super::{GATHER_LANES, GatherRay, GatherSource, LineAligned};
     use crate::render::shading::{Light, Shading};
     use crate::render::transfer::TABLE_SIZE;
     use crate::volume::Sample;
@@ -619,15 +619,12 @@ mod x86 {
         visible: u32,
     }
 
-    /// Makes the calling function align its stack frame to a cache line, so
-    /// that its 32-byte spill slots never straddle two lines (the frame's
-    /// alignment otherwise follows the callers' frames: a change anywhere
-    /// up the call chain moved the unshaded kernel's speed by 14 %).
+    /// Makes the calling function align its stack frame to a cache line (a
+    /// [`LineAligned`] local it cannot optimise away), so that its 32-byte
+    /// spill slots never straddle two lines, as [`LineAligned`] says.
     #[inline(always)]
     fn align_stack() {
-        #[repr(align(64))]
-        struct CacheLine;
-        std::hint::black_box(&mut CacheLine);
+        std::hint::black_box(&mut LineAligned(()));
     }
 
     /// `Shading::shade_lanes` of eight lanes for a whole exponent `n`
