@@ -814,6 +814,11 @@ impl PreintegratedTable {
         [color[0] as f32, color[1] as f32, color[2] as f32, a as f32]
     }
 
+    /// The width of one bin in raw values.
+    pub fn bin_width(&self) -> f32 {
+        1.0 / self.scale
+    }
+
     /// RGB and opacity of a segment whose raw value goes linearly from `front` to
     /// `back`: the nearest bins' entry when both lie in the domain, else computed
     /// from the integral functions (the function is constant beyond its domain).
