@@ -47,9 +47,9 @@ impl Frame {
 
     /// The frame composited over its background, 8 bits per channel.
     pub fn to_image(&self) -> RgbImage {
-        let mut data = Vec::with_capacity(self.rgba.len() * 3);
-        for &px in &self.rgba {
-            data.extend_from_slice(&over_background(px, self.background));
+        let mut data = vec![0u8; self.rgba.len() * 3];
+        for (out, &px) in data.chunks_exact_mut(3).zip(&self.rgba) {
+            out.copy_from_slice(&over_background(px, self.background));
         }
         RgbImage::new(self.width, self.height, data)
     }
