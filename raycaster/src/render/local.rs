@@ -16,7 +16,7 @@ use super::segments::{ImportanceSource, LocalMode};
 use super::shading::Shading;
 use super::simd::SimdLevel;
 use super::state_buffer::{Reader, StateCodec, put_f32, put_u32};
-use super::transfer::{PreintegratedTable, TransferTable};
+use super::transfer::{PIECE_LENGTHS, PreintegratedTable, TransferTable};
 use crate::volume::Sample;
 
 /// What a run of samples has accumulated (every local mode uses some fields).
@@ -156,10 +156,15 @@ fn shade(shading: Option<&Shading>, color: [f32; 3], gradient: Vec3, view_dir: V
 }
 
 /// How many times a pre-integrated segment may be halved where the field bends
-/// along it ([`Dvr::split_segment`]): into four pieces at most. Measured on
-/// `shapes` 128³ at step 1 (docs/benchmarks.md §6): no halving 43.0 dB against
+/// along it ([`Dvr::split_segment`]): into four pieces at most, the lengths the
+/// table has shading weights for. Measured on `shapes` 128³ at step 1
+/// (docs/benchmarks.md §6, shaded at the midpoint): no halving 43.0 dB against
 /// the step-0.05 reference, one 49.3, two 51.5, three 51.8.
-const SEGMENT_HALVINGS: u32 = 2;
+const SEGMENT_HALVINGS: u32 = PIECE_LENGTHS as u32 - 1;
+
+/// A part of a pre-integrated piece whose share of its light is below this is
+/// not shaded on its own ([`Dvr::shade_piece`]): its gradient is not read.
+const UNSHADED_SHARE: f32 = 0.02;
 
 /// A segment whose midpoint's value is off the line between its ends by more
 /// than this many pre-integration bins is halved.
@@ -174,30 +179,73 @@ const SPLIT_SPAN_BINS: f32 = 16.0;
 pub(crate) struct Dvr {
     table: Arc<TransferTable>,
     shading: Option<Shading>,
+    /// With pre-integration: the opacity at which the frame's early ray
+    /// termination stops a ray, where a segment crossing it is cut
+    /// ([`Dvr::composite_segment`]); `∞` without termination.
+    stop_at: f32,
 }
 
 impl Dvr {
-    /// Composites a pre-integrated segment of table entry `[r, g, b, a]` (visible),
-    /// shaded with gradient `gradient()`, standing for `fraction` of a step.
+    /// Composites a pre-integrated segment (or piece) of colour `color` and
+    /// opacity `a`, cut where the opacity reaches `stop`.
+    ///
+    /// Early ray termination stops a ray at the first sample that takes its
+    /// opacity to the threshold: a fine step overshoots it by little, a step of
+    /// a voxel by much — the surface behind the threshold shows through, and
+    /// the coarse image is lighter than the fine one (on `shapes` at step 1,
+    /// this was most of the difference from the step-0.05 reference unshaded:
+    /// docs/benchmarks.md §6). A pre-integrated segment stands for a continuous
+    /// stretch of the ray, so the ray stops inside it, where the opacity
+    /// reaches the threshold: the part up to there (its colour the segment's)
+    /// has opacity `(stop − α)/(1 − α)`. The ray's opacity is then exactly
+    /// `stop`; later pieces add nothing.
     #[inline]
-    fn segment(
+    fn composite_segment(&self, st: &mut Accumulation, color: [f32; 3], a: f32, stop: f32) {
+        if st.alpha >= stop {
+            return;
+        }
+        if st.alpha + (1.0 - st.alpha) * a >= stop {
+            let part = (stop - st.alpha) / (1.0 - st.alpha);
+            over(&mut st.color, &mut st.alpha, color, part);
+            st.alpha = stop;
+        } else {
+            over(&mut st.color, &mut st.alpha, color, a);
+        }
+    }
+
+    /// The shaded colour of a visible piece between `ends`, of table colour
+    /// `color`, halved `halvings` times: each of its front end, midpoint and
+    /// back end is shaded with its own gradient, weighted by the share of the
+    /// piece's light that comes from around it (the front quarter, the middle
+    /// half, the back quarter: [`PreintegratedTable::shading_weights`]). Across
+    /// a surface the light comes from where the opacity rises, which can lie
+    /// anywhere along the piece; one gradient at the midpoint can lie in the
+    /// flat field before it, whose colour is unshaded. A part with less than
+    /// [`UNSHADED_SHARE`] of the light is left out (its gradient never read),
+    /// the others' weights scaled to sum to one.
+    #[inline]
+    fn shade_piece<T: Sample>(
         &self,
-        st: &mut Accumulation,
-        [r, g, b, a]: [f32; 4],
-        fraction: f32,
-        gradient: impl FnOnce() -> Vec3,
-        view_dir: Vec3,
-    ) {
-        let color = match &self.shading {
-            Some(sh) => sh.shade([r, g, b], gradient(), view_dir),
-            None => [r, g, b],
-        };
-        over(
-            &mut st.color,
-            &mut st.alpha,
-            color,
-            partial_step(a, fraction),
-        );
+        shading: &Shading,
+        pre: &PreintegratedTable,
+        s: &SamplePoint<'_, T>,
+        [(p0, v0), (p1, v1)]: [(Vec3, f32); 2],
+        halvings: usize,
+        color: [f32; 3],
+    ) -> [f32; 3] {
+        let weights = pre.shading_weights(v0, v1, halvings);
+        let view_dir = s.view_dir();
+        let (mut sum, mut used) = ([0.0f32; 3], 0.0f32);
+        for (p, w) in [p0, (p0 + p1) * 0.5, p1].into_iter().zip(weights) {
+            if w >= UNSHADED_SHARE {
+                let lit = shading.shade(color, s.gradient_at(p), view_dir);
+                for (acc, c) in sum.iter_mut().zip(lit) {
+                    *acc += w * c;
+                }
+                used += w;
+            }
+        }
+        sum.map(|c| c / used)
     }
 
     /// A sample with pre-integration: it stands for the segment to the next
@@ -209,6 +257,7 @@ impl Dvr {
         pre: &PreintegratedTable,
         st: &mut Accumulation,
         s: &SamplePoint<'_, T>,
+        stop: f32,
     ) {
         let k = s.index;
         if k > st.next_index
@@ -217,28 +266,31 @@ impl Dvr {
             // The sample before was skipped as empty: its segment ends here.
             let p = s.ray().position(k - 1, s.volume().last());
             let ends = [(p, before), (s.position, s.value)];
-            self.split_segment(pre, st, s, ends, 1.0, SEGMENT_HALVINGS);
+            self.split_segment(pre, st, s, ends, SEGMENT_HALVINGS, stop);
         }
         st.next_index = k + 1;
         if s.fraction < 1.0 {
             // The ray's last sample stands for a constant partial step (its value
             // lies in its own cell's range: see `range_empty`).
-            let entry = pre.lookup(s.value, s.value);
-            if entry[3] > 0.0 {
-                self.segment(st, entry, s.fraction, || s.gradient(), s.view_dir());
+            let [r, g, b, a] = pre.lookup(s.value, s.value);
+            if a > 0.0 {
+                let color = shade(self.shading.as_ref(), [r, g, b], s.gradient(), s.view_dir());
+                self.composite_segment(st, color, partial_step(a, s.fraction), stop);
             }
         } else {
             let p = s.ray().position(k + 1, s.volume().last());
             let back = s.value_at(p);
             let ends = [(s.position, s.value), (p, back)];
-            self.split_segment(pre, st, s, ends, 1.0, SEGMENT_HALVINGS);
+            self.split_segment(pre, st, s, ends, SEGMENT_HALVINGS, stop);
         }
     }
 
     /// Composites the segment between `ends` (position and value, front first),
-    /// `length` steps long: pre-integrated whole where the field is close to
-    /// linear along it, else as its two halves (their shared end's value read
-    /// from the volume), down to `halvings` more times.
+    /// a step halved `SEGMENT_HALVINGS − halvings` times: pre-integrated whole
+    /// where the field is close to linear along it, else as its two halves
+    /// (their shared end's value read from the volume), down to `halvings` more
+    /// times; cut at opacity `stop`
+    /// ([`Dvr::composite_segment`]) and shaded by [`Dvr::shade_piece`].
     ///
     /// The table assumes the value goes linearly from front to back. Across a
     /// surface it does not: it stays flat, rises over about a voxel and flattens
@@ -256,12 +308,12 @@ impl Dvr {
         st: &mut Accumulation,
         s: &SamplePoint<'_, T>,
         ends: [(Vec3, f32); 2],
-        length: f32,
         halvings: u32,
+        stop: f32,
     ) {
         let [(p0, v0), (p1, v1)] = ends;
-        let entry = pre.lookup(v0, v1);
-        if entry[3] <= 0.0 {
+        let [r, g, b, a] = pre.lookup(v0, v1);
+        if a <= 0.0 {
             return;
         }
         let mid = (p0 + p1) * 0.5;
@@ -271,13 +323,66 @@ impl Dvr {
             if (vm - (v0 + v1) * 0.5).abs() > SPLIT_BEND_BINS * bin
                 || (v1 - v0).abs() > SPLIT_SPAN_BINS * bin
             {
-                let half = length * 0.5;
-                self.split_segment(pre, st, s, [(p0, v0), (mid, vm)], half, halvings - 1);
-                self.split_segment(pre, st, s, [(mid, vm), (p1, v1)], half, halvings - 1);
+                let halves = [[(p0, v0), (mid, vm)], [(mid, vm), (p1, v1)]];
+                for half_ends in halves {
+                    self.split_segment(pre, st, s, half_ends, halvings - 1, stop);
+                }
                 return;
             }
         }
-        self.segment(st, entry, length, || s.gradient_at(mid), s.view_dir());
+        // Halved `depth` times: a piece of `length` steps.
+        let depth = SEGMENT_HALVINGS - halvings;
+        let length = 1.0 / (1u32 << depth) as f32;
+        let color = match &self.shading {
+            Some(sh) => self.shade_piece(sh, pre, s, ends, depth as usize, [r, g, b]),
+            None => [r, g, b],
+        };
+        self.composite_segment(st, color, partial_step(a, length), stop);
+    }
+
+    /// [`Compositor::sample`], with pre-integrated segments cut at opacity
+    /// `stop` instead of the frame's threshold (a two-level object's segment:
+    /// [`LocalCompositor::sample_in_segment`]).
+    #[inline(always)]
+    fn sample_stopping_at<T: Sample>(
+        &self,
+        st: &mut Accumulation,
+        s: &SamplePoint<'_, T>,
+        stop: f32,
+    ) {
+        if let Some(pre) = self.table.preintegrated() {
+            self.sample_preintegrated(pre, st, s, stop);
+            return;
+        }
+        self.sample_plain(st, s);
+    }
+
+    /// A plain (not pre-integrated) sample: classified, shaded and composited
+    /// for its step.
+    #[inline(always)]
+    fn sample_plain<T: Sample>(&self, st: &mut Accumulation, s: &SamplePoint<'_, T>) {
+        let [r, g, b, a] = self.table.lookup(s.value);
+        if a <= 0.0 {
+            return;
+        }
+        let (color, a) = if self.shading.is_some() || self.table.is_2d() {
+            let gradient = s.gradient();
+            let a = if self.table.is_2d() {
+                self.table.lookup_2d(s.value, gradient.length())[3]
+            } else {
+                a
+            };
+            let color = shade(self.shading.as_ref(), [r, g, b], gradient, s.view_dir());
+            (color, a)
+        } else {
+            ([r, g, b], a)
+        };
+        over(
+            &mut st.color,
+            &mut st.alpha,
+            color,
+            partial_step(a, s.fraction),
+        );
     }
 }
 
@@ -325,32 +430,7 @@ impl Compositor for Dvr {
     // table read); pre-integration is a call.
     #[inline(always)]
     fn sample<T: Sample>(&self, st: &mut Accumulation, s: &SamplePoint<'_, T>) {
-        if let Some(pre) = self.table.preintegrated() {
-            self.sample_preintegrated(pre, st, s);
-            return;
-        }
-        let [r, g, b, a] = self.table.lookup(s.value);
-        if a <= 0.0 {
-            return;
-        }
-        let (color, a) = if self.shading.is_some() || self.table.is_2d() {
-            let gradient = s.gradient();
-            let a = if self.table.is_2d() {
-                self.table.lookup_2d(s.value, gradient.length())[3]
-            } else {
-                a
-            };
-            let color = shade(self.shading.as_ref(), [r, g, b], gradient, s.view_dir());
-            (color, a)
-        } else {
-            ([r, g, b], a)
-        };
-        over(
-            &mut st.color,
-            &mut st.alpha,
-            color,
-            partial_step(a, s.fraction),
-        );
+        self.sample_stopping_at(st, s, self.stop_at);
     }
     #[inline]
     fn opacity(&self, st: &Accumulation) -> f32 {
@@ -802,7 +882,11 @@ impl LocalCompositor {
         domain: [f32; 2],
     ) -> Self {
         match mode {
-            LocalMode::Dvr => LocalCompositor::Dvr(Dvr { table, shading }),
+            LocalMode::Dvr => LocalCompositor::Dvr(Dvr {
+                table,
+                shading,
+                stop_at: f32::INFINITY,
+            }),
             LocalMode::Mip => LocalCompositor::Mip(Mip { table }),
             LocalMode::Average => LocalCompositor::Average(Average { table }),
             LocalMode::XRay { gain } => LocalCompositor::XRay(XRay {
@@ -835,6 +919,32 @@ impl LocalCompositor {
                 domain,
                 output,
             }),
+        }
+    }
+
+    /// With early ray termination at opacity `threshold` (`None`: none), which
+    /// pre-integrated DVR segments stop at exactly ([`Dvr::composite_segment`]);
+    /// other modes are unchanged.
+    pub fn stopping_at(mut self, threshold: Option<f32>) -> Self {
+        if let LocalCompositor::Dvr(dvr) = &mut self {
+            dvr.stop_at = threshold.unwrap_or(f32::INFINITY);
+        }
+        self
+    }
+
+    /// [`Compositor::sample`] in a two-level object's segment, whose
+    /// pre-integrated DVR pieces stop at local opacity `stop` (where the global
+    /// opacity reaches the frame's threshold).
+    #[inline]
+    pub fn sample_in_segment<T: Sample>(
+        &self,
+        st: &mut Accumulation,
+        s: &SamplePoint<'_, T>,
+        stop: f32,
+    ) {
+        match self {
+            LocalCompositor::Dvr(dvr) => dvr.sample_stopping_at(st, s, stop),
+            other => other.sample(st, s),
         }
     }
 }

@@ -270,6 +270,7 @@ impl FramePlan {
                     settings.shading,
                     settings.preintegrated,
                     volume.volume().level_scale(),
+                    settings.early_termination,
                 ))
             }
             None => {
@@ -277,14 +278,17 @@ impl FramePlan {
                 if settings.preintegrated && settings.mode == Mode::Dvr {
                     table = table.with_preintegration(&settings.transfer, type_max);
                 }
-                FrameCompositor::Plain(LocalCompositor::new(
-                    settings
-                        .mode
-                        .local(&settings.mode_parameters, settings.iso_value),
-                    Arc::new(table),
-                    settings.shading,
-                    domain,
-                ))
+                FrameCompositor::Plain(
+                    LocalCompositor::new(
+                        settings
+                            .mode
+                            .local(&settings.mode_parameters, settings.iso_value),
+                        Arc::new(table),
+                        settings.shading,
+                        domain,
+                    )
+                    .stopping_at(settings.early_termination),
+                )
             }
         };
         let [d0, d1] = domain;

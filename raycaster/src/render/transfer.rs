@@ -606,6 +606,11 @@ impl TransferTable {
 /// no visible gain at the steps pre-integration is for).
 pub const PREINTEGRATION_BINS: usize = 256;
 
+/// The lengths of segment pieces a pre-integrated table has shading weights
+/// for: a whole step, its half and its quarter (a segment is halved at most
+/// twice where the field bends along it).
+pub(crate) const PIECE_LENGTHS: usize = 3;
+
 /// Points of the fine grid the integral functions are sampled on.
 const FINE: usize = 4096;
 
@@ -627,10 +632,18 @@ const TAU_OPAQUE: f64 = 1.0e4;
 /// for a constant colour). A constant segment (`f = b`) gives exactly the
 /// ordinary corrected lookup of value `f`. Building is O(bins²) evaluations of
 /// these closed forms, never an O(bins³) integration.
+///
+/// For shading, each entry also says where along the segment its light comes
+/// from ([`Self::shading_weights`]), for pieces of each of
+/// [`PIECE_LENGTHS`] lengths.
 #[derive(Clone, Debug)]
 pub(crate) struct PreintegratedTable {
     /// `bins × bins` entries, front-major: RGB (not premultiplied) and opacity.
     entries: Vec<[f32; 4]>,
+    /// Per piece length (a step, a half, a quarter), in the entries' order: the
+    /// shares of the front and back quarters in the segment's emission, in
+    /// units of `1/65535` ([`Self::shading_weights`]).
+    weights: [Vec<[u16; 2]>; PIECE_LENGTHS],
     /// Bins per axis.
     bins: usize,
     /// Raw value of bin 0 and bins per raw unit.
@@ -736,6 +749,7 @@ impl PreintegratedTable {
         }
         let mut table = PreintegratedTable {
             entries: Vec::new(),
+            weights: Default::default(),
             bins,
             offset: d0,
             scale: (bins - 1) as f32 / (d1 - d0),
@@ -759,6 +773,25 @@ impl PreintegratedTable {
                 }
             });
         table.entries = entries;
+        let mut weights: [Vec<[u16; 2]>; PIECE_LENGTHS] =
+            std::array::from_fn(|_| vec![[0; 2]; bins * bins]);
+        let [w0, w1, w2] = &mut weights;
+        w0.par_chunks_mut(bins)
+            .zip(w1.par_chunks_mut(bins))
+            .zip(w2.par_chunks_mut(bins))
+            .enumerate()
+            .for_each(|(front, ((r0, r1), r2))| {
+                for back in 0..bins {
+                    let shares = table.shares_fine(
+                        front as f64 * table.fine_per_bin,
+                        back as f64 * table.fine_per_bin,
+                    );
+                    for (row, [f, b]) in [&mut *r0, &mut *r1, &mut *r2].into_iter().zip(shares) {
+                        row[back] = [quantise_share(f), quantise_share(b)];
+                    }
+                }
+            });
+        table.weights = weights;
         table
     }
 
@@ -814,6 +847,86 @@ impl PreintegratedTable {
         [color[0] as f32, color[1] as f32, color[2] as f32, a as f32]
     }
 
+    /// For the segment from fine-grid position `uf` to `ub`, per piece length
+    /// (a step, a half, a quarter: the value still going linearly from `uf` to
+    /// `ub` along it): the shares of its front quarter and of its back quarter
+    /// in the light it sends to the eye, the rest coming from its middle half.
+    ///
+    /// The share of a part is the drop in transmittance across it, the part's
+    /// opacity as seen from the segment's front: with optical depth
+    /// `D(u) = r·(T(v(u)) − T(uf))/(ub − uf)` at fraction `u` along it,
+    /// transmittance `exp(−D(u))`; exact for the linear ramp, for any function.
+    /// Shares are of the whole segment's opacity; a transparent segment gets
+    /// the transparent limit (`D` linear: ¼, ½, ¼).
+    fn shares_fine(&self, uf: f64, ub: f64) -> [[f64; 2]; PIECE_LENGTHS] {
+        let d = ub - uf;
+        // Optical depth per reference step up to fractions ¼, ¾ and 1.
+        let depth_at: [f64; 3] = if d.abs() < 1e-9 {
+            let tau = self.at(uf).0;
+            [0.25, 0.75, 1.0].map(|u| tau * u)
+        } else {
+            let t0 = self.integral(uf);
+            [0.25, 0.75, 1.0].map(|u| (self.integral(uf + d * u) - t0) / d)
+        };
+        // Transmittance up to ¼, ¾ and 1 of a whole step; a half step's is its
+        // square root, a quarter's the root of that.
+        let mut transmittance = depth_at.map(|depth| (-self.step_ratio * depth.max(0.0)).exp());
+        std::array::from_fn(|piece| {
+            if piece > 0 {
+                transmittance = transmittance.map(f64::sqrt);
+            }
+            let [q1, q3, all] = transmittance;
+            let total = 1.0 - all;
+            if total > 1e-9 {
+                [(1.0 - q1) / total, (q3 - all) / total]
+            } else {
+                [0.25, 0.25]
+            }
+        })
+    }
+
+    /// The integral function `T` at fine-grid position `u`, linear within a
+    /// fine cell (the exact value is [`Self::at`]'s; this is for the shading
+    /// weights, which need no more) and extended beyond the grid by the end
+    /// points' extinction.
+    fn integral(&self, u: f64) -> f64 {
+        let last = FINE - 1;
+        if u <= 0.0 {
+            u * extinction(self.transparency[0])
+        } else if u >= last as f64 {
+            self.big_t[last] + (u - last as f64) * extinction(self.transparency[last])
+        } else {
+            let i = (u as usize).min(last - 1);
+            let f = u - i as f64;
+            self.big_t[i] + (self.big_t[i + 1] - self.big_t[i]) * f
+        }
+    }
+
+    /// The shares of the front quarter, the middle half and the back quarter
+    /// of a segment going linearly from raw value `front` to `back` in the
+    /// light it sends to the eye ([`Self::shares_fine`]), for a piece halved
+    /// `halvings` times (0 to 2): where to shade it. Beyond the domain they are
+    /// computed; inside, the nearest bins' (as [`Self::lookup`]).
+    #[inline]
+    pub fn shading_weights(&self, front: f32, back: f32, halvings: usize) -> [f32; 3] {
+        let bins = self.bins;
+        let max = (bins - 1) as f32;
+        let uf = ((front - self.offset) * self.scale).max(-1.0e9);
+        let ub = ((back - self.offset) * self.scale).max(-1.0e9);
+        let [f, b] = if (-0.5..max + 0.5).contains(&uf) && (-0.5..max + 0.5).contains(&ub) {
+            let (i, j) = ((uf + 0.5) as usize, (ub + 0.5) as usize);
+            let [f, b] = self.weights[halvings][i.min(bins - 1) * bins + j.min(bins - 1)];
+            [f, b].map(|w| f32::from(w) / f32::from(u16::MAX))
+        } else {
+            let shares = self.shares_fine(
+                f64::from(uf) * self.fine_per_bin,
+                f64::from(ub) * self.fine_per_bin,
+            );
+            shares[halvings].map(|w| w as f32)
+        };
+        [f, (1.0 - f - b).max(0.0), b]
+    }
+
     /// The width of one bin in raw values.
     pub fn bin_width(&self) -> f32 {
         1.0 / self.scale
@@ -840,6 +953,11 @@ impl PreintegratedTable {
             )
         }
     }
+}
+
+/// A share in `0..=1` as a fraction of `u16::MAX`.
+fn quantise_share(share: f64) -> u16 {
+    (share.clamp(0.0, 1.0) * f64::from(u16::MAX)).round() as u16
 }
 
 #[cfg(test)]
@@ -1037,6 +1155,82 @@ mod tests {
         // A jump over the glass from transparent to transparent is not transparent.
         assert!(pre.lookup(raw(13), raw(94))[3] > 0.02);
         assert_eq!(pre.lookup(raw(0), raw(15))[3], 0.0);
+    }
+
+    /// The shares of a segment's front quarter, middle half and back quarter
+    /// in its light: the drop in transmittance across each, as a fraction of
+    /// the segment's opacity, by brute force.
+    fn brute_force_shares(tf: &TransferFunction, f: f32, b: f32, r: f64) -> [f64; 3] {
+        let n = 20_000;
+        let (mut shares, mut transmittance) = ([0.0f64; 3], 1.0f64);
+        for i in 0..n {
+            let x = (i as f64 + 0.5) / n as f64;
+            let v = f64::from(f) + (f64::from(b) - f64::from(f)) * x;
+            let a = f64::from(tf.evaluate(v as f32)[3]).min(1.0 - 1e-12);
+            let absorbed = 1.0 - (-(-(1.0 - a).ln()) * r / n as f64).exp();
+            let part = if x < 0.25 {
+                0
+            } else if x < 0.75 {
+                1
+            } else {
+                2
+            };
+            shares[part] += transmittance * absorbed;
+            transmittance *= 1.0 - absorbed;
+        }
+        let total = 1.0 - transmittance;
+        shares.map(|w| w / total)
+    }
+
+    #[test]
+    fn shading_weights_match_a_brute_force_integral() {
+        let tf = TransferFunction::preset("shapes").unwrap();
+        let bins = 256;
+        let raw = |i: usize| i as f32 * 255.0 / (bins - 1) as f32;
+        let norm = |i: usize| i as f32 / (bins - 1) as f32;
+        for ratio in [1.0, 0.4] {
+            let pre = PreintegratedTable::with_bins(&tf, 255, ratio, bins);
+            // Into the glass ramp, across the orange band (opaque: its light
+            // comes from where it starts), out of it backwards, a thin feature
+            // jumped over, constant.
+            for (i, j) in [
+                (20, 90),
+                (100, 180),
+                (180, 100),
+                (13, 94),
+                (0, 255),
+                (150, 150),
+            ] {
+                for halvings in 0..PIECE_LENGTHS {
+                    let got = pre.shading_weights(raw(i), raw(j), halvings);
+                    let length = f64::from(ratio) / f64::from(1u32 << halvings);
+                    let want = brute_force_shares(&tf, norm(i), norm(j), length);
+                    for part in 0..3 {
+                        assert!(
+                            (f64::from(got[part]) - want[part]).abs() < 0.01,
+                            "({i}, {j}) ratio {ratio} halved {halvings}: {got:?} vs {want:?}"
+                        );
+                    }
+                    assert!((got.iter().sum::<f32>() - 1.0).abs() < 1e-4, "{got:?}");
+                }
+            }
+        }
+        // A segment that starts in the opaque end of the function sends most
+        // of its light from its front; one going into it, from further back.
+        let pre = PreintegratedTable::with_bins(&tf, 255, 1.0, bins);
+        let [front, _, back] = pre.shading_weights(raw(255), raw(60), 0);
+        assert!(front > 0.7 && back < 0.01, "{front} {back}");
+        let [front, _, back] = pre.shading_weights(raw(60), raw(255), 0);
+        assert!(back > front, "{front} {back}");
+        // A transparent segment gets the even split.
+        let even = pre.shading_weights(raw(0), raw(10), 0);
+        for (got, want) in even.into_iter().zip([0.25, 0.5, 0.25]) {
+            assert!((got - want).abs() < 1e-4, "{even:?}");
+        }
+        // Beyond the domain they are computed, the function constant there
+        // (opaque above it).
+        let [front, _, _] = pre.shading_weights(300.0, 400.0, 1);
+        assert!(front > 0.99, "{front}");
     }
 
     #[test]

@@ -84,13 +84,19 @@ pub(crate) struct TwoLevel {
     /// Per object id: where the object shows (voxels of the level rendered),
     /// `None` everywhere; empty when no object has a region.
     clips: Vec<Option<ClipRegion>>,
+    /// The frame's early-termination opacity, `∞` without: pre-integrated DVR
+    /// segments stop where the global opacity reaches it
+    /// ([`TwoLevel::segment_stop`]).
+    stop_at: f32,
 }
 
 impl TwoLevel {
     /// Prepares `scene` for samples of `type_max` with the data's raw `domain`,
     /// opacities corrected for `step_ratio` reference steps; `preintegrate` gives
     /// the tables of DVR objects pre-integrated segments; objects' clip regions
-    /// are moved to a level whose voxels span `level_scale` level-0 voxels.
+    /// are moved to a level whose voxels span `level_scale` level-0 voxels;
+    /// `early_termination` is the frame's threshold.
+    #[allow(clippy::too_many_arguments)]
     pub fn new(
         scene: &SegmentScene,
         type_max: u16,
@@ -99,6 +105,7 @@ impl TwoLevel {
         shading: Option<Shading>,
         preintegrate: bool,
         level_scale: f32,
+        early_termination: Option<f32>,
     ) -> TwoLevel {
         let mut objects = vec![None; 256];
         let mut tables: Vec<(&TransferFunction, Arc<TransferTable>)> = Vec::new();
@@ -163,6 +170,19 @@ impl TwoLevel {
             disjoint,
             global: scene.global,
             all_dvr,
+            stop_at: early_termination.unwrap_or(f32::INFINITY),
+        }
+    }
+
+    /// The local opacity at which the open segment takes the global opacity
+    /// (`global_alpha` before it) to the frame's threshold: where its
+    /// pre-integrated DVR pieces stop ([`LocalCompositor::sample_in_segment`]).
+    #[inline]
+    fn segment_stop(&self, global_alpha: f32) -> f32 {
+        match self.global {
+            GlobalMode::Dvr if global_alpha >= self.stop_at => 0.0,
+            GlobalMode::Dvr => (self.stop_at - global_alpha) / (1.0 - global_alpha),
+            GlobalMode::Mip => self.stop_at,
         }
     }
 
@@ -266,7 +286,7 @@ impl Compositor for TwoLevel {
         }
         st.next_index = s.index + 1;
         if let Some(object) = self.object(id) {
-            object.sample(&mut st.segment, s);
+            object.sample_in_segment(&mut st.segment, s, self.segment_stop(st.alpha));
             if st.depth.is_infinite() {
                 st.depth = st.segment.depth;
             }
@@ -280,9 +300,16 @@ impl Compositor for TwoLevel {
             return st.alpha;
         };
         let open = object.opacity(&st.segment);
-        match self.global {
+        let global = match self.global {
             GlobalMode::Dvr => st.alpha + (1.0 - st.alpha) * open,
             GlobalMode::Mip => st.alpha.max(open),
+        };
+        // A segment stopped where the global opacity reaches the threshold
+        // (`segment_stop`) reaches it, rounding aside.
+        if open >= self.segment_stop(st.alpha) {
+            global.max(self.stop_at)
+        } else {
+            global
         }
     }
 
