@@ -214,7 +214,7 @@ impl Dvr {
     }
 
     /// The shaded colour of a visible piece between `ends`, of table colour
-    /// `color`, halved `halvings` times: each of its front end, midpoint and
+    /// `color`, a step halved `halved` times: each of its front end, midpoint and
     /// back end is shaded with its own gradient, weighted by the share of the
     /// piece's light that comes from around it (the front quarter, the middle
     /// half, the back quarter: [`PreintegratedTable::shading_weights`]). Across
@@ -230,10 +230,10 @@ impl Dvr {
         pre: &PreintegratedTable,
         s: &SamplePoint<'_, T>,
         [(p0, v0), (p1, v1)]: [(Vec3, f32); 2],
-        halvings: usize,
+        halved: usize,
         color: [f32; 3],
     ) -> [f32; 3] {
-        let weights = pre.shading_weights(v0, v1, halvings);
+        let weights = pre.shading_weights(v0, v1, halved);
         let view_dir = s.view_dir();
         let (mut sum, mut used) = ([0.0f32; 3], 0.0f32);
         for (p, w) in [p0, (p0 + p1) * 0.5, p1].into_iter().zip(weights) {
@@ -395,10 +395,11 @@ impl Compositor for Dvr {
     ///
     /// With pre-integration this stays exact, skipping included. Sample `k`
     /// stands for the segment from its value to sample `k + 1`'s (the ray's last
-    /// sample for a constant partial step), shaded with the gradient at the
-    /// segment's midpoint (the last sample: its own), or for its halves where
-    /// the field bends between them ([`Dvr::split_segment`]: values read
-    /// between the two samples, on the ray).
+    /// sample for a constant partial step), shaded with gradients read on the
+    /// ray between the two samples ([`Dvr::shade_piece`]; the last sample: its
+    /// own), or for its halves where the field bends between them
+    /// ([`Dvr::split_segment`]: values read between the two samples, on the
+    /// ray). Gradients and values are functions of the position alone.
     /// Skipping sample `k` (it lies in an empty cell or a transparent brick, so
     /// its value is in a transparent range) drops that segment, which can be
     /// visible only when sample `k + 1` is marched:
@@ -413,7 +414,7 @@ impl Compositor for Dvr {
     /// - if sample `k + 1` is marched, it sees that the sample before it was not
     ///   (the state's `next_index`) and composites the dropped segment first,
     ///   from [`SamplePoint::value_before`] to its own value, shaded at the same
-    ///   midpoint — what the unskipped ray composites, in the same order.
+    ///   points — what the unskipped ray composites, in the same order.
     ///
     /// A visible sample's own segment is never dropped: it is composited when the
     /// sample is marched, whatever follows. So the rule for bricks and cells is

@@ -904,25 +904,25 @@ impl PreintegratedTable {
 
     /// The shares of the front quarter, the middle half and the back quarter
     /// of a segment going linearly from raw value `front` to `back` in the
-    /// light it sends to the eye ([`Self::shares_fine`]), for a piece halved
-    /// `halvings` times (0 to 2): where to shade it. Beyond the domain they are
+    /// light it sends to the eye ([`Self::shares_fine`]), for a step halved
+    /// `halved` times (0 to 2): where to shade it. Beyond the domain they are
     /// computed; inside, the nearest bins' (as [`Self::lookup`]).
     #[inline]
-    pub fn shading_weights(&self, front: f32, back: f32, halvings: usize) -> [f32; 3] {
+    pub fn shading_weights(&self, front: f32, back: f32, halved: usize) -> [f32; 3] {
         let bins = self.bins;
         let max = (bins - 1) as f32;
         let uf = ((front - self.offset) * self.scale).max(-1.0e9);
         let ub = ((back - self.offset) * self.scale).max(-1.0e9);
         let [f, b] = if (-0.5..max + 0.5).contains(&uf) && (-0.5..max + 0.5).contains(&ub) {
             let (i, j) = ((uf + 0.5) as usize, (ub + 0.5) as usize);
-            let [f, b] = self.weights[halvings][i.min(bins - 1) * bins + j.min(bins - 1)];
+            let [f, b] = self.weights[halved][i.min(bins - 1) * bins + j.min(bins - 1)];
             [f, b].map(|w| f32::from(w) / f32::from(u16::MAX))
         } else {
             let shares = self.shares_fine(
                 f64::from(uf) * self.fine_per_bin,
                 f64::from(ub) * self.fine_per_bin,
             );
-            shares[halvings].map(|w| w as f32)
+            shares[halved].map(|w| w as f32)
         };
         [f, (1.0 - f - b).max(0.0), b]
     }
@@ -1069,20 +1069,38 @@ mod tests {
     /// The true emission–absorption integral of a segment of `r` reference steps
     /// whose normalised value goes linearly from `f` to `b`, by brute force
     /// (premultiplied RGB and opacity).
-    fn brute_force(tf: &TransferFunction, f: f32, b: f32, r: f64) -> [f64; 4] {
+    /// Walks a segment of `r` reference steps along which the value goes
+    /// linearly from normalised `f` to `b` in fine steps, calling `visit` with
+    /// each step's position along it, function value, the transmittance before
+    /// it and its absorbed fraction; returns the transmittance after it.
+    fn walk_segment(
+        tf: &TransferFunction,
+        f: f32,
+        b: f32,
+        r: f64,
+        mut visit: impl FnMut(f64, [f32; 4], f64, f64),
+    ) -> f64 {
         let n = 20_000;
-        let (mut color, mut transmittance) = ([0.0f64; 3], 1.0f64);
+        let mut transmittance = 1.0f64;
         for i in 0..n {
             let x = (i as f64 + 0.5) / n as f64;
             let v = f64::from(f) + (f64::from(b) - f64::from(f)) * x;
-            let [cr, cg, cb, a] = tf.evaluate(v as f32);
-            let tau = -(1.0 - f64::from(a).min(1.0 - 1e-12)).ln() * r / n as f64;
+            let rgba = tf.evaluate(v as f32);
+            let tau = -(1.0 - f64::from(rgba[3]).min(1.0 - 1e-12)).ln() * r / n as f64;
             let absorbed = 1.0 - (-tau).exp();
-            for (acc, c) in color.iter_mut().zip([cr, cg, cb]) {
-                *acc += transmittance * absorbed * f64::from(c);
-            }
+            visit(x, rgba, transmittance, absorbed);
             transmittance *= 1.0 - absorbed;
         }
+        transmittance
+    }
+
+    fn brute_force(tf: &TransferFunction, f: f32, b: f32, r: f64) -> [f64; 4] {
+        let mut color = [0.0f64; 3];
+        let transmittance = walk_segment(tf, f, b, r, |_, [cr, cg, cb, _], t, absorbed| {
+            for (acc, c) in color.iter_mut().zip([cr, cg, cb]) {
+                *acc += t * absorbed * f64::from(c);
+            }
+        });
         [color[0], color[1], color[2], 1.0 - transmittance]
     }
 
@@ -1161,13 +1179,8 @@ mod tests {
     /// in its light: the drop in transmittance across each, as a fraction of
     /// the segment's opacity, by brute force.
     fn brute_force_shares(tf: &TransferFunction, f: f32, b: f32, r: f64) -> [f64; 3] {
-        let n = 20_000;
-        let (mut shares, mut transmittance) = ([0.0f64; 3], 1.0f64);
-        for i in 0..n {
-            let x = (i as f64 + 0.5) / n as f64;
-            let v = f64::from(f) + (f64::from(b) - f64::from(f)) * x;
-            let a = f64::from(tf.evaluate(v as f32)[3]).min(1.0 - 1e-12);
-            let absorbed = 1.0 - (-(-(1.0 - a).ln()) * r / n as f64).exp();
+        let mut shares = [0.0f64; 3];
+        let transmittance = walk_segment(tf, f, b, r, |x, _, t, absorbed| {
             let part = if x < 0.25 {
                 0
             } else if x < 0.75 {
@@ -1175,11 +1188,9 @@ mod tests {
             } else {
                 2
             };
-            shares[part] += transmittance * absorbed;
-            transmittance *= 1.0 - absorbed;
-        }
-        let total = 1.0 - transmittance;
-        shares.map(|w| w / total)
+            shares[part] += t * absorbed;
+        });
+        shares.map(|w| w / (1.0 - transmittance))
     }
 
     #[test]
