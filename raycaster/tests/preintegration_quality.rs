@@ -27,7 +27,7 @@ fn settings(step: f32, preintegrated: bool, shaded: bool) -> RenderSettings {
 /// segments are halved there, each piece is shaded where its light comes from,
 /// and rays stop at the termination threshold inside a segment, so a
 /// pre-integrated step of 1 comes close to the fine reference. On this scene
-/// (figures printed) it is 53.3 dB shaded and 50.0 unshaded; shaded at each
+/// (figures printed) it is 53.4 dB shaded and 50.1 unshaded; shaded at each
 /// piece's midpoint, without the stop, it was 49.8 and 49.1; without halving
 /// 42.2 shaded, 2.5 dB above the plain step of 1 (39.7), its flat faces
 /// striped. Plain step 0.25 is 57.5 / 57.0 here: a few thin features that fall

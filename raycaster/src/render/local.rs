@@ -312,8 +312,9 @@ impl Dvr {
         stop: f32,
     ) {
         let [(p0, v0), (p1, v1)] = ends;
-        let [r, g, b, a] = pre.lookup(v0, v1);
-        if a <= 0.0 {
+        // Whether the segment is visible at all is the nearest bins' word, as
+        // for skipping (`range_empty`); what it composites is interpolated.
+        if pre.lookup(v0, v1)[3] <= 0.0 {
             return;
         }
         let mid = (p0 + p1) * 0.5;
@@ -330,6 +331,7 @@ impl Dvr {
                 return;
             }
         }
+        let [r, g, b, a] = pre.lookup_interpolated(v0, v1);
         // Halved `depth` times: a piece of `length` steps.
         let depth = SEGMENT_HALVINGS - halvings;
         let length = 1.0 / (1u32 << depth) as f32;

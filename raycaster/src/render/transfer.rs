@@ -927,6 +927,48 @@ impl PreintegratedTable {
         [f, (1.0 - f - b).max(0.0), b]
     }
 
+    /// [`Self::lookup`] interpolated bilinearly between the four nearest bins'
+    /// entries (colours premultiplied for the blend) instead of the nearest
+    /// one: the value pairs are not quantised to the bins. Beyond the domain,
+    /// the computed entry (as [`Self::lookup`]).
+    #[inline]
+    pub fn lookup_interpolated(&self, front: f32, back: f32) -> [f32; 4] {
+        let bins = self.bins;
+        let max = (bins - 1) as f32;
+        let uf = ((front - self.offset) * self.scale).max(-1.0e9);
+        let ub = ((back - self.offset) * self.scale).max(-1.0e9);
+        // Also false for NaN.
+        if !((-0.5..max + 0.5).contains(&uf) && (-0.5..max + 0.5).contains(&ub)) {
+            return self.lookup(front, back);
+        }
+        let (uf, ub) = (uf.clamp(0.0, max), ub.clamp(0.0, max));
+        let (i, j) = ((uf as usize).min(bins - 2), (ub as usize).min(bins - 2));
+        let (fi, fj) = (uf - i as f32, ub - j as f32);
+        let corners = [
+            (i, j, (1.0 - fi) * (1.0 - fj)),
+            (i, j + 1, (1.0 - fi) * fj),
+            (i + 1, j, fi * (1.0 - fj)),
+            (i + 1, j + 1, fi * fj),
+        ];
+        let mut sum = [0.0f32; 4];
+        for (front_bin, back_bin, w) in corners {
+            let [r, g, b, a] = self.entries[front_bin * bins + back_bin];
+            let wa = w * a;
+            sum = [
+                sum[0] + wa * r,
+                sum[1] + wa * g,
+                sum[2] + wa * b,
+                sum[3] + wa,
+            ];
+        }
+        let a = sum[3];
+        if a > 0.0 {
+            [sum[0] / a, sum[1] / a, sum[2] / a, a]
+        } else {
+            [0.0; 4]
+        }
+    }
+
     /// The width of one bin in raw values.
     pub fn bin_width(&self) -> f32 {
         1.0 / self.scale
@@ -1191,6 +1233,54 @@ mod tests {
             shares[part] += t * absorbed;
         });
         shares.map(|w| w / (1.0 - transmittance))
+    }
+
+    #[test]
+    fn interpolated_lookups_blend_the_nearest_bins() {
+        let tf = TransferFunction::preset("shapes").unwrap();
+        let pre = PreintegratedTable::new(&tf, 255, 1.0);
+        let bins = pre.bins();
+        let raw = |i: f32| i * 255.0 / (bins - 1) as f32;
+        // At bin centres: the entry itself (a transparent one's colour aside).
+        for (i, j) in [(20, 90), (100, 180), (255, 60), (0, 0), (150, 151)] {
+            let (f, b) = (raw(i as f32), raw(j as f32));
+            let got = pre.lookup_interpolated(f, b);
+            let want = pre.lookup(f, b);
+            let channels = if want[3] > 0.0 { 0..4 } else { 3..4 };
+            for c in channels {
+                assert!(
+                    (got[c] - want[c]).abs() < 1e-5,
+                    "({i}, {j}): {got:?} vs {want:?}"
+                );
+            }
+        }
+        // Between bins: opacity and premultiplied colour bilinear in the four.
+        let (f, b) = (raw(120.25), raw(170.75));
+        let got = pre.lookup_interpolated(f, b);
+        let e = |i: usize, j: usize| pre.lookup(raw(i as f32), raw(j as f32));
+        let w = [
+            (120, 170, 0.75 * 0.25),
+            (120, 171, 0.75 * 0.75),
+            (121, 170, 0.25 * 0.25),
+            (121, 171, 0.25 * 0.75),
+        ];
+        let alpha: f32 = w.iter().map(|&(i, j, w)| w * e(i, j)[3]).sum();
+        assert!((got[3] - alpha).abs() < 1e-5, "{got:?} vs {alpha}");
+        for c in 0..3 {
+            let premultiplied: f32 = w.iter().map(|&(i, j, w)| w * e(i, j)[3] * e(i, j)[c]).sum();
+            assert!(
+                (got[c] * got[3] - premultiplied).abs() < 1e-5,
+                "channel {c}"
+            );
+        }
+        // It differs from the nearest bins' entry there.
+        assert_ne!(got, pre.lookup(f, b));
+        // Beyond the domain, the computed entry; transparent stays transparent.
+        assert_eq!(
+            pre.lookup_interpolated(300.0, 400.0),
+            pre.lookup(300.0, 400.0)
+        );
+        assert_eq!(pre.lookup_interpolated(raw(1.5), raw(10.5))[3], 0.0);
     }
 
     #[test]
