@@ -249,6 +249,35 @@ impl CellCache {
         self.gradient_in_cell(volume, sampler, p, self.here.get())
     }
 
+    /// [`Self::gradient`] at volume position `p`, making `p`'s cell the cached
+    /// one when it is one of the brick's cells (it need not be: the cells at
+    /// the brick's upper faces take the volume's path). For gradients read on
+    /// the ray ahead of the current sample (a pre-integrated segment's): the
+    /// next samples enter those cells, and their values and gradients then
+    /// find them cached. The position of the last [`Self::value`] is
+    /// forgotten ([`Self::gradient_here`] then takes the volume's path, the
+    /// same bits).
+    #[inline]
+    pub fn gradient_ahead<T: Sample>(
+        &self,
+        volume: &VolumeSampler<'_, T>,
+        sampler: &BrickSampler<'_, T>,
+        p: Vec3,
+    ) -> Vec3 {
+        let l = Vec3A::from(p - sampler.origin());
+        if let Some(f) = self.fraction_in_cell(l) {
+            return self.gradient_in_cell(volume, sampler, p, Some(f));
+        }
+        let lower = l.floor();
+        if !Self::is_cell(sampler, lower) {
+            return volume.gradient(sampler, p);
+        }
+        self.corners_of(sampler, lower);
+        self.here.set(None);
+        // `l − floor(l)`: exact, in [0, 1) (see `fraction_in_cell`).
+        self.gradient_in_cell(volume, sampler, p, Some(l - lower))
+    }
+
     /// The gradient at `p`, which lies at fraction `f` of the cached cell, or
     /// outside it (`None`: the volume's own gradient).
     #[inline]
@@ -341,6 +370,55 @@ mod tests {
         }
     }
     use crate::volume::{BlockGrid, Layout, TypedVolume};
+
+    /// Gradients read ahead of the current sample (pre-integrated segments)
+    /// move the cache to their cells and still give the samplers' bits; so do
+    /// the values and gradients after them (the current sample's included,
+    /// whose position the cache then forgets).
+    #[test]
+    fn gradients_read_ahead_equal_the_samplers_bit_for_bit_and_keep_their_cells() {
+        let dims = [13, 11, 12];
+        let mut next = xorshift32(0x85eb_ca6b);
+        let samples: Vec<u8> = (0..13 * 11 * 12).map(|_| (next() % 251) as u8).collect();
+        let volume = TypedVolume::new(&samples, dims, Layout::Linear);
+        let sampler = VolumeSampler::new(volume);
+        let grid = BlockGrid::new(dims, 6);
+        let (mut kept, mut ahead) = (0, 0);
+        for b in grid.iter() {
+            let brick = BrickSampler::new(volume.brick(&grid, b));
+            let o = Vec3::from(grid.origin(b).map(|v| v as f32));
+            let e = Vec3::from(grid.extent(b).map(|v| (v - 1) as f32));
+            let cache = CellCache::default();
+            // Samples a tenth of the diagonal apart, each reading gradients at
+            // the segment's midpoint and end (the next sample), upper face
+            // included.
+            for k in 0..=10 {
+                let p = o + e * (k as f32 / 10.0);
+                let value = cache.value(&brick, p.into());
+                assert_eq!(value, brick.value(p), "{p}");
+                let step = e / 10.0;
+                for q in [p + step * 0.5, p + step] {
+                    let q = q.clamp(Vec3::ZERO, sampler.last());
+                    assert_eq!(
+                        cache.gradient_ahead(&sampler, &brick, q),
+                        sampler.gradient(&brick, q),
+                        "{q}"
+                    );
+                    ahead += 1;
+                    let l = Vec3A::from(q - brick.origin());
+                    kept += usize::from(cache.fraction_in_cell(l).is_some());
+                }
+                // The current sample's gradient after the cache moved on.
+                assert_eq!(
+                    cache.gradient_here(&sampler, &brick, p),
+                    sampler.gradient(&brick, p),
+                    "{p}"
+                );
+            }
+        }
+        // Positions inside the brick's cells are kept (the upper faces' are not).
+        assert!(kept > ahead / 2, "{kept} of {ahead} kept");
+    }
 
     #[test]
     fn cached_values_and_gradients_equal_the_samplers_bit_for_bit() {

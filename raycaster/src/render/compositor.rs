@@ -156,6 +156,17 @@ impl<'s, T: Sample> SamplePoint<'s, T> {
         site.cell.gradient(site.volume, &site.brick.sampler, p) * site.gradient_scale
     }
 
+    /// [`Self::gradient_at`] a position on the ray ahead of the sample, whose
+    /// cell the ray's cell cache keeps for the next samples
+    /// ([`CellCache::gradient_ahead`]).
+    #[inline]
+    pub(crate) fn gradient_ahead(&self, p: Vec3) -> Vec3 {
+        let site = self.site;
+        site.cell
+            .gradient_ahead(site.volume, &site.brick.sampler, p)
+            * site.gradient_scale
+    }
+
     /// The unit world direction of the ray.
     #[inline]
     pub fn view_dir(&self) -> Vec3 {

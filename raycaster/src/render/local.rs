@@ -238,7 +238,7 @@ impl Dvr {
         let (mut sum, mut used) = ([0.0f32; 3], 0.0f32);
         for (p, w) in [p0, (p0 + p1) * 0.5, p1].into_iter().zip(weights) {
             if w >= UNSHADED_SHARE {
-                let lit = shading.shade(color, s.gradient_at(p), view_dir);
+                let lit = shading.shade(color, s.gradient_ahead(p), view_dir);
                 for (acc, c) in sum.iter_mut().zip(lit) {
                     *acc += w * c;
                 }
