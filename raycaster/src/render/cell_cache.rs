@@ -371,106 +371,114 @@ mod tests {
     }
     use crate::volume::{BlockGrid, Layout, TypedVolume};
 
+    /// The dimensions and random one-byte samples of a small volume (two bricks
+    /// per axis at a brick side of 6).
+    fn random_volume(seed: u32) -> ([u32; 3], Vec<u8>) {
+        let dims = [13, 11, 12];
+        let mut next = xorshift32(seed);
+        (
+            dims,
+            (0..13 * 11 * 12).map(|_| (next() % 251) as u8).collect(),
+        )
+    }
+
+    /// Walks the diagonal of each brick of [`random_volume`]`(seed)` in `steps`
+    /// steps, upper face included, with a fresh cache per brick:
+    /// `visit(volume, brick, cache, position, step)`.
+    fn walk_brick_diagonals(
+        seed: u32,
+        steps: u32,
+        mut visit: impl FnMut(&VolumeSampler<'_, u8>, &BrickSampler<'_, u8>, &CellCache, Vec3, Vec3),
+    ) {
+        let (dims, samples) = random_volume(seed);
+        let volume = TypedVolume::new(&samples, dims, Layout::Linear);
+        let sampler = VolumeSampler::new(volume);
+        let grid = BlockGrid::new(dims, 6);
+        for b in grid.iter() {
+            let brick = BrickSampler::new(volume.brick(&grid, b));
+            let o = Vec3::from(grid.origin(b).map(|v| v as f32));
+            let step = Vec3::from(grid.extent(b).map(|v| (v - 1) as f32)) / steps as f32;
+            let cache = CellCache::default();
+            for k in 0..=steps {
+                visit(&sampler, &brick, &cache, o + step * k as f32, step);
+            }
+        }
+    }
+
     /// Gradients read ahead of the current sample (pre-integrated segments)
     /// move the cache to their cells and still give the samplers' bits; so do
     /// the values and gradients after them (the current sample's included,
     /// whose position the cache then forgets).
     #[test]
     fn gradients_read_ahead_equal_the_samplers_bit_for_bit_and_keep_their_cells() {
-        let dims = [13, 11, 12];
-        let mut next = xorshift32(0x85eb_ca6b);
-        let samples: Vec<u8> = (0..13 * 11 * 12).map(|_| (next() % 251) as u8).collect();
-        let volume = TypedVolume::new(&samples, dims, Layout::Linear);
-        let sampler = VolumeSampler::new(volume);
-        let grid = BlockGrid::new(dims, 6);
         let (mut kept, mut ahead) = (0, 0);
-        for b in grid.iter() {
-            let brick = BrickSampler::new(volume.brick(&grid, b));
-            let o = Vec3::from(grid.origin(b).map(|v| v as f32));
-            let e = Vec3::from(grid.extent(b).map(|v| (v - 1) as f32));
-            let cache = CellCache::default();
-            // Samples a tenth of the diagonal apart, each reading gradients at
-            // the segment's midpoint and end (the next sample), upper face
-            // included.
-            for k in 0..=10 {
-                let p = o + e * (k as f32 / 10.0);
-                let value = cache.value(&brick, p.into());
-                assert_eq!(value, brick.value(p), "{p}");
-                let step = e / 10.0;
-                for q in [p + step * 0.5, p + step] {
-                    let q = q.clamp(Vec3::ZERO, sampler.last());
-                    assert_eq!(
-                        cache.gradient_ahead(&sampler, &brick, q),
-                        sampler.gradient(&brick, q),
-                        "{q}"
-                    );
-                    ahead += 1;
-                    let l = Vec3A::from(q - brick.origin());
-                    kept += usize::from(cache.fraction_in_cell(l).is_some());
-                }
-                // The current sample's gradient after the cache moved on.
+        // Samples a tenth of the diagonal apart, each reading gradients at the
+        // segment's midpoint and end (the next sample).
+        walk_brick_diagonals(0x85eb_ca6b, 10, |sampler, brick, cache, p, step| {
+            assert_eq!(cache.value(brick, p.into()), brick.value(p), "{p}");
+            for q in [p + step * 0.5, p + step] {
+                let q = q.clamp(Vec3::ZERO, sampler.last());
                 assert_eq!(
-                    cache.gradient_here(&sampler, &brick, p),
-                    sampler.gradient(&brick, p),
-                    "{p}"
+                    cache.gradient_ahead(sampler, brick, q),
+                    sampler.gradient(brick, q),
+                    "{q}"
                 );
+                ahead += 1;
+                let l = Vec3A::from(q - brick.origin());
+                kept += usize::from(cache.fraction_in_cell(l).is_some());
             }
-        }
+            // The current sample's gradient after the cache moved on.
+            assert_eq!(
+                cache.gradient_here(sampler, brick, p),
+                sampler.gradient(brick, p),
+                "{p}"
+            );
+        });
         // Positions inside the brick's cells are kept (the upper faces' are not).
         assert!(kept > ahead / 2, "{kept} of {ahead} kept");
     }
 
     #[test]
     fn cached_values_and_gradients_equal_the_samplers_bit_for_bit() {
-        let dims = [13, 11, 12];
-        let mut next = xorshift32(0x9e37_79b9);
-        let samples: Vec<u8> = (0..13 * 11 * 12).map(|_| (next() % 251) as u8).collect();
-        let volume = TypedVolume::new(&samples, dims, Layout::Linear);
-        let sampler = VolumeSampler::new(volume);
-        let grid = BlockGrid::new(dims, 6);
         let (mut hits, mut taken) = (0, 0);
-        for b in grid.iter() {
-            let brick = BrickSampler::new(volume.brick(&grid, b));
-            let o = Vec3::from(grid.origin(b).map(|v| v as f32));
-            let e = Vec3::from(grid.extent(b).map(|v| (v - 1) as f32));
-            // A ray across the brick's diagonal at a step of 0.05 of it, upper
-            // face included.
-            let cache = CellCache::default();
-            for k in 0..=20 {
-                let p = o + e * (k as f32 / 20.0);
-                let before = cache.cell.get();
-                let value = cache.value(&brick, p.into());
-                hits += usize::from(before == cache.cell.get());
-                taken += 1;
-                assert_eq!(value, brick.value(p), "{p}");
+        // A ray across each brick's diagonal at a step of 0.05 of it.
+        walk_brick_diagonals(0x9e37_79b9, 20, |sampler, brick, cache, p, _| {
+            let before = cache.cell.get();
+            let value = cache.value(brick, p.into());
+            hits += usize::from(before == cache.cell.get());
+            taken += 1;
+            assert_eq!(value, brick.value(p), "{p}");
+            assert_eq!(
+                cache.gradient_here(sampler, brick, p),
+                sampler.gradient(brick, p)
+            );
+            assert_eq!(
+                cache.gradient(sampler, brick, p),
+                sampler.gradient(brick, p)
+            );
+            // Other positions: in the cell or outside it, below the brick
+            // included (a first hit's refined position may lie there).
+            for offset in [
+                Vec3::new(0.3, -0.2, 0.1),
+                Vec3::new(-0.4, 0.0, 0.0),
+                Vec3::new(0.05, 0.05, -0.6),
+            ] {
+                let q = (p + offset).clamp(Vec3::ZERO, sampler.last());
                 assert_eq!(
-                    cache.gradient_here(&sampler, &brick, p),
-                    sampler.gradient(&brick, p)
+                    cache.gradient(sampler, brick, q),
+                    sampler.gradient(brick, q),
+                    "{q}"
                 );
-                assert_eq!(
-                    cache.gradient(&sampler, &brick, p),
-                    sampler.gradient(&brick, p)
-                );
-                // Other positions: in the cell or outside it, below the brick
-                // included (a first hit's refined position may lie there).
-                for offset in [
-                    Vec3::new(0.3, -0.2, 0.1),
-                    Vec3::new(-0.4, 0.0, 0.0),
-                    Vec3::new(0.05, 0.05, -0.6),
-                ] {
-                    let q = (p + offset).clamp(Vec3::ZERO, sampler.last());
-                    assert_eq!(
-                        cache.gradient(&sampler, &brick, q),
-                        sampler.gradient(&brick, q),
-                        "{q}"
-                    );
-                }
             }
-        }
+        });
         assert!(
             hits > taken / 3,
             "{hits} of {taken} samples in the cached cell"
         );
+        let (dims, samples) = random_volume(0x9e37_79b9);
+        let volume = TypedVolume::new(&samples, dims, Layout::Linear);
+        let sampler = VolumeSampler::new(volume);
+        let grid = BlockGrid::new(dims, 6);
         // A point just below a brick truncates into the brick's first cell: the
         // cache must not extrapolate that cell's differences to it.
         let b = [1, 1, 1];

@@ -909,13 +909,9 @@ impl PreintegratedTable {
     /// computed; inside, the nearest bins' (as [`Self::lookup`]).
     #[inline]
     pub fn shading_weights(&self, front: f32, back: f32, halved: usize) -> [f32; 3] {
-        let bins = self.bins;
-        let max = (bins - 1) as f32;
-        let uf = ((front - self.offset) * self.scale).max(-1.0e9);
-        let ub = ((back - self.offset) * self.scale).max(-1.0e9);
-        let [f, b] = if (-0.5..max + 0.5).contains(&uf) && (-0.5..max + 0.5).contains(&ub) {
-            let (i, j) = ((uf + 0.5) as usize, (ub + 0.5) as usize);
-            let [f, b] = self.weights[halved][i.min(bins - 1) * bins + j.min(bins - 1)];
+        let ([uf, ub], inside) = self.bin_position(front, back);
+        let [f, b] = if inside {
+            let [f, b] = self.weights[halved][self.nearest_entry(uf, ub)];
             [f, b].map(|w| f32::from(w) / f32::from(u16::MAX))
         } else {
             let shares = self.shares_fine(
@@ -933,14 +929,11 @@ impl PreintegratedTable {
     /// the computed entry (as [`Self::lookup`]).
     #[inline]
     pub fn lookup_interpolated(&self, front: f32, back: f32) -> [f32; 4] {
-        let bins = self.bins;
-        let max = (bins - 1) as f32;
-        let uf = ((front - self.offset) * self.scale).max(-1.0e9);
-        let ub = ((back - self.offset) * self.scale).max(-1.0e9);
-        // Also false for NaN.
-        if !((-0.5..max + 0.5).contains(&uf) && (-0.5..max + 0.5).contains(&ub)) {
+        let ([uf, ub], inside) = self.bin_position(front, back);
+        if !inside {
             return self.lookup(front, back);
         }
+        let (bins, max) = (self.bins, (self.bins - 1) as f32);
         let (uf, ub) = (uf.clamp(0.0, max), ub.clamp(0.0, max));
         let (i, j) = ((uf as usize).min(bins - 2), (ub as usize).min(bins - 2));
         let (fi, fj) = (uf - i as f32, ub - j as f32);
@@ -969,6 +962,27 @@ impl PreintegratedTable {
         }
     }
 
+    /// Raw values `front` and `back` in bins (bin `i` at `i`), and whether both
+    /// lie in the table (within half a bin of its ends; false for NaN, which
+    /// reads as the domain's low end, never produced by trilinear reads).
+    #[inline]
+    fn bin_position(&self, front: f32, back: f32) -> ([f32; 2], bool) {
+        let max = (self.bins - 1) as f32;
+        let uf = ((front - self.offset) * self.scale).max(-1.0e9);
+        let ub = ((back - self.offset) * self.scale).max(-1.0e9);
+        let inside = (-0.5..max + 0.5).contains(&uf) && (-0.5..max + 0.5).contains(&ub);
+        ([uf, ub], inside)
+    }
+
+    /// The index of the entry nearest bin position `(uf, ub)` (one that
+    /// [`Self::bin_position`] found inside).
+    #[inline]
+    fn nearest_entry(&self, uf: f32, ub: f32) -> usize {
+        let bins = self.bins;
+        let (i, j) = ((uf + 0.5) as usize, (ub + 0.5) as usize);
+        i.min(bins - 1) * bins + j.min(bins - 1)
+    }
+
     /// The width of one bin in raw values.
     pub fn bin_width(&self) -> f32 {
         1.0 / self.scale
@@ -979,15 +993,9 @@ impl PreintegratedTable {
     /// from the integral functions (the function is constant beyond its domain).
     #[inline]
     pub fn lookup(&self, front: f32, back: f32) -> [f32; 4] {
-        let bins = self.bins;
-        let max = (bins - 1) as f32;
-        // NaN (never produced by trilinear reads) reads as the domain's low end.
-        let uf = ((front - self.offset) * self.scale).max(-1.0e9);
-        let ub = ((back - self.offset) * self.scale).max(-1.0e9);
-        // Also false for NaN.
-        if (-0.5..max + 0.5).contains(&uf) && (-0.5..max + 0.5).contains(&ub) {
-            let (i, j) = ((uf + 0.5) as usize, (ub + 0.5) as usize);
-            self.entries[i.min(bins - 1) * bins + j.min(bins - 1)]
+        let ([uf, ub], inside) = self.bin_position(front, back);
+        if inside {
+            self.entries[self.nearest_entry(uf, ub)]
         } else {
             self.segment_fine(
                 f64::from(uf) * self.fine_per_bin,
