@@ -137,6 +137,8 @@ pub struct BenchCase {
     pub mode: Mode,
     /// Blinn-Phong shading on (DVR and first hit).
     pub shading: bool,
+    /// Pre-integrated DVR segments (`--preintegrate`).
+    pub preintegrated: bool,
     /// Transfer-function preset.
     pub transfer: &'static str,
     /// Image size in pixels.
@@ -160,6 +162,7 @@ impl Default for BenchCase {
             step: 0.5,
             mode: Mode::Dvr,
             shading: true,
+            preintegrated: false,
             transfer: "shapes",
             image: [256, 256],
             simd: None,
@@ -184,7 +187,12 @@ impl BenchCase {
             Some(level) => format!("{renderer}-{level}"),
             None => renderer,
         };
-        let shading = if self.shading { "" } else { "-unshaded" };
+        let shading = match (self.shading, self.preintegrated) {
+            (true, false) => "",
+            (false, false) => "-unshaded",
+            (true, true) => "-preintegrated",
+            (false, true) => "-unshaded-preintegrated",
+        };
         let transfer = if self.transfer == "shapes" {
             String::new()
         } else {
@@ -236,6 +244,7 @@ impl BenchCase {
             early_termination: self.optimisations.ert().then_some(DEFAULT_ERT_THRESHOLD),
             empty_space_skipping: self.optimisations.ess(),
             shading: if self.shading { defaults.shading } else { None },
+            preintegrated: self.preintegrated,
             transfer: TransferFunction::preset(self.transfer)?,
             simd: self.simd,
             ..defaults

@@ -146,6 +146,25 @@ pub fn kernel_cases(quick: bool) -> Vec<BenchCase> {
         .collect()
 }
 
+/// Quality at speed: shaded DVR of a `shapes` volume, the default threads,
+/// plain at steps 0.25 and 1 and pre-integrated at steps 1 and 2 (on `shapes`
+/// 128³ a pre-integrated step of 1 comes closer to a fine reference than a
+/// plain 0.25: docs/benchmarks.md §6). Samples per second compare the kernels;
+/// frame times, what the quality costs.
+pub fn preintegration_cases(quick: bool) -> Vec<BenchCase> {
+    let (n, image) = sizes(quick);
+    [(0.25, false), (1.0, false), (1.0, true), (2.0, true)]
+        .into_iter()
+        .map(|(step, preintegrated)| BenchCase {
+            volume: VolumeSpec::shapes(n),
+            step,
+            preintegrated,
+            image,
+            ..BenchCase::default()
+        })
+        .collect()
+}
+
 /// The two-level benchmark's plain case (its layered twin adds segments to the
 /// settings): the default threads on a `shapes` volume in RAM.
 pub fn two_level_case(quick: bool) -> BenchCase {
@@ -207,6 +226,7 @@ mod tests {
                 optimisation_cases(quick),
                 memory_cases(quick),
                 parallel_cases(quick),
+                preintegration_cases(quick),
             ] {
                 assert!(unique(&group), "{:#?}", group);
                 for case in &group {
@@ -237,6 +257,7 @@ mod tests {
             step: 0.2,
             mode: Mode::Mip,
             shading: false,
+            preintegrated: false,
             transfer: "opaque",
             image: [70, 50],
             simd: None,
@@ -262,6 +283,17 @@ mod tests {
             seq.name(),
             "shapes-256-u8-linear-ram/both/seq-brick-default/default-step0.5-dvr-256x256"
         );
+        let pre = BenchCase {
+            step: 1.0,
+            preintegrated: true,
+            ..seq.clone()
+        };
+        assert_eq!(
+            pre.name(),
+            "shapes-256-u8-linear-ram/both/seq-brick-default/default-step1-dvr-preintegrated-256x256"
+        );
+        assert!(pre.settings().unwrap().preintegrated);
+        assert!(!seq.settings().unwrap().preintegrated);
     }
 
     #[test]
