@@ -213,27 +213,24 @@ impl Dvr {
         }
     }
 
-    /// The shaded colour of a visible piece between `ends`, of table colour
-    /// `color`, a step halved `halved` times: each of its front end, midpoint and
-    /// back end is shaded with its own gradient, weighted by the share of the
-    /// piece's light that comes from around it (the front quarter, the middle
-    /// half, the back quarter: [`PreintegratedTable::shading_weights`]). Across
-    /// a surface the light comes from where the opacity rises, which can lie
-    /// anywhere along the piece; one gradient at the midpoint can lie in the
-    /// flat field before it, whose colour is unshaded. A part with less than
+    /// The shaded colour of a visible piece from `p0` to `p1`, of table colour
+    /// `color`: each of its front end, midpoint and back end is shaded with its
+    /// own gradient, weighted by `weights`, the shares of the piece's light
+    /// that come from around them (the front quarter, the middle half, the
+    /// back quarter: [`PreintegratedTable::shading_weights`]). Across a surface
+    /// the light comes from where the opacity rises, which can lie anywhere
+    /// along the piece; one gradient at the midpoint can lie in the flat field
+    /// before it, whose colour is unshaded. A part with less than
     /// [`UNSHADED_SHARE`] of the light is left out (its gradient never read),
     /// the others' weights scaled to sum to one.
     #[inline]
     fn shade_piece<T: Sample>(
-        &self,
         shading: &Shading,
-        pre: &PreintegratedTable,
         s: &SamplePoint<'_, T>,
-        [(p0, v0), (p1, v1)]: [(Vec3, f32); 2],
-        halved: usize,
+        [p0, p1]: [Vec3; 2],
+        weights: [f32; 3],
         color: [f32; 3],
     ) -> [f32; 3] {
-        let weights = pre.shading_weights(v0, v1, halved);
         let view_dir = s.view_dir();
         let (mut sum, mut used) = ([0.0f32; 3], 0.0f32);
         for (p, w) in [p0, (p0 + p1) * 0.5, p1].into_iter().zip(weights) {
@@ -314,7 +311,8 @@ impl Dvr {
         let [(p0, v0), (p1, v1)] = ends;
         // Whether the segment is visible at all is the nearest bins' word, as
         // for skipping (`range_empty`); what it composites is interpolated.
-        if pre.lookup(v0, v1)[3] <= 0.0 {
+        let at = pre.locate(v0, v1);
+        if pre.entry(at)[3] <= 0.0 {
             return;
         }
         let mid = (p0 + p1) * 0.5;
@@ -331,12 +329,15 @@ impl Dvr {
                 return;
             }
         }
-        let [r, g, b, a] = pre.lookup_interpolated(v0, v1);
+        let [r, g, b, a] = pre.entry_interpolated(at);
         // Halved `depth` times: a piece of `length` steps.
         let depth = SEGMENT_HALVINGS - halvings;
         let length = 1.0 / (1u32 << depth) as f32;
         let color = match &self.shading {
-            Some(sh) => self.shade_piece(sh, pre, s, ends, depth as usize, [r, g, b]),
+            Some(sh) => {
+                let weights = pre.shading_weights(at, depth as usize);
+                Self::shade_piece(sh, s, [p0, p1], weights, [r, g, b])
+            }
             None => [r, g, b],
         };
         self.composite_segment(st, color, partial_step(a, length), stop);

@@ -903,15 +903,15 @@ impl PreintegratedTable {
     }
 
     /// The shares of the front quarter, the middle half and the back quarter
-    /// of a segment going linearly from raw value `front` to `back` in the
-    /// light it sends to the eye ([`Self::shares_fine`]), for a step halved
+    /// of the segment at `at` (its value going linearly from front to back) in
+    /// the light it sends to the eye ([`Self::shares_fine`]), for a step halved
     /// `halved` times (0 to 2): where to shade it. Beyond the domain they are
-    /// computed; inside, the nearest bins' (as [`Self::lookup`]).
+    /// computed; inside, the nearest bins' (as [`Self::entry`]).
     #[inline]
-    pub fn shading_weights(&self, front: f32, back: f32, halved: usize) -> [f32; 3] {
-        let ([uf, ub], inside) = self.bin_position(front, back);
-        let [f, b] = if inside {
-            let [f, b] = self.weights[halved][self.nearest_entry(uf, ub)];
+    pub fn shading_weights(&self, at: TablePosition, halved: usize) -> [f32; 3] {
+        let [uf, ub] = at.bins;
+        let [f, b] = if at.inside {
+            let [f, b] = self.weights[halved][self.nearest_entry(at)];
             [f, b].map(|w| f32::from(w) / f32::from(u16::MAX))
         } else {
             let shares = self.shares_fine(
@@ -923,16 +923,16 @@ impl PreintegratedTable {
         [f, (1.0 - f - b).max(0.0), b]
     }
 
-    /// [`Self::lookup`] interpolated bilinearly between the four nearest bins'
+    /// [`Self::entry`] interpolated bilinearly between the four nearest bins'
     /// entries (colours premultiplied for the blend) instead of the nearest
     /// one: the value pairs are not quantised to the bins. Beyond the domain,
-    /// the computed entry (as [`Self::lookup`]).
+    /// the computed entry (as [`Self::entry`]).
     #[inline]
-    pub fn lookup_interpolated(&self, front: f32, back: f32) -> [f32; 4] {
-        let ([uf, ub], inside) = self.bin_position(front, back);
-        if !inside {
-            return self.lookup(front, back);
+    pub fn entry_interpolated(&self, at: TablePosition) -> [f32; 4] {
+        if !at.inside {
+            return self.entry(at);
         }
+        let [uf, ub] = at.bins;
         let (bins, max) = (self.bins, (self.bins - 1) as f32);
         let (uf, ub) = (uf.clamp(0.0, max), ub.clamp(0.0, max));
         let (i, j) = ((uf as usize).min(bins - 2), (ub as usize).min(bins - 2));
@@ -962,23 +962,28 @@ impl PreintegratedTable {
         }
     }
 
-    /// Raw values `front` and `back` in bins (bin `i` at `i`), and whether both
-    /// lie in the table (within half a bin of its ends; false for NaN, which
-    /// reads as the domain's low end, never produced by trilinear reads).
+    /// Where the segment whose raw value goes linearly from `front` to `back`
+    /// lies in the table: located once, then looked up ([`Self::entry`],
+    /// [`Self::entry_interpolated`]) and shaded ([`Self::shading_weights`]).
     #[inline]
-    fn bin_position(&self, front: f32, back: f32) -> ([f32; 2], bool) {
+    pub fn locate(&self, front: f32, back: f32) -> TablePosition {
         let max = (self.bins - 1) as f32;
+        // NaN (never produced by trilinear reads) reads as the domain's low end.
         let uf = ((front - self.offset) * self.scale).max(-1.0e9);
         let ub = ((back - self.offset) * self.scale).max(-1.0e9);
+        // Also false for NaN.
         let inside = (-0.5..max + 0.5).contains(&uf) && (-0.5..max + 0.5).contains(&ub);
-        ([uf, ub], inside)
+        TablePosition {
+            bins: [uf, ub],
+            inside,
+        }
     }
 
-    /// The index of the entry nearest bin position `(uf, ub)` (one that
-    /// [`Self::bin_position`] found inside).
+    /// The index of the entry nearest `at` (one inside the table).
     #[inline]
-    fn nearest_entry(&self, uf: f32, ub: f32) -> usize {
+    fn nearest_entry(&self, at: TablePosition) -> usize {
         let bins = self.bins;
+        let [uf, ub] = at.bins;
         let (i, j) = ((uf + 0.5) as usize, (ub + 0.5) as usize);
         i.min(bins - 1) * bins + j.min(bins - 1)
     }
@@ -989,13 +994,20 @@ impl PreintegratedTable {
     }
 
     /// RGB and opacity of a segment whose raw value goes linearly from `front` to
-    /// `back`: the nearest bins' entry when both lie in the domain, else computed
-    /// from the integral functions (the function is constant beyond its domain).
+    /// `back`: [`Self::entry`] of where it lies.
     #[inline]
     pub fn lookup(&self, front: f32, back: f32) -> [f32; 4] {
-        let ([uf, ub], inside) = self.bin_position(front, back);
-        if inside {
-            self.entries[self.nearest_entry(uf, ub)]
+        self.entry(self.locate(front, back))
+    }
+
+    /// RGB and opacity of the segment at `at`: the nearest bins' entry when
+    /// both ends lie in the domain, else computed from the integral functions
+    /// (the function is constant beyond its domain).
+    #[inline]
+    pub fn entry(&self, at: TablePosition) -> [f32; 4] {
+        let [uf, ub] = at.bins;
+        if at.inside {
+            self.entries[self.nearest_entry(at)]
         } else {
             self.segment_fine(
                 f64::from(uf) * self.fine_per_bin,
@@ -1003,6 +1015,16 @@ impl PreintegratedTable {
             )
         }
     }
+}
+
+/// Where a segment's front and back values lie in a [`PreintegratedTable`]
+/// ([`PreintegratedTable::locate`]).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct TablePosition {
+    /// The values in bins (bin `i` at `i`).
+    bins: [f32; 2],
+    /// Both within half a bin of the table's ends (false for NaN).
+    inside: bool,
 }
 
 /// A share in `0..=1` as a fraction of `u16::MAX`.
@@ -1116,9 +1138,6 @@ mod tests {
         assert_eq!(table.lookup_2d(200.0, 0.3)[3], 1.0);
     }
 
-    /// The true emission–absorption integral of a segment of `r` reference steps
-    /// whose normalised value goes linearly from `f` to `b`, by brute force
-    /// (premultiplied RGB and opacity).
     /// Walks a segment of `r` reference steps along which the value goes
     /// linearly from normalised `f` to `b` in fine steps, calling `visit` with
     /// each step's position along it, function value, the transmittance before
@@ -1144,6 +1163,9 @@ mod tests {
         transmittance
     }
 
+    /// The true emission–absorption integral of a segment of `r` reference steps
+    /// whose normalised value goes linearly from `f` to `b`, by brute force
+    /// (premultiplied RGB and opacity).
     fn brute_force(tf: &TransferFunction, f: f32, b: f32, r: f64) -> [f64; 4] {
         let mut color = [0.0f64; 3];
         let transmittance = walk_segment(tf, f, b, r, |_, [cr, cg, cb, _], t, absorbed| {
@@ -1252,7 +1274,7 @@ mod tests {
         // At bin centres: the entry itself (a transparent one's colour aside).
         for (i, j) in [(20, 90), (100, 180), (255, 60), (0, 0), (150, 151)] {
             let (f, b) = (raw(i as f32), raw(j as f32));
-            let got = pre.lookup_interpolated(f, b);
+            let got = pre.entry_interpolated(pre.locate(f, b));
             let want = pre.lookup(f, b);
             let channels = if want[3] > 0.0 { 0..4 } else { 3..4 };
             for c in channels {
@@ -1264,7 +1286,7 @@ mod tests {
         }
         // Between bins: opacity and premultiplied colour bilinear in the four.
         let (f, b) = (raw(120.25), raw(170.75));
-        let got = pre.lookup_interpolated(f, b);
+        let got = pre.entry_interpolated(pre.locate(f, b));
         let e = |i: usize, j: usize| pre.lookup(raw(i as f32), raw(j as f32));
         let w = [
             (120, 170, 0.75 * 0.25),
@@ -1285,10 +1307,11 @@ mod tests {
         assert_ne!(got, pre.lookup(f, b));
         // Beyond the domain, the computed entry; transparent stays transparent.
         assert_eq!(
-            pre.lookup_interpolated(300.0, 400.0),
+            pre.entry_interpolated(pre.locate(300.0, 400.0)),
             pre.lookup(300.0, 400.0)
         );
-        assert_eq!(pre.lookup_interpolated(raw(1.5), raw(10.5))[3], 0.0);
+        let transparent = pre.locate(raw(1.5), raw(10.5));
+        assert_eq!(pre.entry_interpolated(transparent)[3], 0.0);
     }
 
     #[test]
@@ -1311,7 +1334,7 @@ mod tests {
                 (150, 150),
             ] {
                 for halvings in 0..PIECE_LENGTHS {
-                    let got = pre.shading_weights(raw(i), raw(j), halvings);
+                    let got = pre.shading_weights(pre.locate(raw(i), raw(j)), halvings);
                     let length = f64::from(ratio) / f64::from(1u32 << halvings);
                     let want = brute_force_shares(&tf, norm(i), norm(j), length);
                     for part in 0..3 {
@@ -1327,18 +1350,18 @@ mod tests {
         // A segment that starts in the opaque end of the function sends most
         // of its light from its front; one going into it, from further back.
         let pre = PreintegratedTable::with_bins(&tf, 255, 1.0, bins);
-        let [front, _, back] = pre.shading_weights(raw(255), raw(60), 0);
+        let [front, _, back] = pre.shading_weights(pre.locate(raw(255), raw(60)), 0);
         assert!(front > 0.7 && back < 0.01, "{front} {back}");
-        let [front, _, back] = pre.shading_weights(raw(60), raw(255), 0);
+        let [front, _, back] = pre.shading_weights(pre.locate(raw(60), raw(255)), 0);
         assert!(back > front, "{front} {back}");
         // A transparent segment gets the even split.
-        let even = pre.shading_weights(raw(0), raw(10), 0);
+        let even = pre.shading_weights(pre.locate(raw(0), raw(10)), 0);
         for (got, want) in even.into_iter().zip([0.25, 0.5, 0.25]) {
             assert!((got - want).abs() < 1e-4, "{even:?}");
         }
         // Beyond the domain they are computed, the function constant there
         // (opaque above it).
-        let [front, _, _] = pre.shading_weights(300.0, 400.0, 1);
+        let [front, _, _] = pre.shading_weights(pre.locate(300.0, 400.0), 1);
         assert!(front > 0.99, "{front}");
     }
 
