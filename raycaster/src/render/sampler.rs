@@ -8,6 +8,7 @@
 
 use glam::{Vec3, Vec3A, Vec4};
 
+use super::truncate::truncate_clamped;
 use crate::volume::{BlockGrid, BrickView, Layout, Sample, TypedVolume};
 
 /// Trilinear interpolation in one brick, by local coordinates.
@@ -17,10 +18,10 @@ pub struct BrickSampler<'a, T: Sample> {
     origin: Vec3,
     /// Last voxel inside the brick, as local coordinates.
     last: Vec3,
-    /// Largest lower cell corner per axis (extent − 2, or 0 for a one-voxel axis).
-    max_cell: [u32; 3],
-    /// `origin` and `max_cell` as SIMD lanes, for the marching loop's cell cache.
+    /// `origin` in SIMD lanes, for the marching loop's cell cache.
     origin_lanes: Vec3A,
+    /// Largest lower cell corner per axis (extent − 2, or 0 for a one-voxel
+    /// axis), as floats in SIMD lanes.
     max_cell_lanes: Vec3A,
     /// Stride to the upper corner per axis (0 on a one-voxel axis).
     corner_stride: [usize; 3],
@@ -37,7 +38,6 @@ impl<'a, T: Sample> BrickSampler<'a, T> {
             view,
             origin,
             last: Vec3::from(extent.map(|e| (e - 1) as f32)),
-            max_cell,
             origin_lanes: origin.into(),
             max_cell_lanes: Vec3A::from(max_cell.map(|m| m as f32)),
             corner_stride: [0, 1, 2].map(|a| if extent[a] > 1 { strides[a] } else { 0 }),
@@ -66,11 +66,12 @@ impl<'a, T: Sample> BrickSampler<'a, T> {
     /// The trilinearly interpolated value at local position `l` (inside the brick).
     #[inline]
     pub fn value_local(&self, l: Vec3) -> f32 {
-        // Float → int casts saturate, so a hair below 0 becomes cell 0.
+        // A hair below 0 becomes cell 0 (as with a saturating cast).
+        let max = self.max_cell_lanes;
         let cell = [
-            (l.x as u32).min(self.max_cell[0]),
-            (l.y as u32).min(self.max_cell[1]),
-            (l.z as u32).min(self.max_cell[2]),
+            truncate_clamped(l.x, max.x),
+            truncate_clamped(l.y, max.y),
+            truncate_clamped(l.z, max.z),
         ];
         trilinear(&self.corners(cell), cell_fraction(l, cell))
     }

@@ -935,7 +935,7 @@ impl PreintegratedTable {
         let [uf, ub] = at.bins;
         let (bins, max) = (self.bins, (self.bins - 1) as f32);
         let (uf, ub) = (uf.clamp(0.0, max), ub.clamp(0.0, max));
-        let (i, j) = ((uf as usize).min(bins - 2), (ub as usize).min(bins - 2));
+        let [i, j] = [uf, ub].map(|u| truncate_clamped(u, max - 1.0) as usize);
         let (fi, fj) = (uf - i as f32, ub - j as f32);
         let corners = [
             (i, j, (1.0 - fi) * (1.0 - fj)),
@@ -982,10 +982,9 @@ impl PreintegratedTable {
     /// The index of the entry nearest `at` (one inside the table).
     #[inline]
     fn nearest_entry(&self, at: TablePosition) -> usize {
-        let bins = self.bins;
-        let [uf, ub] = at.bins;
-        let (i, j) = ((uf + 0.5) as usize, (ub + 0.5) as usize);
-        i.min(bins - 1) * bins + j.min(bins - 1)
+        let (bins, max) = (self.bins, (self.bins - 1) as f32);
+        let [i, j] = at.bins.map(|u| truncate_clamped(u + 0.5, max) as usize);
+        i * bins + j
     }
 
     /// The width of one bin in raw values.
