@@ -226,6 +226,29 @@ impl<'s, T: Sample> SamplePoint<'s, T> {
         }
     }
 
+    /// [`Self::value_at`] (the same bits) and the trilinear field's derivative
+    /// along `d` there, in raw value per length of `d`
+    /// ([`super::sampler::BrickSampler::value_and_slope_local`]).
+    #[inline]
+    pub fn value_and_slope_at(&self, p: Vec3, d: Vec3) -> (f32, f32) {
+        if self.site.brick.sampler.contains(p) {
+            self.site.brick.sampler.value_and_slope(p, d)
+        } else {
+            self.volume().value_and_slope(p, d)
+        }
+    }
+
+    /// The slope of [`Self::value_and_slope_at`] (the same bits), from the
+    /// ray's cell cache when `p` lies in its cell.
+    #[inline]
+    pub fn slope_at(&self, p: Vec3, d: Vec3) -> f32 {
+        let site = self.site;
+        match site.cell.slope_in_cell(&site.brick.sampler, p, d) {
+            Some(slope) => slope,
+            None => self.value_and_slope_at(p, d).1,
+        }
+    }
+
     /// The voxel position at ray parameter `t`, clamped into the volume.
     #[inline]
     pub fn position_at(&self, t: f32) -> Vec3 {

@@ -8,6 +8,7 @@
 
 use glam::{Vec3, Vec3A, Vec4};
 
+use super::cell_cache::CornerLanes;
 use super::truncate::truncate_clamped;
 use crate::volume::{BlockGrid, BrickView, Layout, Sample, TypedVolume};
 
@@ -66,14 +67,39 @@ impl<'a, T: Sample> BrickSampler<'a, T> {
     /// The trilinearly interpolated value at local position `l` (inside the brick).
     #[inline]
     pub fn value_local(&self, l: Vec3) -> f32 {
-        // A hair below 0 becomes cell 0 (as with a saturating cast).
+        let cell = self.cell_at(l);
+        trilinear(&self.corners(cell), cell_fraction(l, cell))
+    }
+
+    /// The cell whose interpolation gives the value at local position `l`
+    /// (inside the brick): its integer parts, clamped to the brick's cells (a
+    /// hair below 0 becomes cell 0, as with a saturating cast).
+    #[inline]
+    fn cell_at(&self, l: Vec3) -> [u32; 3] {
         let max = self.max_cell_lanes;
-        let cell = [
+        [
             truncate_clamped(l.x, max.x),
             truncate_clamped(l.y, max.y),
             truncate_clamped(l.z, max.z),
-        ];
-        trilinear(&self.corners(cell), cell_fraction(l, cell))
+        ]
+    }
+
+    /// [`Self::value`] and the slope along `d` ([`Self::value_and_slope_local`]).
+    #[inline]
+    pub fn value_and_slope(&self, p: Vec3, d: Vec3) -> (f32, f32) {
+        self.value_and_slope_local(p - self.origin, d)
+    }
+
+    /// [`Self::value_local`] (the same bits) and the derivative of the
+    /// trilinear field along `d` there: `∇f · d`, `f`'s gradient taken in the
+    /// cell that holds `l` (its corners' differences, interpolated in the other
+    /// two axes), in raw value per length of `d`.
+    #[inline]
+    pub fn value_and_slope_local(&self, l: Vec3, d: Vec3) -> (f32, f32) {
+        let cell = self.cell_at(l);
+        let c = self.corners(cell);
+        let f = cell_fraction(l, cell);
+        (trilinear(&c, f), CornerLanes::new(&c).slope(f.into(), d))
     }
 
     /// [`Self::origin`] as voxel indices.
@@ -434,6 +460,19 @@ impl<'a, T: Sample> VolumeSampler<'a, T> {
         let counts = self.grid.counts();
         let b = [0, 1, 2].map(|a| ((p[a] / step) as u32).min(counts[a] - 1));
         BrickSampler::new(self.volume.brick(&self.grid, b)).value(p)
+    }
+
+    /// [`Self::value`] (the same bits) and the trilinear field's derivative
+    /// along `d` there ([`BrickSampler::value_and_slope_local`]).
+    pub fn value_and_slope(&self, p: Vec3, d: Vec3) -> (f32, f32) {
+        let p = p.clamp(Vec3::ZERO, self.last);
+        if let Some(whole) = &self.whole {
+            return whole.value_and_slope(p, d);
+        }
+        let step = self.grid.step() as f32;
+        let counts = self.grid.counts();
+        let b = [0, 1, 2].map(|a| ((p[a] / step) as u32).min(counts[a] - 1));
+        BrickSampler::new(self.volume.brick(&self.grid, b)).value_and_slope(p, d)
     }
 
     /// The gradient at `p` by central differences over one voxel,
