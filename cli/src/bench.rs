@@ -106,6 +106,11 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = 0.5)]
     step: f32,
 
+    /// Pre-integrated transfer tables, as `raycaster render --preintegrate`
+    /// (DVR with a 1D transfer function; it runs on the scalar kernel).
+    #[arg(long)]
+    preintegrate: bool,
+
     /// Also time the sequential reference renderer per brick size and optimisation.
     #[arg(long)]
     sequential: bool,
@@ -177,7 +182,7 @@ pub struct Record {
 
 impl Record {
     /// The record's fields as text, in CSV column order ([`HEADER`]).
-    fn fields(&self) -> [String; 14] {
+    fn fields(&self) -> [String; COLUMNS] {
         let c = &self.case;
         [
             c.renderer().to_string(),
@@ -194,6 +199,7 @@ impl Record {
             c.view.name().to_string(),
             format!("{:.3}", self.median.as_secs_f64() * 1e3),
             format!("{:.3}", self.spread.as_secs_f64() * 1e3),
+            c.preintegrated.to_string(),
         ]
     }
 
@@ -237,6 +243,7 @@ fn cases(args: &BenchArgs) -> Vec<BenchCase> {
         transfer: args.transfer,
         image: args.image,
         simd: args.simd.0,
+        preintegrated: args.preintegrate,
         ..BenchCase::default()
     };
     let mut out = Vec::new();
@@ -301,13 +308,18 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
     let volume = first.open_volume(&cache_dir)?;
     let [w, h] = args.image;
     eprintln!(
-        "bench: {} ({}×{}×{}, {}), image {w}×{h}, step {}, {} frame(s) per configuration, {} kernel",
+        "bench: {} ({}×{}×{}, {}), image {w}×{h}, step {}{}, {} frame(s) per configuration, {} kernel",
         volume.path().display(),
         volume.dims()[0],
         volume.dims()[1],
         volume.dims()[2],
         first.volume.name(),
         args.step,
+        if args.preintegrate {
+            " pre-integrated"
+        } else {
+            ""
+        },
         args.frames,
         args.simd.0.map_or("auto".to_string(), |l| l.to_string())
     );
@@ -472,8 +484,11 @@ fn summarise(records: &[Record]) {
     }
 }
 
+/// Columns of the CSV and the table.
+const COLUMNS: usize = 15;
+
 /// Column names (CSV header and table heading).
-const HEADER: [&str; 14] = [
+const HEADER: [&str; COLUMNS] = [
     "renderer",
     "threads",
     "tile",
@@ -488,13 +503,14 @@ const HEADER: [&str; 14] = [
     "view",
     "median_ms",
     "spread_ms",
+    "preintegrated",
 ];
 
 /// One aligned table row: the CSV columns with median and spread beside the
 /// fastest frame.
-fn table_row(fields: &[String; 14]) -> String {
-    const ORDER: [usize; 14] = [0, 1, 2, 3, 4, 5, 12, 13, 6, 7, 8, 9, 10, 11];
-    const WIDTHS: [usize; 14] = [10, 7, 5, 5, 13, 10, 10, 10, 12, 22, 0, 0, 0, 0];
+fn table_row(fields: &[String; COLUMNS]) -> String {
+    const ORDER: [usize; COLUMNS] = [0, 1, 2, 3, 4, 5, 12, 13, 6, 7, 8, 9, 10, 11, 14];
+    const WIDTHS: [usize; COLUMNS] = [10, 7, 5, 5, 13, 10, 10, 10, 12, 22, 0, 0, 0, 0, 0];
     ORDER
         .iter()
         .zip(WIDTHS)

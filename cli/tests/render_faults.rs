@@ -357,6 +357,95 @@ fn bench_reports_median_and_spread_writes_csv_as_it_goes_and_warns_on_one_frame(
     assert!(stderr(&o).contains("timed on one frame"), "{}", stderr(&o));
 }
 
+/// `raycaster bench --preintegrate` times the frame `raycaster render
+/// --preintegrate` renders: the same samples for the same volume, image, step,
+/// bricks and tiles, pre-integrated or not, and the CSV says which.
+#[test]
+fn bench_preintegrates_the_frame_render_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let samples_of = |pre: bool| {
+        let csv = if pre { "p.csv" } else { "n.csv" };
+        let mut args = vec![
+            "bench",
+            "--volume-size",
+            "32",
+            "--image",
+            "48x48",
+            "--threads",
+            "2",
+            "--tiles",
+            "16",
+            "--bricks",
+            "8",
+            "--step",
+            "1",
+            "--frames",
+            "1",
+            "--cache-dir",
+            "cache",
+            "--csv",
+            csv,
+        ];
+        if pre {
+            args.push("--preintegrate");
+        }
+        let o = raycaster(&args, d);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let text = std::fs::read_to_string(d.join(csv)).unwrap();
+        let mut lines = text.lines().map(|l| l.split(',').collect::<Vec<_>>());
+        let header = lines.next().unwrap();
+        let row = lines.next().unwrap();
+        let column = |name: &str| row[header.iter().position(|h| *h == name).unwrap()];
+        assert_eq!(column("preintegrated"), pre.to_string(), "{text}");
+        column("samples").parse::<u64>().unwrap()
+    };
+    let (bench_pre, bench_plain) = (samples_of(true), samples_of(false));
+    let volume = std::fs::read_dir(d.join("cache"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.extension().is_some_and(|e| e == "vol"))
+        .expect("the bench's volume");
+    let rendered = |pre: bool| {
+        let mut args = vec![
+            "render",
+            volume.to_str().unwrap(),
+            "--size",
+            "48x48",
+            "--step",
+            "1",
+            "--brick",
+            "8",
+            "--threads",
+            "2",
+            "--tile",
+            "16",
+            "--stats-json",
+            "-o",
+            "r.png",
+            "--force",
+        ];
+        if pre {
+            args.push("--preintegrate");
+        }
+        let o = raycaster(&args, d);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let json = String::from_utf8_lossy(&o.stdout).into_owned();
+        let at = json.find("\"samples\":").expect("samples") + "\"samples\":".len();
+        let digits: String = json[at..]
+            .chars()
+            .take_while(char::is_ascii_digit)
+            .collect();
+        digits.parse::<u64>().unwrap()
+    };
+    assert_eq!(bench_pre, rendered(true));
+    assert_eq!(bench_plain, rendered(false));
+    assert_ne!(
+        bench_pre, bench_plain,
+        "pre-integration changes what is skipped"
+    );
+}
+
 #[test]
 fn a_domain_outside_the_data_warns() {
     let dir = tempfile::tempdir().unwrap();
