@@ -450,29 +450,30 @@ impl<'a, T: Sample> VolumeSampler<'a, T> {
         self.last
     }
 
-    /// The trilinear value at `p`, clamped into the volume.
-    pub fn value(&self, p: Vec3) -> f32 {
+    /// `p` clamped into the volume, and the brick that interpolates there
+    /// (the whole volume for linear storage).
+    fn brick_holding(&self, p: Vec3) -> (BrickSampler<'a, T>, Vec3) {
         let p = p.clamp(Vec3::ZERO, self.last);
-        if let Some(whole) = &self.whole {
-            return whole.value(p);
+        if let Some(whole) = self.whole {
+            return (whole, p);
         }
         let step = self.grid.step() as f32;
         let counts = self.grid.counts();
         let b = [0, 1, 2].map(|a| ((p[a] / step) as u32).min(counts[a] - 1));
-        BrickSampler::new(self.volume.brick(&self.grid, b)).value(p)
+        (BrickSampler::new(self.volume.brick(&self.grid, b)), p)
+    }
+
+    /// The trilinear value at `p`, clamped into the volume.
+    pub fn value(&self, p: Vec3) -> f32 {
+        let (brick, p) = self.brick_holding(p);
+        brick.value(p)
     }
 
     /// [`Self::value`] (the same bits) and the trilinear field's derivative
     /// along `d` there ([`BrickSampler::value_and_slope_local`]).
     pub fn value_and_slope(&self, p: Vec3, d: Vec3) -> (f32, f32) {
-        let p = p.clamp(Vec3::ZERO, self.last);
-        if let Some(whole) = &self.whole {
-            return whole.value_and_slope(p, d);
-        }
-        let step = self.grid.step() as f32;
-        let counts = self.grid.counts();
-        let b = [0, 1, 2].map(|a| ((p[a] / step) as u32).min(counts[a] - 1));
-        BrickSampler::new(self.volume.brick(&self.grid, b)).value_and_slope(p, d)
+        let (brick, p) = self.brick_holding(p);
+        brick.value_and_slope(p, d)
     }
 
     /// The gradient at `p` by central differences over one voxel,
