@@ -6,7 +6,7 @@
 mod render_support;
 
 use raycaster::render::{
-    Light, ParallelOptions, RenderSettings, RenderVolume, Shading, SimdLevel, Vec3,
+    Light, Mode, ParallelOptions, RenderSettings, RenderVolume, Shading, SimdLevel, Vec3,
     render_parallel, render_sequential, simd_levels,
 };
 use raycaster::synth::SceneKind;
@@ -95,6 +95,81 @@ fn packets_equal_the_scalar_kernel_bit_for_bit_on_every_level() {
         }
     }
     assert_eq!(frames, 108 * levels.len());
+}
+
+/// The modes that read only their samples' values (maximum, average, X-ray,
+/// first hit, Sabella's) take the value kernel on the levels with gathers:
+/// the same frames to the bit and the same counts as the scalar kernel, over
+/// scenes, sample types, layouts, ray-start jitter, early termination and
+/// empty-space skipping.
+#[test]
+fn value_modes_in_packets_equal_the_scalar_kernel_bit_for_bit_on_every_level() {
+    let levels = packet_levels();
+    let dir = tempfile::tempdir().unwrap();
+    let modes = [
+        Mode::Mip,
+        Mode::Average,
+        Mode::XRay,
+        Mode::FirstHit,
+        Mode::Sabella,
+    ];
+    let mut frames = 0;
+    for kind in [SceneKind::Shapes, SceneKind::Noise] {
+        for (layout, sample_type, brick_side) in [
+            (Layout::Linear, SampleType::U8, None),
+            (Layout::Bricked { side: 16 }, SampleType::U16, None),
+            (Layout::Bricked { side: 8 }, SampleType::U8, None),
+            (Layout::Bricked { side: 16 }, SampleType::U8, Some(6)),
+        ] {
+            let file = scene_file(dir.path(), kind, N, layout, sample_type, Access::Mapped);
+            let prepared = RenderVolume::new(&file, brick_side).unwrap();
+            let camera = default_camera(&file, 40);
+            for (round, mode) in modes.into_iter().enumerate() {
+                for (ert, ess) in [(true, true), (false, true), (true, false)] {
+                    let settings = RenderSettings {
+                        mode,
+                        transfer: scene_preset(kind),
+                        early_termination: ert.then_some(0.9),
+                        empty_space_skipping: ess,
+                        step: [0.5, 0.3, 0.9, 0.7, 1.3][round],
+                        jitter: round % 2 == 1,
+                        simd: Some(SimdLevel::Scalar),
+                        ..RenderSettings::default()
+                    };
+                    let options = ParallelOptions {
+                        render_threads: 2,
+                        compositing_threads: 1,
+                        tile_size: [16, 7, 32, 11, 9][round],
+                    };
+                    let scalar = render_parallel(&prepared, &camera, &settings, &options).unwrap();
+                    assert!(scalar.stats.counters.samples > 0);
+                    for &level in &levels {
+                        let packets = render_parallel(
+                            &prepared,
+                            &camera,
+                            &RenderSettings {
+                                simd: Some(level),
+                                ..settings.clone()
+                            },
+                            &options,
+                        )
+                        .unwrap();
+                        let name = format!(
+                            "{kind:?} {layout:?} {sample_type:?} bricks {brick_side:?} {} ert {ert} ess {ess} {level}",
+                            mode.name()
+                        );
+                        assert!(packets.rgba == scalar.rgba, "{name}: images differ");
+                        assert_eq!(
+                            packets.stats.counters, scalar.stats.counters,
+                            "{name}: counts differ"
+                        );
+                        frames += 1;
+                    }
+                }
+            }
+        }
+    }
+    assert_eq!(frames, 120 * levels.len());
 }
 
 #[test]

@@ -8,6 +8,7 @@
 use glam::Vec3;
 
 use super::cell_cache::CellCache;
+use super::gather_values::march_values;
 use super::local::{LocalCompositor, with_local};
 use super::march::BrickContext;
 use super::packet::PacketWork;
@@ -40,6 +41,24 @@ pub(crate) trait Compositor: Sync {
     /// Whether [`Compositor::below_interest`] can ever hold (the loop asks it per
     /// skippable cell only then).
     const STATE_SKIPS: bool = false;
+
+    /// Whether [`Compositor::sample`] reads nothing of a sample but its value,
+    /// position, index, fraction and ray, and what the volume holds elsewhere
+    /// (the value before it, a gradient at a point it chooses): never the
+    /// gradient at the sample through the ray's cell cache. Its samples'
+    /// values then come from the value kernel ([`super::gather_values`]) on
+    /// the levels that have one.
+    const READS_ONLY_VALUES: bool = false;
+
+    /// Whether empty-space skipping can skip anything of this compositor's:
+    /// [`Compositor::range_empty`] holds for some range, or
+    /// [`Compositor::below_interest`] for some state. Where neither ever
+    /// does (every sample counts: average, X-ray), the loop walks no cells
+    /// (it would skip none of them).
+    #[inline]
+    fn skips_anything(&self) -> bool {
+        true
+    }
 
     /// Whether each sample stands for the segment to the next one (pre-integrated
     /// transfer functions). Skipping two consecutive samples then drops the
@@ -94,10 +113,13 @@ pub(crate) trait Compositor: Sync {
     /// each ray; `false` (the default) leaves them to that loop.
     fn march_packets<T: Sample>(
         &self,
-        _work: &mut PacketWork<'_, '_, T, Self::State>,
-        _level: SimdLevel,
-    ) -> bool {
-        false
+        work: &mut PacketWork<'_, '_, T, Self::State>,
+        level: SimdLevel,
+    ) -> bool
+    where
+        Self: Sized,
+    {
+        Self::READS_ONLY_VALUES && march_values(self, work, level)
     }
 }
 

@@ -204,7 +204,42 @@ impl<'a> GatherBrick<'a> {
 /// stack lies follows the callers' frames (a change anywhere up the call chain
 /// moved the unshaded kernel's speed by 14 %).
 #[repr(align(64))]
-struct LineAligned<T>(T);
+pub(crate) struct LineAligned<T>(pub(crate) T);
+
+impl GatherBrick<'_> {
+    /// The trilinear values of samples `samples[..n]` of the ray at
+    /// `positions` in `sampler`'s brick into `values`, with the scalar
+    /// kernel's operations (so its bits): gathered, or for the samples that
+    /// lie on none of the brick's cells (its upper faces) read by
+    /// [`BrickSampler::value_local`], as the scalar kernel reads them.
+    /// Returns the latter lanes.
+    #[inline(always)]
+    pub(crate) fn chunk_values<T: Sample>(
+        &self,
+        sampler: &BrickSampler<'_, T>,
+        positions: &SamplePositions,
+        samples: &[u32; GATHER_LANES],
+        n: usize,
+        values: &mut [f32; GATHER_LANES],
+    ) -> u32 {
+        let mut local = LineAligned([[0f32; GATHER_LANES]; 3]);
+        #[cfg(target_arch = "x86_64")]
+        #[allow(unsafe_code)]
+        // SAFETY: `GatherBrick::new` checked that this CPU has AVX2.
+        let outside =
+            unsafe { x86::chunk_values::<T>(self, positions, samples, n, values, &mut local.0) };
+        #[cfg(not(target_arch = "x86_64"))]
+        let outside: u32 = unreachable!("no gather layout off x86-64");
+        let mut lanes = outside;
+        while lanes != 0 {
+            let j = lanes.trailing_zeros() as usize;
+            lanes &= lanes - 1;
+            let l = Vec3::new(local.0[0][j], local.0[1][j], local.0[2][j]);
+            values[j] = sampler.value_local(l);
+        }
+        outside
+    }
+}
 
 /// Whether this CPU has AVX2 (detected once per process by `std`).
 fn has_avx2() -> bool {
@@ -268,9 +303,7 @@ impl<T: Sample> RunMarcher<Accumulation> for GatherRay<'_, '_, T> {
     }
 
     /// Every run of `runs`, eight samples per chunk whatever run they belong
-    /// to (a chunk of one run would end at every empty cell and brick face).
-    /// A ray that stops counts the samples skipped before its last sample's
-    /// run only, as one run at a time does.
+    /// to ([`march_runs_in_chunks`]).
     #[inline(always)]
     fn march_runs<C: Compositor<State = Accumulation>>(
         &mut self,
@@ -283,43 +316,58 @@ impl<T: Sample> RunMarcher<Accumulation> for GatherRay<'_, '_, T> {
         if C::STATE_SKIPS || !runs.skips_cells() {
             return march_each_run(self, c, ess, acc, runs);
         }
-        // A chunk's samples and room for a run's next eight written after
-        // them (the lanes past the run's end are overwritten by the next
-        // run's or left out of the chunk).
-        let mut samples = [0u32; 2 * GATHER_LANES];
-        // The samples skipped before each lane's run, for chunks that gather
-        // lanes of several runs.
-        let mut skipped = [0u64; 2 * GATHER_LANES];
-        let (mut n, mut taken) = (0, 0u64);
-        while let Some(run) = runs.next() {
-            let skipped_before = runs.skipped;
-            let mut k = run.first;
-            while k < run.end {
-                let more = ((run.end - k) as usize).min(GATHER_LANES - n);
-                let next: [u32; GATHER_LANES] = std::array::from_fn(|j| k.wrapping_add(j as u32));
-                samples[n..n + GATHER_LANES].copy_from_slice(&next);
-                skipped[n..n + GATHER_LANES].fill(skipped_before);
-                n += more;
-                k += more as u32;
-                if n == GATHER_LANES {
-                    n = 0;
-                    let chunk = samples[..GATHER_LANES].try_into().expect("a chunk");
-                    if let Some(j) = self.chunk(acc, chunk, GATHER_LANES) {
-                        return (taken + j as u64 + 1, skipped[j], Some(samples[j] + 1));
-                    }
-                    taken += GATHER_LANES as u64;
-                }
-            }
-        }
-        if n > 0 {
-            let chunk = samples[..GATHER_LANES].try_into().expect("a chunk");
-            if let Some(j) = self.chunk(acc, chunk, n) {
-                return (taken + j as u64 + 1, skipped[j], Some(samples[j] + 1));
-            }
-            taken += n as u64;
-        }
-        (taken, runs.skipped, None)
+        march_runs_in_chunks(runs, |chunk, n| self.chunk(acc, chunk, n))
     }
+}
+
+/// Every run of `runs`, eight samples per chunk whatever run they belong to
+/// (a chunk of one run would end at every empty cell and brick face), each
+/// chunk's first `n` samples folded by `chunk` (`Some(j)`: the ray stopped at
+/// the chunk's sample `j`): the samples taken, the samples skipped, and
+/// `Some(k)` when the ray stopped before sample `k`, as
+/// [`RunMarcher::march_runs`]. A ray that stops counts the samples skipped
+/// before its last sample's run only, as one run at a time does.
+#[inline(always)]
+pub(crate) fn march_runs_in_chunks<C: Compositor>(
+    runs: &mut SampleRuns<'_, C>,
+    mut chunk: impl FnMut(&[u32; GATHER_LANES], usize) -> Option<usize>,
+) -> (u64, u64, Option<u32>) {
+    // A chunk's samples and room for a run's next eight written after
+    // them (the lanes past the run's end are overwritten by the next
+    // run's or left out of the chunk).
+    let mut samples = [0u32; 2 * GATHER_LANES];
+    // The samples skipped before each lane's run, for chunks that gather
+    // lanes of several runs.
+    let mut skipped = [0u64; 2 * GATHER_LANES];
+    let (mut n, mut taken) = (0, 0u64);
+    while let Some(run) = runs.next() {
+        let skipped_before = runs.skipped;
+        let mut k = run.first;
+        while k < run.end {
+            let more = ((run.end - k) as usize).min(GATHER_LANES - n);
+            let next: [u32; GATHER_LANES] = std::array::from_fn(|j| k.wrapping_add(j as u32));
+            samples[n..n + GATHER_LANES].copy_from_slice(&next);
+            skipped[n..n + GATHER_LANES].fill(skipped_before);
+            n += more;
+            k += more as u32;
+            if n == GATHER_LANES {
+                n = 0;
+                let chunk_samples = samples[..GATHER_LANES].try_into().expect("a chunk");
+                if let Some(j) = chunk(chunk_samples, GATHER_LANES) {
+                    return (taken + j as u64 + 1, skipped[j], Some(samples[j] + 1));
+                }
+                taken += GATHER_LANES as u64;
+            }
+        }
+    }
+    if n > 0 {
+        let chunk_samples = samples[..GATHER_LANES].try_into().expect("a chunk");
+        if let Some(j) = chunk(chunk_samples, n) {
+            return (taken + j as u64 + 1, skipped[j], Some(samples[j] + 1));
+        }
+        taken += n as u64;
+    }
+    (taken, runs.skipped, None)
 }
 
 impl<T: Sample> GatherRay<'_, '_, T> {
@@ -596,7 +644,8 @@ mod x86 {
 
     use glam::Vec3;
 
-    use super::{GATHER_LANES, GatherRay, GatherSource, LineAligned};
+    use super::{GATHER_LANES, GatherBrick, GatherRay, GatherSource, LineAligned};
+    use crate::render::pixel::SamplePositions;
     use crate::render::shading::{Light, Shading};
     use crate::render::transfer::TABLE_SIZE;
     use crate::volume::Sample;
@@ -617,6 +666,26 @@ mod x86 {
         outside: u32,
         /// In-cell lanes whose entry's opacity is above 0 (bits).
         visible: u32,
+    }
+
+    /// A chunk's cells: where its samples lie and their values.
+    struct ChunkCells {
+        /// In-cell fractions per axis.
+        fraction: [__m256; 3],
+        /// Lower cell corners per axis (local voxels, whole numbers).
+        lower: [__m256; 3],
+        /// Brick-local byte offsets of the lower corners (0 outside cells).
+        offset: __m256i,
+        /// Lanes below `n` on one of the brick's cells.
+        in_cell: __m256,
+        /// The corner values, in [`crate::render::sampler::Corners`] order.
+        corners: [__m256; 8],
+        /// The trilinear values (of in-cell lanes).
+        value: __m256,
+        /// Lanes below `n` on no cell (bits).
+        outside: u32,
+        /// Lanes on a cell (bits).
+        in_cell_bits: u32,
     }
 
     /// Makes the calling function align its stack frame to a cache line (a
@@ -859,23 +928,23 @@ mod x86 {
         lerp(lerp(c00, c01, fy), lerp(c10, c11, fy), fx)
     }
 
-    /// The lanes of samples `samples[..n]`, their table indices stored into
-    /// `indices` and their brick-local positions into `local`.
+    /// The cells of samples `samples[..n]` of the ray at `positions` in
+    /// `brick`: their positions (brick-local, stored into `local`), corners
+    /// and trilinear values, each with the scalar kernel's operations.
     ///
     /// # Safety
     /// The CPU has AVX2.
     #[inline]
     #[target_feature(enable = "avx2")]
-    unsafe fn chunk_lanes<T: Sample>(
-        ray: &GatherRay<'_, '_, T>,
+    unsafe fn chunk_cells<T: Sample>(
+        brick: &GatherBrick<'_>,
+        positions: &SamplePositions,
         samples: &[u32; GATHER_LANES],
         n: usize,
-        indices: &mut [i32; GATHER_LANES],
         local: &mut [[f32; GATHER_LANES]; 3],
-    ) -> ChunkLanes {
+    ) -> ChunkCells {
         align_stack();
-        let brick = ray.brick;
-        let (start, step, last) = ray.positions.parts();
+        let (start, step, last) = positions.parts();
         let zero = _mm256_setzero_ps();
         let lane_numbers = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
         // Sample numbers as floats (exact: below 2^24), as `k as f32`.
@@ -946,6 +1015,60 @@ mod x86 {
             }
         };
         let value = trilinear(&corners, fraction);
+        ChunkCells {
+            fraction,
+            lower,
+            offset,
+            in_cell,
+            corners,
+            value,
+            outside,
+            in_cell_bits,
+        }
+    }
+
+    /// The trilinear values of samples `samples[..n]` of the ray at
+    /// `positions` into `values` (the scalar kernel's bits), and their
+    /// brick-local positions into `local`; returns the lanes (below `n`)
+    /// whose position lies on none of the brick's cells, whose values are
+    /// left to the caller.
+    ///
+    /// # Safety
+    /// The CPU has AVX2.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn chunk_values<T: Sample>(
+        brick: &GatherBrick<'_>,
+        positions: &SamplePositions,
+        samples: &[u32; GATHER_LANES],
+        n: usize,
+        values: &mut [f32; GATHER_LANES],
+        local: &mut [[f32; GATHER_LANES]; 3],
+    ) -> u32 {
+        // SAFETY: the CPU has AVX2 (this function's contract).
+        let cells = unsafe { chunk_cells::<T>(brick, positions, samples, n, local) };
+        // SAFETY: `values` holds eight `f32`s; an unaligned store.
+        unsafe { _mm256_storeu_ps(values.as_mut_ptr(), cells.value) };
+        cells.outside
+    }
+
+    /// The lanes of samples `samples[..n]`, their table indices stored into
+    /// `indices` and their brick-local positions into `local`.
+    ///
+    /// # Safety
+    /// The CPU has AVX2.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn chunk_lanes<T: Sample>(
+        ray: &GatherRay<'_, '_, T>,
+        samples: &[u32; GATHER_LANES],
+        n: usize,
+        indices: &mut [i32; GATHER_LANES],
+        local: &mut [[f32; GATHER_LANES]; 3],
+    ) -> ChunkLanes {
+        // SAFETY: the CPU has AVX2 (this function's contract).
+        let cells = unsafe { chunk_cells::<T>(ray.brick, &ray.positions, samples, n, local) };
+        let (zero, value) = (_mm256_setzero_ps(), cells.value);
         // `TransferTable::index`: `(v − offset)·scale + 0.5`, clamped, truncated.
         let (table_offset, table_scale) = ray.table.index_map();
         let x = _mm256_add_ps(
@@ -964,14 +1087,14 @@ mod x86 {
         let index = _mm256_cvttps_epi32(x);
         // SAFETY: `indices` holds eight `i32`s; an unaligned store.
         unsafe { _mm256_storeu_si256(indices.as_mut_ptr().cast::<__m256i>(), index) };
-        let visible = table_bits(ray.table.visible_bits(), index) & in_cell_bits;
+        let visible = table_bits(ray.table.visible_bits(), index) & cells.in_cell_bits;
         ChunkLanes {
-            fraction,
-            lower,
-            offset,
-            in_cell,
-            corners,
-            outside,
+            fraction: cells.fraction,
+            lower: cells.lower,
+            offset: cells.offset,
+            in_cell: cells.in_cell,
+            corners: cells.corners,
+            outside: cells.outside,
             visible,
         }
     }
@@ -1281,7 +1404,7 @@ mod tests {
             }),
         ];
         let mut unit = move || (next() % 1_000_001) as f32 / 1_000_000.0;
-        let (mut compared, mut visible, mut stopped) = (0, 0, 0);
+        let (mut compared, mut visible, mut stopped, mut on_no_cell) = (0, 0, 0, 0);
         for b in grid.iter() {
             let sampler = BrickSampler::new(data.brick(&grid, b));
             let Some(brick) = GatherBrick::new(&sampler, &volume) else {
@@ -1350,14 +1473,30 @@ mod tests {
                     b.color.map(f32::to_bits),
                     "round {round}"
                 );
+                // The values alone (the value kernel's chunks).
+                let cache = CellCache::default();
+                let mut k = first;
+                while k < count {
+                    let n = ((count - k) as usize).min(GATHER_LANES);
+                    let chunk = std::array::from_fn(|j| k + j as u32);
+                    let mut values = [f32::NAN; GATHER_LANES];
+                    let outside =
+                        brick.chunk_values(&sampler, &ray.positions, &chunk, n, &mut values);
+                    on_no_cell += outside.count_ones();
+                    for (j, &s) in chunk.iter().enumerate().take(n) {
+                        let expected = cache.value(&sampler, ray.positions.at(s));
+                        assert_eq!(values[j].to_bits(), expected.to_bits(), "round {round} {s}");
+                    }
+                    k += n as u32;
+                }
                 compared += count - first;
                 visible += u32::from(b.alpha > 0.0);
                 stopped += u32::from(scalar.is_some());
             }
         }
         assert!(
-            compared > 25_000 && visible > 500 && stopped > 100,
-            "{compared} {visible} {stopped}"
+            compared > 25_000 && visible > 500 && stopped > 100 && on_no_cell > 100,
+            "{compared} {visible} {stopped} {on_no_cell}"
         );
     }
 

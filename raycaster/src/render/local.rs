@@ -587,6 +587,7 @@ pub(crate) struct Mip {
 
 impl Compositor for Mip {
     type State = Accumulation;
+    const READS_ONLY_VALUES: bool = true;
     const STATE_SKIPS: bool = true;
     fn start(&self) -> Accumulation {
         Accumulation::starting_at(f32::NEG_INFINITY)
@@ -628,6 +629,10 @@ impl Average {
 
 impl Compositor for Average {
     type State = Accumulation;
+    const READS_ONLY_VALUES: bool = true;
+    fn skips_anything(&self) -> bool {
+        false
+    }
     fn start(&self) -> Accumulation {
         Accumulation::starting_at(0.0)
     }
@@ -658,6 +663,10 @@ pub(crate) struct XRay {
 
 impl Compositor for XRay {
     type State = Accumulation;
+    const READS_ONLY_VALUES: bool = true;
+    fn skips_anything(&self) -> bool {
+        false
+    }
     fn start(&self) -> Accumulation {
         Accumulation::starting_at(0.0)
     }
@@ -692,6 +701,7 @@ pub(crate) struct FirstHit {
 
 impl Compositor for FirstHit {
     type State = Accumulation;
+    const READS_ONLY_VALUES: bool = true;
     fn start(&self) -> Accumulation {
         Accumulation::starting_at(0.0)
     }
@@ -923,6 +933,10 @@ impl Sabella {
 
 impl Compositor for Sabella {
     type State = Accumulation;
+    const READS_ONLY_VALUES: bool = true;
+    fn skips_anything(&self) -> bool {
+        false
+    }
     fn start(&self) -> Accumulation {
         Accumulation::starting_at(f32::NEG_INFINITY)
     }
@@ -1080,6 +1094,9 @@ impl Compositor for LocalCompositor {
     }
     fn composites_segments(&self) -> bool {
         with_local!(self, c => c.composites_segments())
+    }
+    fn skips_anything(&self) -> bool {
+        with_local!(self, c => c.skips_anything())
     }
     #[inline]
     fn sample<T: Sample>(&self, st: &mut Accumulation, s: &SamplePoint<'_, T>) {

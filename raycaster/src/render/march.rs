@@ -221,7 +221,7 @@ impl<T: Sample> BrickVisit<'_, '_, T> {
             return;
         }
         let (plan, brick, ray) = (self.plan, self.brick, self.ray);
-        let ess = plan.empty_space_skipping;
+        let ess = plan.empty_space_skipping && c.skips_anything();
         if ess && (brick.transparent || c.below_interest(&state.acc, brick.range[1])) {
             counters.samples_skipped_empty += u64::from(last - first + 1);
             counters.brick_visits_skipped += 1;

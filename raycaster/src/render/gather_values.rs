@@ -1,0 +1,176 @@
+//! The kernel of the compositors that read nothing of a sample but its value
+//! and where it lies on its ray (maximum, average, X-ray, first hit,
+//! Sabella's): eight samples of one ray at a time, their positions, cells,
+//! corner reads and trilinear values in SIMD lanes with hardware gathers
+//! ([`GatherBrick::chunk_values`], the scalar kernel's bits), then each
+//! sample folded in order by the compositor's own [`Compositor::sample`],
+//! with the stopping rule of the scalar loop. Whatever else a compositor
+//! asks of a sample (the value before it, a gradient at a refined hit) is
+//! read as the scalar loop reads it, so the frames are bit-identical to the
+//! scalar kernel's, which `tests/packet_kernel.rs` checks on every level.
+
+use super::cell_cache::CellCache;
+use super::compositor::{Compositor, SamplePoint, SampleSite};
+use super::gather::{GATHER_LANES, GatherBrick, LineAligned, march_runs_in_chunks};
+use super::march::{BrickVisit, RunMarcher, march_each_run};
+use super::packet::PacketWork;
+use super::pixel::SamplePositions;
+use super::runs::SampleRuns;
+use super::simd::SimdLevel;
+use crate::volume::Sample;
+
+/// Marches `work`'s rays with the value kernel at `level` when it has one
+/// there (AVX2 or AVX-512, with gathers that can address the brick): `false`
+/// leaves them to the scalar loop. For compositors whose
+/// [`Compositor::sample`] reads only the sample's value, position, index,
+/// fraction and ray, and what the volume holds elsewhere: never the ray's
+/// cell cache as the last value left it (a gradient at the sample).
+pub(crate) fn march_values<T: Sample, C: Compositor>(
+    c: &C,
+    work: &mut PacketWork<'_, '_, T, C::State>,
+    level: SimdLevel,
+) -> bool {
+    if !matches!(level, SimdLevel::Avx2 | SimdLevel::Avx512) {
+        return false;
+    }
+    let Some(gather) = GatherBrick::new(&work.brick.sampler, work.volume) else {
+        return false;
+    };
+    #[cfg(target_arch = "x86_64")]
+    #[allow(unsafe_code)]
+    // SAFETY: `GatherBrick::new` checked that this CPU has AVX2.
+    unsafe {
+        march_values_avx2(c, work, &gather)
+    };
+    #[cfg(not(target_arch = "x86_64"))]
+    march_values_in_chunks(c, work, &gather);
+    true
+}
+
+#[cfg(target_arch = "x86_64")]
+#[allow(unsafe_code)]
+#[target_feature(enable = "avx2")]
+unsafe fn march_values_avx2<T: Sample, C: Compositor>(
+    c: &C,
+    work: &mut PacketWork<'_, '_, T, C::State>,
+    gather: &GatherBrick<'_>,
+) {
+    march_values_in_chunks(c, work, gather)
+}
+
+/// Each of the task's rays through the brick, its samples in chunks of
+/// gathered values.
+#[inline(always)]
+fn march_values_in_chunks<T: Sample, C: Compositor>(
+    c: &C,
+    work: &mut PacketWork<'_, '_, T, C::State>,
+    gather: &GatherBrick<'_>,
+) {
+    // For what a compositor reads beside the value (a gradient at a hit).
+    let cell = CellCache::default();
+    for item in work.items {
+        let (Some(ray), state) = (&work.rays[item.pixel], &mut work.states[item.pixel]) else {
+            continue;
+        };
+        let visit = BrickVisit {
+            plan: work.plan,
+            volume: work.volume,
+            brick: work.brick,
+            ray,
+        };
+        visit.march(c, item.first, item.last, state, work.counters, || {
+            ValueRay {
+                c,
+                visit,
+                gather,
+                cell: &cell,
+                positions: ray.positions(work.volume.last()),
+            }
+        });
+    }
+}
+
+/// One ray's visit of a brick, its values gathered.
+struct ValueRay<'v, 'b, T: Sample, C> {
+    c: &'v C,
+    visit: BrickVisit<'v, 'b, T>,
+    gather: &'v GatherBrick<'b>,
+    cell: &'v CellCache,
+    positions: SamplePositions,
+}
+
+impl<T: Sample, C: Compositor> RunMarcher<C::State> for ValueRay<'_, '_, T, C> {
+    #[inline(always)]
+    fn march_run(&mut self, acc: &mut C::State, first: u32, end: u32) -> Option<u32> {
+        let mut k = first;
+        while k < end {
+            let n = (end - k).min(GATHER_LANES as u32) as usize;
+            let samples = std::array::from_fn(|j| k + j as u32);
+            if let Some(j) = self.chunk(acc, &samples, n) {
+                return Some(samples[j] + 1);
+            }
+            k += n as u32;
+        }
+        None
+    }
+
+    /// Eight samples per chunk across runs, unless the compositor skips runs
+    /// by its state (each run is then asked before it is marched).
+    #[inline(always)]
+    fn march_runs<D: Compositor<State = C::State>>(
+        &mut self,
+        c: &D,
+        ess: bool,
+        acc: &mut C::State,
+        runs: &mut SampleRuns<'_, D>,
+    ) -> (u64, u64, Option<u32>) {
+        if D::STATE_SKIPS || !runs.skips_cells() {
+            return march_each_run(self, c, ess, acc, runs);
+        }
+        march_runs_in_chunks(runs, |chunk, n| self.chunk(acc, chunk, n))
+    }
+}
+
+impl<T: Sample, C: Compositor> ValueRay<'_, '_, T, C> {
+    /// Samples `samples[..n]` (ascending) into `acc`, in order; `Some(j)`
+    /// when the ray stopped at `samples[j]` (the opacity threshold, or the
+    /// compositor finished).
+    #[inline(always)]
+    fn chunk(&self, acc: &mut C::State, samples: &[u32; GATHER_LANES], n: usize) -> Option<usize> {
+        let BrickVisit {
+            plan,
+            volume,
+            brick,
+            ray,
+        } = self.visit;
+        let mut values = LineAligned([0f32; GATHER_LANES]);
+        self.gather
+            .chunk_values(&brick.sampler, &self.positions, samples, n, &mut values.0);
+        let site = SampleSite {
+            ray,
+            brick,
+            volume,
+            cell: self.cell,
+            gradient_scale: plan.gradient_scale,
+        };
+        let last_sample = ray.samples - 1;
+        for (j, (&k, &value)) in samples.iter().zip(&values.0).take(n).enumerate() {
+            let sample = SamplePoint {
+                value,
+                position: self.positions.at(k).into(),
+                index: k,
+                fraction: if k == last_sample {
+                    ray.last_fraction
+                } else {
+                    1.0
+                },
+                site: &site,
+            };
+            self.c.sample(acc, &sample);
+            if self.c.opacity(acc) >= plan.ert_threshold || self.c.finished(acc) {
+                return Some(j);
+            }
+        }
+        None
+    }
+}
