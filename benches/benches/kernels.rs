@@ -1,6 +1,8 @@
 //! The marching kernels side by side: one render thread, shaded DVR at step 0.2,
-//! the scalar reference and every SIMD level this machine runs (`--simd`).
-//! Samples per second are the throughput; every kernel takes the same samples.
+//! the scalar reference and every SIMD level this machine runs (`--simd`); then
+//! maximum and average intensity on the scalar kernel and the widest level (the
+//! value kernel). Samples per second are the throughput; every kernel takes the
+//! same samples.
 
 use std::hint::black_box;
 use std::time::Duration;

@@ -19,6 +19,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use anyhow::Result;
+use raycaster::render::{Mode, SimdLevel};
 use raycaster::volume::{Access, Layout, SampleType, Volume};
 
 pub use case::{
@@ -130,20 +131,29 @@ pub fn small_frame_case(quick: bool) -> BenchCase {
 }
 
 /// The kernel benchmark's cases: shaded DVR at step 0.2 on one render thread, once
-/// per marching kernel this machine runs (scalar first, then each packet level).
+/// per marching kernel this machine runs (scalar first, then each packet level);
+/// then maximum and average intensity (the value kernel's modes) on the scalar
+/// kernel and the widest level.
 pub fn kernel_cases(quick: bool) -> Vec<BenchCase> {
     let (n, image) = sizes(quick);
-    raycaster::render::simd_levels()
-        .iter()
-        .map(|&level| BenchCase {
-            volume: VolumeSpec::shapes(n),
-            threads: Some(1),
-            step: 0.2,
-            image,
-            simd: Some(level),
-            ..BenchCase::default()
-        })
-        .collect()
+    let case = |mode, level| BenchCase {
+        volume: VolumeSpec::shapes(n),
+        threads: Some(1),
+        step: 0.2,
+        image,
+        mode,
+        simd: Some(level),
+        ..BenchCase::default()
+    };
+    let levels = raycaster::render::simd_levels();
+    let widest = SimdLevel::widest();
+    let dvr = levels.iter().map(|&level| case(Mode::Dvr, level));
+    let others = [Mode::Mip, Mode::Average].into_iter().flat_map(|mode| {
+        [SimdLevel::Scalar, widest]
+            .into_iter()
+            .map(move |level| case(mode, level))
+    });
+    dvr.chain(others).collect()
 }
 
 /// Quality at speed: shaded DVR of a `shapes` volume, the default threads,
@@ -207,8 +217,6 @@ impl Volumes {
 #[cfg(test)]
 mod tests {
     use std::collections::HashSet;
-
-    use raycaster::render::Mode;
 
     use super::*;
 

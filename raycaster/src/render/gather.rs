@@ -652,18 +652,8 @@ mod x86 {
 
     /// A chunk's lanes: where its samples lie and what the table makes of them.
     struct ChunkLanes {
-        /// In-cell fractions per axis.
-        fraction: [__m256; 3],
-        /// Lower cell corners per axis (local voxels, whole numbers).
-        lower: [__m256; 3],
-        /// Brick-local byte offsets of the lower corners (0 outside cells).
-        offset: __m256i,
-        /// Lanes below `n` on one of the brick's cells.
-        in_cell: __m256,
-        /// The corner values, in [`crate::render::sampler::Corners`] order.
-        corners: [__m256; 8],
-        /// Lanes below `n` on no cell (bits).
-        outside: u32,
+        /// Where the samples lie, their corners and values.
+        cells: ChunkCells,
         /// In-cell lanes whose entry's opacity is above 0 (bits).
         visible: u32,
     }
@@ -1088,15 +1078,7 @@ mod x86 {
         // SAFETY: `indices` holds eight `i32`s; an unaligned store.
         unsafe { _mm256_storeu_si256(indices.as_mut_ptr().cast::<__m256i>(), index) };
         let visible = table_bits(ray.table.visible_bits(), index) & cells.in_cell_bits;
-        ChunkLanes {
-            fraction: cells.fraction,
-            lower: cells.lower,
-            offset: cells.offset,
-            in_cell: cells.in_cell,
-            corners: cells.corners,
-            outside: cells.outside,
-            visible,
-        }
+        ChunkLanes { cells, visible }
     }
 
     /// The table indices of samples `samples[..n]` into `indices` and
@@ -1118,7 +1100,7 @@ mod x86 {
     ) -> (u32, u32) {
         // SAFETY: the CPU has AVX2 (this function's contract).
         let lanes = unsafe { chunk_lanes(ray, samples, n, indices, local) };
-        (lanes.outside, lanes.visible)
+        (lanes.cells.outside, lanes.visible)
     }
 
     /// [`chunk_indices`], and the gradients of the visible samples whose cells'
@@ -1147,15 +1129,21 @@ mod x86 {
         // SAFETY: the CPU has AVX2 (this function's contract).
         let lanes = unsafe { chunk_lanes(ray, samples, n, indices, local) };
         if lanes.visible == 0 {
-            return (lanes.outside, 0, 0);
+            return (lanes.cells.outside, 0, 0);
         }
         let source = &brick.neighbourhoods;
         // Cells whose neighbourhood lies in the source.
-        let mut interior = lanes.in_cell;
+        let mut interior = lanes.cells.in_cell;
         for a in 0..3 {
             let bounds = _mm256_and_ps(
-                _mm256_cmp_ps::<_CMP_GE_OQ>(lanes.lower[a], _mm256_set1_ps(brick.interior[0][a])),
-                _mm256_cmp_ps::<_CMP_LE_OQ>(lanes.lower[a], _mm256_set1_ps(brick.interior[1][a])),
+                _mm256_cmp_ps::<_CMP_GE_OQ>(
+                    lanes.cells.lower[a],
+                    _mm256_set1_ps(brick.interior[0][a]),
+                ),
+                _mm256_cmp_ps::<_CMP_LE_OQ>(
+                    lanes.cells.lower[a],
+                    _mm256_set1_ps(brick.interior[1][a]),
+                ),
             );
             interior = _mm256_and_ps(interior, bounds);
         }
@@ -1163,7 +1151,7 @@ mod x86 {
         let computed = lanes.visible & interior_bits;
         let fallback = lanes.visible & !interior_bits;
         if computed == 0 {
-            return (lanes.outside, lanes.visible, fallback);
+            return (lanes.cells.outside, lanes.visible, fallback);
         }
         // The neighbourhoods of every interior lane, visible or not: a mask
         // that does not wait for the values, their table entries and the
@@ -1175,18 +1163,18 @@ mod x86 {
         // SAFETY: the lanes of `mask` are on cells whose 4×4×4 neighbourhood
         // lies in the source's slice; the CPU has AVX2.
         unsafe {
-            if near_end(source, lanes.offset, brick.reach) {
+            if near_end(source, lanes.cells.offset, brick.reach) {
                 neighbourhood_gradient::<T, true>(ray, source, &lanes, mask, gradient)
             } else {
                 neighbourhood_gradient::<T, false>(ray, source, &lanes, mask, gradient)
             }
         }
-        (lanes.outside, lanes.visible, fallback)
+        (lanes.cells.outside, lanes.visible, fallback)
     }
 
     /// The gradients of the lanes of `mask` into `gradient`, per axis: the
     /// central differences at their cells' corners, from the 24 voxels of each
-    /// cell's neighbourhood that are not its corners (`lanes.corners`),
+    /// cell's neighbourhood that are not its corners (`lanes.cells.corners`),
     /// interpolated as `gradient_from_differences`, halved. `NEAR`: a read may
     /// reach the source's last four bytes ([`near_end`]).
     ///
@@ -1210,7 +1198,8 @@ mod x86 {
         // corner `max_cell`): what their offsets add.
         let zero = _mm256_setzero_ps();
         let fix = |a: usize, at: __m256, by: i32| {
-            let crossing = _mm256_castps_si256(_mm256_cmp_ps::<_CMP_EQ_OQ>(lanes.lower[a], at));
+            let crossing =
+                _mm256_castps_si256(_mm256_cmp_ps::<_CMP_EQ_OQ>(lanes.cells.lower[a], at));
             _mm256_and_si256(crossing, _mm256_set1_epi32(by))
         };
         let below: [__m256i; 3] = std::array::from_fn(|a| fix(a, zero, -brick.wrap[a]));
@@ -1227,7 +1216,7 @@ mod x86 {
         // in the next stored brick); the CPU has AVX2.
         let at = |x: i32, y: i32, z: i32| {
             let relative = (x - 1) * sx + (y - 1) * sy + (z - 1) * sz;
-            let mut offset = lanes.offset;
+            let mut offset = lanes.cells.offset;
             for (a, c) in [x, y, z].into_iter().enumerate() {
                 if c == 0 {
                     offset = _mm256_add_epi32(offset, below[a]);
@@ -1250,10 +1239,10 @@ mod x86 {
             let (offset, relative) = at(x, y, 1);
             read_pair(source, size, offset, relative, mask, NEAR)
         };
-        let c = &lanes.corners;
+        let c = &lanes.cells.corners;
         let half = _mm256_set1_ps(0.5);
         let mut store = |axis: usize, d: [__m256; 8]| {
-            let g = _mm256_mul_ps(trilinear(&d, lanes.fraction), half);
+            let g = _mm256_mul_ps(trilinear(&d, lanes.cells.fraction), half);
             // SAFETY: `gradient[axis]` holds eight `f32`s; an unaligned store.
             unsafe { _mm256_storeu_ps(gradient[axis].as_mut_ptr(), g) };
         };
