@@ -243,9 +243,10 @@ pub struct RenderArgs {
     /// compiled for `sse4.1`, `avx2`, `avx512` (x86-64) or `neon` (aarch64),
     /// which composite the same image. They serve DVR with a 1D, not
     /// pre-integrated transfer function (with hardware gathers on `avx2` and
-    /// `avx512`); other frames use the scalar kernel. `auto`: `avx2` where the
-    /// CPU has it (for those frames unshaded 1.6–2.3×, shaded 1.2–1.6× the
-    /// scalar kernel's speed; docs/benchmarks.md), else `scalar`.
+    /// `avx512`), and on `avx2` and `avx512` the `mip`, `average`, `xray`,
+    /// `first-hit` and `sabella` modes; other frames use the scalar kernel.
+    /// `auto`: `avx2` where the CPU has it (DVR unshaded 1.6–2.3×, shaded
+    /// 1.2–1.6× the scalar kernel's speed; docs/benchmarks.md), else `scalar`.
     #[arg(long, default_value = "auto", value_parser = parse_simd, value_name = "LEVEL")]
     simd: SimdChoice,
 
