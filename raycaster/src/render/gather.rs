@@ -290,16 +290,7 @@ impl<T: Sample> RunMarcher<Accumulation> for GatherRay<'_, '_, T> {
     /// reached the opacity threshold with sample `k − 1`.
     #[inline(always)]
     fn march_run(&mut self, acc: &mut Accumulation, first: u32, end: u32) -> Option<u32> {
-        let mut k = first;
-        while k < end {
-            let n = (end - k).min(GATHER_LANES as u32) as usize;
-            let samples = std::array::from_fn(|j| k + j as u32);
-            if let Some(j) = self.chunk(acc, &samples, n) {
-                return Some(samples[j] + 1);
-            }
-            k += n as u32;
-        }
-        None
+        march_run_in_chunks(first, end, |chunk, n| self.chunk(acc, chunk, n))
     }
 
     /// Every run of `runs`, eight samples per chunk whatever run they belong
@@ -318,6 +309,28 @@ impl<T: Sample> RunMarcher<Accumulation> for GatherRay<'_, '_, T> {
         }
         march_runs_in_chunks(runs, |chunk, n| self.chunk(acc, chunk, n))
     }
+}
+
+/// Samples `first..end` of one run, eight per chunk, each chunk's first `n`
+/// samples folded by `chunk` (`Some(j)`: the ray stopped at the chunk's
+/// sample `j`); `Some(k)` when the ray stopped before sample `k`, as
+/// [`RunMarcher::march_run`].
+#[inline(always)]
+pub(crate) fn march_run_in_chunks(
+    first: u32,
+    end: u32,
+    mut chunk: impl FnMut(&[u32; GATHER_LANES], usize) -> Option<usize>,
+) -> Option<u32> {
+    let mut k = first;
+    while k < end {
+        let n = (end - k).min(GATHER_LANES as u32) as usize;
+        let samples = std::array::from_fn(|j| k + j as u32);
+        if let Some(j) = chunk(&samples, n) {
+            return Some(samples[j] + 1);
+        }
+        k += n as u32;
+    }
+    None
 }
 
 /// Every run of `runs`, eight samples per chunk whatever run they belong to

@@ -10,9 +10,11 @@
 //! scalar kernel's, which `tests/packet_kernel.rs` checks on every level.
 
 use super::cell_cache::CellCache;
-use super::compositor::{Compositor, SamplePoint, SampleSite};
-use super::gather::{GATHER_LANES, GatherBrick, LineAligned, march_runs_in_chunks};
-use super::march::{BrickVisit, RunMarcher, march_each_run};
+use super::compositor::{Compositor, SampleSite};
+use super::gather::{
+    GATHER_LANES, GatherBrick, LineAligned, march_run_in_chunks, march_runs_in_chunks,
+};
+use super::march::{BrickVisit, RunMarcher, fold_sample, march_each_run};
 use super::packet::PacketWork;
 use super::pixel::SamplePositions;
 use super::runs::SampleRuns;
@@ -102,16 +104,7 @@ struct ValueRay<'v, 'b, T: Sample, C> {
 impl<T: Sample, C: Compositor> RunMarcher<C::State> for ValueRay<'_, '_, T, C> {
     #[inline(always)]
     fn march_run(&mut self, acc: &mut C::State, first: u32, end: u32) -> Option<u32> {
-        let mut k = first;
-        while k < end {
-            let n = (end - k).min(GATHER_LANES as u32) as usize;
-            let samples = std::array::from_fn(|j| k + j as u32);
-            if let Some(j) = self.chunk(acc, &samples, n) {
-                return Some(samples[j] + 1);
-            }
-            k += n as u32;
-        }
-        None
+        march_run_in_chunks(first, end, |chunk, n| self.chunk(acc, chunk, n))
     }
 
     /// Eight samples per chunk across runs, unless the compositor skips runs
@@ -153,21 +146,9 @@ impl<T: Sample, C: Compositor> ValueRay<'_, '_, T, C> {
             cell: self.cell,
             gradient_scale: plan.gradient_scale,
         };
-        let last_sample = ray.samples - 1;
         for (j, (&k, &value)) in samples.iter().zip(&values.0).take(n).enumerate() {
-            let sample = SamplePoint {
-                value,
-                position: self.positions.at(k).into(),
-                index: k,
-                fraction: if k == last_sample {
-                    ray.last_fraction
-                } else {
-                    1.0
-                },
-                site: &site,
-            };
-            self.c.sample(acc, &sample);
-            if self.c.opacity(acc) >= plan.ert_threshold || self.c.finished(acc) {
+            let position = self.positions.at(k).into();
+            if fold_sample(self.c, acc, &site, k, position, value, plan.ert_threshold) {
                 return Some(j);
             }
         }

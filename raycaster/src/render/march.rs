@@ -269,27 +269,46 @@ impl<T: Sample, C: Compositor> RunMarcher<C::State> for SampleLoop<'_, '_, T, C>
             cell,
             gradient_scale: plan.gradient_scale,
         };
-        let last_sample = ray.samples - 1;
         for k in first..end {
             let position = positions.at(k);
-            let sample = SamplePoint {
-                value: cell.value(&brick.sampler, position),
-                position: position.into(),
-                index: k,
-                fraction: if k == last_sample {
-                    ray.last_fraction
-                } else {
-                    1.0
-                },
-                site: &site,
-            };
-            c.sample(acc, &sample);
-            if c.opacity(acc) >= plan.ert_threshold || c.finished(acc) {
+            let value = cell.value(&brick.sampler, position);
+            if fold_sample(c, acc, &site, k, position.into(), value, plan.ert_threshold) {
                 return Some(k + 1);
             }
         }
         None
     }
+}
+
+/// Folds sample `k` of the ray, of value `value` at voxel position `position`,
+/// into `acc` with `c`; whether the ray stops after it (its opacity reached
+/// `ert_threshold`, or `c` is finished). The ray's last sample stands for its
+/// fraction of a step. Every kernel that hands samples to
+/// [`Compositor::sample`] folds them here, whatever reads their values.
+#[inline(always)]
+pub(crate) fn fold_sample<T: Sample, C: Compositor>(
+    c: &C,
+    acc: &mut C::State,
+    site: &SampleSite<'_, T>,
+    k: u32,
+    position: Vec3,
+    value: f32,
+    ert_threshold: f32,
+) -> bool {
+    let ray = site.ray;
+    let sample = SamplePoint {
+        value,
+        position,
+        index: k,
+        fraction: if k == ray.samples - 1 {
+            ray.last_fraction
+        } else {
+            1.0
+        },
+        site,
+    };
+    c.sample(acc, &sample);
+    c.opacity(acc) >= ert_threshold || c.finished(acc)
 }
 
 /// Ends a ray's visit of a brick with sample `next` the next it expects; past its
