@@ -290,7 +290,7 @@ impl<T: Sample> RunMarcher<Accumulation> for GatherRay<'_, '_, T> {
     /// reached the opacity threshold with sample `k − 1`.
     #[inline(always)]
     fn march_run(&mut self, acc: &mut Accumulation, first: u32, end: u32) -> Option<u32> {
-        march_run_in_chunks(first, end, |chunk, n| self.chunk(acc, chunk, n))
+        march_run_in_chunks(self, acc, first, end)
     }
 
     /// Every run of `runs`, eight samples per chunk whatever run they belong
@@ -307,25 +307,33 @@ impl<T: Sample> RunMarcher<Accumulation> for GatherRay<'_, '_, T> {
         if C::STATE_SKIPS || !runs.skips_cells() {
             return march_each_run(self, c, ess, acc, runs);
         }
-        march_runs_in_chunks(runs, |chunk, n| self.chunk(acc, chunk, n))
+        march_runs_in_chunks(self, acc, runs)
     }
 }
 
-/// Samples `first..end` of one run, eight per chunk, each chunk's first `n`
-/// samples folded by `chunk` (`Some(j)`: the ray stopped at the chunk's
-/// sample `j`); `Some(k)` when the ray stopped before sample `k`, as
+/// A kernel that folds a ray's samples into its state eight at a time.
+pub(crate) trait ChunkFolder<S> {
+    /// Samples `samples[..n]` (ascending) into `acc`, in order; `Some(j)` when
+    /// the ray stopped at `samples[j]`. (A trait method rather than a closure,
+    /// so that the kernel is inlined into the loops that call it.)
+    fn chunk(&self, acc: &mut S, samples: &[u32; GATHER_LANES], n: usize) -> Option<usize>;
+}
+
+/// Samples `first..end` of one run into `acc`, eight per chunk folded by
+/// `folder`; `Some(k)` when the ray stopped before sample `k`, as
 /// [`RunMarcher::march_run`].
 #[inline(always)]
-pub(crate) fn march_run_in_chunks(
+pub(crate) fn march_run_in_chunks<S>(
+    folder: &impl ChunkFolder<S>,
+    acc: &mut S,
     first: u32,
     end: u32,
-    mut chunk: impl FnMut(&[u32; GATHER_LANES], usize) -> Option<usize>,
 ) -> Option<u32> {
     let mut k = first;
     while k < end {
         let n = (end - k).min(GATHER_LANES as u32) as usize;
         let samples = std::array::from_fn(|j| k + j as u32);
-        if let Some(j) = chunk(&samples, n) {
+        if let Some(j) = folder.chunk(acc, &samples, n) {
             return Some(samples[j] + 1);
         }
         k += n as u32;
@@ -333,17 +341,17 @@ pub(crate) fn march_run_in_chunks(
     None
 }
 
-/// Every run of `runs`, eight samples per chunk whatever run they belong to
-/// (a chunk of one run would end at every empty cell and brick face), each
-/// chunk's first `n` samples folded by `chunk` (`Some(j)`: the ray stopped at
-/// the chunk's sample `j`): the samples taken, the samples skipped, and
+/// Every run of `runs` into `acc`, eight samples per chunk whatever run they
+/// belong to (a chunk of one run would end at every empty cell and brick
+/// face), folded by `folder`: the samples taken, the samples skipped, and
 /// `Some(k)` when the ray stopped before sample `k`, as
 /// [`RunMarcher::march_runs`]. A ray that stops counts the samples skipped
 /// before its last sample's run only, as one run at a time does.
 #[inline(always)]
-pub(crate) fn march_runs_in_chunks<C: Compositor>(
+pub(crate) fn march_runs_in_chunks<S, C: Compositor>(
+    folder: &impl ChunkFolder<S>,
+    acc: &mut S,
     runs: &mut SampleRuns<'_, C>,
-    mut chunk: impl FnMut(&[u32; GATHER_LANES], usize) -> Option<usize>,
 ) -> (u64, u64, Option<u32>) {
     // A chunk's samples and room for a run's next eight written after
     // them (the lanes past the run's end are overwritten by the next
@@ -366,7 +374,7 @@ pub(crate) fn march_runs_in_chunks<C: Compositor>(
             if n == GATHER_LANES {
                 n = 0;
                 let chunk_samples = samples[..GATHER_LANES].try_into().expect("a chunk");
-                if let Some(j) = chunk(chunk_samples, GATHER_LANES) {
+                if let Some(j) = folder.chunk(acc, chunk_samples, GATHER_LANES) {
                     return (taken + j as u64 + 1, skipped[j], Some(samples[j] + 1));
                 }
                 taken += GATHER_LANES as u64;
@@ -375,7 +383,7 @@ pub(crate) fn march_runs_in_chunks<C: Compositor>(
     }
     if n > 0 {
         let chunk_samples = samples[..GATHER_LANES].try_into().expect("a chunk");
-        if let Some(j) = chunk(chunk_samples, n) {
+        if let Some(j) = folder.chunk(acc, chunk_samples, n) {
             return (taken + j as u64 + 1, skipped[j], Some(samples[j] + 1));
         }
         taken += n as u64;
@@ -383,9 +391,8 @@ pub(crate) fn march_runs_in_chunks<C: Compositor>(
     (taken, runs.skipped, None)
 }
 
-impl<T: Sample> GatherRay<'_, '_, T> {
-    /// Samples `samples[..n]` (ascending) into `acc`, in order; `Some(j)` when
-    /// the ray reached the opacity threshold at `samples[j]`.
+impl<T: Sample> ChunkFolder<Accumulation> for GatherRay<'_, '_, T> {
+    /// Stops at the opacity threshold.
     #[inline(always)]
     fn chunk(
         &self,
@@ -398,7 +405,9 @@ impl<T: Sample> GatherRay<'_, '_, T> {
             None => self.chunk_unshaded(acc, samples, n),
         }
     }
+}
 
+impl<T: Sample> GatherRay<'_, '_, T> {
     /// [`Self::chunk`] without shading.
     #[inline(always)]
     fn chunk_unshaded(

@@ -12,7 +12,7 @@
 use super::cell_cache::CellCache;
 use super::compositor::{Compositor, SampleSite};
 use super::gather::{
-    GATHER_LANES, GatherBrick, LineAligned, march_run_in_chunks, march_runs_in_chunks,
+    ChunkFolder, GATHER_LANES, GatherBrick, LineAligned, march_run_in_chunks, march_runs_in_chunks,
 };
 use super::march::{BrickVisit, RunMarcher, fold_sample, march_each_run};
 use super::packet::PacketWork;
@@ -104,7 +104,7 @@ struct ValueRay<'v, 'b, T: Sample, C> {
 impl<T: Sample, C: Compositor> RunMarcher<C::State> for ValueRay<'_, '_, T, C> {
     #[inline(always)]
     fn march_run(&mut self, acc: &mut C::State, first: u32, end: u32) -> Option<u32> {
-        march_run_in_chunks(first, end, |chunk, n| self.chunk(acc, chunk, n))
+        march_run_in_chunks(self, acc, first, end)
     }
 
     /// Eight samples per chunk across runs, unless the compositor skips runs
@@ -120,14 +120,12 @@ impl<T: Sample, C: Compositor> RunMarcher<C::State> for ValueRay<'_, '_, T, C> {
         if D::STATE_SKIPS || !runs.skips_cells() {
             return march_each_run(self, c, ess, acc, runs);
         }
-        march_runs_in_chunks(runs, |chunk, n| self.chunk(acc, chunk, n))
+        march_runs_in_chunks(self, acc, runs)
     }
 }
 
-impl<T: Sample, C: Compositor> ValueRay<'_, '_, T, C> {
-    /// Samples `samples[..n]` (ascending) into `acc`, in order; `Some(j)`
-    /// when the ray stopped at `samples[j]` (the opacity threshold, or the
-    /// compositor finished).
+impl<T: Sample, C: Compositor> ChunkFolder<C::State> for ValueRay<'_, '_, T, C> {
+    /// Stops at the opacity threshold, or when the compositor is finished.
     #[inline(always)]
     fn chunk(&self, acc: &mut C::State, samples: &[u32; GATHER_LANES], n: usize) -> Option<usize> {
         let BrickVisit {
