@@ -1228,9 +1228,10 @@ mod x86 {
         let above: [__m256i; 3] =
             std::array::from_fn(|a| fix(a, _mm256_set1_ps(brick.max_cell[a]), brick.wrap[a]));
         // Whether a lane of `mask` reads across a z face into another stored
-        // brick (its z voxels 0 to 3 not consecutive then).
-        let wraps_in_z =
-            _mm256_movemask_epi8(_mm256_and_si256(mask, _mm256_or_si256(below[2], above[2]))) != 0;
+        // brick (its z voxels 0 to 3 not consecutive then): any bit of its
+        // wrap. (Not the bytes' sign bits, `movemask`: a wrap such as 61, a
+        // brick of side 4, has none.)
+        let wraps_in_z = _mm256_testz_si256(mask, _mm256_or_si256(below[2], above[2])) == 0;
         // Voxel (x, y, z) of the neighbourhood, the cell's lower corner at
         // (1, 1, 1).
         // SAFETY: every voxel of a lane of `mask` is a sample of the source's
@@ -1342,6 +1343,7 @@ mod tests {
     use crate::render::TransferFunction;
     use crate::render::cell_cache::CellCache;
     use crate::render::optics::{over, partial_step};
+    use crate::render::sampler::tests::to_bricks;
     use crate::render::test_rng::xorshift32;
     use crate::volume::{BlockGrid, Layout, TypedVolume};
 
@@ -1397,12 +1399,9 @@ mod tests {
     fn gathers_equal_the_scalar_loop<T: Sample>(to_sample: impl Fn(u32) -> T, type_max: u16) {
         let dims = [13u32, 11, 17];
         let mut next = xorshift32(0x9e37_79b9);
-        let samples: Vec<T> = (0..dims.iter().product::<u32>())
+        let linear: Vec<T> = (0..dims.iter().product::<u32>())
             .map(|_| to_sample(next()))
             .collect();
-        let data = TypedVolume::new(&samples, dims, Layout::Linear);
-        let volume = VolumeSampler::new(data);
-        let grid = BlockGrid::new(dims, 7);
         let tf = TransferFunction::preset("shapes").unwrap();
         let table = TransferTable::new(&tf, type_max, 0.4);
         let shadings = [
@@ -1416,93 +1415,118 @@ mod tests {
         ];
         let mut unit = move || (next() % 1_000_001) as f32 / 1_000_000.0;
         let (mut compared, mut visible, mut stopped, mut on_no_cell) = (0, 0, 0, 0);
-        for b in grid.iter() {
-            let sampler = BrickSampler::new(data.brick(&grid, b));
-            let Some(brick) = GatherBrick::new(&sampler, &volume) else {
-                #[cfg(target_arch = "x86_64")]
-                assert!(
-                    !std::is_x86_feature_detected!("avx2"),
-                    "AVX2 but no gathers"
-                );
-                return;
+        // Logical bricks of a linear volume, and the stored bricks of bricked
+        // files (gradients across their faces read the next stored brick).
+        for layout in [
+            Layout::Linear,
+            Layout::Bricked { side: 4 },
+            Layout::Bricked { side: 5 },
+            Layout::Bricked { side: 8 },
+        ] {
+            let samples = match layout {
+                Layout::Linear => linear.clone(),
+                Layout::Bricked { side } => to_bricks(&linear, dims, u32::from(side)),
             };
-            let o = Vec3A::from(sampler.origin());
-            let far = Vec3A::from(grid.extent(b).map(|e| (e - 1) as f32));
-            for round in 0..300 {
-                // A start inside the brick, or on one of its upper faces.
-                let mut start = Vec3A::new(unit(), unit(), unit()) * far;
-                let mut dir = Vec3A::new(unit() - 0.5, unit() - 0.5, unit() - 0.5);
-                if round % 5 == 0 {
-                    let axis = round / 5 % 3;
-                    start[axis] = far[axis];
-                    dir[axis] = 0.0;
-                }
-                if round % 7 == 0 {
-                    // Towards the brick's last voxel.
-                    dir = far - start;
-                }
-                let step = dir.normalize_or_zero() * (0.05 + unit() * 0.6);
-                // Samples while the position stays in the brick.
-                let count = (0..400u32)
-                    .take_while(|&k| {
-                        let p = start + step * k as f32;
-                        p.cmpge(Vec3A::ZERO).all() && p.cmple(far).all()
-                    })
-                    .count() as u32;
-                if count == 0 {
-                    continue;
-                }
-                let view_dir = Vec3::from(dir.normalize_or(Vec3A::Z));
-                let shading = shadings[round % 3];
-                let gather_shading = shading.map(|shading| GatherShading {
-                    shading,
-                    gradient_scale: Vec3::new(0.9, 1.1, 1.3),
-                    volume: &volume,
-                });
-                let mut ray = GatherRay {
-                    brick: &brick,
-                    sampler: &sampler,
-                    table: &table,
-                    positions: SamplePositions::new(start + o, step, Vec3A::from(volume.last())),
-                    last_sample: count - 1,
-                    last_fraction: 0.25 + unit() * 0.5,
-                    ert_threshold: if round % 2 == 0 { f32::INFINITY } else { 0.9 },
-                    shade: gather_shading.as_ref(),
-                    lights: shading.map_or((Vec3::ZERO, Vec3::ZERO), |s| s.ray_lights(view_dir)),
+            let data = TypedVolume::new(&samples, dims, layout);
+            let volume = VolumeSampler::new(data);
+            let grid = data.natural_grid(7);
+            for b in grid.iter() {
+                let sampler = BrickSampler::new(data.brick(&grid, b));
+                let Some(brick) = GatherBrick::new(&sampler, &volume) else {
+                    #[cfg(target_arch = "x86_64")]
+                    assert!(
+                        !std::is_x86_feature_detected!("avx2"),
+                        "AVX2 but no gathers"
+                    );
+                    return;
                 };
-                let first = ((unit() * 11.0) as u32).min(count - 1);
-                let (mut a, mut b) = (
-                    Accumulation::starting_at(0.0),
-                    Accumulation::starting_at(0.0),
-                );
-                let gathered = ray.march_run(&mut a, first, count);
-                let scalar = scalar_run(&ray, view_dir, &mut b, first, count);
-                assert_eq!(gathered, scalar, "round {round}");
-                assert_eq!(a.alpha.to_bits(), b.alpha.to_bits(), "round {round}");
-                assert_eq!(
-                    a.color.map(f32::to_bits),
-                    b.color.map(f32::to_bits),
-                    "round {round}"
-                );
-                // The values alone (the value kernel's chunks).
-                let cache = CellCache::default();
-                let mut k = first;
-                while k < count {
-                    let n = ((count - k) as usize).min(GATHER_LANES);
-                    let chunk = std::array::from_fn(|j| k + j as u32);
-                    let mut values = [f32::NAN; GATHER_LANES];
-                    let outside =
-                        brick.chunk_values(&sampler, &ray.positions, &chunk, n, &mut values);
-                    on_no_cell += outside.count_ones();
-                    for (j, &s) in chunk.iter().enumerate().take(n) {
-                        let expected = cache.value(&sampler, ray.positions.at(s));
-                        assert_eq!(values[j].to_bits(), expected.to_bits(), "round {round} {s}");
+                let o = Vec3A::from(sampler.origin());
+                let far = Vec3A::from(grid.extent(b).map(|e| (e - 1) as f32));
+                for round in 0..300 {
+                    // A start inside the brick, or on one of its upper faces.
+                    let mut start = Vec3A::new(unit(), unit(), unit()) * far;
+                    let mut dir = Vec3A::new(unit() - 0.5, unit() - 0.5, unit() - 0.5);
+                    if round % 5 == 0 {
+                        let axis = round / 5 % 3;
+                        start[axis] = far[axis];
+                        dir[axis] = 0.0;
                     }
-                    k += n as u32;
+                    if round % 7 == 0 {
+                        // Towards the brick's last voxel.
+                        dir = far - start;
+                    }
+                    let step = dir.normalize_or_zero() * (0.05 + unit() * 0.6);
+                    // Samples while the position stays in the brick.
+                    let count = (0..400u32)
+                        .take_while(|&k| {
+                            let p = start + step * k as f32;
+                            p.cmpge(Vec3A::ZERO).all() && p.cmple(far).all()
+                        })
+                        .count() as u32;
+                    if count == 0 {
+                        continue;
+                    }
+                    let view_dir = Vec3::from(dir.normalize_or(Vec3A::Z));
+                    let shading = shadings[round % 3];
+                    let gather_shading = shading.map(|shading| GatherShading {
+                        shading,
+                        gradient_scale: Vec3::new(0.9, 1.1, 1.3),
+                        volume: &volume,
+                    });
+                    let mut ray = GatherRay {
+                        brick: &brick,
+                        sampler: &sampler,
+                        table: &table,
+                        positions: SamplePositions::new(
+                            start + o,
+                            step,
+                            Vec3A::from(volume.last()),
+                        ),
+                        last_sample: count - 1,
+                        last_fraction: 0.25 + unit() * 0.5,
+                        ert_threshold: if round % 2 == 0 { f32::INFINITY } else { 0.9 },
+                        shade: gather_shading.as_ref(),
+                        lights: shading
+                            .map_or((Vec3::ZERO, Vec3::ZERO), |s| s.ray_lights(view_dir)),
+                    };
+                    let first = ((unit() * 11.0) as u32).min(count - 1);
+                    let (mut a, mut b) = (
+                        Accumulation::starting_at(0.0),
+                        Accumulation::starting_at(0.0),
+                    );
+                    let gathered = ray.march_run(&mut a, first, count);
+                    let scalar = scalar_run(&ray, view_dir, &mut b, first, count);
+                    assert_eq!(gathered, scalar, "round {round}");
+                    assert_eq!(a.alpha.to_bits(), b.alpha.to_bits(), "round {round}");
+                    assert_eq!(
+                        a.color.map(f32::to_bits),
+                        b.color.map(f32::to_bits),
+                        "round {round}"
+                    );
+                    // The values alone (the value kernel's chunks).
+                    let cache = CellCache::default();
+                    let mut k = first;
+                    while k < count {
+                        let n = ((count - k) as usize).min(GATHER_LANES);
+                        let chunk = std::array::from_fn(|j| k + j as u32);
+                        let mut values = [f32::NAN; GATHER_LANES];
+                        let outside =
+                            brick.chunk_values(&sampler, &ray.positions, &chunk, n, &mut values);
+                        on_no_cell += outside.count_ones();
+                        for (j, &s) in chunk.iter().enumerate().take(n) {
+                            let expected = cache.value(&sampler, ray.positions.at(s));
+                            assert_eq!(
+                                values[j].to_bits(),
+                                expected.to_bits(),
+                                "round {round} {s}"
+                            );
+                        }
+                        k += n as u32;
+                    }
+                    compared += count - first;
+                    visible += u32::from(b.alpha > 0.0);
+                    stopped += u32::from(scalar.is_some());
                 }
-                compared += count - first;
-                visible += u32::from(b.alpha > 0.0);
-                stopped += u32::from(scalar.is_some());
             }
         }
         assert!(

@@ -10,7 +10,7 @@
 //! scalar kernel's, which `tests/packet_kernel.rs` checks on every level.
 
 use super::cell_cache::CellCache;
-use super::compositor::{Compositor, SampleSite};
+use super::compositor::Compositor;
 use super::gather::{
     ChunkFolder, GATHER_LANES, GatherBrick, LineAligned, march_run_in_chunks, march_runs_in_chunks,
 };
@@ -128,22 +128,11 @@ impl<T: Sample, C: Compositor> ChunkFolder<C::State> for ValueRay<'_, '_, T, C> 
     /// Stops at the opacity threshold, or when the compositor is finished.
     #[inline(always)]
     fn chunk(&self, acc: &mut C::State, samples: &[u32; GATHER_LANES], n: usize) -> Option<usize> {
-        let BrickVisit {
-            plan,
-            volume,
-            brick,
-            ray,
-        } = self.visit;
+        let (plan, brick) = (self.visit.plan, self.visit.brick);
         let mut values = LineAligned([0f32; GATHER_LANES]);
         self.gather
             .chunk_values(&brick.sampler, &self.positions, samples, n, &mut values.0);
-        let site = SampleSite {
-            ray,
-            brick,
-            volume,
-            cell: self.cell,
-            gradient_scale: plan.gradient_scale,
-        };
+        let site = self.visit.site(self.cell);
         for (j, (&k, &value)) in samples.iter().zip(&values.0).take(n).enumerate() {
             let position = self.positions.at(k).into();
             if fold_sample(self.c, acc, &site, k, position, value, plan.ert_threshold) {

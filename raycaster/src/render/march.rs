@@ -255,20 +255,9 @@ struct SampleLoop<'v, 'b, T: Sample, C> {
 impl<T: Sample, C: Compositor> RunMarcher<C::State> for SampleLoop<'_, '_, T, C> {
     #[inline(always)]
     fn march_run(&mut self, acc: &mut C::State, first: u32, end: u32) -> Option<u32> {
-        let BrickVisit {
-            plan,
-            volume,
-            brick,
-            ray,
-        } = self.visit;
         let (c, cell, positions) = (self.c, self.cell, self.positions);
-        let site = SampleSite {
-            ray,
-            brick,
-            volume,
-            cell,
-            gradient_scale: plan.gradient_scale,
-        };
+        let (plan, brick) = (self.visit.plan, self.visit.brick);
+        let site = self.visit.site(cell);
         for k in first..end {
             let position = positions.at(k);
             let value = cell.value(&brick.sampler, position);
@@ -309,6 +298,20 @@ pub(crate) fn fold_sample<T: Sample, C: Compositor>(
     };
     c.sample(acc, &sample);
     c.opacity(acc) >= ert_threshold || c.finished(acc)
+}
+
+impl<'v, T: Sample> BrickVisit<'v, '_, T> {
+    /// What the visit's samples share, with `cell` the ray's cell cache.
+    #[inline(always)]
+    pub(crate) fn site(&self, cell: &'v CellCache) -> SampleSite<'v, T> {
+        SampleSite {
+            ray: self.ray,
+            brick: self.brick,
+            volume: self.volume,
+            cell,
+            gradient_scale: self.plan.gradient_scale,
+        }
+    }
 }
 
 /// Ends a ray's visit of a brick with sample `next` the next it expects; past its

@@ -589,7 +589,7 @@ impl<'a, T: Sample> VolumeSampler<'a, T> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::render::test_rng::xorshift32;
 
@@ -634,11 +634,11 @@ mod tests {
     }
 
     /// `samples` (linear, `dims`) stored in bricks of side `side`.
-    fn to_bricks(samples: &[u16], dims: [u32; 3], side: u32) -> Vec<u16> {
+    pub(crate) fn to_bricks<T: Sample>(samples: &[T], dims: [u32; 3], side: u32) -> Vec<T> {
         let linear = TypedVolume::new(samples, dims, Layout::Linear);
         let grid = BlockGrid::new(dims, side);
         let s = side as usize;
-        let mut out = vec![0u16; grid.iter().count() * s * s * s];
+        let mut out = vec![T::from_u16_saturating(0); grid.iter().count() * s * s * s];
         for b in grid.iter() {
             let (o, e) = (grid.origin(b), grid.extent(b));
             let start = grid.index(b) as usize * s * s * s;
