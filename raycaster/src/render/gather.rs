@@ -1345,7 +1345,7 @@ mod tests {
     use crate::render::optics::{over, partial_step};
     use crate::render::sampler::tests::to_bricks;
     use crate::render::test_rng::xorshift32;
-    use crate::volume::{BlockGrid, Layout, TypedVolume};
+    use crate::volume::{Layout, TypedVolume};
 
     /// The scalar kernel's loop for samples `first..end`: the cell cache's
     /// value and gradient, the table, `Shading::shade`, `over`, the threshold.
