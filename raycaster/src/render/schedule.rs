@@ -12,7 +12,8 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::camera::{Camera, PixelRect};
+use super::camera::{Camera, PixelRect, Projection};
+use super::geometry::VolumeGeometry;
 use super::partition::BrickBox;
 use super::prepared::{FramePlan, RenderVolume};
 
@@ -70,6 +71,7 @@ impl FrameSchedule {
         let volume_rect = camera.project_box(lo, hi);
         let spacing = geometry.spacing();
         let step = grid.step() as f32;
+        let eye = sorting_eye(camera, geometry);
         // One record per scheduled brick, sorted in place: no second list and
         // no merge-sort buffer (equal keys keep grid order, as a stable sort
         // would). Both in parallel: the schedule comes before the frame's
@@ -87,7 +89,10 @@ impl FrameSchedule {
             Some(ScheduledBrick {
                 coords: b,
                 rect,
-                depth: camera.depth_key(centre),
+                depth: match camera.projection() {
+                    Projection::Perspective { .. } => (centre - eye).length(),
+                    Projection::Orthographic { .. } => camera.depth_key(centre),
+                },
             })
         };
         let (mut bricks, transparent) = if volume_rect.is_some() {
@@ -152,4 +157,29 @@ impl FrameSchedule {
             transparent,
         }
     }
+}
+
+/// The point a perspective frame sorts its bricks by their distance from: the
+/// eye, or for an eye inside the volume the eye moved a quarter of a brick step
+/// off the faces of the brick that owns it ([`VolumeGeometry::owner`]), into
+/// that brick.
+///
+/// Between two bricks that share a face, the nearer centre is the one on the
+/// eye's side of the face's plane, so any point on the same side of every
+/// brick plane sorts them as the eye does. An eye on a plane (a camera placed
+/// on a brick boundary) is on neither side, and the two centres tie: a ray
+/// leaving the eye takes its first sample, on the plane, in the brick that owns
+/// the plane, and its next ones in the brick on the side it goes, so that
+/// brick must not come first. Moved into its owner, the eye sorts the owner
+/// first; moved by less than half a step, it stays inside the owner and so on
+/// the same side of every other plane.
+fn sorting_eye(camera: &Camera, geometry: &VolumeGeometry) -> Vec3 {
+    let eye = camera.position();
+    let voxel = (eye - geometry.origin()) * geometry.spacing().recip();
+    if !(voxel.cmpge(Vec3::ZERO).all() && voxel.cmple(geometry.last_voxel()).all()) {
+        return eye;
+    }
+    let (lo, hi) = geometry.brick_voxel_box(geometry.owner(voxel));
+    let margin = (hi - lo) * 0.25;
+    geometry.origin() + voxel.clamp(lo + margin, hi - margin) * geometry.spacing()
 }
