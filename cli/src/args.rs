@@ -34,6 +34,15 @@ pub fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
     <[f32; 3]>::try_from(nums).map_err(|_| format!("{s:?} is not a vector; expected x,y,z"))
 }
 
+/// A direction `x,y,z`: [`parse_vec3`], not all zero.
+pub fn parse_direction(s: &str) -> Result<[f32; 3], String> {
+    let v = parse_vec3(s)?;
+    if v == [0.0; 3] {
+        return Err(format!("{s:?} is no direction: x, y and z are all zero"));
+    }
+    Ok(v)
+}
+
 /// `lo,hi` with lo < hi.
 pub fn parse_domain(s: &str) -> Result<[f32; 2], String> {
     let nums = s
@@ -275,6 +284,9 @@ mod tests {
         assert_eq!(parse_vec3("1, 2,3"), Ok([1.0, 2.0, 3.0]));
         assert!(parse_vec3("1,2").is_err());
         assert!(parse_vec3("1,nan,2").is_err());
+        assert_eq!(parse_direction("0,-1,0.5"), Ok([0.0, -1.0, 0.5]));
+        let zero = parse_direction("0,0,-0").unwrap_err();
+        assert!(zero.contains("all zero"), "{zero}");
         assert_eq!(parse_color("#ff0080"), Ok([1.0, 0.0, 128.0 / 255.0]));
         assert_eq!(parse_color("255,255,255"), Ok([1.0; 3]));
         assert!(parse_color("#12345").is_err());

@@ -21,8 +21,8 @@ use raycaster::synth::{SceneKind, synthesize, synthesize_labels};
 use raycaster::volume::{Access, Content, OpenOptions, SampleType, Volume};
 
 use crate::args::{
-    ClipArg, Coord, IsoArg, WindowArg, parse_clip, parse_color, parse_crop, parse_iso,
-    parse_positive, parse_size, parse_threshold, parse_vec3, parse_window,
+    ClipArg, Coord, IsoArg, WindowArg, parse_clip, parse_color, parse_crop, parse_direction,
+    parse_iso, parse_positive, parse_size, parse_threshold, parse_vec3, parse_window,
 };
 use crate::stats;
 
@@ -163,7 +163,7 @@ pub struct RenderArgs {
     no_shading: bool,
 
     /// Light direction x,y,z (world; the light shines along it). Default: a headlight.
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, value_name = "X,Y,Z")]
+    #[arg(long, value_parser = parse_direction, allow_hyphen_values = true, value_name = "X,Y,Z")]
     light: Option<[f32; 3]>,
 
     /// Background colour: #rrggbb, r,g,b, black, white or grey.
