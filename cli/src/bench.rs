@@ -132,7 +132,14 @@ pub struct BenchArgs {
     /// PNG, or SVG when FILE ends in `.svg`.
     #[arg(long, value_name = "FILE")]
     plot: Option<PathBuf>,
+
+    /// Replace existing `--csv` and `--plot` files.
+    #[arg(long)]
+    force: bool,
 }
+
+/// The most render threads a case may ask for (as `raycaster render --threads`).
+const MAX_THREADS: usize = 1024;
 
 fn default_threads() -> Vec<usize> {
     let cores = raycaster_benches::cores();
@@ -284,11 +291,28 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
     if args.frames == 0 || args.threads.contains(&0) || args.tiles.contains(&0) {
         bail!("--frames, --threads and --tiles must be at least 1");
     }
+    if let Some(&n) = args.threads.iter().find(|&&n| n > MAX_THREADS) {
+        bail!("--threads {n}: at most {MAX_THREADS} render threads");
+    }
     if args.bricks.iter().any(|&b| b < 2) {
         bail!("--bricks must be at least 2");
     }
     if !(args.step > 0.0 && args.step.is_finite()) {
         bail!("--step must be a positive number");
+    }
+    // The outputs are checked before the sweep, not after it.
+    if let Some(csv) = &args.csv {
+        crate::output::check_file(csv, args.force)?;
+    }
+    if let Some(path) = &args.plot {
+        let svg = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("svg"));
+        if svg {
+            crate::output::check_file(path, args.force)?;
+        } else {
+            crate::output::check_output(path, args.force)?;
+        }
     }
     let cases = cases(&args);
     let Some(first) = cases.first() else {

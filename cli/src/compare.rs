@@ -21,12 +21,29 @@ pub struct CompareArgs {
     /// Write the difference image (×8) here.
     #[arg(long, value_name = "PNG")]
     diff: Option<PathBuf>,
+    /// Replace an existing difference image.
+    #[arg(long, requires = "diff")]
+    force: bool,
 }
 
 /// Runs `raycaster compare`.
 pub fn run(args: CompareArgs) -> Result<()> {
-    let load =
-        |p: &PathBuf| RgbImage::load_png(p).with_context(|| format!("cannot read {}", p.display()));
+    if let Some(path) = &args.diff {
+        // Never one of the images compared (`--force` would replace it).
+        let same = |p: &PathBuf| match (p.canonicalize(), path.canonicalize()) {
+            (Ok(a), Ok(b)) => a == b,
+            _ => false,
+        };
+        if same(&args.image) || same(&args.reference) {
+            bail!(
+                "{}: is one of the images compared; name another file for --diff",
+                path.display()
+            );
+        }
+        crate::output::check_output(path, args.force)?;
+    }
+    // (The image errors name the file.)
+    let load = |p: &PathBuf| RgbImage::load_png(p).context("cannot read the image");
     let (a, b) = (load(&args.image)?, load(&args.reference)?);
     let (Some(max), Some(psnr)) = (a.max_difference(&b), a.psnr(&b)) else {
         bail!(
@@ -38,9 +55,7 @@ pub fn run(args: CompareArgs) -> Result<()> {
         );
     };
     if let Some(path) = &args.diff {
-        a.diff(&b)
-            .save_png(path)
-            .with_context(|| format!("cannot write {}", path.display()))?;
+        a.diff(&b).save_png(path)?;
     }
     if args.json {
         let psnr = if psnr.is_finite() {

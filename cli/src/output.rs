@@ -4,9 +4,8 @@ use std::path::Path;
 
 use anyhow::{Result, bail};
 
-/// Refuses, before any rendering, an output that could not be written: not a
-/// `.png` name, a missing or unwritable folder, or an existing file without
-/// `--force`.
+/// Refuses, before any rendering, an image output that could not be written:
+/// not a `.png` name, or [`check_file`]'s reasons.
 pub fn check_output(output: &Path, force: bool) -> Result<()> {
     let is_png = output
         .extension()
@@ -17,8 +16,15 @@ pub fn check_output(output: &Path, force: bool) -> Result<()> {
             output.display()
         );
     }
+    check_file(output, force)
+}
+
+/// Refuses, before any work, an output file that could not be written: a
+/// directory, a missing or unwritable folder, a device or named pipe, or an
+/// existing file without `--force`.
+pub fn check_file(output: &Path, force: bool) -> Result<()> {
     if output.is_dir() {
-        bail!("{}: is a directory; name an image file", output.display());
+        bail!("{}: is a directory; name a file", output.display());
     }
     if output.exists() && !force {
         bail!(
@@ -26,8 +32,9 @@ pub fn check_output(output: &Path, force: bool) -> Result<()> {
             output.display()
         );
     }
-    // Creating (and dropping) the temporary file the image will be written to
-    // checks that the folder exists and is writable, before a long render.
+    // Creating (and dropping) the temporary file the output will be written to
+    // checks that the folder exists and is writable and that the output is not
+    // a device or a pipe, before a long render.
     raycaster::files::temp_file_beside(output)
         .map_err(|e| anyhow::anyhow!("{}: cannot write there: {e}", output.display()))?;
     Ok(())

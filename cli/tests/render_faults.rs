@@ -352,7 +352,16 @@ fn bench_reports_median_and_spread_writes_csv_as_it_goes_and_warns_on_one_frame(
     let table = String::from_utf8_lossy(&o.stdout).into_owned();
     assert!(table.contains("median_ms"), "{table}");
     assert!(!stderr(&o).contains("one frame"), "{}", stderr(&o));
+    // An existing CSV is refused before the sweep, and kept, without --force.
     let o = raycaster(&[&common[..], &["--frames", "1"]].concat(), d);
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("b.csv: already exists (pass --force"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(std::fs::read_to_string(d.join("b.csv")).unwrap(), csv);
+    let o = raycaster(&[&common[..], &["--frames", "1", "--force"]].concat(), d);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("timed on one frame"), "{}", stderr(&o));
 }
@@ -496,4 +505,82 @@ fn reading_a_compressed_scan_shows_progress() {
     let e = stderr(&o);
     assert!(e.contains("reading s.nrrd"), "{e}");
     assert!(e.contains("rendering"), "{e}");
+}
+
+/// `raycaster compare --diff` never replaces one of the images compared nor,
+/// without `--force`, an existing file; a named pipe given as an image is
+/// refused at once (it once blocked the reader); outputs never replace a
+/// device (`--force -o /dev/null` once turned it into a regular file).
+#[test]
+fn compare_keeps_its_inputs_and_outputs_refuse_pipes_and_devices() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for name in ["a.png", "b.png"] {
+        let o = raycaster(
+            &[
+                "render",
+                "--scene",
+                "shapes",
+                "--scene-size",
+                "16",
+                "--size",
+                "16",
+                "-o",
+                name,
+            ],
+            d,
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let b = std::fs::read(d.join("b.png")).unwrap();
+    let o = raycaster(
+        &["compare", "a.png", "b.png", "--diff", "b.png", "--force"],
+        d,
+    );
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("is one of the images compared"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(std::fs::read(d.join("b.png")).unwrap(), b);
+    let o = raycaster(&["compare", "a.png", "b.png", "--diff", "d.png"], d);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = raycaster(&["compare", "a.png", "b.png", "--diff", "d.png"], d);
+    assert!(
+        stderr(&o).contains("d.png: already exists (pass --force"),
+        "{}",
+        stderr(&o)
+    );
+    let fifo = d.join("pipe.png");
+    assert!(
+        Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap()
+            .success()
+    );
+    let started = Instant::now();
+    let o = raycaster(&["compare", "a.png", "pipe.png"], d);
+    assert!(started.elapsed() < Duration::from_secs(20));
+    assert!(stderr(&o).contains("named pipe"), "{}", stderr(&o));
+    let o = raycaster(
+        &[
+            "render",
+            "--scene",
+            "shapes",
+            "--scene-size",
+            "16",
+            "--size",
+            "16",
+            "-o",
+            "pipe.png",
+            "--force",
+        ],
+        d,
+    );
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("named pipe"), "{}", stderr(&o));
+    use std::os::unix::fs::FileTypeExt;
+    assert!(std::fs::metadata(&fifo).unwrap().file_type().is_fifo());
 }

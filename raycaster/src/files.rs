@@ -146,6 +146,13 @@ pub fn temp_file_beside(path: &Path) -> std::io::Result<tempfile::NamedTempFile>
         let msg = format!("directory {} does not exist", dir.display());
         return Err(std::io::Error::new(std::io::ErrorKind::NotFound, msg));
     }
+    // The rename at the end would replace a device, a named pipe or a folder's
+    // entry with a regular file (`--force` onto /dev/null): refused.
+    if let Ok(meta) = std::fs::metadata(path)
+        && !meta.is_file()
+    {
+        return Err(not_regular(&meta));
+    }
     let name = path.file_name().unwrap_or_default().to_string_lossy();
     remove_stale_partials(dir, &name);
     tempfile::Builder::new()
@@ -328,5 +335,22 @@ mod tests {
         std::fs::write(&file, "hello").unwrap();
         assert_eq!(read_text(&file, 100).unwrap(), "hello");
         assert!(read_text(&file, 3).is_err());
+        // Nor are they replaced by an output (its rename would turn them into
+        // regular files): `--force` onto /dev/null once did.
+        for (target, kind) in [
+            (fifo.as_path(), "named pipe"),
+            (Path::new("/dev/null"), "device"),
+        ] {
+            let e = temp_file_beside(target).unwrap_err();
+            assert!(e.to_string().contains(kind), "{e}");
+        }
+        std::fs::create_dir(dir.path().join("d.png")).unwrap();
+        let e = temp_file_beside(&dir.path().join("d.png")).unwrap_err();
+        assert!(e.to_string().contains("directory"), "{e}");
+        assert!(std::fs::metadata(&fifo).unwrap().file_type().is_fifo());
+        assert!(
+            temp_file_beside(&file).is_ok(),
+            "a regular file is replaced"
+        );
     }
 }

@@ -25,9 +25,9 @@ use clap::{Parser, Subcommand};
     allow_negative_numbers = true
 )]
 struct Cli {
-    /// Worker threads (default: one per core).
-    #[arg(long, global = true, value_name = "N")]
-    threads: Option<usize>,
+    /// Worker threads (default: one per core; at most 1024).
+    #[arg(long, global = true, value_parser = clap::value_parser!(u16).range(1..=1024), value_name = "N")]
+    threads: Option<u16>,
     #[command(subcommand)]
     command: Command,
 }
@@ -45,12 +45,8 @@ fn main() {
     raycaster::files::guard_mapped_reads();
     let cli = Cli::parse();
     if let Some(n) = cli.threads {
-        if n == 0 {
-            eprintln!("error: --threads must be at least 1");
-            std::process::exit(2);
-        }
         rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
+            .num_threads(usize::from(n))
             .build_global()
             .expect("the global pool is built once, before any parallel work");
     }

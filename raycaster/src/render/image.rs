@@ -1,6 +1,5 @@
 //! 8-bit RGB images: PNG output and input, and comparison with a diff image.
 
-use std::fs::File;
 use std::io::{BufReader, BufWriter};
 use std::path::Path;
 
@@ -98,7 +97,7 @@ impl RgbImage {
 
     /// Reads an 8-bit RGB or RGBA PNG (alpha is dropped).
     pub fn load_png(path: &Path) -> Result<RgbImage, ImageError> {
-        let file = File::open(path).map_err(|source| ImageError::Io {
+        let file = crate::files::open_regular(path).map_err(|source| ImageError::Io {
             path: path.to_path_buf(),
             source,
         })?;
