@@ -155,12 +155,32 @@ pub fn temp_file_beside(path: &Path) -> std::io::Result<tempfile::NamedTempFile>
     }
     let name = path.file_name().unwrap_or_default().to_string_lossy();
     remove_stale_partials(dir, &name);
-    tempfile::Builder::new()
+    let tmp = tempfile::Builder::new()
         .prefix(&format!(".{name}.{}.", std::process::id()))
         .suffix(".partial")
         .permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666))
         .tempfile_in(dir)
-        .map_err(without_temp_path)
+        .map_err(without_temp_path)?;
+    PARTIALS
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .push(tmp.path().to_path_buf());
+    Ok(tmp)
+}
+
+/// Every temporary file [`temp_file_beside`] made in this process: those of
+/// finished outputs were renamed away or deleted since, the others are outputs
+/// still being written.
+static PARTIALS: std::sync::Mutex<Vec<std::path::PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+/// Deletes the temporary files of outputs still being written, for a process
+/// about to exit at once (a second interrupt while the first cancels), so that
+/// it leaves no partial file behind.
+pub fn remove_partial_outputs() {
+    for path in PARTIALS.lock().unwrap_or_else(|e| e.into_inner()).iter() {
+        // (Gone already when its output was finished or dropped.)
+        let _ = std::fs::remove_file(path);
+    }
 }
 
 /// The folder `path` is in (`.` for a bare name).

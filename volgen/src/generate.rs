@@ -121,7 +121,7 @@ pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
     if a.labels.is_some() && !scene.has_labels() {
         bail!("scene `{}` has no label volume; drop --labels", kind.name());
     }
-    if labels.as_deref() == Some(a.output.as_path()) {
+    if labels.as_deref().is_some_and(|l| same_target(l, &a.output)) {
         bail!("--labels must differ from --output");
     }
     let options = WriteOptions {
@@ -129,7 +129,8 @@ pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
         pyramid: !a.no_pyramid,
         ..WriteOptions::default()
     };
-    // Refuse before doing any work when an output exists.
+    // Refuse before doing any work when an output exists or cannot be
+    // written (a missing or read-only folder, a device).
     for path in std::iter::once(&a.output).chain(labels.as_ref()) {
         if !a.force && path.exists() {
             bail!(
@@ -137,6 +138,8 @@ pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
                 path.display()
             );
         }
+        raycaster::files::temp_file_beside(path)
+            .with_context(|| format!("{}: cannot write there", path.display()))?;
     }
     let header = Header::new(
         a.size,
@@ -156,6 +159,7 @@ pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
         h.content = Content::Labels;
         outputs.push((path, h));
     }
+    let mut finished: Vec<PathBuf> = Vec::new();
     for (path, header) in outputs {
         let what = if header.content == Content::Labels {
             "labels"
@@ -173,7 +177,18 @@ pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
             .with_progress(&on_progress)
             .with_cancel(&CANCEL);
         let start = Instant::now();
-        let written = generate(scene.as_ref(), &header, &path, &options, &job)?;
+        let written = match generate(scene.as_ref(), &header, &path, &options, &job) {
+            Ok(written) => written,
+            Err(e) => {
+                // The run writes all its outputs or none: the volume without
+                // its labels is not what was asked for.
+                for done in &finished {
+                    let _ = std::fs::remove_file(done);
+                }
+                return Err(e.into());
+            }
+        };
+        finished.push(path.clone());
         let secs = start.elapsed().as_secs_f64();
         bar.finish_and_clear();
         if !a.quiet {
@@ -191,6 +206,17 @@ pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// Whether `a` and `b` name the same file: the same name in the same folder,
+/// however the folders are written (`x.vol` and `./x.vol`, a linked folder).
+fn same_target(a: &Path, b: &Path) -> bool {
+    let place = |p: &Path| {
+        let folder = raycaster::files::parent_dir(p).canonicalize().ok();
+        (folder, p.file_name().map(|n| n.to_os_string()))
+    };
+    let (pa, pb) = (place(a), place(b));
+    pa.0.is_some() && pa == pb
 }
 
 /// `, pyramid of 3 levels` (or nothing).

@@ -10,13 +10,14 @@ pub static CANCEL: AtomicBool = AtomicBool::new(false);
 
 /// Makes Ctrl-C, SIGTERM and SIGHUP request a clean cancel instead of killing the
 /// process mid-write: the job stops at its next batch and removes its partial
-/// output. A second signal exits at once (exit status 130); a partial file it
-/// leaves is removed by the next run writing the same file.
+/// output. A second signal (`timeout` sends two) exits at once, exit status
+/// 130, deleting the partial outputs first.
 pub fn install_signal_handler() {
     // A second handler cannot be installed; the first one is all we need.
     let _ = ctrlc::set_handler(|| {
         if CANCEL.swap(true, Ordering::Relaxed) {
-            eprintln!("interrupted again: stopping now");
+            raycaster::files::remove_partial_outputs();
+            eprintln!("interrupted again: stopping now; no output was written");
             std::process::exit(130);
         }
     });

@@ -103,6 +103,33 @@ fn shells_writes_a_matching_label_volume() {
     );
 }
 
+/// A run writes its volume and its labels or neither: a labels path that
+/// cannot be written, or that names the volume in other words, is refused
+/// before anything is written.
+#[test]
+fn labels_that_cannot_be_written_leave_no_volume_either() {
+    let dir = tempfile::tempdir().unwrap();
+    for (labels, says) in [
+        ("missing/s.vol", "cannot write there"),
+        ("./s.vol", "must differ"),
+    ] {
+        let o = volgen(
+            dir.path(),
+            &[
+                "generate", "--scene", "shells", "--size", "16", "-o", "s.vol", "--labels", labels,
+                "--force",
+            ],
+        );
+        assert!(!o.status.success());
+        assert!(stderr(&o).contains(says), "{labels}: {}", stderr(&o));
+        assert!(
+            files_in(dir.path()).is_empty(),
+            "{:?}",
+            files_in(dir.path())
+        );
+    }
+}
+
 #[test]
 fn existing_output_needs_force() {
     let dir = tempfile::tempdir().unwrap();

@@ -85,6 +85,44 @@ fn sigterm_and_sighup_cancel_like_ctrl_c_and_leave_no_partial_file() {
     }
 }
 
+/// Two signals (GNU `timeout` sends the child two): the second exits at once,
+/// and leaves no partial file either.
+#[test]
+fn a_second_signal_exits_at_once_and_leaves_no_partial_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let child = Command::new(env!("CARGO_BIN_EXE_volgen"))
+        .current_dir(dir.path())
+        .args([
+            "generate", "--scene", "noise", "--size", "600", "-o", "big.vol",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    while !files_in(dir.path()).iter().any(|n| n.ends_with(".partial")) {
+        assert!(
+            start.elapsed() < Duration::from_secs(30),
+            "no partial file appeared"
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let pid = child.id() as i32;
+    assert_eq!(unsafe { libc::kill(pid, libc::SIGTERM) }, 0);
+    // (Not at once: two pending signals of one kind are delivered as one.)
+    std::thread::sleep(Duration::from_millis(2));
+    assert_eq!(unsafe { libc::kill(pid, libc::SIGTERM) }, 0);
+    let o = wait_at_most(child, Duration::from_secs(60));
+    // The first may have finished cancelling before the second arrived.
+    assert!(matches!(o.status.code(), Some(1 | 130)), "{}", stderr(&o));
+    assert!(
+        files_in(dir.path()).is_empty(),
+        "left {:?}: {}",
+        files_in(dir.path()),
+        stderr(&o)
+    );
+}
+
 #[test]
 fn an_impossible_size_is_refused_up_front() {
     let dir = tempfile::tempdir().unwrap();
