@@ -193,8 +193,13 @@ pub fn parent_dir(path: &Path) -> &Path {
 /// The error without the temporary file's name `tempfile` adds ("… at path
 /// .a.vol.1234.Xy7.partial"): users know the target, not our scratch names.
 fn without_temp_path(e: std::io::Error) -> std::io::Error {
-    match e.get_ref().and_then(|inner| inner.source()) {
-        Some(cause) => std::io::Error::new(e.kind(), cause.to_string()),
+    if let Some(cause) = e.get_ref().and_then(|inner| inner.source()) {
+        return std::io::Error::new(e.kind(), cause.to_string());
+    }
+    // (`tempfile`'s error has no source: its text ends with the path.)
+    let text = e.to_string();
+    match text.find(" at path \"") {
+        Some(end) => std::io::Error::new(e.kind(), text[..end].to_string()),
         None => e,
     }
 }
@@ -324,6 +329,10 @@ mod tests {
         assert!(other.exists());
         let e = temp_file_beside(&dir.path().join("nodir/a.vol")).unwrap_err();
         assert!(e.to_string().contains("nodir"), "{e}");
+        // A folder no file can be made in (even by root): the error is the
+        // system's, without our temporary file's name.
+        let e = temp_file_beside(Path::new("/proc/a.vol")).unwrap_err();
+        assert!(!e.to_string().contains("partial"), "{e}");
     }
 
     #[test]

@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::bail;
+use anyhow::{Context, bail};
 use clap::Args;
 use raycaster::convert::{ConvertOptions, ValueMap, convert};
 use raycaster::import::{self, Imported};
@@ -104,6 +104,10 @@ pub struct ConvertArgs {
 }
 
 pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
+    // A folder, a device or an unwritable folder: said before the input is read
+    // (and never "already exists" for a folder --force cannot replace).
+    raycaster::files::temp_file_beside(&a.output)
+        .with_context(|| format!("{}: cannot write there", a.output.display()))?;
     if !a.force && a.output.exists() {
         bail!(
             "{}: already exists (pass --force to replace it)",

@@ -132,14 +132,14 @@ pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
     // Refuse before doing any work when an output exists or cannot be
     // written (a missing or read-only folder, a device).
     for path in std::iter::once(&a.output).chain(labels.as_ref()) {
+        raycaster::files::temp_file_beside(path)
+            .with_context(|| format!("{}: cannot write there", path.display()))?;
         if !a.force && path.exists() {
             bail!(
                 "{}: already exists (pass --force to replace it)",
                 path.display()
             );
         }
-        raycaster::files::temp_file_beside(path)
-            .with_context(|| format!("{}: cannot write there", path.display()))?;
     }
     let header = Header::new(
         a.size,
