@@ -515,21 +515,20 @@ fn reading_a_compressed_scan_shows_progress() {
 fn compare_keeps_its_inputs_and_outputs_refuse_pipes_and_devices() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
+    let render = |more: &[&str]| {
+        let tiny = [
+            "render",
+            "--scene",
+            "shapes",
+            "--scene-size",
+            "16",
+            "--size",
+            "16",
+        ];
+        raycaster(&[&tiny[..], more].concat(), d)
+    };
     for name in ["a.png", "b.png"] {
-        let o = raycaster(
-            &[
-                "render",
-                "--scene",
-                "shapes",
-                "--scene-size",
-                "16",
-                "--size",
-                "16",
-                "-o",
-                name,
-            ],
-            d,
-        );
+        let o = render(&["-o", name]);
         assert!(o.status.success(), "{}", stderr(&o));
     }
     let b = std::fs::read(d.join("b.png")).unwrap();
@@ -564,21 +563,7 @@ fn compare_keeps_its_inputs_and_outputs_refuse_pipes_and_devices() {
     let o = raycaster(&["compare", "a.png", "pipe.png"], d);
     assert!(started.elapsed() < Duration::from_secs(20));
     assert!(stderr(&o).contains("named pipe"), "{}", stderr(&o));
-    let o = raycaster(
-        &[
-            "render",
-            "--scene",
-            "shapes",
-            "--scene-size",
-            "16",
-            "--size",
-            "16",
-            "-o",
-            "pipe.png",
-            "--force",
-        ],
-        d,
-    );
+    let o = render(&["-o", "pipe.png", "--force"]);
     assert!(!o.status.success());
     assert!(stderr(&o).contains("named pipe"), "{}", stderr(&o));
     use std::os::unix::fs::FileTypeExt;

@@ -23,6 +23,50 @@ fn packet_levels() -> Vec<SimdLevel> {
         .collect()
 }
 
+/// The layouts the kernels are compared on. (Logical sub-bricks of a bricked
+/// file last: their neighbours across a face lie in the same stored brick or
+/// the next. Bricks of side 5: wraps across a z face whose bytes have no sign
+/// bit, which a byte mask once missed.)
+const LAYOUTS: [(Layout, SampleType, Option<u32>); 5] = [
+    (Layout::Linear, SampleType::U8, None),
+    (Layout::Bricked { side: 16 }, SampleType::U16, None),
+    (Layout::Bricked { side: 8 }, SampleType::U8, None),
+    (Layout::Bricked { side: 5 }, SampleType::U8, None),
+    (Layout::Bricked { side: 16 }, SampleType::U8, Some(6)),
+];
+
+/// Renders `settings` (on the scalar kernel) on each of `levels` too and
+/// asserts the same frame to the bit and the same counts; the frames compared.
+fn assert_levels_equal_scalar(
+    prepared: &RenderVolume<'_>,
+    camera: &raycaster::render::Camera,
+    settings: &RenderSettings,
+    options: &ParallelOptions,
+    levels: &[SimdLevel],
+    name: &str,
+) -> usize {
+    let scalar = render_parallel(prepared, camera, settings, options).unwrap();
+    assert!(scalar.stats.counters.samples > 0, "{name}");
+    for &level in levels {
+        let packets = render_parallel(
+            prepared,
+            camera,
+            &RenderSettings {
+                simd: Some(level),
+                ..settings.clone()
+            },
+            options,
+        )
+        .unwrap();
+        assert!(packets.rgba == scalar.rgba, "{name} {level}: images differ");
+        assert_eq!(
+            packets.stats.counters, scalar.stats.counters,
+            "{name} {level}: counts differ"
+        );
+    }
+    levels.len()
+}
+
 #[test]
 fn packets_equal_the_scalar_kernel_bit_for_bit_on_every_level() {
     let levels = packet_levels();
@@ -31,17 +75,7 @@ fn packets_equal_the_scalar_kernel_bit_for_bit_on_every_level() {
     let dir = tempfile::tempdir().unwrap();
     let mut frames = 0;
     for kind in [SceneKind::Shapes, SceneKind::Noise, SceneKind::Shells] {
-        // (Logical sub-bricks of a bricked file last: their neighbours across
-        // a face lie in the same stored brick or the next.)
-        // (Bricks of side 5: wraps across a z face whose bytes have no sign
-        // bit, which a byte mask once missed.)
-        for (layout, sample_type, brick_side) in [
-            (Layout::Linear, SampleType::U8, None),
-            (Layout::Bricked { side: 16 }, SampleType::U16, None),
-            (Layout::Bricked { side: 8 }, SampleType::U8, None),
-            (Layout::Bricked { side: 5 }, SampleType::U8, None),
-            (Layout::Bricked { side: 16 }, SampleType::U8, Some(6)),
-        ] {
+        for (layout, sample_type, brick_side) in LAYOUTS {
             let file = scene_file(dir.path(), kind, N, layout, sample_type, Access::Mapped);
             let prepared = RenderVolume::new(&file, brick_side).unwrap();
             let camera = default_camera(&file, 48);
@@ -70,29 +104,12 @@ fn packets_equal_the_scalar_kernel_bit_for_bit_on_every_level() {
                         compositing_threads: 1,
                         tile_size: [16, 7, 32][round],
                     };
-                    let scalar = render_parallel(&prepared, &camera, &settings, &options).unwrap();
-                    for &level in &levels {
-                        let packets = render_parallel(
-                            &prepared,
-                            &camera,
-                            &RenderSettings {
-                                simd: Some(level),
-                                ..settings.clone()
-                            },
-                            &options,
-                        )
-                        .unwrap();
-                        let name = format!(
-                            "{kind:?} {layout:?} {sample_type:?} bricks {brick_side:?} light {round} ert {ert} ess {ess} {level}"
-                        );
-                        assert!(packets.rgba == scalar.rgba, "{name}: images differ");
-                        assert_eq!(
-                            packets.stats.counters, scalar.stats.counters,
-                            "{name}: counts differ"
-                        );
-                        frames += 1;
-                    }
-                    assert!(scalar.stats.counters.samples > 0);
+                    let name = format!(
+                        "{kind:?} {layout:?} {sample_type:?} bricks {brick_side:?} light {round} ert {ert} ess {ess}"
+                    );
+                    frames += assert_levels_equal_scalar(
+                        &prepared, &camera, &settings, &options, &levels, &name,
+                    );
                 }
             }
         }
@@ -118,12 +135,7 @@ fn value_modes_in_packets_equal_the_scalar_kernel_bit_for_bit_on_every_level() {
     ];
     let mut frames = 0;
     for kind in [SceneKind::Shapes, SceneKind::Noise] {
-        for (layout, sample_type, brick_side) in [
-            (Layout::Linear, SampleType::U8, None),
-            (Layout::Bricked { side: 16 }, SampleType::U16, None),
-            (Layout::Bricked { side: 8 }, SampleType::U8, None),
-            (Layout::Bricked { side: 16 }, SampleType::U8, Some(6)),
-        ] {
+        for (layout, sample_type, brick_side) in LAYOUTS {
             let file = scene_file(dir.path(), kind, N, layout, sample_type, Access::Mapped);
             let prepared = RenderVolume::new(&file, brick_side).unwrap();
             let camera = default_camera(&file, 40);
@@ -144,35 +156,18 @@ fn value_modes_in_packets_equal_the_scalar_kernel_bit_for_bit_on_every_level() {
                         compositing_threads: 1,
                         tile_size: [16, 7, 32, 11, 9][round],
                     };
-                    let scalar = render_parallel(&prepared, &camera, &settings, &options).unwrap();
-                    assert!(scalar.stats.counters.samples > 0);
-                    for &level in &levels {
-                        let packets = render_parallel(
-                            &prepared,
-                            &camera,
-                            &RenderSettings {
-                                simd: Some(level),
-                                ..settings.clone()
-                            },
-                            &options,
-                        )
-                        .unwrap();
-                        let name = format!(
-                            "{kind:?} {layout:?} {sample_type:?} bricks {brick_side:?} {} ert {ert} ess {ess} {level}",
-                            mode.name()
-                        );
-                        assert!(packets.rgba == scalar.rgba, "{name}: images differ");
-                        assert_eq!(
-                            packets.stats.counters, scalar.stats.counters,
-                            "{name}: counts differ"
-                        );
-                        frames += 1;
-                    }
+                    let name = format!(
+                        "{kind:?} {layout:?} {sample_type:?} bricks {brick_side:?} {} ert {ert} ess {ess}",
+                        mode.name()
+                    );
+                    frames += assert_levels_equal_scalar(
+                        &prepared, &camera, &settings, &options, &levels, &name,
+                    );
                 }
             }
         }
     }
-    assert_eq!(frames, 120 * levels.len());
+    assert_eq!(frames, 150 * levels.len());
 }
 
 #[test]

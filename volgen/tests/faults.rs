@@ -46,9 +46,8 @@ fn wait_at_most(mut child: std::process::Child, limit: Duration) -> Output {
     child.wait_with_output().unwrap()
 }
 
-/// Starts a long `generate`, waits until its partial file exists, sends `signal` and
-/// returns the finished process's output.
-fn interrupt_generate(dir: &Path, signal: i32) -> Output {
+/// Starts a long `generate` and waits until its partial file exists.
+fn start_generate(dir: &Path) -> std::process::Child {
     let child = Command::new(env!("CARGO_BIN_EXE_volgen"))
         .current_dir(dir)
         .args([
@@ -66,6 +65,13 @@ fn interrupt_generate(dir: &Path, signal: i32) -> Output {
         );
         std::thread::sleep(Duration::from_millis(5));
     }
+    child
+}
+
+/// Starts a long `generate`, waits until its partial file exists, sends `signal` and
+/// returns the finished process's output.
+fn interrupt_generate(dir: &Path, signal: i32) -> Output {
+    let child = start_generate(dir);
     assert_eq!(unsafe { libc::kill(child.id() as i32, signal) }, 0);
     wait_at_most(child, Duration::from_secs(60))
 }
@@ -90,23 +96,7 @@ fn sigterm_and_sighup_cancel_like_ctrl_c_and_leave_no_partial_file() {
 #[test]
 fn a_second_signal_exits_at_once_and_leaves_no_partial_file() {
     let dir = tempfile::tempdir().unwrap();
-    let child = Command::new(env!("CARGO_BIN_EXE_volgen"))
-        .current_dir(dir.path())
-        .args([
-            "generate", "--scene", "noise", "--size", "600", "-o", "big.vol",
-        ])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let start = Instant::now();
-    while !files_in(dir.path()).iter().any(|n| n.ends_with(".partial")) {
-        assert!(
-            start.elapsed() < Duration::from_secs(30),
-            "no partial file appeared"
-        );
-        std::thread::sleep(Duration::from_millis(5));
-    }
+    let child = start_generate(dir.path());
     let pid = child.id() as i32;
     assert_eq!(unsafe { libc::kill(pid, libc::SIGTERM) }, 0);
     // (Not at once: two pending signals of one kind are delivered as one.)
