@@ -49,6 +49,10 @@ pub(crate) fn march_values<T: Sample, C: Compositor>(
     true
 }
 
+/// [`march_values_in_chunks`] compiled for AVX2.
+///
+/// # Safety
+/// The CPU has AVX2.
 #[cfg(target_arch = "x86_64")]
 #[allow(unsafe_code)]
 #[target_feature(enable = "avx2")]
