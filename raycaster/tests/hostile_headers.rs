@@ -662,6 +662,45 @@ fn nan_negative_zero_and_infinite_spacing() {
     assert_eq!(open_ok(&p).spacing(), [0.001, 1.0, 250.0]);
 }
 
+/// Finite positive spacings that no scan has: a denormal, one near the largest
+/// float, or one whose extent over the volume overflows world positions (they
+/// once passed `info` and `convert` and failed in `render` with "camera
+/// position must be finite").
+#[test]
+fn absurd_spacing_and_extent() {
+    let dir = TempDir::new().unwrap();
+    for (i, (dims, value)) in [
+        ([2; 3], 1e-45f32),
+        ([2; 3], 1e-16),
+        ([2; 3], 3e38),
+        ([2; 3], 2e15),
+        ([20, 2, 2], 1e14),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let mut raw = RawHeader::extended(dims, None, 1);
+        raw.spacing[0] = value;
+        let p = write(&dir, &format!("absurd{i}.vol"), &raw.file());
+        match header_error(&p) {
+            HeaderError::AbsurdSpacing {
+                axis: 'x',
+                value: v,
+            } => {
+                assert_eq!(v.to_bits(), value.to_bits(), "spacing {value}")
+            }
+            other => panic!("spacing {value}: got {other:?}"),
+        }
+    }
+    // Control: the bounds themselves are read.
+    for (i, value) in [1e-15f32, 5e14].into_iter().enumerate() {
+        let mut raw = RawHeader::extended([2; 3], None, 1);
+        raw.spacing[0] = value;
+        let p = write(&dir, &format!("edge{i}.vol"), &raw.file());
+        assert_eq!(open_ok(&p).spacing()[0], value);
+    }
+}
+
 #[test]
 fn unknown_order_byte() {
     let dir = TempDir::new().unwrap();

@@ -37,6 +37,15 @@ pub const MAX_HEADER_LEN: u64 = ORIENTED_HEADER_LEN;
 pub const EXTENSION_VERSION_PLAIN: u16 = 1;
 /// The largest size accepted on any axis (2^20 voxels).
 pub const MAX_AXIS: u32 = 1 << 20;
+
+/// The smallest spacing a header may give (a denormal such as 1e-45 is a broken
+/// header, not a scale; squares of distances stay normal floats above it).
+pub const MIN_SPACING: f32 = 1e-15;
+
+/// The largest spacing, and the largest extent (spacing × size) along an axis,
+/// a header may give: beyond it the squares of world distances (the camera's)
+/// overflow.
+pub const MAX_SPACING: f32 = 1e15;
 /// Order byte of a thesis linear file.
 const ORDER_LINEAR: u8 = 1;
 /// Order byte of a thesis bricked file.
@@ -168,6 +177,19 @@ pub enum HeaderError {
     /// Spacing is NaN, infinite, zero or negative.
     #[error("spacing on {axis} is {value}; it must be a positive finite number")]
     BadSpacing {
+        /// Axis name.
+        axis: char,
+        /// The spacing found.
+        value: f32,
+    },
+    /// Spacing is finite and positive but absurd: outside
+    /// [`MIN_SPACING`]..=[`MAX_SPACING`], or the volume's extent along the axis
+    /// (spacing × size) above [`MAX_SPACING`], where world positions and the
+    /// camera overflow.
+    #[error(
+        "spacing on {axis} is {value:e}; a spacing is read from {MIN_SPACING:e} to {MAX_SPACING:e}, with the volume's extent (spacing × size) at most {MAX_SPACING:e}"
+    )]
+    AbsurdSpacing {
         /// Axis name.
         axis: char,
         /// The spacing found.
@@ -354,9 +376,17 @@ impl Header {
                 });
             }
         }
-        for (axis, &s) in AXES.iter().zip(&self.spacing) {
+        for ((axis, &s), &d) in AXES.iter().zip(&self.spacing).zip(&self.dims) {
             if !(s.is_finite() && s > 0.0) {
                 return Err(HeaderError::BadSpacing {
+                    axis: *axis,
+                    value: s,
+                });
+            }
+            if !(MIN_SPACING..=MAX_SPACING).contains(&s)
+                || f64::from(s) * f64::from(d) > f64::from(MAX_SPACING)
+            {
+                return Err(HeaderError::AbsurdSpacing {
                     axis: *axis,
                     value: s,
                 });
