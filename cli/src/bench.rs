@@ -305,10 +305,7 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
         crate::output::check_file(csv, args.force)?;
     }
     if let Some(path) = &args.plot {
-        let svg = path
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("svg"));
-        if svg {
+        if plot::is_svg(path) {
             crate::output::check_file(path, args.force)?;
         } else {
             crate::output::check_output(path, args.force)?;

@@ -23,13 +23,16 @@ const SIZE: (u32, u32) = (1500, 900);
 /// DejaVu Sans, printable ASCII and a few symbols (see fonts/LICENSE-DejaVu.txt).
 static FONT: &[u8] = include_bytes!("../fonts/DejaVuSans-subset.ttf");
 
+/// Whether a plot to `path` is written as SVG (it ends in `.svg`), else PNG.
+pub fn is_svg(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("svg"))
+}
+
 /// Writes the plot of `records` to `path`: SVG when it ends in `.svg`, else PNG.
 pub fn write(path: &Path, records: &[Record]) -> Result<()> {
     register_font()?;
-    let svg = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("svg"));
-    if svg {
+    if is_svg(path) {
         let mut text = String::new();
         draw(
             SVGBackend::with_string(&mut text, SIZE).into_drawing_area(),

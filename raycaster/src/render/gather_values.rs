@@ -74,26 +74,18 @@ fn march_values_in_chunks<T: Sample, C: Compositor>(
 ) {
     // For what a compositor reads beside the value (a gradient at a hit).
     let cell = CellCache::default();
-    for item in work.items {
-        let (Some(ray), state) = (&work.rays[item.pixel], &mut work.states[item.pixel]) else {
-            continue;
-        };
-        let visit = BrickVisit {
-            plan: work.plan,
-            volume: work.volume,
-            brick: work.brick,
-            ray,
-        };
-        visit.march(c, item.first, item.last, state, work.counters, || {
-            ValueRay {
+    work.for_each_visit(
+        #[inline(always)]
+        |visit, item, state, counters| {
+            visit.march(c, item.first, item.last, state, counters, || ValueRay {
                 c,
                 visit,
                 gather,
                 cell: &cell,
-                positions: ray.positions(work.volume.last()),
-            }
-        });
-    }
+                positions: visit.ray.positions(visit.volume.last()),
+            });
+        },
+    );
 }
 
 /// One ray's visit of a brick, its values gathered.

@@ -75,6 +75,30 @@ pub(crate) struct PacketWork<'w, 'b, T: Sample, S> {
     pub counters: &'w mut Counters,
 }
 
+impl<'w, 'b, T: Sample, S> PacketWork<'w, 'b, T, S> {
+    /// Calls `march` for each of the task's rays (those with samples): its
+    /// visit of the brick, its owned samples, its pixel state and the task's
+    /// counters.
+    #[inline(always)]
+    pub(crate) fn for_each_visit(
+        &mut self,
+        mut march: impl FnMut(BrickVisit<'w, 'b, T>, &PacketItem, &mut PixelState<S>, &mut Counters),
+    ) {
+        for item in self.items {
+            let (Some(ray), state) = (&self.rays[item.pixel], &mut self.states[item.pixel]) else {
+                continue;
+            };
+            let visit = BrickVisit {
+                plan: self.plan,
+                volume: self.volume,
+                brick: self.brick,
+                ray,
+            };
+            march(visit, item, state, self.counters);
+        }
+    }
+}
+
 /// Emission–absorption DVR with a 1D transfer table, shaded or not: the
 /// compositor the SIMD kernel runs.
 pub(crate) struct DvrLanes<'t> {
@@ -176,42 +200,36 @@ fn march_dvr_chunks<T: Sample>(
         gradient_scale: work.plan.gradient_scale,
         volume: work.volume,
     });
-    for item in work.items {
-        let (Some(ray), state) = (&work.rays[item.pixel], &mut work.states[item.pixel]) else {
-            continue;
-        };
-        let visit = BrickVisit {
-            plan: work.plan,
-            volume: work.volume,
-            brick: work.brick,
-            ray,
-        };
-        let (c, first, last) = (dvr.runs_compositor, item.first, item.last);
-        let positions = || ray.positions(work.volume.last());
-        if let Some(brick) = &gather_brick {
-            visit.march(c, first, last, state, work.counters, || GatherRay {
-                brick,
-                sampler: &work.brick.sampler,
-                table: dvr.table,
-                positions: positions(),
-                last_sample: ray.samples - 1,
-                last_fraction: ray.last_fraction,
-                ert_threshold: work.plan.ert_threshold,
-                shade: gather_shading.as_ref(),
-                lights: dvr
-                    .shading
-                    .map_or((Vec3::ZERO, Vec3::ZERO), |s| s.ray_lights(ray.view_dir)),
-            });
-        } else {
-            visit.march(c, first, last, state, work.counters, || DvrChunks {
-                dvr,
-                visit,
-                cell: &cell,
-                positions: positions(),
-                shade: dvr.shading.map(|s| (s, s.ray_lights(ray.view_dir))),
-            });
-        }
-    }
+    work.for_each_visit(
+        #[inline(always)]
+        |visit, item, state, counters| {
+            let (c, first, last, ray) = (dvr.runs_compositor, item.first, item.last, visit.ray);
+            let positions = || ray.positions(visit.volume.last());
+            if let Some(brick) = &gather_brick {
+                visit.march(c, first, last, state, counters, || GatherRay {
+                    brick,
+                    sampler: &visit.brick.sampler,
+                    table: dvr.table,
+                    positions: positions(),
+                    last_sample: ray.samples - 1,
+                    last_fraction: ray.last_fraction,
+                    ert_threshold: visit.plan.ert_threshold,
+                    shade: gather_shading.as_ref(),
+                    lights: dvr
+                        .shading
+                        .map_or((Vec3::ZERO, Vec3::ZERO), |s| s.ray_lights(ray.view_dir)),
+                });
+            } else {
+                visit.march(c, first, last, state, counters, || DvrChunks {
+                    dvr,
+                    visit,
+                    cell: &cell,
+                    positions: positions(),
+                    shade: dvr.shading.map(|s| (s, s.ray_lights(ray.view_dir))),
+                });
+            }
+        },
+    );
 }
 
 /// One ray's visit of a brick, marched in chunks.
