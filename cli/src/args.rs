@@ -151,12 +151,26 @@ pub fn parse_threshold(s: &str) -> Result<f32, String> {
         .ok_or_else(|| format!("{s:?} must be a number in (0, 1]"))
 }
 
+/// A finite number; one beyond `f32`'s range is refused as too large, not
+/// taken as infinite.
+pub fn parse_finite(s: &str) -> Result<f32, String> {
+    match s.trim().parse::<f32>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        Ok(v) if !v.is_nan() && !s.to_ascii_lowercase().contains("inf") => Err(format!(
+            "{s:?} is too large: numbers here lie within ±{:e}",
+            f32::MAX
+        )),
+        _ => Err(format!("{s:?} must be a finite number")),
+    }
+}
+
 /// A positive finite number.
 pub fn parse_positive(s: &str) -> Result<f32, String> {
-    s.parse::<f32>()
-        .ok()
-        .filter(|&v| v > 0.0 && v.is_finite())
-        .ok_or_else(|| format!("{s:?} must be a positive number"))
+    match parse_finite(s) {
+        Ok(v) if v > 0.0 => Ok(v),
+        Err(e) if e.contains("too large") => Err(e),
+        _ => Err(format!("{s:?} must be a positive number")),
+    }
 }
 
 /// A coordinate along one axis of the volume: voxels, or a percentage of the
@@ -309,5 +323,21 @@ mod tests {
         assert!(parse_domain("5,5").is_err());
         assert!(parse_threshold("0").is_err());
         assert!(parse_positive("-1").is_err());
+    }
+
+    #[test]
+    fn finite_numbers_refuse_nan_infinity_and_overflow_by_name() {
+        assert_eq!(parse_finite("-60"), Ok(-60.0));
+        assert_eq!(parse_finite(" 1e30 "), Ok(1e30));
+        for bad in ["nan", "NaN", "inf", "-inf", "infinity", "x"] {
+            assert!(parse_finite(bad).unwrap_err().contains("finite"), "{bad}");
+        }
+        // Beyond f32: too large, not "inf" (and not "must be finite").
+        let e = parse_finite("1e39").unwrap_err();
+        assert!(e.contains("\"1e39\" is too large"), "{e}");
+        assert!(parse_positive("-1e39").unwrap_err().contains("too large"));
+        assert!(parse_positive("1e39").unwrap_err().contains("too large"));
+        assert!(parse_positive("0").unwrap_err().contains("positive"));
+        assert!(parse_positive("nan").unwrap_err().contains("positive"));
     }
 }

@@ -22,7 +22,7 @@ use raycaster::volume::{Access, Content, OpenOptions, SampleType, Volume};
 
 use crate::args::{
     ClipArg, Coord, IsoArg, WindowArg, parse_clip, parse_color, parse_crop, parse_direction,
-    parse_iso, parse_positive, parse_size, parse_threshold, parse_vec3, parse_window,
+    parse_finite, parse_iso, parse_positive, parse_size, parse_threshold, parse_vec3, parse_window,
 };
 use crate::stats;
 
@@ -174,7 +174,7 @@ pub struct RenderArgs {
     /// placed in the patient (an orientation from NIfTI, NRRD, MetaImage or DICOM)
     /// the patient's superior direction, with 0 looking from the patient's left and
     /// −90 from the front (see --volume-axes).
-    #[arg(long, default_value_t = -60.0, allow_negative_numbers = true, value_name = "DEG")]
+    #[arg(long, default_value_t = -60.0, allow_negative_numbers = true, value_parser = parse_finite, value_name = "DEG")]
     azimuth: f32,
 
     /// Camera elevation above the volume's middle, degrees.
@@ -182,6 +182,7 @@ pub struct RenderArgs {
         long,
         default_value_t = 25.0,
         allow_negative_numbers = true,
+        value_parser = parse_finite,
         value_name = "DEG"
     )]
     elevation: f32,
@@ -274,6 +275,7 @@ pub struct RenderArgs {
         long,
         default_value_t = 0.0,
         allow_negative_numbers = true,
+        value_parser = parse_finite,
         value_name = "LEVELS"
     )]
     lod_bias: f32,

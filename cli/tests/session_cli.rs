@@ -227,7 +227,61 @@ fn bad_sessions_are_refused_by_field() {
         assert!(!run.status.success(), "{to}");
         let e = stderr(&run);
         assert!(e.contains(word), "{to}: {e}");
+        // The error names the file it is about, once.
+        assert!(e.starts_with("error: bad.toml: "), "{to}: {e}");
         assert!(!e.contains("panicked"), "{e}");
         assert!(!dir.path().join("x.png").exists());
     }
+}
+
+#[test]
+fn errors_in_transfer_function_and_scene_files_name_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, text: &str| std::fs::write(dir.path().join(name), text).unwrap();
+    write("bad.tf", "point 0.5 garbage 0 0 0\n");
+    write(
+        "scene.toml",
+        "layers = [[0.1, 0.5], [0.5, 1.0]]\n[[object]]\nname = \"a\"\ntf = \"bad.tf\"\n[[object]]\nname = \"b\"\n",
+    );
+    write("broken.toml", "[camera]\n");
+    let base = [
+        "render",
+        "--scene",
+        "shapes",
+        "--scene-size",
+        "16",
+        "--size",
+        "16",
+        "-o",
+        "x.png",
+    ];
+    for (extra, needle) in [
+        (["--tf", "bad.tf"], "error: bad.tf: line 1: "),
+        (
+            ["--segments", "scene.toml"],
+            "error: scene.toml: scene description, object \"a\": ",
+        ),
+        (
+            ["--segments", "broken.toml"],
+            "error: broken.toml: scene description: ",
+        ),
+    ] {
+        let args: Vec<&str> = base.iter().copied().chain(extra).collect();
+        let run = raycaster(&args, dir.path());
+        assert!(!run.status.success(), "{extra:?}");
+        let e = stderr(&run);
+        assert!(e.starts_with(needle), "{extra:?}: {e}");
+        assert_eq!(e.matches(extra[1]).count(), 1, "{extra:?}: {e}");
+        assert!(!dir.path().join("x.png").exists());
+    }
+    // An object's function file is named after its scene.
+    let run = raycaster(
+        &[&base[..], &["--segments", "scene.toml"]].concat(),
+        dir.path(),
+    );
+    assert!(
+        stderr(&run).contains("bad.tf: line 1: "),
+        "{}",
+        stderr(&run)
+    );
 }

@@ -185,6 +185,14 @@ pub enum SessionError {
     /// The embedded two-level scene.
     #[error("session: [scene]: {0}")]
     Scene(#[source] SceneError),
+    /// What is wrong in a session file ([`Session::load`]).
+    #[error("{}: {source}", path.display())]
+    InFile {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong in it.
+        source: Box<SessionError>,
+    },
 }
 
 /// The `[slices]` section, checked.
@@ -442,7 +450,17 @@ impl Session {
                 path: path.to_path_buf(),
                 source,
             })?;
-        let session = Session::parse(&text, path.parent().unwrap_or(Path::new("")))?;
+        Self::parse_and_check(&text, path.parent().unwrap_or(Path::new(""))).map_err(|e| {
+            SessionError::InFile {
+                path: path.to_path_buf(),
+                source: Box::new(e),
+            }
+        })
+    }
+
+    /// [`Self::parse`], checking that the volume and label files exist.
+    fn parse_and_check(text: &str, base: &Path) -> Result<Session, SessionError> {
+        let session = Session::parse(text, base)?;
         if let VolumeSource::File { path, .. } = &session.source
             && !path.exists()
         {

@@ -2,7 +2,7 @@
 
 use clap::ValueEnum;
 use raycaster::io::{Endian, RawOrder, RawType};
-use raycaster::volume::{Format, MAX_AXIS, SampleType};
+use raycaster::volume::{Format, MAX_AXIS, MAX_SPACING, MIN_SPACING, SampleType};
 
 /// `N` (a cube) or `XxYxZ`.
 pub fn parse_dims(s: &str) -> Result<[u32; 3], String> {
@@ -26,25 +26,29 @@ pub fn parse_dims(s: &str) -> Result<[u32; 3], String> {
     Ok(dims)
 }
 
-/// `S` (the same on every axis) or `X,Y,Z`, each positive and finite.
+/// `S` (the same on every axis) or `X,Y,Z`, each a number in
+/// [`MIN_SPACING`]..=[`MAX_SPACING`], the spacings a header is read with.
 pub fn parse_spacing(s: &str) -> Result<[f32; 3], String> {
     let nums = s
         .split(',')
         .map(|p| {
-            p.trim()
+            let p = p.trim();
+            let v = p
                 .parse::<f32>()
-                .map_err(|_| format!("`{p}` is not a number"))
+                .map_err(|_| format!("`{p}` is not a number"))?;
+            if !(MIN_SPACING..=MAX_SPACING).contains(&v) {
+                return Err(format!(
+                    "spacing `{p}` is out of range: a spacing is a number from {MIN_SPACING:e} to {MAX_SPACING:e}"
+                ));
+            }
+            Ok(v)
         })
         .collect::<Result<Vec<f32>, String>>()?;
-    let spacing = match nums[..] {
-        [v] => [v; 3],
-        [x, y, z] => [x, y, z],
-        _ => return Err("expected S or X,Y,Z, e.g. 1 or 0.5,0.5,2".into()),
-    };
-    if let Some(v) = spacing.iter().find(|v| !(v.is_finite() && **v > 0.0)) {
-        return Err(format!("spacing {v} must be a positive finite number"));
+    match nums[..] {
+        [v] => Ok([v; 3]),
+        [x, y, z] => Ok([x, y, z]),
+        _ => Err("expected S or X,Y,Z, e.g. 1 or 0.5,0.5,2".into()),
     }
-    Ok(spacing)
 }
 
 /// `LO:HI` with LO < HI.
@@ -196,6 +200,11 @@ mod tests {
         assert_eq!(parse_spacing("0.5,1,2"), Ok([0.5, 1.0, 2.0]));
         assert!(parse_spacing("-1").is_err());
         assert!(parse_spacing("nan").is_err());
+        // Out of the header's range, named as typed (1e39 is `inf` as an f32).
+        let too_large = parse_spacing("1,1,1e39").unwrap_err();
+        assert!(too_large.contains("`1e39` is out of range"), "{too_large}");
+        assert!(parse_spacing("1e-20").is_err());
+        assert_eq!(parse_spacing("1e15"), Ok([1e15; 3]));
         assert_eq!(parse_window("-1000:3000"), Ok((-1000.0, 3000.0)));
         assert!(parse_window("5:5").is_err());
         assert_eq!(parse_brick("16"), Ok(16));

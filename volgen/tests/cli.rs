@@ -180,7 +180,7 @@ fn bad_inputs_get_clear_errors_and_leave_no_files() {
         ),
         (
             &["generate", "--spacing", "nan", "-o", "o.vol"],
-            "spacing NaN must be a positive finite number",
+            "spacing `nan` is out of range",
         ),
         (
             &[

@@ -163,6 +163,14 @@ pub enum SceneError {
     /// A value out of range or inconsistent.
     #[error("scene description: {0}")]
     Invalid(String),
+    /// What is wrong in a scene file ([`SegmentScene::load`]).
+    #[error("{}: {source}", path.display())]
+    InFile {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong in it.
+        source: Box<SceneError>,
+    },
     /// An object's transfer function.
     #[error("scene description, object {object:?}: {source}")]
     Transfer {
@@ -271,7 +279,12 @@ impl SegmentScene {
                 source,
             }
         })?;
-        SegmentScene::parse(&text, path.parent().unwrap_or(Path::new(".")))
+        SegmentScene::parse(&text, path.parent().unwrap_or(Path::new("."))).map_err(|e| {
+            SceneError::InFile {
+                path: path.to_path_buf(),
+                source: Box::new(e),
+            }
+        })
     }
 
     /// Parses a scene description:

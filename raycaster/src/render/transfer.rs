@@ -73,6 +73,14 @@ pub enum TransferError {
         /// The error.
         source: std::io::Error,
     },
+    /// What is wrong with the text of a file ([`TransferFunction::load`]).
+    #[error("{}: {source}", path.display())]
+    InFile {
+        /// The file.
+        path: std::path::PathBuf,
+        /// What is wrong in it.
+        source: Box<TransferError>,
+    },
 }
 
 /// The largest transfer-function or scene file read, in bytes (1 MiB).
@@ -338,7 +346,10 @@ impl TransferFunction {
             path: path.to_path_buf(),
             source,
         })?;
-        TransferFunction::parse(&text)
+        TransferFunction::parse(&text).map_err(|e| TransferError::InFile {
+            path: path.to_path_buf(),
+            source: Box::new(e),
+        })
     }
 
     /// The text form that [`Self::parse`] reads back.

@@ -30,8 +30,8 @@ pub use file::{
 pub use grid::BlockGrid;
 pub use header::{
     Content, EXTENDED_HEADER_LEN, EXTENSION_MAGIC, EXTENSION_VERSION, Format, Header, HeaderError,
-    Layout, MAX_AXIS, MAX_HEADER_LEN, ORIENTED_HEADER_LEN, SampleType, THESIS_HEADER_LEN,
-    UNITS_HEADER_LEN,
+    Layout, MAX_AXIS, MAX_HEADER_LEN, MAX_SPACING, MIN_SPACING, ORIENTED_HEADER_LEN, SampleType,
+    THESIS_HEADER_LEN, UNITS_HEADER_LEN,
 };
 pub use orientation::{ORIENTATION_BLOCK_LEN, Orientation, PatientSpace};
 pub use pyramid::{COARSEST_EDGE, level_dims, pyramid_sidecar_path, pyramid_voxels};
