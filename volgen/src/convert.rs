@@ -33,8 +33,9 @@ use crate::progress::{CANCEL, voxel_bar};
 /// 256 MiB are first decompressed into a temporary file beside the output. Values
 /// are copied when the output type holds them all; i16 to u16 stores value + 32768
 /// (exact); otherwise (u16/i16/f32 to u8, f32 to u16) they are mapped linearly from
-/// --window (default: the input's own min..max) onto the output's full range.
-/// Examples:
+/// --window (default: the input's own finite min..max) onto the output's full
+/// range; values outside it, ±infinity included, clamp to its ends, and NaN is
+/// stored as its low end. Examples:
 ///
 ///   volgen convert volumes/data/brainsmall.den --raw 128x128x84 --skip 62 -o brainsmall.vol
 ///

@@ -289,6 +289,57 @@ fn raw_conversion_with_window_and_skip() {
 }
 
 #[test]
+fn float_input_with_infinities_and_nan_is_windowed_by_its_finite_values() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // 4x2x2 f32, values 10..=25 but for one +inf, one -inf and one NaN.
+    let mut values: Vec<f32> = (0..16).map(|i| 10.0 + i as f32).collect();
+    values[3] = f32::INFINITY;
+    values[7] = f32::NEG_INFINITY;
+    values[11] = f32::NAN;
+    let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
+    std::fs::write(d.join("f.raw"), bytes).unwrap();
+    let args = ["convert", "f.raw", "--raw", "4x2x2", "--raw-type", "f32"];
+    let o = volgen(d, &[&args[..], &["--type", "u8", "-o", "f.vol"]].concat());
+    // Before: the window became -inf..inf and the header's value units were
+    // refused as broken.
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("values 10..=25 mapped"),
+        "{}",
+        stdout(&o)
+    );
+    let info = stdout(&volgen(d, &["info", "f.vol"]));
+    assert!(info.contains("min 10, max 25"), "{info}");
+    // The samples: a linear u8 file in the thesis format ends with them.
+    let o = volgen(
+        d,
+        &[
+            &args[..],
+            &[
+                "--type", "u8", "--layout", "linear", "--format", "thesis", "-o", "t.vol",
+            ],
+        ]
+        .concat(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let file = std::fs::read(d.join("t.vol")).unwrap();
+    let samples = &file[file.len() - 16..];
+    // ±inf clamp to the window's ends (25 and +inf: 255; 10 and -inf: 0);
+    // NaN is stored as its low end.
+    assert_eq!(
+        samples.iter().filter(|&&v| v == 255).count(),
+        2,
+        "{samples:?}"
+    );
+    assert_eq!(
+        samples.iter().filter(|&&v| v == 0).count(),
+        3,
+        "{samples:?}"
+    );
+}
+
+#[test]
 fn help_explains_every_command() {
     let dir = tempfile::tempdir().unwrap();
     for (cmd, needles) in [

@@ -441,15 +441,15 @@ impl Input {
         Ok(())
     }
 
-    /// Smallest and largest value of the volume (NaN ignored), in one streaming pass;
-    /// `None` when every value is NaN.
+    /// Smallest and largest finite value of the volume (NaN and ±∞ ignored: a
+    /// window mapped onto the samples clamps ±∞ to its ends), in one streaming
+    /// pass; `None` when no value is finite.
     pub fn value_range(&self, job: &Job) -> Result<Option<(f32, f32)>, VolumeError> {
         let dims = self.dims();
         let plane = dims[1] as usize * dims[2] as usize;
         let mut lo_hi = (f32::INFINITY, f32::NEG_INFINITY);
         let mut fold = |values: &[f32]| {
-            for &v in values {
-                // NaN fails both comparisons and is skipped.
+            for &v in values.iter().filter(|v| v.is_finite()) {
                 if v < lo_hi.0 {
                     lo_hi.0 = v;
                 }
