@@ -16,7 +16,8 @@ use clap::{Parser, Subcommand};
 ///
 /// Outputs are written to a temporary file beside the target and renamed when
 /// complete: a failed or interrupted run (Ctrl-C) leaves no partial file, and an
-/// existing file is only replaced with --force.
+/// existing file is only replaced with --force. Exit status: 0 done, 1 failed,
+/// 130 interrupted (Ctrl-C, SIGTERM, SIGHUP).
 #[derive(Parser, Debug)]
 #[command(
     name = "volgen",
@@ -59,7 +60,10 @@ fn main() {
     };
     if let Err(e) = result {
         eprintln!("error: {}", raycaster::errors::error_text(e.as_ref()));
-        std::process::exit(1);
+        // Stopped by a signal: 130, as a shell reports an interrupted command,
+        // so that scripts tell an interruption from a failure.
+        let interrupted = progress::CANCEL.load(std::sync::atomic::Ordering::Relaxed);
+        std::process::exit(if interrupted { 130 } else { 1 });
     }
 }
 

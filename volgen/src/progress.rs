@@ -9,9 +9,10 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressState, ProgressStyle};
 pub static CANCEL: AtomicBool = AtomicBool::new(false);
 
 /// Makes Ctrl-C, SIGTERM and SIGHUP request a clean cancel instead of killing the
-/// process mid-write: the job stops at its next batch and removes its partial
-/// output. A second signal (`timeout` sends two) exits at once, exit status
-/// 130, deleting the partial outputs first.
+/// process mid-write: the job stops at its next batch, removes its partial
+/// output and the process exits with status 130. A second signal (`timeout`
+/// sends two) exits at once, with the same status, deleting the partial
+/// outputs first.
 pub fn install_signal_handler() {
     // A second handler cannot be installed; the first one is all we need.
     let _ = ctrlc::set_handler(|| {
