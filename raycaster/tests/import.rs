@@ -616,6 +616,18 @@ fn broken_dicom_series_give_clear_errors() {
     let err = import::open(d).unwrap_err().to_string();
     assert!(err.contains("not evenly spaced"), "{err}");
     std::fs::rename(aside.path().join("brain_010.dcm"), d.join("brain_010.dcm")).unwrap();
+    // One slice five times over: every slice at one position (before: a z
+    // spacing of 0, refused without saying why).
+    let same = tempfile::tempdir().unwrap();
+    for i in 0..5 {
+        let name = format!("copy_{i}.dcm");
+        std::fs::copy(d.join("brain_005.dcm"), same.path().join(name)).unwrap();
+    }
+    let err = import::open(same.path()).unwrap_err().to_string();
+    assert!(
+        err.contains("copy_1.dcm") && err.contains("4 of the 5 slices lie at the position"),
+        "{err}"
+    );
     // A truncated slice.
     truncate(&d.join("brain_007.dcm"), 1000);
     let err = import::open_volume_any(d, 1 << 30).unwrap_err().to_string();

@@ -319,6 +319,21 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
         let mut sorted = gaps.clone();
         sorted.sort_by(f64::total_cmp);
         let median = sorted[sorted.len() / 2];
+        if median.abs() <= 1e-6 {
+            // (Else the z spacing would be 0, refused without saying why.)
+            let first_repeat = gaps.iter().position(|g| g.abs() <= 1e-6).unwrap_or(0);
+            return Err(ImportError::new(
+                &slices[first_repeat + 1].path,
+                header_error(
+                    F,
+                    format!(
+                        "{} of the {} slices lie at the position of the slice before them along the slice normal: not a volume's slices (one slice repeated, or several series or echoes in one folder?)",
+                        gaps.iter().filter(|g| g.abs() <= 1e-6).count(),
+                        slices.len()
+                    ),
+                ),
+            ));
+        }
         if let Some((i, g)) = gaps
             .iter()
             .enumerate()
