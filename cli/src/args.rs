@@ -45,8 +45,10 @@ pub fn parse_direction(s: &str) -> Result<[f32; 3], String> {
 
 /// `lo,hi` with lo < hi.
 pub fn parse_domain(s: &str) -> Result<[f32; 2], String> {
+    // `lo:hi` too, as `volgen convert --window` writes it.
+    let separator = if s.contains(',') { ',' } else { ':' };
     let nums = s
-        .split(',')
+        .split(separator)
         .map(|p| p.trim().parse::<f32>().ok().filter(|v| v.is_finite()))
         .collect::<Option<Vec<f32>>>();
     match nums.as_deref() {
@@ -76,16 +78,17 @@ impl WindowArg {
     }
 }
 
-/// `lo,hi` (values in the file's units) or the name of a CT window.
+/// `lo,hi` or `lo:hi` (values in the file's units), or the name of a CT
+/// window.
 pub fn parse_window(s: &str) -> Result<WindowArg, String> {
     if let Some(named) = raycaster::windows::named_window(s.trim()) {
         return Ok(WindowArg::Named(named));
     }
-    if s.contains(',') {
+    if s.contains(',') || s.contains(':') {
         return parse_domain(s).map(WindowArg::Values);
     }
     Err(format!(
-        "{s:?} is neither lo,hi nor a named window ({})",
+        "{s:?} is neither lo,hi (or lo:hi) nor a named window ({})",
         raycaster::windows::named_window_list()
     ))
 }
@@ -321,6 +324,12 @@ mod tests {
             assert!(parse_iso(bad).is_err(), "{bad}");
         }
         assert!(parse_domain("5,5").is_err());
+        // volgen's spelling too.
+        assert_eq!(parse_domain("-1000:2000"), Ok([-1000.0, 2000.0]));
+        assert_eq!(
+            parse_window("-1000:2000").map(WindowArg::values),
+            Ok([-1000.0, 2000.0])
+        );
         assert!(parse_threshold("0").is_err());
         assert!(parse_positive("-1").is_err());
     }

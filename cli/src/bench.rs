@@ -66,16 +66,17 @@ pub struct BenchArgs {
     #[arg(long, default_value = "512x512", value_parser = parse_size, value_name = "WxH")]
     image: [u32; 2],
 
-    /// Render-thread counts to try.
-    #[arg(long, value_delimiter = ',', default_values_t = default_threads(), value_name = "N,..")]
+    /// Render-thread counts to try [default: 1, the powers of two below the
+    /// core count, and the core count: 1,2 on two cores].
+    #[arg(long, value_delimiter = ',', default_values_t = default_threads(), hide_default_value = true, value_name = "N,..")]
     threads: Vec<usize>,
 
-    /// Tile sizes to try (pixels).
-    #[arg(long, value_delimiter = ',', default_values_t = [8, 16, 32], value_name = "PX,..")]
+    /// Tile sizes to try (pixels) [default: 8,16,32].
+    #[arg(long, value_delimiter = ',', default_values_t = [8, 16, 32], hide_default_value = true, value_name = "PX,..")]
     tiles: Vec<u32>,
 
-    /// Brick sides to try.
-    #[arg(long, value_delimiter = ',', default_values_t = [8, 16, 32], value_name = "N,..")]
+    /// Brick sides to try [default: 8,16,32].
+    #[arg(long, value_delimiter = ',', default_values_t = [8, 16, 32], hide_default_value = true, value_name = "N,..")]
     bricks: Vec<u32>,
 
     /// Optimisation settings to try: none, ert, ess, both.
@@ -128,7 +129,7 @@ pub struct BenchArgs {
     #[arg(long, value_name = "FILE")]
     csv: Option<PathBuf>,
 
-    /// Plot frame time and samples/s per core against threads, tile and brick:
+    /// Plot frame time and samples/s per render thread against threads, tile and brick:
     /// PNG, or SVG when FILE ends in `.svg`.
     #[arg(long, value_name = "FILE")]
     plot: Option<PathBuf>,
@@ -367,7 +368,7 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
             write_atomically(csv, csv_text(&records).as_bytes())?;
         }
     }
-    summarise(&records);
+    summarise(&records, args.quick);
     if let Some(csv) = &args.csv {
         eprintln!("wrote {}", csv.display());
     }
@@ -450,9 +451,10 @@ fn brick_text(brick: Option<u32>) -> String {
     brick.map_or_else(|| "default".to_string(), |b| b.to_string())
 }
 
-/// Speedups and the best configuration, on stderr.
-fn summarise(records: &[Record]) {
-    if records.iter().any(|r| r.frames == 1) && records.len() > 1 {
+/// Speedups and the best configuration, on stderr (without the one-frame
+/// warning for `--quick`, a smoke run by definition).
+fn summarise(records: &[Record], quick: bool) {
+    if !quick && records.iter().any(|r| r.frames == 1) && records.len() > 1 {
         eprintln!(
             "warning: each configuration was timed on one frame; speedups resting on one frame are noisy (use --frames 5 or more)"
         );
@@ -462,9 +464,10 @@ fn summarise(records: &[Record]) {
         .filter(|r| r.case.threads.is_some())
         .collect();
     if let Some(best) = parallel.iter().min_by_key(|r| r.frame) {
+        let threads = best.case.render_threads();
         eprintln!(
-            "fastest: {} threads, tile {}, brick {}, {}: {:.2} ms",
-            best.case.render_threads(),
+            "fastest: {threads} thread{}, tile {}, brick {}, {}: {:.2} ms",
+            if threads == 1 { "" } else { "s" },
             best.case.tile,
             brick_text(best.case.brick),
             best.case.optimisations,
@@ -494,12 +497,16 @@ fn summarise(records: &[Record]) {
             .filter(|p| p.case.threads == Some(1) && same(&p.case, &s.case))
         {
             eprintln!(
-                "1-thread parallel / sequential (tile {}, brick {}, {}): {:.2} (same samples: {})",
+                "parallel renderer on 1 thread against the sequential one (tile {}, brick {}, {}): {:.2}× its speed, {} samples",
                 p.case.tile,
                 brick_text(p.case.brick),
                 p.case.optimisations,
-                p.frame.as_secs_f64() / s.frame.as_secs_f64(),
-                p.samples == s.samples
+                s.frame.as_secs_f64() / p.frame.as_secs_f64(),
+                if p.samples == s.samples {
+                    "the same"
+                } else {
+                    "NOT the same"
+                }
             );
         }
     }

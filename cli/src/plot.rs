@@ -1,4 +1,4 @@
-//! The sweep's plot: frame time and samples/s per core against render threads,
+//! The sweep's plot: frame time and samples/s per render thread against render threads,
 //! tile size and brick size (2 × 3 panels), drawn with plotters as PNG or SVG.
 //!
 //! Each panel draws every record as a faint point and, per renderer and

@@ -79,12 +79,13 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 1)]
     seed: u64,
 
-    /// Transfer function: a preset name or a transfer-function file
-    /// (default: the preset that suits the built-in scene, `shapes` for files).
+    /// Transfer function: a preset name or a transfer-function file. Default:
+    /// the preset that suits the built-in scene; for a file, what fits its data
+    /// — `shapes` for u8 data, `ct-bone` for CT, `ct-skin` for other 16-bit data.
     #[arg(long, value_name = "PRESET|FILE")]
     tf: Option<String>,
 
-    /// Values the transfer function spans, LO,HI in the file's units
+    /// Values the transfer function spans, LO,HI (or LO:HI) in the file's units
     /// (Hounsfield units for CT: `--domain -1000,2000`), or a named CT window:
     /// ct, bone, soft-tissue, lung, brain. Default: what fits the data — the
     /// whole range of u8 data, −1000..2000 HU for CT, the 0.5th to 99.5th
@@ -427,7 +428,7 @@ impl From<CompositingArg> for raycaster::render::Compositing {
     }
 }
 
-#[derive(Clone, Copy, Debug, ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub(crate) enum ModeArg {
     /// Direct volume rendering (emission-absorption, front to back).
     Dvr,
@@ -437,17 +438,20 @@ pub(crate) enum ModeArg {
     Average,
     /// First hit of the iso-value, refined between samples, shaded.
     FirstHit,
-    /// X-ray: the sum of values along the ray (`--xray-gain`).
+    /// X-ray: the sum of values along the ray, scaled by a gain (render's
+    /// `--xray-gain`).
     Xray,
-    /// Importance-aware compositing (constant importance).
+    /// Importance-aware compositing. On its own its importance is constant and
+    /// the image is DVR's; it differs in two-level scenes (`--segments`), whose
+    /// objects give their importance sources.
     Importance,
     /// Context-preserving rendering (κt 1.5, κs 0.4).
     Context,
     /// Tone shading and silhouette darkening.
     Silhouette,
     /// Sabella's colouring (1988): hue from the peak value along the ray,
-    /// saturation from its depth (`--sabella-depth`), value from the
-    /// accumulated intensity.
+    /// saturation from its depth (render's `--sabella-depth`), value from
+    /// the accumulated intensity.
     Sabella,
 }
 
@@ -588,7 +592,11 @@ impl Setup {
                 (Membership::Labels(_), VolumeSource::BuiltIn { kind, size, seed }) => {
                     Some(built_in_labels(*kind, *size, *seed)?)
                 }
-                (Membership::Labels(path), VolumeSource::File { .. }) => Some(open_labels(path)?),
+                (Membership::Labels(path), VolumeSource::File { .. }) => {
+                    Some(open_labels(path).context(
+                        "the scene's label volume (its `labels =`, read beside the scene file; --labels FILE names another)",
+                    )?)
+                }
                 (Membership::Layers(_), _) => None,
             },
             (None, _) => None,
@@ -719,8 +727,23 @@ fn flags_session(args: &RenderArgs, source: VolumeSource, volume: &Volume) -> Re
         LevelChoice::Auto { .. } => LevelChoice::Auto {
             bias: args.lod_bias,
         },
-        fixed => fixed,
+        LevelChoice::Fixed(k) => {
+            let coarsest = volume.level_count().saturating_sub(1);
+            if k as usize > coarsest && !args.quiet {
+                eprintln!(
+                    "warning: --level {k}: the file's coarsest level is {coarsest}; rendering level {coarsest}"
+                );
+            }
+            LevelChoice::Fixed(k)
+        }
     };
+    // (In a two-level scene it applies to the objects rendered by DVR.)
+    if args.preintegrate && args.mode != ModeArg::Dvr && args.segments.is_none() && !args.quiet {
+        eprintln!(
+            "warning: --preintegrate applies to --mode dvr only; {} frames ignore it",
+            Mode::from(args.mode).name()
+        );
+    }
     Ok(Session {
         source,
         labels: args.labels.clone(),

@@ -40,8 +40,8 @@ pub struct SliceArgs {
     #[arg(long)]
     force: bool,
 
-    /// Values shown black and white, LO,HI in the file's units (Hounsfield
-    /// units for CT: `--window -160,240`), or a named CT window: ct, bone,
+    /// Values shown black and white, LO,HI (or LO:HI) in the file's units
+    /// (Hounsfield units for CT: `--window -160,240`), or a named CT window: ct, bone,
     /// soft-tissue, lung, brain. Default: the slice's own value range. Files
     /// converted before value units were kept take stored sample values.
     #[arg(long, value_parser = parse_window, allow_hyphen_values = true, value_name = "LO,HI|NAME")]

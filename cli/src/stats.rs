@@ -13,7 +13,7 @@ pub fn table(s: &FrameStats) -> String {
         "image            {}×{} ({} pixels)\n\
          rays cast        {}\n\
          samples taken    {} ({:.1} per ray)\n\
-         skipped (empty)  {} samples ({:.1} %), {} brick visits\n\
+         skipped (empty)  {} samples ({:.1} %){}\n\
          terminated early {} rays ({:.1} %)\n\
          tasks            {} (tile × brick), {} skipped as occluded\n\
          bricks           {} ({} transparent under the transfer function)\n\
@@ -27,7 +27,12 @@ pub fn table(s: &FrameStats) -> String {
         c.samples as f64 / c.rays.max(1) as f64,
         c.samples_skipped_empty,
         pct(c.samples_skipped_empty, considered),
-        c.brick_visits_skipped,
+        // (The parallel renderer plans transparent bricks out: it never
+        // visits one to skip it.)
+        match c.brick_visits_skipped {
+            0 => String::new(),
+            n => format!(", {n} brick visits skipped whole"),
+        },
         c.rays_terminated,
         pct(c.rays_terminated, c.rays),
         c.tasks,

@@ -224,6 +224,22 @@ fn absurd_spacings_are_refused_at_once_not_rendered_forever() {
         "{e}"
     );
     assert!(!d.join("t.png").exists());
+    // An even spacing: the step is the cause, and the message says only that.
+    write_vol(&d.join("even.vol"), [32; 3], [1.0; 3], Content::Scalar);
+    let o = raycaster(
+        &[
+            "render", "even.vol", "--step", "1e-5", "--size", "64", "-o", "t.png",
+        ],
+        d,
+    );
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(
+        e.contains("a ray would take up to")
+            && e.contains("raise --step")
+            && !e.contains("spacing"),
+        "{e}"
+    );
     // The same volume at the default step renders.
     let o = raycaster(
         &["render", "thin.vol", "--size", "32", "-o", "u.png", "-q"],

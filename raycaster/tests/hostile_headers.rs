@@ -718,6 +718,30 @@ fn unknown_order_byte() {
 }
 
 #[test]
+fn a_file_of_another_kind_is_called_no_volume_not_a_broken_header() {
+    let dir = TempDir::new().unwrap();
+    let text = b"# raycaster\n\nCPU volume rendering of huge volumes\n".repeat(4);
+    for name in ["README.md", "notes", "picture.png"] {
+        let p = write(&dir, name, &text);
+        let e = open_fails(&p);
+        assert!(
+            matches!(
+                e.kind,
+                VolumeErrorKind::NotAVolume(HeaderError::UnknownOrder(b'r' | b' '))
+            ),
+            "{name}: {e:?}"
+        );
+        assert!(e.to_string().contains("not a volume file"), "{e}");
+    }
+    // Named .vol, the same bytes are a broken .vol header.
+    let p = write(&dir, "broken.VOL", &text);
+    assert!(matches!(
+        open_fails(&p).kind,
+        VolumeErrorKind::Header(HeaderError::UnknownOrder(_))
+    ));
+}
+
+#[test]
 fn brick_side_0_and_1_in_a_bricked_header() {
     let dir = TempDir::new().unwrap();
     for side in [0u8, 1] {

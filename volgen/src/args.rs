@@ -4,6 +4,20 @@ use clap::ValueEnum;
 use raycaster::io::{Endian, RawOrder, RawType};
 use raycaster::volume::{Format, MAX_AXIS, MAX_SPACING, MIN_SPACING, SampleType};
 
+/// A warning for an output not named `.vol` (`volgen generate -o x.raw`
+/// writes a `.vol` file all the same), or `None`.
+pub fn output_name_warning(output: &std::path::Path) -> Option<String> {
+    let is_vol = output
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("vol"));
+    (!is_vol).then(|| {
+        format!(
+            "warning: {} will be a .vol file whatever its name says (name it NAME.vol)",
+            output.display()
+        )
+    })
+}
+
 /// `N` (a cube) or `XxYxZ`.
 pub fn parse_dims(s: &str) -> Result<[u32; 3], String> {
     let parts: Vec<&str> = s.split(['x', 'X']).collect();
@@ -51,9 +65,20 @@ pub fn parse_spacing(s: &str) -> Result<[f32; 3], String> {
     }
 }
 
-/// `LO:HI` with LO < HI.
+/// `LO:HI` (or `LO,HI`, as `raycaster` writes it) with LO < HI, or the name of
+/// a CT window (`lung`: its Hounsfield units).
 pub fn parse_window(s: &str) -> Result<(f32, f32), String> {
-    let (lo, hi) = s.split_once(':').ok_or("expected LO:HI, e.g. -1000:2000")?;
+    if let Some(named) = raycaster::windows::named_window(s.trim()) {
+        let [lo, hi] = named.range();
+        return Ok((lo, hi));
+    }
+    let separator = if s.contains(':') { ':' } else { ',' };
+    let (lo, hi) = s.split_once(separator).ok_or_else(|| {
+        format!(
+            "expected LO:HI (e.g. -1000:2000) or a named window ({})",
+            raycaster::windows::named_window_list()
+        )
+    })?;
     let num = |p: &str| {
         p.trim()
             .parse::<f32>()
@@ -207,6 +232,11 @@ mod tests {
         assert_eq!(parse_spacing("1e15"), Ok([1e15; 3]));
         assert_eq!(parse_window("-1000:3000"), Ok((-1000.0, 3000.0)));
         assert!(parse_window("5:5").is_err());
+        // raycaster's spelling and the named CT windows too.
+        assert_eq!(parse_window("-1000,2000"), Ok((-1000.0, 2000.0)));
+        let lung = raycaster::windows::named_window("lung").unwrap().range();
+        assert_eq!(parse_window("lung"), Ok((lung[0], lung[1])));
+        assert!(parse_window("lungs").unwrap_err().contains("named window"));
         assert_eq!(parse_brick("16"), Ok(16));
         assert!(parse_brick("1").is_err());
         assert!(parse_brick("256").is_err());

@@ -13,8 +13,8 @@ use raycaster::job::Job;
 use raycaster::volume::{Format, Layout, SampleType, pyramid_voxels};
 
 use crate::args::{
-    EndianArg, FormatArg, LayoutArg, RawOrderArg, RawTypeArg, SampleArg, parse_brick, parse_dims,
-    parse_spacing, parse_window,
+    EndianArg, FormatArg, LayoutArg, RawOrderArg, RawTypeArg, SampleArg, output_name_warning,
+    parse_brick, parse_dims, parse_spacing, parse_window,
 };
 use crate::generate::{describe_layout, describe_pyramid, describe_size};
 use crate::progress::{CANCEL, voxel_bar};
@@ -81,8 +81,10 @@ pub struct ConvertArgs {
     #[arg(long = "type", value_enum)]
     sample_type: Option<SampleArg>,
     /// Input values LO..HI, in the input file's own units (CT: Hounsfield units,
-    /// e.g. -1000:2000), map onto the output's full range (clamped outside).
-    #[arg(long, value_name = "LO:HI", allow_hyphen_values = true, value_parser = parse_window)]
+    /// e.g. -1000:2000; LO,HI works too), map onto the output's full range
+    /// (clamped outside); or a named CT window: ct, bone, soft-tissue, lung,
+    /// brain.
+    #[arg(long, value_name = "LO:HI|NAME", allow_hyphen_values = true, value_parser = parse_window)]
     window: Option<(f32, f32)>,
     /// Output voxel spacing: S or X,Y,Z [default: the input's, or 1].
     #[arg(long, value_name = "S|X,Y,Z", value_parser = parse_spacing, allow_hyphen_values = true)]
@@ -114,6 +116,9 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
             "{}: already exists (pass --force to replace it)",
             a.output.display()
         );
+    }
+    if let Some(warning) = output_name_warning(&a.output).filter(|_| !a.quiet) {
+        eprintln!("{warning}");
     }
     let input = match a.raw {
         Some(dims) => Input::open_raw(

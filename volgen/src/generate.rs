@@ -11,7 +11,9 @@ use raycaster::job::Job;
 use raycaster::synth::SceneKind;
 use raycaster::volume::{Content, Format, Header, Layout, SampleType, pyramid_voxels};
 
-use crate::args::{FormatArg, LayoutArg, SampleArg, parse_brick, parse_dims, parse_spacing};
+use crate::args::{
+    FormatArg, LayoutArg, SampleArg, output_name_warning, parse_brick, parse_dims, parse_spacing,
+};
 use crate::progress::{CANCEL, voxel_bar};
 
 /// Synthetic scenes on the command line.
@@ -111,6 +113,9 @@ pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
     let format = Format::from(a.format);
     if format == Format::Thesis && sample_type != SampleType::U8 {
         bail!("--format thesis holds u8 samples only; use --format extended for --type u16");
+    }
+    if let Some(warning) = output_name_warning(&a.output).filter(|_| !a.quiet) {
+        eprintln!("{warning}");
     }
     let scene = kind.build(a.size, a.seed);
     let labels = (scene.has_labels() && !a.no_labels).then(|| {

@@ -76,9 +76,15 @@ pub fn run(a: InfoArgs) -> anyhow::Result<()> {
         Layout::Linear => "logical bricks for empty-space skipping",
         Layout::Bricked { .. } => "bricks",
     };
+    let count = grid.block_count();
+    // "1 brick", "1 logical brick for …".
+    let kind = if count == 1 {
+        kind.replacen("bricks", "brick", 1)
+    } else {
+        kind.to_string()
+    };
     println!(
-        "bricks      {nx}x{ny}x{nz} = {} {kind} of side {}",
-        grid.block_count(),
+        "bricks      {nx}x{ny}x{nz} = {count} {kind} of side {}",
         grid.side()
     );
     let all = ranges.as_slice();
@@ -101,10 +107,9 @@ pub fn run(a: InfoArgs) -> anyhow::Result<()> {
                 raycaster::volume::pyramid_sidecar_path(&a.file).display()
             ),
         };
-        println!(
-            "pyramid     {} levels beyond full resolution, {place}",
-            volume.level_count() - 1
-        );
+        let levels = volume.level_count() - 1;
+        let noun = if levels == 1 { "level" } else { "levels" };
+        println!("pyramid     {levels} {noun} beyond full resolution, {place}");
         for k in 1..volume.level_count() {
             let level = volume.level(k);
             let [lo, hi] = level.ranges().overall();
@@ -220,7 +225,13 @@ fn run_foreign(a: &InfoArgs) -> anyhow::Result<()> {
     }
     const BINS: usize = 16;
     let mut counts = [0u64; BINS];
-    let width = f64::from(hi - lo) / BINS as f64;
+    // Whole-number values (every type but f32, unscaled) get whole-number bins.
+    let whole = imported.sample != raycaster::io::RawType::F32 && imported.scaling.is_none();
+    let width = if whole {
+        ((f64::from(hi - lo) + 1.0) / BINS as f64).ceil()
+    } else {
+        f64::from(hi - lo) / BINS as f64
+    };
     input.for_each_slab(8 << 20, &to_value, &job, |slab| {
         for &v in slab {
             if v.is_finite() {
@@ -239,19 +250,30 @@ fn run_foreign(a: &InfoArgs) -> anyhow::Result<()> {
         units.format(f64::from(lo)),
         units.format(f64::from(hi))
     );
-    println!("histogram   {BINS} bins over min..max");
+    let used = if whole {
+        // (Bins past the largest value stay out.)
+        ((f64::from(hi - lo) / width) as usize + 1).min(BINS)
+    } else {
+        BINS
+    };
+    println!("histogram   {used} bins over min..max, bars on a log scale");
     let peak = counts.iter().copied().max().unwrap_or(1).max(1) as f64;
-    for (i, &c) in counts.iter().enumerate() {
+    let number = |v: f64| {
+        format!("{v:.6}")
+            .trim_end_matches('0')
+            .trim_end_matches('.')
+            .to_string()
+    };
+    for (i, &c) in counts.iter().take(used).enumerate() {
         let from = f64::from(lo) + width * i as f64;
+        let label = if whole {
+            let to = (from + width - 1.0).min(f64::from(hi));
+            format!("{}..{}", number(from), number(to))
+        } else {
+            number(from)
+        };
         let bar = ((c as f64).ln_1p() / peak.ln_1p() * 40.0).round() as usize;
-        println!(
-            "  {:>12} {:>12} {}",
-            format!("{from:.6}")
-                .trim_end_matches('0')
-                .trim_end_matches('.'),
-            c,
-            "#".repeat(bar)
-        );
+        println!("  {label:>12} {c:>12} {}", "#".repeat(bar));
     }
     Ok(())
 }

@@ -47,16 +47,25 @@ pub fn run(a: PyramidArgs) -> anyhow::Result<()> {
         }
         return Ok(());
     }
-    if volume.level_count() > 1 && !a.force {
+    let embedded = volume.header().pyramid_offset.is_some();
+    // (An embedded pyramid is read before any sidecar: one written with
+    // --force would never be read.)
+    if volume.level_count() > 1 && (embedded || !a.force) {
         if !a.quiet {
-            let place = match volume.header().pyramid_offset {
-                Some(_) => "in the file".to_string(),
-                None => format!("in {}", pyramid_sidecar_path(&a.file).display()),
+            let levels = volume.level_count() - 1;
+            let noun = if levels == 1 { "level" } else { "levels" };
+            let place = if embedded {
+                "in the file; nothing to do (`volgen convert` rewrites the file with a fresh one)"
+                    .to_string()
+            } else {
+                format!(
+                    "in {} (--force rebuilds it)",
+                    pyramid_sidecar_path(&a.file).display()
+                )
             };
             println!(
-                "{}: already has a pyramid of {} levels {place} (--force rebuilds a sidecar)",
-                a.file.display(),
-                volume.level_count() - 1
+                "{}: already has a pyramid of {levels} {noun} {place}",
+                a.file.display()
             );
         }
         return Ok(());

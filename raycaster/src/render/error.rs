@@ -36,8 +36,8 @@ pub enum RenderError {
     /// A frame would take more samples than any render should: an absurd spacing
     /// ratio or a tiny step. Refused up front instead of rendering "forever".
     #[error(
-        "a ray would take up to {per_ray:.3e} samples and the frame up to {per_frame:.3e} (limits {max_ray:.0e} and {max_frame:.0e}): the spacing {} x {} x {} puts {ratio:.3e} of the smallest spacing in the largest, and the step is {step} of the smallest; check the file's spacing or raise the step",
-        spacing[0], spacing[1], spacing[2]
+        "a ray would take up to {per_ray:.3e} samples and the frame up to {per_frame:.3e} (limits {max_ray:.0e} and {max_frame:.0e}): {}",
+        budget_cause(*spacing, *ratio, *step)
     )]
     SampleBudget {
         /// Samples one ray may take.
@@ -77,4 +77,16 @@ pub enum RenderError {
     /// The camera is invalid.
     #[error(transparent)]
     Camera(#[from] CameraError),
+}
+
+/// What makes a frame's rays too long ([`RenderError::SampleBudget`]): a
+/// lopsided spacing (a broken header), else the step.
+fn budget_cause([x, y, z]: [f32; 3], ratio: f64, step: f32) -> String {
+    if ratio >= 10.0 {
+        format!(
+            "the spacing {x} x {y} x {z} puts {ratio:.3e} of the smallest spacing in the largest, and the step is {step} of the smallest; check the file's spacing or raise the step"
+        )
+    } else {
+        format!("the step is {step} voxel; raise --step (0.5 is the default)")
+    }
 }

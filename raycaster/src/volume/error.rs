@@ -23,6 +23,11 @@ pub enum VolumeErrorKind {
     /// The header is invalid or does not match the file.
     #[error("invalid header: {0}")]
     Header(#[from] HeaderError),
+    /// A file not named `.vol` whose first bytes are no `.vol` header either.
+    #[error(
+        "not a volume file: its name ends in none of .vol, .nrrd, .nhdr, .nii, .nii.gz, .hdr, .mha, .mhd, .dcm, and its first bytes are no .vol header: {0}"
+    )]
+    NotAVolume(HeaderError),
     /// The embedded value-range table is unreadable.
     #[error("the value-range table after the samples is corrupt")]
     CorruptRanges,

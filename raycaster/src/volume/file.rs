@@ -72,8 +72,21 @@ pub fn read_header(path: &Path) -> Result<(Header, File, u64), VolumeError> {
         .take(MAX_HEADER_LEN)
         .read_to_end(&mut head)
         .at(path)?;
-    let header = Header::parse(&head, len).at(path)?;
+    let header = Header::parse(&head, len).map_err(|e| match e {
+        // The first byte that tells formats apart names no .vol layout: a file
+        // not named `.vol` is most likely no volume at all (a README, a PNG).
+        HeaderError::UnknownOrder(_) if !has_vol_extension(path) => {
+            VolumeError::new(path, VolumeErrorKind::NotAVolume(e))
+        }
+        e => VolumeError::new(path, VolumeErrorKind::Header(e)),
+    })?;
     Ok((header, file, len))
+}
+
+/// Whether `path`'s name ends in `.vol` (any case).
+fn has_vol_extension(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("vol"))
 }
 
 /// The sidecar file that caches brick ranges of a thesis-format file.

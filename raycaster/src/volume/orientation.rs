@@ -201,7 +201,8 @@ impl Orientation {
             .axes
             .iter()
             .any(|a| largest(a) < 1f64.to_radians().cos());
-        let [x, y, z] = self.origin;
+        // `+ 0.0` turns −0 (a RAS origin of 0 negated into LPS) into 0.
+        let [x, y, z] = self.origin.map(|c| c + 0.0);
         format!(
             "{code} ({}){}{}, voxel 0,0,0 at {x:.6}, {y:.6}, {z:.6} mm LPS",
             axes.join(", "),
