@@ -731,7 +731,7 @@ fn flags_session(args: &RenderArgs, source: VolumeSource, volume: &Volume) -> Re
             let coarsest = volume.level_count().saturating_sub(1);
             if k as usize > coarsest && !args.quiet {
                 eprintln!(
-                    "warning: --level {k}: the file's coarsest level is {coarsest}; rendering level {coarsest}"
+                    "warning: --level {k}: the volume's coarsest level is {coarsest}; rendering level {coarsest}"
                 );
             }
             LevelChoice::Fixed(k)

@@ -24,6 +24,46 @@ fn renders_the_built_in_scene_without_arguments_but_the_output() {
 }
 
 #[test]
+fn flags_without_effect_get_a_warning_and_the_frame_renders() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = [
+        "render",
+        "--size",
+        "32",
+        "--scene-size",
+        "40",
+        "-o",
+        "w.png",
+        "--force",
+    ];
+    for (extra, warning) in [
+        (
+            &["--level", "7"][..],
+            "warning: --level 7: the volume's coarsest level is 0; rendering level 0",
+        ),
+        (
+            &["--mode", "mip", "--preintegrate"][..],
+            "warning: --preintegrate applies to --mode dvr only; mip frames ignore it",
+        ),
+    ] {
+        let out = raycaster(&[&base[..], extra].concat(), dir.path());
+        assert!(out.status.success(), "{}", stderr(&out));
+        let e = stderr(&out);
+        assert_eq!(e.matches(warning).count(), 1, "{extra:?}: {e}");
+        // -q silences warnings with the rest.
+        let quiet = raycaster(&[&base[..], extra, &["-q"]].concat(), dir.path());
+        assert!(
+            quiet.status.success() && stderr(&quiet).is_empty(),
+            "{}",
+            stderr(&quiet)
+        );
+    }
+    // A DVR frame with pre-integration warns of nothing.
+    let out = raycaster(&[&base[..], &["--preintegrate"]].concat(), dir.path());
+    assert!(!stderr(&out).contains("warning"), "{}", stderr(&out));
+}
+
+#[test]
 fn renders_a_file_and_reports_stats_as_json() {
     let dir = tempfile::tempdir().unwrap();
     write_scene(
@@ -350,7 +390,14 @@ fn bad_segment_scenes_fail_with_a_clear_message_and_no_output() {
         "labels.toml",
         "labels = \"missing.labels.vol\"\n[[object]]\n",
     );
-    let cases: [(&[&str], &str); 6] = [
+    write_scene(
+        &dir.path().join("data.vol"),
+        raycaster::synth::SceneKind::Shapes,
+        24,
+        1,
+        raycaster::volume::Format::Extended,
+    );
+    let cases: [(&[&str], &str); 7] = [
         (&["--segments", "typo.toml"], "mdoe"),
         (&["--segments", "mode.toml"], "glow"),
         (&["--segments", "both.toml"], "either"),
@@ -360,6 +407,11 @@ fn bad_segment_scenes_fail_with_a_clear_message_and_no_output() {
             "no label volume",
         ),
         (&["--labels", "x.vol"], "--segments"),
+        // A file's scene names its label volume: said to be the scene's.
+        (
+            &["data.vol", "--segments", "labels.toml"],
+            "the scene's label volume (its `labels =`, read beside the scene file",
+        ),
     ];
     for (extra, needle) in cases {
         let args = [

@@ -131,6 +131,22 @@ fn labels_that_cannot_be_written_leave_no_volume_either() {
 }
 
 #[test]
+fn an_output_not_named_vol_is_written_with_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let o = volgen(d, &["generate", "--size", "8", "-o", "x.raw"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        stderr(&o).trim_end(),
+        "warning: x.raw will be a .vol file whatever its name says (name it NAME.vol)"
+    );
+    // It is one, and opens as one.
+    assert!(stdout(&volgen(d, &["info", "x.raw"])).contains("8x8x8"));
+    let o = volgen(d, &["generate", "--size", "8", "-o", "x.vol"]);
+    assert!(stderr(&o).is_empty(), "{}", stderr(&o));
+}
+
+#[test]
 fn existing_output_needs_force() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("x.vol"), b"keep me").unwrap();
