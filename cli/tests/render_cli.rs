@@ -64,6 +64,50 @@ fn flags_without_effect_get_a_warning_and_the_frame_renders() {
 }
 
 #[test]
+fn an_xray_frame_is_not_saturated_by_default() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = [
+        "render",
+        "--mode",
+        "xray",
+        "--size",
+        "64",
+        "--scene-size",
+        "96",
+        "-q",
+    ];
+    let render = |extra: &[&str], name: &str| {
+        let out = raycaster(&[&base[..], extra, &["-o", name]].concat(), dir.path());
+        assert!(out.status.success(), "{}", stderr(&out));
+        RgbImage::load_png(&dir.path().join(name)).unwrap()
+    };
+    // The brightest channel of each lit pixel.
+    let levels = |image: &RgbImage| -> Vec<u8> {
+        let mut v: Vec<u8> = image
+            .data()
+            .chunks(3)
+            .map(|p| *p.iter().max().unwrap())
+            .filter(|&m| m > 0)
+            .collect();
+        v.sort_unstable();
+        v
+    };
+    let auto = levels(&render(&[], "auto.png"));
+    let one = levels(&render(&["--xray-gain", "1"], "one.png"));
+    // With a gain of 1 most lit pixels show the one saturated colour; by
+    // default the densest reach it and the rest shade below.
+    let median = |v: &[u8]| v[v.len() / 2];
+    assert!(auto.len() > 500 && one.len() > 500);
+    assert_eq!(median(&one), *one.last().unwrap(), "gain 1 saturates");
+    assert!(
+        u32::from(median(&auto)) * 3 < u32::from(*auto.last().unwrap()) * 2,
+        "default: median {} against brightest {}",
+        median(&auto),
+        auto.last().unwrap()
+    );
+}
+
+#[test]
 fn renders_a_file_and_reports_stats_as_json() {
     let dir = tempfile::tempdir().unwrap();
     write_scene(

@@ -42,7 +42,7 @@ fn session(mode: Mode) -> Session {
         settings: RenderSettings {
             mode,
             mode_parameters: ModeParameters {
-                xray_gain: 2.0,
+                xray_gain: Some(2.0),
                 sabella: SabellaOutput::Colours(SabellaMapping {
                     depth: SabellaDepth::Centroid,
                     ..SabellaMapping::default()

@@ -625,7 +625,10 @@ impl Session {
         let _ = writeln!(out, "ess = {}", s.empty_space_skipping);
         let _ = writeln!(out, "iso = {}", num(s.iso_value));
         let m = &s.mode_parameters;
-        let _ = writeln!(out, "xray_gain = {}", num(m.xray_gain));
+        // (Absent: the automatic gain.)
+        if let Some(gain) = m.xray_gain {
+            let _ = writeln!(out, "xray_gain = {}", num(gain));
+        }
         let _ = writeln!(out, "context = {}", list(m.context));
         let (name, weight, p) = match m.importance {
             ImportanceSource::Constant(w) => ("constant", Some(w), None),
@@ -975,7 +978,10 @@ fn settings(
     }
     let early_termination = r.ert.unwrap_or(true).then_some(threshold);
     let iso = unit("render.iso", finite("render.iso", r.iso.unwrap_or(0.5))?)?;
-    let xray_gain = positive("render.xray_gain", r.xray_gain.unwrap_or(1.0))?;
+    let xray_gain = r
+        .xray_gain
+        .map(|g| positive("render.xray_gain", g))
+        .transpose()?;
     let mut context = ModeParameters::default().context;
     if let Some([kt, ks]) = r.context {
         context = [
@@ -1221,7 +1227,7 @@ mod tests {
             settings: RenderSettings {
                 mode: Mode::Sabella,
                 mode_parameters: ModeParameters {
-                    xray_gain: 2.5,
+                    xray_gain: Some(2.5),
                     context: [1.25, 0.5],
                     importance: ImportanceSource::Lighting([1.0, 2.0, 0.5]),
                     sabella: SabellaOutput::Colours(SabellaMapping {

@@ -20,7 +20,7 @@ const SIZE: u32 = 40;
 /// Parameters away from the defaults, so that a mode ignoring them would show.
 fn parameters() -> ModeParameters {
     ModeParameters {
-        xray_gain: 2.5,
+        xray_gain: Some(2.5),
         context: [2.0, 0.5],
         importance: ImportanceSource::Gradient(2.0),
         sabella: SabellaOutput::Colours(SabellaMapping {
@@ -40,7 +40,12 @@ fn modes() -> Vec<(Mode, LocalMode)> {
         (Mode::Dvr, LocalMode::Dvr),
         (Mode::Mip, LocalMode::Mip),
         (Mode::Average, LocalMode::Average),
-        (Mode::XRay, LocalMode::XRay { gain: p.xray_gain }),
+        (
+            Mode::XRay,
+            LocalMode::XRay {
+                gain: p.xray_gain.unwrap(),
+            },
+        ),
         (Mode::FirstHit, LocalMode::FirstHit { iso: ISO }),
         (
             Mode::Importance,

@@ -379,6 +379,39 @@ fn files_without_a_pyramid_still_open_and_render() {
     }
 }
 
+#[test]
+fn every_level_has_the_diagonal_of_level_0_in_level_0_voxels() {
+    // (The automatic X-ray gain's length: a level must not change it.)
+    let dir = TempDir::new().unwrap();
+    let header = u8_header(Layout::Bricked { side: 16 }, Format::Extended);
+    let path = dir.path().join("d.vol");
+    write(
+        &path,
+        &header,
+        &pattern(DIMS, 255, false),
+        &small_slabs(),
+        &Job::silent(),
+    )
+    .unwrap();
+    let volume = Volume::open(&path).unwrap();
+    assert!(volume.level_count() >= 2);
+    let d0 = volume.diagonal_voxels();
+    let expected = DIMS.map(|d| (d as f32).powi(2)).iter().sum::<f32>().sqrt();
+    assert!((d0 - expected).abs() < 1e-3, "{d0} against {expected}");
+    for k in 1..volume.level_count() {
+        let dk = volume.level(k).diagonal_voxels();
+        // A level's odd sizes round up: within a voxel per halving.
+        assert!(
+            (dk - d0).abs() <= 2.0 * (1 << k) as f32,
+            "level {k}: {dk} against {d0}"
+        );
+    }
+    assert_eq!(
+        raycaster::render::auto_xray_gain(d0),
+        raycaster::render::AUTO_XRAY_DEPTH / d0
+    );
+}
+
 /// A bricked u8 file `c.vol` of `values` with an embedded pyramid, and the
 /// pyramid block's offset.
 fn embedded_pyramid_file(dir: &TempDir, values: &[u16]) -> (std::path::PathBuf, usize) {

@@ -1754,7 +1754,13 @@ impl Controller {
                         visible: true,
                         transfer: st.editor.transfer(),
                         // Every mode has its local counterpart (Sabella included).
-                        mode: mode.local(&st.fixed.mode_parameters, st.fixed.iso_value),
+                        mode: mode.local(
+                            &st.fixed.mode_parameters,
+                            st.fixed.iso_value,
+                            st.current
+                                .as_ref()
+                                .map_or(1.0, |c| c.volume.volume.diagonal_voxels()),
+                        ),
                         clip: Default::default(),
                     }],
                     global: GlobalMode::Dvr,

@@ -88,7 +88,9 @@ pub use segments::{
     GlobalMode, ImportanceSource, LocalMode, Membership, ObjectStyle, SceneError, SegmentScene,
 };
 pub use sequential::{render_sequential, render_sequential_levels};
-pub use settings::{DEFAULT_ERT_THRESHOLD, Mode, ModeParameters, RenderSettings};
+pub use settings::{
+    AUTO_XRAY_DEPTH, DEFAULT_ERT_THRESHOLD, Mode, ModeParameters, RenderSettings, auto_xray_gain,
+};
 pub use shading::{Light, Shading};
 pub use simd::{SimdLevel, available as simd_levels};
 pub use state_buffer::{StateBuffer, StateBufferError};

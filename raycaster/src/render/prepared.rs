@@ -280,9 +280,11 @@ impl FramePlan {
                 }
                 FrameCompositor::Plain(
                     LocalCompositor::new(
-                        settings
-                            .mode
-                            .local(&settings.mode_parameters, settings.iso_value),
+                        settings.mode.local(
+                            &settings.mode_parameters,
+                            settings.iso_value,
+                            volume.volume().diagonal_voxels(),
+                        ),
                         Arc::new(table),
                         settings.shading,
                         domain,

@@ -64,15 +64,19 @@ impl Mode {
     }
 
     /// The local mode of two-level compositing that composites like this mode,
-    /// with `parameters` and first-hit iso-value `iso` (normalised).
-    pub fn local(self, parameters: &ModeParameters, iso: f32) -> LocalMode {
+    /// with `parameters` and first-hit iso-value `iso` (normalised), for a
+    /// volume whose diagonal is `diagonal` level-0 voxels (the automatic X-ray
+    /// gain's: [`auto_xray_gain`]).
+    pub fn local(self, parameters: &ModeParameters, iso: f32, diagonal: f32) -> LocalMode {
         match self {
             Mode::Dvr => LocalMode::Dvr,
             Mode::Mip => LocalMode::Mip,
             Mode::Average => LocalMode::Average,
             Mode::FirstHit => LocalMode::FirstHit { iso },
             Mode::XRay => LocalMode::XRay {
-                gain: parameters.xray_gain,
+                gain: parameters
+                    .xray_gain
+                    .unwrap_or_else(|| auto_xray_gain(diagonal)),
             },
             Mode::Importance => LocalMode::Importance {
                 source: parameters.importance,
@@ -89,11 +93,24 @@ impl Mode {
     }
 }
 
+/// The X-ray gain a frame takes unless one is given: [`AUTO_XRAY_DEPTH`] ÷ the
+/// volume's diagonal in level-0 voxels (of its smallest spacing), so that a ray
+/// through the whole volume in material of half the domain's value reaches
+/// opacity `1 − e^−2` (86 %): an X-ray at every size. A fixed gain of 1 turned
+/// every volume larger than a few dozen voxels into a flat saturated shape.
+pub fn auto_xray_gain(diagonal: f32) -> f32 {
+    AUTO_XRAY_DEPTH / diagonal.max(1.0)
+}
+
+/// The automatic X-ray gain's numerator ([`auto_xray_gain`]): about 0.036 for
+/// a 128³ volume, 0.0096 for a 512 × 512 × 48 CT of 0.57 × 0.57 × 5 mm voxels.
+pub const AUTO_XRAY_DEPTH: f32 = 8.0;
+
 /// Parameters of the modes that have some (the defaults of scene descriptions).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ModeParameters {
-    /// X-ray gain.
-    pub xray_gain: f32,
+    /// X-ray gain, or `None` for [`auto_xray_gain`] of the volume rendered.
+    pub xray_gain: Option<f32>,
     /// Context-preserving κt and κs.
     pub context: [f32; 2],
     /// Where importance-aware compositing takes a sample's importance.
@@ -105,7 +122,7 @@ pub struct ModeParameters {
 impl Default for ModeParameters {
     fn default() -> Self {
         ModeParameters {
-            xray_gain: 1.0,
+            xray_gain: None,
             context: [1.5, 0.4],
             importance: ImportanceSource::Constant(1.0),
             sabella: SabellaOutput::default(),

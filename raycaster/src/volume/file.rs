@@ -298,6 +298,22 @@ impl Volume {
         self.header.spacing
     }
 
+    /// The volume's diagonal in level-0 voxels of its smallest spacing: the
+    /// length, in the reference steps opacity is defined per, of the longest
+    /// ray through it (the same for every level of a pyramid).
+    pub fn diagonal_voxels(&self) -> f32 {
+        let extent: f32 = (0..3)
+            .map(|a| (self.header.dims[a] as f32 * self.header.spacing[a]).powi(2))
+            .sum::<f32>()
+            .sqrt();
+        let smallest = self
+            .header
+            .spacing
+            .into_iter()
+            .fold(f32::INFINITY, f32::min);
+        extent / (smallest / self.level_scale())
+    }
+
     /// Sample order in the file.
     pub fn layout(&self) -> Layout {
         self.header.layout
