@@ -68,7 +68,9 @@ pub fn json(
         "height": s.height,
         "mode": settings.mode.name(),
         "step": settings.step,
-        "ert": settings.early_termination,
+        // On or off as "ess" is; the threshold beside it (null when off).
+        "ert": settings.early_termination.is_some(),
+        "ert_threshold": settings.early_termination,
         "ess": settings.empty_space_skipping,
         "preintegrated": settings.preintegrated,
         "jitter": settings.jitter,

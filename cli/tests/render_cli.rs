@@ -142,7 +142,11 @@ fn renders_a_file_and_reports_stats_as_json() {
     let samples = |v: &serde_json::Value| v["samples"].as_u64().unwrap();
     assert!(samples(&both) < samples(&none), "{both} vs {none}");
     assert!(none["samples_skipped_empty"].as_u64() == Some(0));
-    assert_eq!(both["ert"], serde_json::json!(0.99f32));
+    assert_eq!(both["ert"], serde_json::json!(true));
+    assert_eq!(both["ert_threshold"], serde_json::json!(0.99f32));
+    assert_eq!(none["ert"], serde_json::json!(false));
+    assert_eq!(none["ert_threshold"], serde_json::Value::Null);
+    assert_eq!(none["ess"], serde_json::json!(false));
     // Human-readable counters on stderr.
     let out = raycaster(
         &[
