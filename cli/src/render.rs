@@ -436,7 +436,10 @@ pub(crate) enum ModeArg {
     Dvr,
     /// Maximum intensity projection.
     Mip,
-    /// Average intensity projection.
+    /// Average intensity projection: the mean value along the ray, classified.
+    /// The means of a mostly empty volume are low, and so the image dark: a
+    /// transfer function or domain over the means' range (render's
+    /// `--domain 0,60` for `shapes`) brightens it.
     Average,
     /// First hit of the iso-value, refined between samples, shaded.
     FirstHit,
