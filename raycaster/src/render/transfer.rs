@@ -446,7 +446,17 @@ pub struct TransferTable {
     step_ratio: f32,
     /// Pre-integrated segments (front value, back value), when asked for.
     preintegrated: Option<Arc<PreintegratedTable>>,
+    /// For samples of at most [`RAW_PREFIX_MAX`]: per raw value `v`, the
+    /// opaque prefix sums at and after its entry (`opaque_prefix[index(v)]`,
+    /// `opaque_prefix[index(v) + 1]`), so that [`Self::is_transparent`], asked
+    /// for every cell a ray crosses, reads two entries instead of converting
+    /// two values. Empty for wider samples.
+    raw_prefix: Vec<[u32; 2]>,
 }
+
+/// The largest sample type whose raw values get [`TransferTable`]'s
+/// per-value prefix sums: u8 (2 KiB of them; u16's would take 512 KiB).
+const RAW_PREFIX_MAX: u16 = 255;
 
 #[derive(Clone, Debug)]
 struct GradientRamp {
@@ -492,7 +502,7 @@ impl TransferTable {
         for (i, entry) in entries.iter().enumerate() {
             visible_bits[i / 32] |= u32::from(entry[3] > 0.0) << (i % 32);
         }
-        TransferTable {
+        let mut table = TransferTable {
             entries,
             alpha0,
             opaque_prefix,
@@ -502,7 +512,17 @@ impl TransferTable {
             gradient,
             step_ratio,
             preintegrated: None,
+            raw_prefix: Vec::new(),
+        };
+        if type_max <= RAW_PREFIX_MAX {
+            table.raw_prefix = (0..=type_max)
+                .map(|v| {
+                    let i = table.index(f32::from(v));
+                    [table.opaque_prefix[i], table.opaque_prefix[i + 1]]
+                })
+                .collect();
         }
+        table
     }
 
     /// This table with a pre-integrated table over (front, back) value pairs for
@@ -606,6 +626,12 @@ impl TransferTable {
     /// gradient): two reads of the prefix sum.
     #[inline]
     pub fn is_transparent(&self, lo: u16, hi: u16) -> bool {
+        if let (Some(a), Some(b)) = (
+            self.raw_prefix.get(usize::from(lo)),
+            self.raw_prefix.get(usize::from(hi)),
+        ) {
+            return b[1] == a[0];
+        }
         let (a, b) = (self.index(f32::from(lo)), self.index(f32::from(hi)));
         self.opaque_prefix[b + 1] == self.opaque_prefix[a]
     }
@@ -1110,6 +1136,35 @@ mod tests {
                 assert_eq!(table.is_transparent(lo, hi), scan, "[{lo}, {hi}]");
             }
         }
+    }
+
+    #[test]
+    fn u8_tables_answer_transparency_from_raw_values_as_from_their_entries() {
+        for (preset, domain) in [
+            ("shapes", None),
+            ("shapes", Some([40.0, 90.0])),
+            ("ct-bone", Some([-20.0, 300.0])),
+            ("grayscale", Some([200.0, 201.0])),
+        ] {
+            let mut tf = TransferFunction::preset(preset).unwrap();
+            tf.domain = domain;
+            let table = TransferTable::new(&tf, 255, 0.5);
+            assert_eq!(table.raw_prefix.len(), 256);
+            for lo in 0u16..=255 {
+                for hi in lo..=255 {
+                    let (a, b) = (table.index(f32::from(lo)), table.index(f32::from(hi)));
+                    let by_entries = table.opaque_prefix[b + 1] == table.opaque_prefix[a];
+                    assert_eq!(
+                        table.is_transparent(lo, hi),
+                        by_entries,
+                        "{preset} {domain:?} [{lo}, {hi}]"
+                    );
+                }
+            }
+        }
+        // u16 tables keep the conversions.
+        let tf = TransferFunction::preset("shapes").unwrap();
+        assert!(TransferTable::new(&tf, u16::MAX, 0.5).raw_prefix.is_empty());
     }
 
     #[test]
