@@ -383,17 +383,7 @@ fn files_without_a_pyramid_still_open_and_render() {
 fn every_level_has_the_diagonal_of_level_0_in_level_0_voxels() {
     // (The automatic X-ray gain's length: a level must not change it.)
     let dir = TempDir::new().unwrap();
-    let header = u8_header(Layout::Bricked { side: 16 }, Format::Extended);
-    let path = dir.path().join("d.vol");
-    write(
-        &path,
-        &header,
-        &pattern(DIMS, 255, false),
-        &small_slabs(),
-        &Job::silent(),
-    )
-    .unwrap();
-    let volume = Volume::open(&path).unwrap();
+    let volume = Volume::open(&bricked_pattern_file(&dir, "d.vol")).unwrap();
     assert!(volume.level_count() >= 2);
     let d0 = volume.diagonal_voxels();
     let expected = DIMS.map(|d| (d as f32).powi(2)).iter().sum::<f32>().sqrt();
@@ -410,6 +400,22 @@ fn every_level_has_the_diagonal_of_level_0_in_level_0_voxels() {
         raycaster::render::auto_xray_gain(d0),
         raycaster::render::AUTO_XRAY_DEPTH / d0
     );
+}
+
+/// The [`pattern`] as an extended u8 file `name` in `dir`, bricked (side 16),
+/// with its pyramid.
+fn bricked_pattern_file(dir: &TempDir, name: &str) -> std::path::PathBuf {
+    let header = u8_header(Layout::Bricked { side: 16 }, Format::Extended);
+    let path = dir.path().join(name);
+    write(
+        &path,
+        &header,
+        &pattern(DIMS, 255, false),
+        &small_slabs(),
+        &Job::silent(),
+    )
+    .unwrap();
+    path
 }
 
 /// A bricked u8 file `c.vol` of `values` with an embedded pyramid, and the
@@ -523,17 +529,7 @@ fn opening_reads_nothing_and_frames_read_stored_cells_or_compute_them_for_bricks
 #[test]
 fn the_automatic_level_follows_the_projected_voxel_size() {
     let dir = TempDir::new().unwrap();
-    let header = u8_header(Layout::Bricked { side: 16 }, Format::Extended);
-    let path = dir.path().join("lod.vol");
-    write(
-        &path,
-        &header,
-        &pattern(DIMS, 255, false),
-        &small_slabs(),
-        &Job::silent(),
-    )
-    .unwrap();
-    let volume = Volume::open(&path).unwrap();
+    let volume = Volume::open(&bricked_pattern_file(&dir, "lod.vol")).unwrap();
     let auto = LevelChoice::default();
     // The level is chosen at the volume's corner nearest to the camera, so the
     // picture must be well below a pixel per voxel before it coarsens.
