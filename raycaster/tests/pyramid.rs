@@ -383,7 +383,7 @@ fn files_without_a_pyramid_still_open_and_render() {
 fn every_level_has_the_diagonal_of_level_0_in_level_0_voxels() {
     // (The automatic X-ray gain's length: a level must not change it.)
     let dir = TempDir::new().unwrap();
-    let volume = Volume::open(&bricked_pattern_file(&dir, "d.vol")).unwrap();
+    let volume = Volume::open(bricked_pattern_file(&dir, "d.vol")).unwrap();
     assert!(volume.level_count() >= 2);
     let d0 = volume.diagonal_voxels();
     let expected = DIMS.map(|d| (d as f32).powi(2)).iter().sum::<f32>().sqrt();
@@ -529,7 +529,7 @@ fn opening_reads_nothing_and_frames_read_stored_cells_or_compute_them_for_bricks
 #[test]
 fn the_automatic_level_follows_the_projected_voxel_size() {
     let dir = TempDir::new().unwrap();
-    let volume = Volume::open(&bricked_pattern_file(&dir, "lod.vol")).unwrap();
+    let volume = Volume::open(bricked_pattern_file(&dir, "lod.vol")).unwrap();
     let auto = LevelChoice::default();
     // The level is chosen at the volume's corner nearest to the camera, so the
     // picture must be well below a pixel per voxel before it coarsens.
