@@ -1281,6 +1281,20 @@ mod tests {
     }
 
     #[test]
+    fn the_automatic_xray_gain_reads_back_automatic_and_a_given_one_given() {
+        let mut s = sample();
+        s.settings.mode_parameters.xray_gain = None;
+        let text = s.to_toml().unwrap();
+        assert!(!text.contains("xray_gain"), "{text}");
+        assert_eq!(round_trip(&s).settings.mode_parameters.xray_gain, None);
+        // A session written before the gain was automatic always has it.
+        s.settings.mode_parameters.xray_gain = Some(1.0);
+        let text = s.to_toml().unwrap();
+        assert!(text.contains("xray_gain = 1"), "{text}");
+        assert_eq!(round_trip(&s).settings.mode_parameters.xray_gain, Some(1.0));
+    }
+
+    #[test]
     fn slice_views_read_back_equal_and_are_optional() {
         let mut s = sample();
         for window in [
