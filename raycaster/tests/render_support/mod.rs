@@ -52,6 +52,13 @@ pub fn plain_settings(tf: TransferFunction) -> RenderSettings {
         empty_space_skipping: false,
         shading: None,
         transfer: tf,
+        // A fixed X-ray gain: the analytic expectations are written for 1, and
+        // a crop must render as the sub-volume it keeps, whose diagonal (the
+        // automatic gain's) is shorter.
+        mode_parameters: raycaster::render::ModeParameters {
+            xray_gain: Some(1.0),
+            ..Default::default()
+        },
         ..RenderSettings::default()
     }
 }
