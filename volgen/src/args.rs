@@ -4,20 +4,6 @@ use clap::ValueEnum;
 use raycaster::io::{Endian, RawOrder, RawType};
 use raycaster::volume::{Format, MAX_AXIS, MAX_SPACING, MIN_SPACING, SampleType};
 
-/// A warning for an output not named `.vol` (`volgen generate -o x.raw`
-/// writes a `.vol` file all the same), or `None`.
-pub fn output_name_warning(output: &std::path::Path) -> Option<String> {
-    let is_vol = output
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("vol"));
-    (!is_vol).then(|| {
-        format!(
-            "warning: {} will be a .vol file whatever its name says (name it NAME.vol)",
-            output.display()
-        )
-    })
-}
-
 /// `N` (a cube) or `XxYxZ`.
 pub fn parse_dims(s: &str) -> Result<[u32; 3], String> {
     let parts: Vec<&str> = s.split(['x', 'X']).collect();

@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::{Context, bail};
+use anyhow::bail;
 use clap::Args;
 use raycaster::convert::{ConvertOptions, ValueMap, convert};
 use raycaster::import::{self, Imported};
@@ -13,10 +13,11 @@ use raycaster::job::Job;
 use raycaster::volume::{Format, Layout, SampleType, pyramid_voxels};
 
 use crate::args::{
-    EndianArg, FormatArg, LayoutArg, RawOrderArg, RawTypeArg, SampleArg, output_name_warning,
-    parse_brick, parse_dims, parse_spacing, parse_window,
+    EndianArg, FormatArg, LayoutArg, RawOrderArg, RawTypeArg, SampleArg, parse_brick, parse_dims,
+    parse_spacing, parse_window,
 };
 use crate::generate::{describe_layout, describe_pyramid, describe_size};
+use crate::output::{check_output, output_name_warning};
 use crate::progress::{CANCEL, voxel_bar};
 
 /// Convert a raw, .vol, NRRD, NIfTI-1, MetaImage file or DICOM series into a .vol file.
@@ -107,16 +108,8 @@ pub struct ConvertArgs {
 }
 
 pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
-    // A folder, a device or an unwritable folder: said before the input is read
-    // (and never "already exists" for a folder --force cannot replace).
-    raycaster::files::temp_file_beside(&a.output)
-        .with_context(|| format!("{}: cannot write there", a.output.display()))?;
-    if !a.force && a.output.exists() {
-        bail!(
-            "{}: already exists (pass --force to replace it)",
-            a.output.display()
-        );
-    }
+    // Before the input is read.
+    check_output(&a.output, a.force)?;
     if let Some(warning) = output_name_warning(&a.output).filter(|_| !a.quiet) {
         eprintln!("{warning}");
     }

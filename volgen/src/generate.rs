@@ -11,9 +11,8 @@ use raycaster::job::Job;
 use raycaster::synth::SceneKind;
 use raycaster::volume::{Content, Format, Header, Layout, SampleType, pyramid_voxels};
 
-use crate::args::{
-    FormatArg, LayoutArg, SampleArg, output_name_warning, parse_brick, parse_dims, parse_spacing,
-};
+use crate::args::{FormatArg, LayoutArg, SampleArg, parse_brick, parse_dims, parse_spacing};
+use crate::output::{check_output, output_name_warning};
 use crate::progress::{CANCEL, voxel_bar};
 
 /// Synthetic scenes on the command line.
@@ -137,14 +136,7 @@ pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
     // Refuse before doing any work when an output exists or cannot be
     // written (a missing or read-only folder, a device).
     for path in std::iter::once(&a.output).chain(labels.as_ref()) {
-        raycaster::files::temp_file_beside(path)
-            .with_context(|| format!("{}: cannot write there", path.display()))?;
-        if !a.force && path.exists() {
-            bail!(
-                "{}: already exists (pass --force to replace it)",
-                path.display()
-            );
-        }
+        check_output(path, a.force)?;
     }
     let header = Header::new(
         a.size,
@@ -228,8 +220,15 @@ fn same_target(a: &Path, b: &Path) -> bool {
 pub fn describe_pyramid(levels: usize) -> String {
     match levels {
         0 => String::new(),
-        1 => ", pyramid of 1 level".to_string(),
-        n => format!(", pyramid of {n} levels"),
+        n => format!(", pyramid of {}", describe_levels(n)),
+    }
+}
+
+/// `1 level`, `3 levels`.
+pub fn describe_levels(n: usize) -> String {
+    match n {
+        1 => "1 level".to_string(),
+        n => format!("{n} levels"),
     }
 }
 

@@ -7,7 +7,7 @@ use raycaster::io::Input;
 use raycaster::job::Job;
 use raycaster::volume::{Format, Layout, OpenOptions, Volume};
 
-use crate::generate::{describe_layout, describe_size};
+use crate::generate::{describe_layout, describe_levels, describe_size};
 use crate::progress::{CANCEL, voxel_bar};
 
 /// Show a volume file's header, layout, value histogram and brick statistics.
@@ -72,16 +72,11 @@ pub fn run(a: InfoArgs) -> anyhow::Result<()> {
     let ranges = volume.ranges();
     let grid = ranges.grid();
     let [nx, ny, nz] = grid.counts();
-    let kind = match h.layout {
-        Layout::Linear => "logical bricks for empty-space skipping",
-        Layout::Bricked { .. } => "bricks",
-    };
     let count = grid.block_count();
-    // "1 brick", "1 logical brick for …".
-    let kind = if count == 1 {
-        kind.replacen("bricks", "brick", 1)
-    } else {
-        kind.to_string()
+    let bricks = if count == 1 { "brick" } else { "bricks" };
+    let kind = match h.layout {
+        Layout::Linear => format!("logical {bricks} for empty-space skipping"),
+        Layout::Bricked { .. } => bricks.to_string(),
     };
     println!(
         "bricks      {nx}x{ny}x{nz} = {count} {kind} of side {}",
@@ -107,9 +102,8 @@ pub fn run(a: InfoArgs) -> anyhow::Result<()> {
                 raycaster::volume::pyramid_sidecar_path(&a.file).display()
             ),
         };
-        let levels = volume.level_count() - 1;
-        let noun = if levels == 1 { "level" } else { "levels" };
-        println!("pyramid     {levels} {noun} beyond full resolution, {place}");
+        let levels = describe_levels(volume.level_count() - 1);
+        println!("pyramid     {levels} beyond full resolution, {place}");
         for k in 1..volume.level_count() {
             let level = volume.level(k);
             let [lo, hi] = level.ranges().overall();

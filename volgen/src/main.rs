@@ -7,6 +7,7 @@ mod args;
 mod convert;
 mod generate;
 mod info;
+mod output;
 mod progress;
 mod pyramid;
 

@@ -8,7 +8,7 @@ use raycaster::io::WriteOptions;
 use raycaster::job::Job;
 use raycaster::volume::{Volume, level_dims, pyramid_sidecar_path, pyramid_voxels};
 
-use crate::generate::describe_size;
+use crate::generate::{describe_levels, describe_size};
 use crate::progress::{CANCEL, voxel_bar};
 
 /// Add a resolution pyramid to a .vol file, in a sidecar FILE.pyramid beside it.
@@ -52,8 +52,7 @@ pub fn run(a: PyramidArgs) -> anyhow::Result<()> {
     // --force would never be read.)
     if volume.level_count() > 1 && (embedded || !a.force) {
         if !a.quiet {
-            let levels = volume.level_count() - 1;
-            let noun = if levels == 1 { "level" } else { "levels" };
+            let levels = describe_levels(volume.level_count() - 1);
             let place = if embedded {
                 "in the file; nothing to do (`volgen convert` rewrites the file with a fresh one)"
                     .to_string()
@@ -64,7 +63,7 @@ pub fn run(a: PyramidArgs) -> anyhow::Result<()> {
                 )
             };
             println!(
-                "{}: already has a pyramid of {levels} {noun} {place}",
+                "{}: already has a pyramid of {levels} {place}",
                 a.file.display()
             );
         }

@@ -1,0 +1,34 @@
+//! The checks of an output file before any work, and its naming warning.
+
+use std::path::Path;
+
+use anyhow::{Context, bail};
+
+/// Refuses, before any work, an output that cannot be written: a folder, a
+/// device or an unwritable folder (said first, and never "already exists" for
+/// a folder --force cannot replace), or an existing file without `force`.
+pub fn check_output(path: &Path, force: bool) -> anyhow::Result<()> {
+    raycaster::files::temp_file_beside(path)
+        .with_context(|| format!("{}: cannot write there", path.display()))?;
+    if !force && path.exists() {
+        bail!(
+            "{}: already exists (pass --force to replace it)",
+            path.display()
+        );
+    }
+    Ok(())
+}
+
+/// A warning for an output not named `.vol` (`volgen generate -o x.raw`
+/// writes a `.vol` file all the same), or `None`.
+pub fn output_name_warning(output: &Path) -> Option<String> {
+    let is_vol = output
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("vol"));
+    (!is_vol).then(|| {
+        format!(
+            "warning: {} will be a .vol file whatever its name says (name it NAME.vol)",
+            output.display()
+        )
+    })
+}
