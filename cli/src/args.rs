@@ -154,26 +154,31 @@ pub fn parse_threshold(s: &str) -> Result<f32, String> {
         .ok_or_else(|| format!("{s:?} must be a number in (0, 1]"))
 }
 
-/// A finite number; one beyond `f32`'s range is refused as too large, not
-/// taken as infinite.
-pub fn parse_finite(s: &str) -> Result<f32, String> {
+/// `s` as an `f32`, or the error for a number written beyond `f32`'s range
+/// (which parses as infinite): too large, not "inf".
+fn parse_in_range(s: &str) -> Result<Option<f32>, String> {
     match s.trim().parse::<f32>() {
-        Ok(v) if v.is_finite() => Ok(v),
-        Ok(v) if !v.is_nan() && !s.to_ascii_lowercase().contains("inf") => Err(format!(
+        Ok(v) if v.is_infinite() && !s.to_ascii_lowercase().contains("inf") => Err(format!(
             "{s:?} is too large: numbers here lie within ±{:e}",
             f32::MAX
         )),
-        _ => Err(format!("{s:?} must be a finite number")),
+        parsed => Ok(parsed.ok()),
     }
+}
+
+/// A finite number; one beyond `f32`'s range is refused as too large, not
+/// taken as infinite.
+pub fn parse_finite(s: &str) -> Result<f32, String> {
+    parse_in_range(s)?
+        .filter(|v| v.is_finite())
+        .ok_or_else(|| format!("{s:?} must be a finite number"))
 }
 
 /// A positive finite number.
 pub fn parse_positive(s: &str) -> Result<f32, String> {
-    match parse_finite(s) {
-        Ok(v) if v > 0.0 => Ok(v),
-        Err(e) if e.contains("too large") => Err(e),
-        _ => Err(format!("{s:?} must be a positive number")),
-    }
+    parse_in_range(s)?
+        .filter(|&v| v > 0.0 && v.is_finite())
+        .ok_or_else(|| format!("{s:?} must be a positive number"))
 }
 
 /// A coordinate along one axis of the volume: voxels, or a percentage of the
