@@ -22,10 +22,7 @@ pub fn check_output(path: &Path, force: bool) -> anyhow::Result<()> {
 /// A warning for an output not named `.vol` (`volgen generate -o x.raw`
 /// writes a `.vol` file all the same), or `None`.
 pub fn output_name_warning(output: &Path) -> Option<String> {
-    let is_vol = output
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("vol"));
-    (!is_vol).then(|| {
+    (!raycaster::volume::has_vol_extension(output)).then(|| {
         format!(
             "warning: {} will be a .vol file whatever its name says (name it NAME.vol)",
             output.display()

@@ -84,7 +84,7 @@ pub fn read_header(path: &Path) -> Result<(Header, File, u64), VolumeError> {
 }
 
 /// Whether `path`'s name ends in `.vol` (any case).
-fn has_vol_extension(path: &Path) -> bool {
+pub fn has_vol_extension(path: &Path) -> bool {
     path.extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("vol"))
 }

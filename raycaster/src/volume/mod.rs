@@ -25,7 +25,8 @@ pub use cells::{
 };
 pub use error::{VolumeError, VolumeErrorKind};
 pub use file::{
-    OpenOptions, Volume, VolumeData, ranges_sidecar_path, read_header, write_pyramid_sidecar,
+    OpenOptions, Volume, VolumeData, has_vol_extension, ranges_sidecar_path, read_header,
+    write_pyramid_sidecar,
 };
 pub use grid::BlockGrid;
 pub use header::{
