@@ -802,7 +802,11 @@ fn open_volume(source: &VolumeSource, args: &RenderArgs) -> Result<Volume> {
                 access,
                 ..OpenOptions::default()
             };
-            Ok(Volume::open_with(path, options)?)
+            let volume = Volume::open_with(path, options)?;
+            if let Some(warning) = volume.unused_tail_warning().filter(|_| !args.quiet) {
+                eprintln!("{warning}");
+            }
+            Ok(volume)
         }
         VolumeSource::BuiltIn { kind, size, seed } => {
             let n = *size;

@@ -78,7 +78,11 @@ pub fn run(args: SliceArgs) -> Result<()> {
             access: Access::Mapped,
             ..OpenOptions::default()
         };
-        Volume::open_with(&args.file, options)?
+        let volume = Volume::open_with(&args.file, options)?;
+        if let Some(warning) = volume.unused_tail_warning().filter(|_| !args.quiet) {
+            eprintln!("{warning}");
+        }
+        volume
     };
     let axis = match args.axis {
         AxisArg::X => Axis::X,

@@ -108,6 +108,50 @@ fn an_xray_frame_is_not_saturated_by_default() {
 }
 
 #[test]
+fn bytes_after_a_files_last_block_get_one_warning_and_the_frame_renders() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("tail.vol");
+    write_scene(
+        &path,
+        raycaster::synth::SceneKind::Shapes,
+        40,
+        1,
+        raycaster::volume::Format::Extended,
+    );
+    let len = std::fs::metadata(&path).unwrap().len();
+    let args = [
+        "render", "tail.vol", "-o", "t.png", "--size", "32", "--force",
+    ];
+    let out = raycaster(&args, dir.path());
+    assert!(
+        out.status.success() && !stderr(&out).contains("warning"),
+        "{}",
+        stderr(&out)
+    );
+    let whole = std::fs::read(dir.path().join("t.png")).unwrap();
+    let mut f = std::fs::OpenOptions::new()
+        .append(true)
+        .open(&path)
+        .unwrap();
+    std::io::Write::write_all(&mut f, b"garbage").unwrap();
+    drop(f);
+    let out = raycaster(&args, dir.path());
+    assert!(out.status.success(), "{}", stderr(&out));
+    let warning = format!(
+        "warning: tail.vol: the file has 7 bytes after its last block (from byte {len}) that are not part of the volume; they are ignored"
+    );
+    assert_eq!(
+        stderr(&out).matches(&warning).count(),
+        1,
+        "{}",
+        stderr(&out)
+    );
+    assert!(std::fs::read(dir.path().join("t.png")).unwrap() == whole);
+    let quiet = raycaster(&[&args[..], &["-q"]].concat(), dir.path());
+    assert!(stderr(&quiet).is_empty(), "{}", stderr(&quiet));
+}
+
+#[test]
 fn renders_a_file_and_reports_stats_as_json() {
     let dir = tempfile::tempdir().unwrap();
     write_scene(

@@ -115,9 +115,62 @@ fn every_layout_and_sample_type_round_trips_mapped_and_in_ram() {
                     assert_eq!(v.header().format, format);
                     assert_pattern(&v);
                     assert_eq!(v.ranges(), &v.compute_ranges(), "stored ranges are exact");
+                    assert_eq!(v.unused_tail(), None, "the file ends with its last block");
                 }
             }
         }
+    }
+}
+
+#[test]
+fn bytes_appended_after_the_last_block_are_reported_and_ignored() {
+    let dir = tmp();
+    // Large enough for a resolution pyramid (the file's last block); the
+    // thesis file ends with its samples, the small extended one with its
+    // range table.
+    let cases = [
+        (
+            [80, 72, 66],
+            Format::Extended,
+            Layout::Bricked { side: 16 },
+            2,
+        ),
+        ([80, 72, 66], Format::Extended, Layout::Linear, 2),
+        (
+            [19, 8, 13],
+            Format::Extended,
+            Layout::Bricked { side: 4 },
+            1,
+        ),
+        ([19, 8, 13], Format::Thesis, Layout::Bricked { side: 4 }, 1),
+    ];
+    for (dims, format, layout, levels) in cases {
+        let path = dir
+            .path()
+            .join(format!("tail-{format:?}-{}-{}.vol", dims[0], layout).replace(' ', ""));
+        let header = unit_header(dims, layout, SampleType::U8, format);
+        write_pattern(&path, &header);
+        let len = std::fs::metadata(&path).unwrap().len();
+        let v = Volume::open(&path).unwrap();
+        assert_eq!(v.level_count(), levels, "{path:?}");
+        assert_eq!(v.unused_tail(), None, "{path:?}");
+        assert_eq!(v.unused_tail_warning(), None);
+        drop(v);
+        let mut f = std::fs::OpenOptions::new()
+            .append(true)
+            .open(&path)
+            .unwrap();
+        std::io::Write::write_all(&mut f, &[0xA5; 1000]).unwrap();
+        drop(f);
+        let v = Volume::open(&path).unwrap();
+        assert_eq!(v.unused_tail(), Some((len, 1000)), "{path:?}");
+        let warning = v.unused_tail_warning().unwrap();
+        assert!(
+            warning.contains("1000 bytes after its last block (from byte"),
+            "{warning}"
+        );
+        assert_eq!(v.level_count(), levels, "the file still opens whole");
+        assert_pattern(&v);
     }
 }
 

@@ -945,6 +945,13 @@ fn ranges_offset_past_the_end() {
                 file_len,
             },
         );
+        // Past the end: most likely a truncated file, and the message says so.
+        let message = header_error(&p).to_string();
+        assert!(
+            message.contains(&format!("starts at byte {offset}, past the file's end"))
+                && message.contains("truncated"),
+            "{message}"
+        );
     }
     // No bytes after the samples at all: the table offset cannot be anywhere.
     raw.ext_mut().ranges_offset = data_end;

@@ -160,6 +160,24 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
             a.input.display()
         );
     }
+    if let Some(Err(why)) = input.embedded_pyramid_intact()
+        && !a.quiet
+    {
+        let output = if a.no_pyramid {
+            "the output has none (--no-pyramid)"
+        } else {
+            "the output's is built from the samples"
+        };
+        eprintln!("warning: {}: {why}; {output}", a.input.display());
+    }
+    if let Some((start, count)) = input.unused_tail()
+        && !a.quiet
+    {
+        eprintln!(
+            "warning: {}: the file has {count} bytes after its last block (from byte {start}) that are not part of the volume; they are not copied",
+            a.input.display()
+        );
+    }
     let input_layout = input.header().map(|h| h.layout);
     let layout = match (a.layout, a.brick) {
         (Some(LayoutArg::Linear), Some(_)) => bail!("--brick applies to --layout bricked only"),

@@ -69,6 +69,11 @@ pub fn run(a: InfoArgs) -> anyhow::Result<()> {
         h.data_len()?,
         h.stored_samples()? as f64 / voxels as f64
     );
+    if let Some((start, count)) = volume.unused_tail() {
+        println!(
+            "unused      {count} bytes after the file's last block, from byte {start}: not part of the volume (a damaged copy, or two files joined?)"
+        );
+    }
     let ranges = volume.ranges();
     let grid = ranges.grid();
     let [nx, ny, nz] = grid.counts();

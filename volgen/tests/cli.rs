@@ -147,6 +147,63 @@ fn an_output_not_named_vol_is_written_with_a_warning() {
 }
 
 #[test]
+fn a_damaged_pyramid_or_bytes_after_the_file_are_named_and_the_samples_converted() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // 80³: a file with a range table and a one-level pyramid, ending with it.
+    let o = volgen(d, &["generate", "--size", "80", "-o", "whole.vol", "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let whole = std::fs::read(d.join("whole.vol")).unwrap();
+    let o = volgen(d, &["info", "whole.vol"]);
+    assert!(!stdout(&o).contains("unused"), "{}", stdout(&o));
+    let o = volgen(d, &["convert", "whole.vol", "-o", "copy.vol"]);
+    assert!(stderr(&o).is_empty(), "{}", stderr(&o));
+    let copy = std::fs::read(d.join("copy.vol")).unwrap();
+
+    // Bytes after the pyramid: info shows them, convert says they are dropped
+    // and writes the same file as from the whole one.
+    let mut joined = whole.clone();
+    joined.extend_from_slice(&[7u8; 300]);
+    std::fs::write(d.join("joined.vol"), &joined).unwrap();
+    let o = volgen(d, &["info", "joined.vol"]);
+    assert!(
+        stdout(&o).contains(&format!(
+            "unused      300 bytes after the file's last block, from byte {}",
+            whole.len()
+        )),
+        "{}",
+        stdout(&o)
+    );
+    let o = volgen(d, &["convert", "joined.vol", "-o", "from-joined.vol"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        stderr(&o).trim_end(),
+        format!(
+            "warning: joined.vol: the file has 300 bytes after its last block (from byte {}) that are not part of the volume; they are not copied",
+            whole.len()
+        )
+    );
+    assert!(std::fs::read(d.join("from-joined.vol")).unwrap() == copy);
+
+    // A pyramid cut short: the file does not open, and convert rebuilds it.
+    std::fs::write(d.join("cut.vol"), &whole[..whole.len() - 100]).unwrap();
+    let o = volgen(d, &["info", "cut.vol"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("the levels are cut off"),
+        "{}",
+        stderr(&o)
+    );
+    let o = volgen(d, &["convert", "cut.vol", "-o", "from-cut.vol"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        stderr(&o).trim_end(),
+        "warning: cut.vol: the resolution pyramid is corrupt: the levels are cut off; the output's is built from the samples"
+    );
+    assert!(std::fs::read(d.join("from-cut.vol")).unwrap() == copy);
+}
+
+#[test]
 fn existing_output_needs_force() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("x.vol"), b"keep me").unwrap();

@@ -202,6 +202,50 @@ impl Input {
         )
     }
 
+    /// For a `.vol` input with an embedded resolution pyramid: what is wrong
+    /// with it (`Some(Err(why))`: a conversion builds the output's pyramid from
+    /// the samples, which it always does). `None` for other inputs.
+    pub fn embedded_pyramid_intact(&self) -> Option<Result<(), String>> {
+        let (Source::Vol(header), RawData::File(file)) = (&self.source, &self.file) else {
+            return None;
+        };
+        let offset = header.pyramid_offset?;
+        let len = file.metadata().map(|m| m.len()).unwrap_or(0);
+        let cells = Some(header.pyramid_cells);
+        Some(
+            crate::volume::pyramid::PyramidLayout::read(file, offset, len, header, cells)
+                .map(|_| ())
+                .map_err(|e| e.to_string()),
+        )
+    }
+
+    /// For a `.vol` input: the bytes after its last block (samples, range
+    /// table, pyramid), as [`crate::volume::Volume::unused_tail`] (where they
+    /// start, how many); `None` when there are none or for other inputs.
+    pub fn unused_tail(&self) -> Option<(u64, u64)> {
+        let (Source::Vol(header), RawData::File(file)) = (&self.source, &self.file) else {
+            return None;
+        };
+        let len = file.metadata().ok()?.len();
+        let grid = header.block_grid(crate::volume::LINEAR_RANGE_SIDE);
+        let ranges_len = crate::volume::BrickRanges::table_len(&grid);
+        let pyramid = match header.pyramid_offset {
+            Some(offset) => {
+                let plan =
+                    crate::volume::pyramid::PyramidLayout::plan(header, header.pyramid_cells)
+                        .ok()?;
+                Some(offset + plan.block_len())
+            }
+            None => None,
+        };
+        let end = [header.data_end().ok()?]
+            .into_iter()
+            .chain(header.ranges_offset.map(|offset| offset + ranges_len))
+            .chain(pyramid)
+            .max()?;
+        (len > end).then(|| (end, len - end))
+    }
+
     /// This input with `units` saying what its values mean (a foreign file's
     /// rescale slope and intercept, and its unit when known).
     pub fn with_units(mut self, units: ValueUnits) -> Input {

@@ -60,6 +60,9 @@ pub struct Volume {
     levels: Vec<Volume>,
     /// Which pyramid level this is (0: the full-resolution volume).
     level: u32,
+    /// Bytes after the file's last block (samples, range table, pyramid) that
+    /// no part of the format accounts for: where they start and how many.
+    unused_tail: Option<(u64, u64)>,
 }
 
 /// Reads and validates the header of the volume file `path` (without mapping it).
@@ -112,15 +115,25 @@ impl Volume {
         }
         let data = typed_data(&header, storage.bytes()).at(path)?;
         let ranges = load_ranges(path, &header, &storage, data, &file, len, options)?;
-        let (levels, cells) = load_pyramid(path, &header, &file, len, options.access)?;
+        let (pyramid, pyramid_end) = load_pyramid(path, &header, &file, len, options.access)?;
+        let ranges_end = header
+            .ranges_offset
+            .map(|offset| offset + ranges.encoded_len());
+        let content_end = [header.data_end().at(path)?]
+            .into_iter()
+            .chain(ranges_end)
+            .chain(pyramid_end)
+            .max()
+            .unwrap_or(0);
         Ok(Volume {
             path: path.to_path_buf(),
             header,
             storage,
             ranges,
-            cells,
-            levels,
+            cells: pyramid.level0_cells,
+            levels: pyramid.levels,
             level: 0,
+            unused_tail: (len > content_end).then(|| (content_end, len - content_end)),
         })
     }
 
@@ -173,6 +186,7 @@ impl Volume {
             cells: None,
             levels: Vec::new(),
             level: 0,
+            unused_tail: None,
         })
     }
 
@@ -214,6 +228,25 @@ impl Volume {
     /// Scans the samples for the per-brick ranges (what open does without a cache).
     pub fn compute_ranges(&self) -> BrickRanges {
         compute_ranges(&self.header, self.data())
+    }
+
+    /// Bytes at the end of the file that no part of it accounts for (after its
+    /// samples, value-range table and resolution pyramid, whichever ends
+    /// last): where they start and how many; `None` when the file ends with
+    /// its last block, and for volumes not read from a file. Opening ignores
+    /// them; they may be the sign of a damaged copy or of two files joined.
+    pub fn unused_tail(&self) -> Option<(u64, u64)> {
+        self.unused_tail
+    }
+
+    /// A warning naming [`Self::unused_tail`], if there is one.
+    pub fn unused_tail_warning(&self) -> Option<String> {
+        let (start, count) = self.unused_tail?;
+        let bytes = if count == 1 { "byte" } else { "bytes" };
+        Some(format!(
+            "warning: {}: the file has {count} {bytes} after its last block (from byte {start}) that are not part of the volume; they are ignored (a damaged copy, or two files joined?)",
+            self.path.display()
+        ))
     }
 
     /// Number of resolution levels: 1 (the volume itself) plus the pyramid's.
@@ -413,7 +446,7 @@ fn load_ranges(
         let table = match storage {
             Storage::Mapped(_) => BrickRanges::read_from(file, offset, available, dims).at(path)?,
             Storage::Ram { .. } => {
-                let table_len = (28 + 4 * grid.block_count()).min(available);
+                let table_len = BrickRanges::table_len(&grid).min(available);
                 BrickRanges::decode(
                     &storage.bytes()[offset as usize..(offset + table_len) as usize],
                     dims,
@@ -447,8 +480,17 @@ fn load_ranges(
     Ok(ranges)
 }
 
-/// The pyramid levels of an opened file and its stored level-0 cell ranges:
-/// embedded (extended header version 2 or later), else from a fresh `FILE.pyramid`
+/// A resolution pyramid as read: its levels, the stored level-0 cell ranges
+/// and the length of its block.
+#[derive(Default)]
+struct PyramidBlock {
+    levels: Vec<Volume>,
+    level0_cells: Option<CellTable>,
+    len: u64,
+}
+
+/// The pyramid of an opened file: embedded (extended header version 2 or
+/// later; with where its block ends), else from a fresh `FILE.pyramid`
 /// sidecar, else none. A corrupt embedded pyramid is an error; a stale or
 /// unreadable sidecar is ignored.
 fn load_pyramid(
@@ -457,12 +499,14 @@ fn load_pyramid(
     file: &File,
     len: u64,
     access: Access,
-) -> Result<(Vec<Volume>, Option<CellTable>), VolumeError> {
+) -> Result<(PyramidBlock, Option<u64>), VolumeError> {
     if let Some(start) = header.pyramid_offset {
         let cells = Some(header.pyramid_cells);
-        return read_levels(path, header, file, start, len, access, cells);
+        let block = read_levels(path, header, file, start, len, access, cells)?;
+        let end = start + block.len;
+        return Ok((block, Some(end)));
     }
-    let none = || Ok((Vec::new(), None));
+    let none = || Ok((PyramidBlock::default(), None));
     let sidecar = pyramid_sidecar_path(path);
     // Never block on a FIFO or read a directory posing as the sidecar.
     let Ok(side) = crate::files::open_regular(&sidecar) else {
@@ -481,7 +525,7 @@ fn load_pyramid(
     if !fresh || !side.metadata().is_ok_and(|m| m.is_file()) {
         return none();
     }
-    Ok(read_levels(
+    let block = read_levels(
         path,
         header,
         &side,
@@ -490,11 +534,12 @@ fn load_pyramid(
         access,
         None,
     )
-    .unwrap_or_default())
+    .unwrap_or_default();
+    Ok((block, None))
 }
 
-/// The levels of the pyramid block at `start` of `file`, and its level-0 cell
-/// table; `cells`: whether the block must store cell tables (`None`: either).
+/// The pyramid block at `start` of `file`; `cells`: whether the block must
+/// store cell tables (`None`: either).
 fn read_levels(
     path: &Path,
     base: &Header,
@@ -503,7 +548,7 @@ fn read_levels(
     file_len: u64,
     access: Access,
     cells: Option<bool>,
-) -> Result<(Vec<Volume>, Option<CellTable>), VolumeError> {
+) -> Result<PyramidBlock, VolumeError> {
     let layout = PyramidLayout::read(file, start, file_len, base, cells).at(path)?;
     let level0_cells = layout.read_cells(file, start, base, 0).at(path)?;
     let levels = (1..=layout.levels.len())
@@ -526,10 +571,15 @@ fn read_levels(
                 cells,
                 levels: Vec::new(),
                 level: k as u32,
+                unused_tail: None,
             })
         })
         .collect::<Result<_, VolumeError>>()?;
-    Ok((levels, level0_cells))
+    Ok(PyramidBlock {
+        levels,
+        level0_cells,
+        len: layout.block_len(),
+    })
 }
 
 /// Computes the resolution pyramid of the volume file `path` (any format) into its

@@ -260,9 +260,7 @@ pub enum HeaderError {
         actual: u64,
     },
     /// The range table offset points inside the samples or past the file.
-    #[error(
-        "value-range table offset {offset} is outside the file's trailing bytes ({data_end}..{file_len})"
-    )]
+    #[error("{}", misplaced_block("value-range table", "an", *offset, *data_end, *file_len))]
     BadRangesOffset {
         /// The offset in the header.
         offset: u64,
@@ -272,9 +270,7 @@ pub enum HeaderError {
         file_len: u64,
     },
     /// The pyramid offset is outside the bytes after the samples or not 64-aligned.
-    #[error(
-        "resolution pyramid offset {offset} is not a 64-aligned offset in the file's trailing bytes ({data_end}..{file_len})"
-    )]
+    #[error("{}", misplaced_block("resolution pyramid", "a 64-aligned", *offset, *data_end, *file_len))]
     BadPyramidOffset {
         /// The offset in the header.
         offset: u64,
@@ -283,6 +279,26 @@ pub enum HeaderError {
         /// The file's length.
         file_len: u64,
     },
+}
+
+/// The message of a block (range table, pyramid) whose offset is wrong: one
+/// past the file's end most likely means a truncated file.
+fn misplaced_block(
+    block: &str,
+    offset_kind: &str,
+    offset: u64,
+    data_end: u64,
+    file_len: u64,
+) -> String {
+    if offset >= file_len && offset >= data_end {
+        format!(
+            "the {block} starts at byte {offset}, past the file's end ({file_len} bytes): the file is truncated or its header is damaged"
+        )
+    } else {
+        format!(
+            "{block} offset {offset} is not {offset_kind} offset in the file's trailing bytes ({data_end}..{file_len})"
+        )
+    }
 }
 
 const AXES: [char; 3] = ['x', 'y', 'z'];

@@ -134,7 +134,7 @@ impl PyramidLayout {
             let spacing = base.spacing.map(|s| s * scale);
             let header = level_header(base, d, spacing);
             let data_len = header.data_len()?;
-            let ranges_len = 28 + 4 * header.block_grid(LINEAR_RANGE_SIDE).block_count();
+            let ranges_len = BrickRanges::table_len(&header.block_grid(LINEAR_RANGE_SIDE));
             let ranges_offset = offset
                 .checked_add(data_len)
                 .ok_or(HeaderError::SizeOverflow)?;
