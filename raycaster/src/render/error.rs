@@ -19,7 +19,8 @@ pub enum RenderError {
     BrickSide(u32),
     /// A logical brick that does not tile the file's bricks.
     #[error(
-        "brick side {side} does not divide the file's bricks of side {file_side} (the sub-brick step side−1 must divide {file_side}−1)"
+        "brick side {side} does not divide the file's bricks of side {file_side} (the sub-brick step side−1 must divide {file_side}−1): sides that do are {}",
+        sub_brick_sides(*file_side)
     )]
     SubBrick {
         /// The side asked for.
@@ -89,4 +90,15 @@ fn budget_cause([x, y, z]: [f32; 3], ratio: f64, step: f32) -> String {
     } else {
         format!("the step is {step} voxel; raise --step (0.5 is the default)")
     }
+}
+
+/// The logical brick sides that tile a file's bricks of side `file_side`
+/// (`side − 1` divides `file_side − 1`), smallest first, as a list.
+fn sub_brick_sides(file_side: u32) -> String {
+    let step = file_side.saturating_sub(1).max(1);
+    let sides: Vec<String> = (1..=step)
+        .filter(|d| step % d == 0)
+        .map(|d| (d + 1).to_string())
+        .collect();
+    sides.join(", ")
 }
