@@ -97,7 +97,7 @@ fn budget_cause([x, y, z]: [f32; 3], ratio: f64, step: f32) -> String {
 fn sub_brick_sides(file_side: u32) -> String {
     let step = file_side.saturating_sub(1).max(1);
     let sides: Vec<String> = (1..=step)
-        .filter(|d| step % d == 0)
+        .filter(|d| step.is_multiple_of(*d))
         .map(|d| (d + 1).to_string())
         .collect();
     sides.join(", ")
