@@ -72,7 +72,7 @@ pub struct RenderArgs {
     scene: SceneArg,
 
     /// Size of the built-in scene in voxels per axis.
-    #[arg(long, default_value_t = 128, value_parser = clap::value_parser!(u32).range(2..=1024), value_name = "N")]
+    #[arg(long, default_value_t = raycaster::synth::DEFAULT_SCENE_SIZE, value_parser = clap::value_parser!(u32).range(2..=1024), value_name = "N")]
     scene_size: u32,
 
     /// Seed of the built-in scene.

@@ -17,8 +17,8 @@ const HISTOGRAM_SAMPLES: u64 = 2_000_000;
 const SMALL_VOLUME_BYTES: u64 = 256 << 20;
 /// Foreign scans up to this many bytes of samples are converted in RAM.
 pub const IN_MEMORY_LIMIT: u64 = raycaster::import::DEFAULT_IN_MEMORY_LIMIT;
-/// Edge of the built-in scene.
-pub const BUILT_IN_SIZE: u32 = 160;
+/// Edge of the built-in scene: `raycaster render`'s.
+pub const BUILT_IN_SIZE: u32 = raycaster::synth::DEFAULT_SCENE_SIZE;
 
 /// A volume ready to hand to the render front.
 #[derive(Clone)]

@@ -52,6 +52,10 @@ pub enum SceneKind {
     Gradient,
 }
 
+/// Edge in voxels of a built-in scene rendered without a size: the same picture
+/// from `raycaster render` and the viewer.
+pub const DEFAULT_SCENE_SIZE: u32 = 128;
+
 impl SceneKind {
     /// Every scene, in the order `--help` lists them.
     pub const ALL: [SceneKind; 4] = [
