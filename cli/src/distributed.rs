@@ -39,7 +39,7 @@ mod mpi_rank {
         RenderVolume, Renderer, render_distributed_levels,
     };
 
-    use crate::output::check_output;
+    use crate::output::check_output_of;
     use crate::render::{RenderArgs, Setup, check_arguments, finish, parallel_options};
 
     /// An error already reported (by this rank or another): exit quietly with
@@ -156,7 +156,7 @@ mod mpi_rank {
         let local = world.split_shared(rank).size().max(1) as usize;
         let checked = check_arguments(&args).and_then(|()| {
             if rank == 0 {
-                check_output(&args.output, args.force)
+                check_output_of(&args.output, args.force, crate::render::input_paths(&args))
             } else {
                 Ok(())
             }

@@ -10,6 +10,12 @@ pub fn check_output(output: &Path, force: bool) -> Result<()> {
     let is_png = output
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("png"));
+    if output
+        .file_name()
+        .is_some_and(|n| n.eq_ignore_ascii_case(".png"))
+    {
+        bail!("{}: the image needs a name before .png", output.display());
+    }
     if !is_png {
         bail!(
             "{}: only PNG images are written; name the output with .png",
@@ -17,6 +23,31 @@ pub fn check_output(output: &Path, force: bool) -> Result<()> {
         );
     }
     check_file(output, force)
+}
+
+/// [`check_output`] for a command that reads `inputs`: an output that is one
+/// of them is refused too (`--force` would replace the input with the image).
+pub fn check_output_of<'a>(
+    output: &Path,
+    force: bool,
+    inputs: impl IntoIterator<Item = &'a Path>,
+) -> Result<()> {
+    if let Some(input) = inputs.into_iter().find(|i| same_file(i, output)) {
+        bail!(
+            "{}: is an input of this command ({}); name another file for the image",
+            output.display(),
+            input.display()
+        );
+    }
+    check_output(output, force)
+}
+
+/// Whether two paths name the same existing file (through links and `..`).
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    match (a.canonicalize(), b.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    }
 }
 
 /// Refuses, before any work, an output file that could not be written: a

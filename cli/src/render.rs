@@ -485,13 +485,22 @@ impl From<ModeArg> for Mode {
     }
 }
 
+/// The files the command reads that the flags name (the image must be none
+/// of them).
+pub(crate) fn input_paths(args: &RenderArgs) -> impl Iterator<Item = &Path> {
+    [&args.file, &args.session, &args.segments, &args.labels]
+        .into_iter()
+        .flatten()
+        .map(PathBuf::as_path)
+}
+
 /// Runs the render command.
 pub fn run(args: RenderArgs) -> Result<()> {
     if args.distributed {
         return crate::distributed::run(args);
     }
     check_arguments(&args)?;
-    crate::output::check_output(&args.output, args.force)?;
+    crate::output::check_output_of(&args.output, args.force, input_paths(&args))?;
     let setup = Setup::new(&args)?;
     let prepared = setup.prepared_bands(&args)?;
     let passes: Vec<(&RenderVolume<'_>, Option<DepthBand>)> = prepared

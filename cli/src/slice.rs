@@ -66,7 +66,7 @@ enum AxisArg {
 
 /// Runs the slice command.
 pub fn run(args: SliceArgs) -> Result<()> {
-    crate::output::check_output(&args.output, args.force)?;
+    crate::output::check_output_of(&args.output, args.force, [args.file.as_path()])?;
     raycaster::files::guard_mapped_file(&args.file);
     let volume = if raycaster::import::detect(&args.file).is_some() {
         raycaster::import::open(&args.file)?.to_volume_with(

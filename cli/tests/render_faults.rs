@@ -584,4 +584,93 @@ fn compare_keeps_its_inputs_and_outputs_refuse_pipes_and_devices() {
     assert!(stderr(&o).contains("named pipe"), "{}", stderr(&o));
     use std::os::unix::fs::FileTypeExt;
     assert!(std::fs::metadata(&fifo).unwrap().file_type().is_fifo());
+
+    // A PNG whose header claims 100000² pixels: an error, not an abort for
+    // lack of memory (the decoder would allocate 30 GB).
+    let chunk = |kind: &[u8], data: &[u8]| {
+        let mut c = (data.len() as u32).to_be_bytes().to_vec();
+        c.extend_from_slice(kind);
+        c.extend_from_slice(data);
+        let mut crc = crc32(kind);
+        crc = crc32_more(crc, data);
+        c.extend_from_slice(&crc.to_be_bytes());
+        c
+    };
+    let mut ihdr = Vec::new();
+    ihdr.extend_from_slice(&100_000u32.to_be_bytes());
+    ihdr.extend_from_slice(&100_000u32.to_be_bytes());
+    ihdr.extend_from_slice(&[8, 2, 0, 0, 0]);
+    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+    png.extend(chunk(b"IHDR", &ihdr));
+    // 1000 zero bytes as a zlib stream of one stored block (adler32 1, 1000).
+    let mut idat = vec![0x78, 0x01, 0x01, 0xE8, 0x03, 0x17, 0xFC];
+    idat.extend_from_slice(&[0; 1000]);
+    idat.extend_from_slice(&0x03E8_0001u32.to_be_bytes());
+    png.extend(chunk(b"IDAT", &idat));
+    png.extend(chunk(b"IEND", &[]));
+    std::fs::write(d.join("huge.png"), png).unwrap();
+    let o = raycaster(&["compare", "huge.png", "a.png"], d);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains(
+            "huge.png: the image is 100000×100000 pixels, more than the 16384×16384 read"
+        ),
+        "{}",
+        stderr(&o)
+    );
+}
+
+/// CRC-32 (PNG's) of `bytes`.
+fn crc32(bytes: &[u8]) -> u32 {
+    crc32_more(0, bytes)
+}
+
+/// CRC-32 of what `crc` covered followed by `bytes`.
+fn crc32_more(crc: u32, bytes: &[u8]) -> u32 {
+    let mut c = !crc;
+    for &b in bytes {
+        c ^= u32::from(b);
+        for _ in 0..8 {
+            c = if c & 1 != 0 {
+                0xEDB8_8320 ^ (c >> 1)
+            } else {
+                c >> 1
+            };
+        }
+    }
+    !c
+}
+
+#[test]
+fn render_and_slice_never_write_the_image_over_their_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // A volume named like an image (volgen warns of the name, and writes it).
+    write_vol(&d.join("v.png"), [8; 3], [1.0; 3], Content::Scalar);
+    let volume = std::fs::read(d.join("v.png")).unwrap();
+    for args in [
+        &["render", "v.png", "-o", "v.png", "--force", "--size", "16"][..],
+        &[
+            "slice", "v.png", "--axis", "z", "--index", "0", "-o", "v.png", "--force",
+        ],
+        &["render", "v.png", "-o", "./v.png", "--size", "16"],
+    ] {
+        let o = raycaster(args, d);
+        assert_eq!(o.status.code(), Some(1), "{args:?}");
+        assert!(
+            stderr(&o).contains("is an input of this command (v.png); name another file"),
+            "{args:?}: {}",
+            stderr(&o)
+        );
+        assert!(
+            std::fs::read(d.join("v.png")).unwrap() == volume,
+            "{args:?}"
+        );
+    }
+    let o = raycaster(&["render", "v.png", "-o", ".png", "--size", "16"], d);
+    assert!(
+        stderr(&o).contains(".png: the image needs a name before .png"),
+        "{}",
+        stderr(&o)
+    );
 }

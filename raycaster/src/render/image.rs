@@ -3,6 +3,13 @@
 use std::io::{BufReader, BufWriter};
 use std::path::Path;
 
+/// The side of the largest image [`RgbImage::load_png`] reads (the largest
+/// frame `raycaster render` writes).
+const MAX_LOAD_SIDE: u64 = 16384;
+
+/// Pixels of the largest image read.
+const MAX_LOAD_PIXELS: u64 = MAX_LOAD_SIDE * MAX_LOAD_SIDE;
+
 /// An 8-bit RGB image, rows from the top.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct RgbImage {
@@ -105,8 +112,19 @@ impl RgbImage {
             path: path.to_path_buf(),
             message,
         };
-        let decoder = png::Decoder::new(BufReader::new(file));
+        let mut decoder = png::Decoder::new(BufReader::new(file));
+        // The decoder allocates what the header says: bounded (a lying header
+        // is an error, not an abort for lack of memory).
+        decoder.set_limits(png::Limits {
+            bytes: (MAX_LOAD_PIXELS * 8) as usize,
+        });
         let mut reader = decoder.read_info().map_err(|e| png_err(e.to_string()))?;
+        let (width, height) = (reader.info().width, reader.info().height);
+        if u64::from(width) * u64::from(height) > MAX_LOAD_PIXELS {
+            return Err(png_err(format!(
+                "the image is {width}×{height} pixels, more than the {MAX_LOAD_SIDE}×{MAX_LOAD_SIDE} read"
+            )));
+        }
         let size = reader
             .output_buffer_size()
             .ok_or_else(|| png_err("image too large".into()))?;
