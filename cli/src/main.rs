@@ -33,6 +33,7 @@ enum Command {
 
 fn main() {
     restore_sigpipe();
+    stop_cleanly_on_signals();
     raycaster::files::guard_mapped_reads();
     let cli = Cli::parse();
     let result = match cli.command {
@@ -53,6 +54,20 @@ fn main() {
 /// Prints `e` the one way the command reports a failure (`error: …`).
 pub(crate) fn report_error(e: &anyhow::Error) {
     eprintln!("error: {}", raycaster::errors::error_text(e.as_ref()));
+}
+
+/// Ctrl-C, SIGTERM and SIGHUP end the process with status 130, as a shell
+/// reports an interrupted command, after deleting the temporary files of
+/// outputs still being written: a bench volume being generated into the cache
+/// folder (gigabytes) or an image being saved. Killed by the signal itself,
+/// the process left them behind.
+fn stop_cleanly_on_signals() {
+    // (Only fails when a handler is already set: none is.)
+    let _ = ctrlc::set_handler(|| {
+        raycaster::files::remove_partial_outputs();
+        eprintln!("interrupted; no partial output was left");
+        std::process::exit(130);
+    });
 }
 
 /// A closed stdout (`raycaster render --stats-json | head -c 10`) ends the process

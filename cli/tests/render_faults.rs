@@ -382,6 +382,63 @@ fn bench_reports_median_and_spread_writes_csv_as_it_goes_and_warns_on_one_frame(
     assert!(stderr(&o).contains("timed on one frame"), "{}", stderr(&o));
 }
 
+#[test]
+fn an_interrupted_bench_leaves_no_partial_volume_in_its_cache() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("cache");
+    let partials = || -> Vec<String> {
+        std::fs::read_dir(&cache)
+            .map(|entries| {
+                entries
+                    .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+                    .collect()
+            })
+            .unwrap_or_default()
+    };
+    for signal in ["TERM", "INT"] {
+        // 600³ voxels: seconds of generation, interrupted while the volume is
+        // being written (its temporary file exists).
+        let mut child = Command::new(env!("CARGO_BIN_EXE_raycaster"))
+            .args([
+                "bench",
+                "--volume-size",
+                "600",
+                "--threads",
+                "1",
+                "--frames",
+                "1",
+                "--cache-dir",
+                "cache",
+            ])
+            .current_dir(dir.path())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let started = Instant::now();
+        while !partials().iter().any(|n| n.ends_with(".partial")) {
+            assert!(
+                started.elapsed() < Duration::from_secs(60),
+                "no partial file"
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let killed = Command::new("kill")
+            .args([&format!("-{signal}"), &child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(killed.success());
+        let out = child.wait_with_output().unwrap();
+        assert_eq!(out.status.code(), Some(130), "{signal}: {}", stderr(&out));
+        assert!(
+            stderr(&out).contains("interrupted; no partial output was left"),
+            "{}",
+            stderr(&out)
+        );
+        assert_eq!(partials(), Vec::<String>::new(), "{signal}");
+    }
+}
+
 /// `raycaster bench --preintegrate` times the frame `raycaster render
 /// --preintegrate` renders: the same samples for the same volume, image, step,
 /// bricks and tiles, pre-integrated or not, and the CSV says which.

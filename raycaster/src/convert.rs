@@ -67,11 +67,20 @@ impl ValueMap {
 
     /// The function from an input value to a stored sample of type `T`.
     pub fn to_sample<T: Sample>(self) -> impl Fn(f32) -> T + Copy {
+        // A window wider than `f32` holds (−2e38..2e38) is mapped in halves:
+        // `hi − lo` would be infinite. (Halving is exact, and a factor of 1
+        // leaves other windows' results as they were.)
+        let half = match self {
+            ValueMap::Window(lo, hi) if !(hi - lo).is_finite() => 0.5,
+            _ => 1.0,
+        };
         move |v: f32| match self {
             // `as` saturates: values beyond the type clamp, NaN becomes 0.
             ValueMap::Copy => T::from_u16_saturating(v as u16),
             ValueMap::Offset => T::from_u16_saturating((v + I16_OFFSET) as u16),
-            ValueMap::Window(lo, hi) if hi > lo => T::from_unit((v - lo) / (hi - lo)),
+            ValueMap::Window(lo, hi) if hi > lo => {
+                T::from_unit((v * half - lo * half) / (hi * half - lo * half))
+            }
             ValueMap::Window(..) => T::from_unit(0.0),
         }
     }
@@ -202,5 +211,34 @@ fn same_file(a: &Path, b: &Path) -> bool {
     match (a.canonicalize(), b.canonicalize()) {
         (Ok(a), Ok(b)) => a == b,
         _ => false,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn windows_wider_than_f32_holds_map_like_narrower_ones() {
+        let wide = ValueMap::Window(-2e38, 2e38).to_sample::<u16>();
+        let narrow = ValueMap::Window(-2.0, 2.0).to_sample::<u16>();
+        for (v, n) in [
+            (-2e38, -2.0),
+            (-1e38, -1.0),
+            (0.0, 0.0),
+            (1e38, 1.0),
+            (2e38, 2.0),
+        ] {
+            assert_eq!(wide(v), narrow(n), "{v}");
+        }
+        assert_eq!(wide(2e38), u16::MAX);
+        assert_eq!(wide(-3e38), 0);
+        let full = ValueMap::Window(f32::MIN, f32::MAX).to_sample::<u8>();
+        assert_eq!([full(f32::MIN), full(0.0), full(f32::MAX)], [0, 128, 255]);
+        // An ordinary window: the same results as `(v − lo) / (hi − lo)`.
+        let plain = ValueMap::Window(-1000.0, 3000.0).to_sample::<u16>();
+        for v in [-1000.0f32, -3.7, 0.0, 1234.5, 3000.0] {
+            assert_eq!(plain(v), u16::from_unit((v - -1000.0) / 4000.0));
+        }
     }
 }
