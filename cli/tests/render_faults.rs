@@ -398,7 +398,7 @@ fn an_interrupted_bench_leaves_no_partial_volume_in_its_cache() {
     for signal in ["TERM", "INT"] {
         // 600³ voxels: seconds of generation, interrupted while the volume is
         // being written (its temporary file exists).
-        let mut child = Command::new(env!("CARGO_BIN_EXE_raycaster"))
+        let child = Command::new(env!("CARGO_BIN_EXE_raycaster"))
             .args([
                 "bench",
                 "--volume-size",
