@@ -75,8 +75,10 @@ pub struct BenchArgs {
     #[arg(long, value_delimiter = ',', default_values_t = [8, 16, 32], hide_default_value = true, value_name = "PX,..")]
     tiles: Vec<u32>,
 
-    /// Brick sides to try [default: 8,16,32].
-    #[arg(long, value_delimiter = ',', default_values_t = [8, 16, 32], hide_default_value = true, value_name = "N,..")]
+    /// Brick sides to try [default: 8,16,32; on a bricked volume those of them
+    /// that tile its bricks (side−1 divides the volume's side−1), else its own
+    /// side].
+    #[arg(long, value_delimiter = ',', value_name = "N,..")]
     bricks: Vec<u32>,
 
     /// Optimisation settings to try: none, ert, ess, both.
@@ -222,6 +224,29 @@ impl Record {
     }
 }
 
+/// The brick sides swept when `--bricks` is not given, for a linear volume.
+const DEFAULT_BRICKS: [u32; 3] = [8, 16, 32];
+
+/// The default brick sides for a volume stored in `layout`: [`DEFAULT_BRICKS`],
+/// on a bricked volume those of them that tile its bricks, else its side.
+fn bricks_for(layout: Layout) -> Vec<u32> {
+    match layout {
+        Layout::Linear => DEFAULT_BRICKS.to_vec(),
+        Layout::Bricked { side } => {
+            let side = u32::from(side);
+            let tiling: Vec<u32> = DEFAULT_BRICKS
+                .into_iter()
+                .filter(|b| (side - 1).is_multiple_of(b - 1))
+                .collect();
+            if tiling.is_empty() {
+                vec![side]
+            } else {
+                tiling
+            }
+        }
+    }
+}
+
 /// The grid of cases of the arguments, brick by brick (bricks outermost, so a
 /// prepared volume serves every case of its brick side).
 fn cases(args: &BenchArgs) -> Vec<BenchCase> {
@@ -312,8 +337,16 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
             crate::output::check_output(path, args.force)?;
         }
     }
-    let cases = cases(&args);
-    let Some(first) = cases.first() else {
+    if let Some(level) = args.simd.0.filter(|l| !l.is_available()) {
+        bail!("--simd {level}: this machine does not have it");
+    }
+    let default_bricks = args.bricks.is_empty();
+    if default_bricks {
+        // Until the volume is open: a placeholder that opens it.
+        args.bricks = DEFAULT_BRICKS.to_vec();
+    }
+    let cases_then = cases(&args);
+    let Some(first) = cases_then.first() else {
         bail!(
             "nothing to measure: give at least one thread count, tile, brick and optimisation set"
         );
@@ -328,6 +361,14 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
     std::fs::create_dir_all(&cache_dir)
         .with_context(|| format!("cannot create the cache folder {}", cache_dir.display()))?;
     let volume = first.open_volume(&cache_dir)?;
+    if default_bricks {
+        args.bricks = bricks_for(volume.layout());
+    }
+    let cases = cases(&args);
+    // Every brick side is checked before the sweep prints anything.
+    for &side in &args.bricks {
+        RenderVolume::new(&volume, Some(side)).with_context(|| format!("--bricks {side}"))?;
+    }
     let [w, h] = args.image;
     eprintln!(
         "bench: {} ({}×{}×{}, {}), image {w}×{h}, step {}{}, {} frame(s) per configuration, {} kernel",
@@ -574,6 +615,17 @@ pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn default_bricks_tile_a_bricked_volume() {
+        assert_eq!(bricks_for(Layout::Linear), [8, 16, 32]);
+        // Side 16: step 15, which 7 and 31 do not divide.
+        assert_eq!(bricks_for(Layout::Bricked { side: 16 }), [16]);
+        assert_eq!(bricks_for(Layout::Bricked { side: 32 }), [32]);
+        assert_eq!(bricks_for(Layout::Bricked { side: 29 }), [8]);
+        assert_eq!(bricks_for(Layout::Bricked { side: 64 }), [8]);
+        assert_eq!(bricks_for(Layout::Bricked { side: 11 }), [11]);
+    }
 
     #[test]
     fn bench_volumes_are_cached_under_the_xdg_cache_not_the_working_directory() {

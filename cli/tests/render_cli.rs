@@ -420,6 +420,31 @@ fn bench_generates_the_volume_kind_asked_for() {
         dir.path(),
     );
     assert!(!bad.status.success());
+    // Without --bricks a bricked volume is swept by sides that tile its
+    // bricks: none of 8, 16, 32 tiles side 9, so its own.
+    let default = raycaster(
+        &[
+            "bench",
+            "--quick",
+            "--volume-size",
+            "24",
+            "--layout",
+            "bricked:9",
+            "--threads",
+            "1",
+            "--tiles",
+            "16",
+            "--cache-dir",
+            "vols",
+        ],
+        dir.path(),
+    );
+    assert!(default.status.success(), "{}", stderr(&default));
+    assert!(
+        stderr(&default).contains("fastest: 1 thread, tile 16, brick 9"),
+        "{}",
+        stderr(&default)
+    );
     // Bricks of side 9 (step 8) are cut by sides whose step divides 8.
     assert!(
         stderr(&bad).contains(
