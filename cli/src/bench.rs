@@ -337,6 +337,7 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
             crate::output::check_output(path, args.force)?;
         }
     }
+    crate::memory::check_frame(args.image[0], args.image[1])?;
     if let Some(level) = args.simd.0.filter(|l| !l.is_available()) {
         bail!("--simd {level}: this machine does not have it");
     }

@@ -7,6 +7,7 @@ mod args;
 mod bench;
 mod compare;
 mod distributed;
+mod memory;
 mod output;
 mod plot;
 mod render;
