@@ -42,7 +42,8 @@ pub struct BenchArgs {
     file: Option<PathBuf>,
 
     /// Size of the generated volume (voxels per axis).
-    #[arg(long, default_value_t = 256, value_name = "N")]
+    #[arg(long, default_value_t = 256, value_name = "N",
+          value_parser = clap::value_parser!(u32).range(2..=i64::from(raycaster::volume::MAX_AXIS)))]
     volume_size: u32,
 
     /// Sample type of the generated volume: u8, u16.

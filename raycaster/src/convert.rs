@@ -165,8 +165,13 @@ pub fn convert(
         content,
         options.format,
     );
-    // The header is checked before the (possibly long) value-range pass.
-    header.validate().at(output)?;
+    // The header is checked before the (possibly long) value-range pass. Its
+    // faults are the input's (its spacing, its units), unless a spacing was given.
+    let blamed = match options.spacing {
+        Some(_) => output,
+        None => input.path(),
+    };
+    header.validate().at(blamed)?;
     let (_, values) = plan_values(input, Some(sample_type), options.window, job)?;
     // Units need the extended header; a thesis file of a windowed input keeps
     // stored values only (the summary's value map says how they were made).
@@ -181,6 +186,7 @@ pub fn convert(
         Format::Extended => header.with_orientation(input.orientation().cloned()),
         Format::Thesis => header,
     };
+    header.encode().at(blamed)?;
     let written = match sample_type {
         SampleType::U8 => copy_slabs::<u8>(input, output, &header, values, write, job)?,
         SampleType::U16 => copy_slabs::<u16>(input, output, &header, values, write, job)?,

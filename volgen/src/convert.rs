@@ -254,7 +254,7 @@ pub fn raw_type_name(t: RawType) -> &'static str {
 /// One line on what a foreign file holds.
 fn describe_import(i: &Imported) -> String {
     let ty = raw_type_name(i.sample);
-    let [sx, sy, sz] = i.spacing;
+    let [sx, sy, sz] = i.spacing.map(number_text);
     let mut line = format!(
         "{}: {} {} {ty}, spacing {sx} x {sy} x {sz}, {} data",
         i.path.display(),
@@ -266,6 +266,16 @@ fn describe_import(i: &Imported) -> String {
         line += &format!(" (declares value = {slope} * stored + {inter}; stored values are kept)");
     }
     line
+}
+
+/// `v` as people read it: in scientific notation when far from 1 (a lying
+/// header's spacing of 1e30 prints as that, not as 31 digits).
+fn number_text(v: f32) -> String {
+    if v != 0.0 && !(1e-4..1e6).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
 }
 
 /// How a foreign file's samples are stored, for people.

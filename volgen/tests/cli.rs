@@ -229,7 +229,15 @@ fn bad_inputs_get_clear_errors_and_leave_no_files() {
     let d = dir.path();
     std::fs::write(d.join("short.raw"), vec![0u8; 100]).unwrap();
     std::fs::write(d.join("trunc.vol"), [1u8, 0, 0]).unwrap();
+    let mut nrrd = b"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 2 2 2\nspacings: 1e30 1e30 1e30\nencoding: raw\n\n".to_vec();
+    nrrd.extend_from_slice(&[0; 8]);
+    std::fs::write(d.join("far.nrrd"), nrrd).unwrap();
     let cases: &[(&[&str], &str)] = &[
+        // The input's spacing cannot be stored: the input is named.
+        (
+            &["convert", "far.nrrd", "-o", "o.vol"],
+            "error: far.nrrd: invalid header: spacing on x is 1e30",
+        ),
         (&["info", "missing.vol"], "missing.vol: No such file"),
         (
             &["info", "trunc.vol"],
@@ -310,7 +318,7 @@ fn bad_inputs_get_clear_errors_and_leave_no_files() {
     }
     assert_eq!(
         files_in(d),
-        ["short.raw", "trunc.vol"],
+        ["far.nrrd", "short.raw", "trunc.vol"],
         "no output left behind"
     );
 }
