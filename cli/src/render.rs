@@ -10,10 +10,10 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use raycaster::render::{
     Camera, ClipPlane, ClipRegion, CropBox, DepthBand, LevelBand, LevelChoice, Light,
-    MAX_CLIP_PLANES, Mat3, Membership, Mode, ModeParameters, Orbit, PRESETS, ParallelOptions,
-    Projection, RenderSettings, RenderVolume, Renderer, SabellaDepth, SabellaMapping,
-    SabellaOutput, SegmentScene, Shading, SimdLevel, TileSink, TransferFunction, Vec3,
-    closest_preset, patient_axes, render_sequential_levels,
+    MAX_CLIP_PLANES, Mat3, Membership, Mode, ModeParameters, Orbit, ParallelOptions, Projection,
+    RenderSettings, RenderVolume, Renderer, SabellaDepth, SabellaMapping, SabellaOutput,
+    SegmentScene, Shading, SimdLevel, TileSink, TransferFunction, Vec3, closest_preset,
+    patient_axes, render_sequential_levels,
 };
 use raycaster::session::{Session, SessionCamera};
 use raycaster::source::{self, VolumeSource};
@@ -861,11 +861,11 @@ fn settings(args: &RenderArgs, volume: &Volume) -> Result<RenderSettings> {
         (None, Some(_)) => fit.preset.to_string(),
     };
     let tf_path = Path::new(&tf_name);
-    let is_preset = PRESETS.iter().any(|(p, _)| *p == tf_name);
-    let mut transfer = if !is_preset && tf_path.exists() {
+    let names_a_file = TransferFunction::names_a_file(&tf_name, Path::new(""));
+    let mut transfer = if names_a_file && tf_path.exists() {
         // A file (or something else there, which load refuses with a reason).
         TransferFunction::load(tf_path)?
-    } else if !is_preset && (tf_name.contains('/') || tf_path.extension().is_some()) {
+    } else if names_a_file {
         bail!(
             "--tf {tf_name}: no such transfer-function file{}",
             // `tfs/ct-bonee` or `ct-bon.tf`: the name may be a near-miss preset.

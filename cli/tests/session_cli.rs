@@ -284,4 +284,36 @@ fn errors_in_transfer_function_and_scene_files_name_the_file() {
         "{}",
         stderr(&run)
     );
+    // Values of the wrong kind say what the key takes (not a Rust type's
+    // name), and a missing file is one, not an unknown preset.
+    write("tf5.toml", "layers = [[0, 1]]\n[[object]]\ntf = 5\n");
+    write(
+        "missing.toml",
+        "layers = [[0, 1]]\n[[object]]\ntf = \"nope.tf\"\n",
+    );
+    write(
+        "level.toml",
+        "version = 1\n[volume]\nscene = \"shapes\"\nsize = 16\n[render]\nlevel = -1\n",
+    );
+    for (extra, needle) in [
+        (
+            ["--segments", "tf5.toml"],
+            "`tf` is a preset name or file path (a string) or an inline table",
+        ),
+        (
+            ["--segments", "missing.toml"],
+            "cannot read transfer function file nope.tf: No such file",
+        ),
+        (
+            ["--session", "level.toml"],
+            "`level` is `\"auto\"` or a level number",
+        ),
+    ] {
+        let args: Vec<&str> = ["render", "-o", "x.png"].into_iter().chain(extra).collect();
+        let e = stderr(&raycaster(&args, dir.path()));
+        assert!(
+            e.contains(needle) && !e.contains("untagged"),
+            "{extra:?}: {e}"
+        );
+    }
 }

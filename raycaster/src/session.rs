@@ -276,7 +276,10 @@ struct SlicesFile {
 }
 
 #[derive(Deserialize)]
-#[serde(untagged)]
+#[serde(
+    untagged,
+    expecting = "a window is a preset name (a string) or `[low, high]`"
+)]
 enum WindowField {
     Name(String),
     Values([f32; 2]),
@@ -348,7 +351,10 @@ struct RenderFile {
 }
 
 #[derive(Deserialize)]
-#[serde(untagged)]
+#[serde(
+    untagged,
+    expecting = "`level` is `\"auto\"` or a level number (0 = full resolution)"
+)]
 enum LevelFile {
     Number(u32),
     Name(String),
@@ -368,7 +374,10 @@ struct ShadingFile {
 }
 
 #[derive(Deserialize)]
-#[serde(untagged)]
+#[serde(
+    untagged,
+    expecting = "`light` is `\"headlight\"` or a direction `[x, y, z]`"
+)]
 enum LightFile {
     Direction([f32; 3]),
     Name(String),

@@ -222,7 +222,10 @@ struct ObjectFile {
 
 /// An object's transfer function: a preset name or file, or written inline.
 #[derive(Deserialize)]
-#[serde(untagged)]
+#[serde(
+    untagged,
+    expecting = "`tf` is a preset name or file path (a string) or an inline table `{ points = [[value, r, g, b, alpha], ...] }`"
+)]
 enum TransferSpec {
     Named(String),
     Inline(InlineTransfer),
@@ -369,7 +372,7 @@ impl SegmentScene {
             let transfer = match &o.tf {
                 Some(TransferSpec::Inline(inline)) => inline.build(),
                 // Anything at that path is read as a file (a named pipe is refused).
-                Some(TransferSpec::Named(tf)) if base.join(tf).exists() => {
+                Some(TransferSpec::Named(tf)) if TransferFunction::names_a_file(tf, base) => {
                     TransferFunction::load(&base.join(tf))
                 }
                 Some(TransferSpec::Named(tf)) => TransferFunction::preset(tf),

@@ -192,6 +192,18 @@ impl TransferFunction {
         })
     }
 
+    /// Whether `name` (of a `--tf` or a scene's `tf`) means a file: it exists
+    /// beside `base` (`name` relative to it), or it is no preset and looks like
+    /// a path (a `/` or an extension), so that a missing file is reported as
+    /// one rather than as an unknown preset.
+    pub fn names_a_file(name: &str, base: &Path) -> bool {
+        let is_preset = PRESETS.iter().any(|(p, _)| *p == name);
+        !is_preset
+            && (base.join(name).exists()
+                || name.contains('/')
+                || Path::new(name).extension().is_some())
+    }
+
     /// The preset called `name` (see [`PRESETS`]).
     pub fn preset(name: &str) -> Result<TransferFunction, TransferError> {
         const BLUE: [f32; 3] = [0.35, 0.55, 1.0];
