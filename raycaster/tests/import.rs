@@ -628,6 +628,21 @@ fn broken_dicom_series_give_clear_errors() {
         err.contains("copy_1.dcm") && err.contains("4 of the 5 slices lie at the position"),
         "{err}"
     );
+    // A Pixel Spacing that is no numbers (before: taken as 1 without a word).
+    let slice = d.join("brain_003.dcm");
+    let good = std::fs::read(&slice).unwrap();
+    let tag = [0x28, 0x00, 0x30, 0x00, b'D', b'S'];
+    let at = good.windows(6).position(|w| w == tag).unwrap() + 8;
+    let mut bad = good.clone();
+    let len = u16::from_le_bytes([good[at - 2], good[at - 1]]) as usize;
+    bad[at..at + len].fill(b'x');
+    std::fs::write(&slice, &bad).unwrap();
+    let err = import::open(d).unwrap_err().to_string();
+    assert!(
+        err.contains("brain_003.dcm") && err.contains("Pixel Spacing `xxxx"),
+        "{err}"
+    );
+    std::fs::write(&slice, &good).unwrap();
     // A truncated slice.
     truncate(&d.join("brain_007.dcm"), 1000);
     let err = import::open_volume_any(d, 1 << 30).unwrap_err().to_string();

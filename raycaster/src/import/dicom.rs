@@ -100,7 +100,26 @@ fn read_slice(path: &Path) -> Result<Slice, ImportErrorKind> {
             .to_int::<i64>()
             .map_err(|_| header_error(F, format!("{name} is not a number")))
     };
-    let floats = |tag| -> Option<Vec<f64>> { obj.element(tag).ok()?.to_multi_float64().ok() };
+    // A geometry field that is there must be numbers: one that is not would
+    // silently become the default (a spacing of 1, slices out of order).
+    let floats = |tag, name: &str| -> Result<Option<Vec<f64>>, ImportErrorKind> {
+        let Ok(element) = obj.element(tag) else {
+            return Ok(None);
+        };
+        let text = element
+            .to_str()
+            .map(|t| t.trim_matches(['\0', ' ']).to_string())
+            .unwrap_or_default();
+        match element.to_multi_float64() {
+            Ok(values) => Ok(Some(values)),
+            // (An empty value: a type-2 element left blank, as if absent.)
+            Err(_) if text.is_empty() => Ok(None),
+            Err(_) => Err(header_error(
+                F,
+                format!("{name} `{text}` is not a list of numbers"),
+            )),
+        }
+    };
     let rows = int(tags::ROWS, "Rows")?;
     let columns = int(tags::COLUMNS, "Columns")?;
     let samples_per_pixel = int(tags::SAMPLES_PER_PIXEL, "Samples per Pixel").unwrap_or(1);
@@ -139,8 +158,9 @@ fn read_slice(path: &Path) -> Result<Slice, ImportErrorKind> {
     let pixel_offset = find_pixel_data(path, expected, endian).map_err(ImportErrorKind::Io)?.ok_or_else(|| {
         header_error(F, format!("no Pixel Data element of {expected} bytes ({columns}x{rows}, {bits} bits) was found"))
     })?;
-    let slope = floats(tags::RESCALE_SLOPE).and_then(|v| v.first().copied());
-    let inter = floats(tags::RESCALE_INTERCEPT).and_then(|v| v.first().copied());
+    let slope = floats(tags::RESCALE_SLOPE, "Rescale Slope")?.and_then(|v| v.first().copied());
+    let inter =
+        floats(tags::RESCALE_INTERCEPT, "Rescale Intercept")?.and_then(|v| v.first().copied());
     let scaling = match (slope, inter) {
         (Some(s), i) if s != 1.0 || i.unwrap_or(0.0) != 0.0 => {
             Some((s as f32, i.unwrap_or(0.0) as f32))
@@ -175,12 +195,18 @@ fn read_slice(path: &Path) -> Result<Slice, ImportErrorKind> {
         sample,
         endian,
         series,
-        position: floats(tags::IMAGE_POSITION_PATIENT).and_then(|v| v.try_into().ok()),
-        orientation: floats(tags::IMAGE_ORIENTATION_PATIENT).and_then(|v| v.try_into().ok()),
+        position: floats(tags::IMAGE_POSITION_PATIENT, "Image Position (Patient)")?
+            .and_then(|v| v.try_into().ok()),
+        orientation: floats(
+            tags::IMAGE_ORIENTATION_PATIENT,
+            "Image Orientation (Patient)",
+        )?
+        .and_then(|v| v.try_into().ok()),
         instance: int(tags::INSTANCE_NUMBER, "Instance Number").ok(),
-        pixel_spacing: floats(tags::PIXEL_SPACING).and_then(|v| v.try_into().ok()),
-        between: floats(tags::SPACING_BETWEEN_SLICES)
-            .or_else(|| floats(tags::SLICE_THICKNESS))
+        pixel_spacing: floats(tags::PIXEL_SPACING, "Pixel Spacing")?
+            .and_then(|v| v.try_into().ok()),
+        between: floats(tags::SPACING_BETWEEN_SLICES, "Spacing Between Slices")?
+            .or(floats(tags::SLICE_THICKNESS, "Slice Thickness")?)
             .and_then(|v| v.first().copied()),
         scaling,
         unit,

@@ -290,6 +290,16 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
     };
     read?;
     let h = parse_header(&head).map_err(at)?;
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    if !h.single_file && !(name.ends_with(".hdr") || name.ends_with(".hdr.gz")) {
+        return Err(at(header_error(
+            F,
+            "magic \"ni1\" says the image is in a separate .img file, but this is no .hdr file (a .nii file's magic is \"n+1\")",
+        )));
+    }
     let data_path = if h.single_file {
         path.to_path_buf()
     } else {
@@ -367,6 +377,32 @@ mod tests {
         h[108..112].copy_from_slice(&352f32.to_le_bytes());
         h[344..348].copy_from_slice(b"n+1\0");
         h
+    }
+
+    #[test]
+    fn a_pair_magic_in_a_single_file_is_named_as_such() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut h = header(2, [2, 2, 2], [1.0; 3]);
+        h[344..348].copy_from_slice(b"ni1\0");
+        h.extend_from_slice(&[0; 8]);
+        let nii = dir.path().join("pair.nii");
+        std::fs::write(&nii, &h).unwrap();
+        let e = open(&nii).unwrap_err().to_string();
+        assert!(
+            e.contains(
+                "magic \"ni1\" says the image is in a separate .img file, but this is no .hdr file"
+            ),
+            "{e}"
+        );
+        // As a .hdr beside its .img it opens.
+        let hdr = dir.path().join("pair.hdr");
+        std::fs::write(&hdr, &h[..348]).unwrap();
+        std::fs::write(dir.path().join("pair.img"), [0u8; 8]).unwrap();
+        let mut h = h;
+        h.truncate(348);
+        h[108..112].copy_from_slice(&0f32.to_le_bytes());
+        std::fs::write(&hdr, &h).unwrap();
+        assert_eq!(open(&hdr).unwrap().dims, [2, 2, 2]);
     }
 
     #[test]
