@@ -294,7 +294,8 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
         .file_name()
         .map(|n| n.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default();
-    if !h.single_file && !(name.ends_with(".hdr") || name.ends_with(".hdr.gz")) {
+    let pair_header = name.ends_with(".hdr") || name.ends_with(".hdr.gz");
+    if !h.single_file && !pair_header {
         return Err(at(header_error(
             F,
             "magic \"ni1\" says the image is in a separate .img file, but this is no .hdr file (a .nii file's magic is \"n+1\")",
@@ -398,7 +399,6 @@ mod tests {
         let hdr = dir.path().join("pair.hdr");
         std::fs::write(&hdr, &h[..348]).unwrap();
         std::fs::write(dir.path().join("pair.img"), [0u8; 8]).unwrap();
-        let mut h = h;
         h.truncate(348);
         h[108..112].copy_from_slice(&0f32.to_le_bytes());
         std::fs::write(&hdr, &h).unwrap();
