@@ -540,6 +540,29 @@ fn local_mode(o: &ObjectFile) -> Result<LocalMode, String> {
             Err(format!("{name} = {v} must be a non-negative number"))
         }
     };
+    // A parameter of another mode is a mistake (a mode changed, its
+    // parameter left): said, not ignored.
+    let given = [
+        ("gain", o.gain.is_some(), "xray"),
+        ("iso", o.iso.is_some(), "first-hit"),
+        ("kt", o.kt.is_some(), "context"),
+        ("ks", o.ks.is_some(), "context"),
+        ("depth", o.depth.is_some(), "sabella"),
+        ("weight", o.weight.is_some(), "importance"),
+        ("importance", o.importance.is_some(), "importance"),
+        ("p", o.p.is_some(), "importance"),
+    ];
+    let known = given.iter().any(|(_, _, m)| *m == o.mode)
+        || ["dvr", "mip", "average", "silhouette"].contains(&o.mode.as_str());
+    if let Some((name, _, mode)) = given
+        .iter()
+        .find(|(_, set, mode)| known && *set && *mode != o.mode)
+    {
+        return Err(format!(
+            "`{name}` applies to mode {mode:?}; this object's mode is {:?}",
+            o.mode
+        ));
+    }
     Ok(match o.mode.as_str() {
         "dvr" => LocalMode::Dvr,
         "mip" => LocalMode::Mip,
@@ -604,6 +627,30 @@ fn local_mode(o: &ObjectFile) -> Result<LocalMode, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_parameter_of_another_mode_is_named() {
+        let scene = |object: &str| {
+            SegmentScene::parse(
+                &format!("layers = [[0, 1]]\n[[object]]\n{object}\n"),
+                Path::new(""),
+            )
+            .map(|_| ())
+            .map_err(|e| e.to_string())
+        };
+        let e = scene("mode = \"dvr\"\ngain = 0.5").unwrap_err();
+        assert!(
+            e.contains("`gain` applies to mode \"xray\"; this object's mode is \"dvr\""),
+            "{e}"
+        );
+        let e = scene("mode = \"first-hit\"\nkt = 2").unwrap_err();
+        assert!(e.contains("`kt` applies to mode \"context\""), "{e}");
+        // An unknown mode is named as that, whatever else is given.
+        let e = scene("mode = \"dvrr\"\ngain = 0.5").unwrap_err();
+        assert!(e.contains("unknown mode \"dvrr\""), "{e}");
+        scene("mode = \"xray\"\ngain = 0.5").unwrap();
+        scene("mode = \"importance\"\nimportance = \"silhouette\"\np = [1, 0.3, 0.9]").unwrap();
+    }
 
     #[test]
     fn sabella_objects_and_object_regions_parse_and_read_back() {
