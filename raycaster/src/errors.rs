@@ -16,7 +16,27 @@ pub fn error_text(error: &(dyn Error + 'static)) -> String {
         }
         cause = c.source();
     }
-    out
+    shorten_long_lines(&out)
+}
+
+/// Characters of a message line kept: parsers quote the line they failed on,
+/// which in a broken file can be megabytes long.
+const MAX_LINE_CHARS: usize = 300;
+
+/// `text` with each line longer than [`MAX_LINE_CHARS`] cut, saying how much
+/// was left out.
+fn shorten_long_lines(text: &str) -> String {
+    text.split('\n')
+        .map(|line| match line.char_indices().nth(MAX_LINE_CHARS) {
+            Some((end, _)) => format!(
+                "{}… ({} more characters)",
+                &line[..end],
+                line[end..].chars().count()
+            ),
+            None => line.to_string(),
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
 }
 
 #[cfg(test)]
@@ -32,6 +52,17 @@ mod tests {
     #[derive(Debug, thiserror::Error)]
     #[error("rendering failed")]
     struct Outer(#[source] std::io::Error);
+
+    #[test]
+    fn a_megabyte_line_quoted_by_a_parser_is_cut() {
+        let long = format!("line 1: `{}` is not a key\nnext", "x".repeat(1_000_000));
+        let e = std::io::Error::other(long);
+        let text = error_text(&e);
+        assert!(text.len() < 400, "{}", text.len());
+        assert!(text.contains("… (999723 more characters)\nnext"), "{text}");
+        let short = std::io::Error::other("é".repeat(300));
+        assert_eq!(error_text(&short), "é".repeat(300));
+    }
 
     #[test]
     fn each_cause_is_said_once() {
