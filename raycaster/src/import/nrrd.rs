@@ -166,7 +166,15 @@ pub fn parse_header(bytes: &[u8]) -> Result<NrrdHeader, ImportErrorKind> {
         let (key, value) = line.split_once(": ").ok_or_else(|| {
             header_error(F, format!("line {} `{line}` is not `field: value`", i + 1))
         })?;
-        fields.insert(key.trim().to_ascii_lowercase(), value.trim().to_string());
+        let key = key.trim().to_ascii_lowercase();
+        let value = value.trim().to_string();
+        // `data file: LIST`: the lines after it are file names, not fields
+        // (refused below as a list of files).
+        let list = (key == "data file" || key == "datafile") && value.starts_with("LIST");
+        fields.insert(key, value);
+        if list {
+            break;
+        }
     }
     let get = |k: &str| fields.get(k).map(String::as_str);
     let need = |k: &str| {
@@ -406,6 +414,26 @@ fn skip_lines(path: &Path, offset: u64, lines: u64) -> std::io::Result<u64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_list_of_data_files_is_refused_as_one() {
+        for head in [
+            "data file: LIST\na.raw\nb.raw\n",
+            "datafile: LIST 2\na.raw\nb.raw\n",
+            "data file: slice%03d.raw 1 40 1\n",
+        ] {
+            let text =
+                format!("NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nencoding: raw\n{head}");
+            let e = parse_header(text.as_bytes())
+                .map(|_| ())
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.contains("one detached file is read, not lists or patterns"),
+                "{head}: {e}"
+            );
+        }
+    }
 
     #[test]
     fn parses_a_typical_header() {
