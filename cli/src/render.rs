@@ -580,6 +580,12 @@ impl Setup {
                 // The kernel does not change the picture: a session leaves it to the flag.
                 session.settings.simd = args.simd.0;
                 let volume = open_volume(&session.source, args)?;
+                if let (Some(warning), LevelChoice::Fixed(k)) =
+                    (level_warning(session.level, &volume), session.level)
+                    && !args.quiet
+                {
+                    eprintln!("warning: {}: `level = {k}`: {warning}", path.display());
+                }
                 (volume, session)
             }
             None => {
@@ -733,6 +739,18 @@ fn flags_source(args: &RenderArgs) -> VolumeSource {
     }
 }
 
+/// What to say of a fixed `level` past `volume`'s coarsest (it renders the
+/// coarsest).
+fn level_warning(level: LevelChoice, volume: &Volume) -> Option<String> {
+    let coarsest = volume.level_count().saturating_sub(1);
+    match level {
+        LevelChoice::Fixed(k) if k as usize > coarsest => Some(format!(
+            "the volume's coarsest level is {coarsest}; rendering level {coarsest}"
+        )),
+        _ => None,
+    }
+}
+
 /// The session the flags describe, for the opened `volume` (its type chooses
 /// the default transfer function, its size resolves percentages, its box the
 /// framing).
@@ -743,11 +761,8 @@ fn flags_session(args: &RenderArgs, source: VolumeSource, volume: &Volume) -> Re
             bias: args.lod_bias,
         },
         LevelChoice::Fixed(k) => {
-            let coarsest = volume.level_count().saturating_sub(1);
-            if k as usize > coarsest && !args.quiet {
-                eprintln!(
-                    "warning: --level {k}: the volume's coarsest level is {coarsest}; rendering level {coarsest}"
-                );
+            if let Some(warning) = level_warning(args.level, volume).filter(|_| !args.quiet) {
+                eprintln!("warning: --level {k}: {warning}");
             }
             LevelChoice::Fixed(k)
         }

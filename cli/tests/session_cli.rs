@@ -204,6 +204,27 @@ fn size_overrides_a_session_and_picture_flags_are_refused() {
 }
 
 #[test]
+fn a_session_level_past_the_coarsest_is_warned_of() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut deep = session(Mode::Dvr);
+    deep.level = LevelChoice::Fixed(99);
+    deep.save(&dir.path().join("deep.toml")).unwrap();
+    let run = raycaster(
+        &["render", "--session", "deep.toml", "-o", "d.png"],
+        dir.path(),
+    );
+    assert!(run.status.success(), "{}", stderr(&run));
+    assert_eq!(
+        stderr(&run)
+            .matches("warning: deep.toml: `level = 99`: the volume's coarsest level is 0; rendering level 0")
+            .count(),
+        1,
+        "{}",
+        stderr(&run)
+    );
+}
+
+#[test]
 fn bad_sessions_are_refused_by_field() {
     let dir = tempfile::tempdir().unwrap();
     let good = session(Mode::Dvr).to_toml().unwrap();
