@@ -288,6 +288,19 @@ fn malformed_files_give_clear_errors() {
     let p = copy_fixture(d, "u16.nii", None);
     truncate(&p, 10);
     assert!(import_error(&p).contains("but the header needs 240"));
+    // A detached file shorter than the bytes its header skips: where the
+    // samples start is said (the file is not empty).
+    std::fs::write(
+        d.join("skip.mhd"),
+        "ObjectType = Image\nNDims = 3\nDimSize = 2 3 4\nElementType = MET_UCHAR\nHeaderSize = 200\nElementDataFile = skip.raw\n",
+    )
+    .unwrap();
+    std::fs::write(d.join("skip.raw"), [0u8; 24]).unwrap();
+    let err = import_error(&d.join("skip.mhd"));
+    assert!(
+        err.contains("the data file (24 bytes, the samples from byte 200) holds 0 bytes of samples but the header needs 24"),
+        "{err}"
+    );
     let p = copy_fixture(d, "i16.mhd", Some("i16.raw"));
     std::fs::remove_file(d.join("i16.raw")).unwrap();
     assert!(import_error(&p).contains("i16.raw"));

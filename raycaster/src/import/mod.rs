@@ -150,7 +150,7 @@ pub enum ImportErrorKind {
     #[error("{what} holds {actual} bytes of samples but the header needs {expected}")]
     WrongDataSize {
         /// Which data (the file or the decompressed stream).
-        what: &'static str,
+        what: String,
         /// Bytes the header needs.
         expected: u64,
         /// Bytes found.
@@ -290,7 +290,7 @@ pub(crate) fn data_at_end(
             ImportError::new(
                 data_path,
                 ImportErrorKind::WrongDataSize {
-                    what: "the data file",
+                    what: "the data file".into(),
                     expected: sample_bytes,
                     actual: len.saturating_sub(not_before),
                 },
@@ -480,7 +480,12 @@ impl Imported {
                     return Err(ImportError::new(
                         &self.data_path,
                         ImportErrorKind::WrongDataSize {
-                            what: "the data file",
+                            what: match self.data_offset {
+                                0 => "the data file".into(),
+                                start => format!(
+                                    "the data file ({len} bytes, the samples from byte {start})"
+                                ),
+                            },
                             expected: self.sample_bytes(),
                             actual,
                         },
@@ -535,7 +540,7 @@ impl Imported {
             return Err(ImportError::new(
                 &self.data_path,
                 ImportErrorKind::WrongDataSize {
-                    what: "the decompressed stream",
+                    what: "the decompressed stream".into(),
                     expected,
                     actual: if skipped < self.skip_after_decode {
                         0
@@ -605,7 +610,7 @@ impl Imported {
                 return Err(ImportError::new(
                     path,
                     ImportErrorKind::WrongDataSize {
-                        what: "the slice",
+                        what: "the slice".into(),
                         expected: per_slice,
                         actual: len.saturating_sub(*offset),
                     },
@@ -624,7 +629,7 @@ impl Imported {
             return Err(ImportError::new(
                 &self.path,
                 ImportErrorKind::WrongDataSize {
-                    what: "the series",
+                    what: "the series".into(),
                     expected: self.sample_bytes(),
                     actual: got,
                 },
