@@ -655,6 +655,19 @@ fn broken_dicom_series_give_clear_errors() {
         err.contains("brain_003.dcm") && err.contains("Pixel Spacing `xxxx"),
         "{err}"
     );
+    // A Rescale Slope beyond f32 (before: units of scale inf and offset NaN).
+    let slope = [0x28, 0x00, 0x53, 0x10, b'D', b'S', 0x02, 0x00, b'1', b' '];
+    let at = good.windows(10).position(|w| w == slope).unwrap();
+    let mut huge = good[..at].to_vec();
+    huge.extend_from_slice(&[0x28, 0x00, 0x53, 0x10, b'D', b'S', 0x06, 0x00]);
+    huge.extend_from_slice(b"1e300 ");
+    huge.extend_from_slice(&good[at + 10..]);
+    std::fs::write(&slice, &huge).unwrap();
+    let err = import::open(d).unwrap_err().to_string();
+    assert!(
+        err.contains("brain_003.dcm") && err.contains("Rescale Slope 1e300 is not a finite number"),
+        "{err}"
+    );
     std::fs::write(&slice, &good).unwrap();
     // A truncated slice.
     truncate(&d.join("brain_007.dcm"), 1000);

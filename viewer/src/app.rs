@@ -878,6 +878,11 @@ impl Controller {
                 return;
             }
         };
+        // Bytes after the file's last block: said as `raycaster render` says it.
+        let tail_warning = install
+            .new_volume
+            .then(|| install.loaded.volume.volume.unused_tail_warning())
+            .flatten();
         {
             let mut st = self.state.borrow_mut();
             st.busy = false;
@@ -929,6 +934,9 @@ impl Controller {
             st.first_frame = true;
         }
         let mut message = install.message;
+        if let Some(warning) = tail_warning {
+            message = format!("{message} — {warning}");
+        }
         if let Some(session) = install.session {
             message += &self.restore(*session);
         }

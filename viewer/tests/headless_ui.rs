@@ -287,6 +287,27 @@ fn the_viewer_runs_headless() {
     wait_until(&v, |v| v.ui().get_volume_info().contains("6×5×4"));
     assert!(!v.ui().get_message_is_error(), "{:?}", v.ui().get_message());
 
+    // Bytes after a file's last block: it opens, and the message says so as
+    // `raycaster render` does.
+    let joined = dir.path().join("joined.vol");
+    generate_file(&joined, SceneKind::Shapes, 24);
+    let len = std::fs::metadata(&joined).unwrap().len();
+    let mut f = std::fs::OpenOptions::new()
+        .append(true)
+        .open(&joined)
+        .unwrap();
+    std::io::Write::write_all(&mut f, &[1; 10]).unwrap();
+    drop(f);
+    v.ui().invoke_open_file(joined.display().to_string().into());
+    wait_until(&v, |v| v.volume_name() == joined.display().to_string());
+    let message = v.ui().get_message().to_string();
+    assert!(
+        message.contains(&format!(
+            "the file has 10 bytes after its last block (from byte {len})"
+        )) && !v.ui().get_message_is_error(),
+        "{message}"
+    );
+
     // A file with a resolution pyramid: the first picture samples the coarsest
     // level at once, the resting view refines to full resolution (close enough
     // that a voxel covers a pixel), and the status line names the level.

@@ -161,6 +161,17 @@ fn read_slice(path: &Path) -> Result<Slice, ImportErrorKind> {
     let slope = floats(tags::RESCALE_SLOPE, "Rescale Slope")?.and_then(|v| v.first().copied());
     let inter =
         floats(tags::RESCALE_INTERCEPT, "Rescale Intercept")?.and_then(|v| v.first().copied());
+    // (Units hold f32: a slope or intercept beyond it would become ∞ or NaN.)
+    for (name, v) in [("Rescale Slope", slope), ("Rescale Intercept", inter)] {
+        if let Some(v) = v
+            && !(v as f32).is_finite()
+        {
+            return Err(header_error(
+                F,
+                format!("{name} {v:e} is not a finite number of the ±3.4e38 the units hold"),
+            ));
+        }
+    }
     let scaling = match (slope, inter) {
         (Some(s), i) if s != 1.0 || i.unwrap_or(0.0) != 0.0 => {
             Some((s as f32, i.unwrap_or(0.0) as f32))
