@@ -370,6 +370,40 @@ fn raw_conversion_with_window_and_skip() {
 }
 
 #[test]
+fn float_input_wider_than_f32_differences_keeps_its_values() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // max − min overflows f32: every sample was stored as 0 before.
+    let values = [-2e38f32, 2e38, -1e38, 1e38, 0.0, 5.0, -5.0, 1.0];
+    let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
+    std::fs::write(d.join("wide.raw"), bytes).unwrap();
+    let o = volgen(
+        d,
+        &[
+            "convert",
+            "wide.raw",
+            "--raw",
+            "2x2x2",
+            "--raw-type",
+            "f32",
+            "-o",
+            "wide.vol",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let info = stdout(&volgen(d, &["info", "wide.vol"]));
+    assert!(info.contains("values      min -2e38, max 2e38"), "{info}");
+    let file = std::fs::read(d.join("wide.vol")).unwrap();
+    let v = raycaster::volume::Volume::open(d.join("wide.vol")).unwrap();
+    let stored: Vec<u16> = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]]
+        .iter()
+        .map(|&p| v.voxel(p))
+        .collect();
+    // x fastest in the raw file: -2e38, 2e38, -1e38, 1e38 → 0, 65535, ¼, ¾.
+    assert_eq!(stored, [0, 65535, 16384, 49151], "{} bytes", file.len());
+}
+
+#[test]
 fn float_input_with_infinities_and_nan_is_windowed_by_its_finite_values() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();

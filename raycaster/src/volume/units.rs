@@ -107,7 +107,13 @@ impl ValueUnits {
     pub fn format(&self, value: f64) -> String {
         // Whole values print without decimals; others with up to 4 significant
         // decimals.
-        let number = if value.fract() == 0.0 && value.abs() < 1e15 {
+        let number = if value.abs() >= 1e15 {
+            // Scientific past what digits show readably (f32 data of ±2e38).
+            let text = format!("{value:.4e}");
+            let (mantissa, exponent) = text.split_once('e').unwrap_or((&text, "0"));
+            let mantissa = mantissa.trim_end_matches('0').trim_end_matches('.');
+            format!("{mantissa}e{exponent}")
+        } else if value.fract() == 0.0 {
             format!("{value:.0}")
         } else {
             let text = format!("{value:.4}");
@@ -191,6 +197,11 @@ mod tests {
         let reversed = ValueUnits::new(-0.5, 10.0, "").unwrap();
         assert_eq!(reversed.stored_range([0.0, 10.0]), [0.0, 20.0]);
         assert_eq!(reversed.format(0.25), "0.25");
+        // Huge values in scientific notation, not 39 digits.
+        let identity = ValueUnits::IDENTITY;
+        assert_eq!(identity.format(-1.9999999e38), "-2e38");
+        assert_eq!(identity.format(1.2345678e20), "1.2346e20");
+        assert_eq!(identity.format(123456789.0), "123456789");
         assert!(ValueUnits::IDENTITY.is_identity());
         assert_eq!(ct.describe(), "value = stored − 32768 (HU)");
         assert_eq!(
