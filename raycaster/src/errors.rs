@@ -19,6 +19,24 @@ pub fn error_text(error: &(dyn Error + 'static)) -> String {
     shorten_long_lines(&out)
 }
 
+/// `text` on one line, for a status line that shows one: the quoted source
+/// lines of a parser's message (TOML's `3 | file = 5` and its `|` and `^`
+/// lines) are left out, and the other lines joined with `: `, so the reason
+/// after the snippet stays in sight.
+pub fn one_line(text: &str) -> String {
+    let snippet = |line: &str| {
+        let rest = line
+            .trim_start()
+            .trim_start_matches(|c: char| c.is_ascii_digit());
+        rest.trim_start().starts_with('|')
+    };
+    text.lines()
+        .filter(|l| !l.trim().is_empty() && !snippet(l))
+        .map(str::trim)
+        .collect::<Vec<_>>()
+        .join(": ")
+}
+
 /// Characters of a message line kept: parsers quote the line they failed on,
 /// which in a broken file can be megabytes long.
 const MAX_LINE_CHARS: usize = 300;
@@ -62,6 +80,16 @@ mod tests {
         assert!(text.contains("… (999723 more characters)\nnext"), "{text}");
         let short = std::io::Error::other("é".repeat(300));
         assert_eq!(error_text(&short), "é".repeat(300));
+    }
+
+    #[test]
+    fn a_parser_message_on_one_line_keeps_its_reason() {
+        let toml = "s.toml: session: TOML parse error at line 3, column 8\n  |\n3 | file = 5\n  |        ^\ninvalid type: integer `5`, expected path string\n";
+        assert_eq!(
+            one_line(toml),
+            "s.toml: session: TOML parse error at line 3, column 8: invalid type: integer `5`, expected path string"
+        );
+        assert_eq!(one_line("one line"), "one line");
     }
 
     #[test]

@@ -43,7 +43,7 @@ pub enum SourceError {
     #[error("no file given: the path of a volume (.vol, .nrrd, .nii, .mhd, DICOM folder)")]
     NoPath,
     /// The file cannot be opened or imported.
-    #[error("cannot open {path}: {source}")]
+    #[error("cannot open: {source}")]
     Import {
         /// The file.
         path: PathBuf,
@@ -51,7 +51,7 @@ pub enum SourceError {
         source: ImportError,
     },
     /// The file is a `.vol` that cannot be opened.
-    #[error("cannot open {path}: {source}")]
+    #[error("cannot open: {source}")]
     Volume {
         /// The file.
         path: PathBuf,

@@ -211,7 +211,10 @@ impl Viewer {
                 Ok(v) => ((v, loader::file_source(path)), None),
                 Err(e) => (
                     fallback()?,
-                    Some(format!("{e:#} (showing the built-in scene)")),
+                    Some(format!(
+                        "{} (showing the built-in scene)",
+                        raycaster::errors::error_text(e.as_ref())
+                    )),
                 ),
             },
             Source::Session(path) => match open_session_volume(path, None) {
@@ -223,7 +226,10 @@ impl Viewer {
                 }
                 Err(e) => (
                     fallback()?,
-                    Some(format!("{e:#} (showing the built-in scene)")),
+                    Some(format!(
+                        "{} (showing the built-in scene)",
+                        raycaster::errors::error_text(e.as_ref())
+                    )),
                 ),
             },
         };
@@ -295,8 +301,8 @@ impl Viewer {
             recent,
             message,
         }));
-        if let Some(error) = error {
-            controller.show_message(&error, true);
+        if let Some(error) = &error {
+            controller.show_message(error, true);
         }
         match &source {
             Source::File(path) => ui.set_file_path(path.display().to_string().into()),
@@ -308,6 +314,11 @@ impl Viewer {
         if let Some(path) = scene {
             ui.set_scene_path(path.display().to_string().into());
             controller.load_scene(&path);
+            // The file's error stays in sight, the scene's message after it.
+            if let Some(error) = &error {
+                let scene_message = ui.get_message().to_string();
+                controller.show_message(&format!("{error} — {scene_message}"), true);
+            }
         }
         Ok(Viewer { ui, controller })
     }
@@ -698,7 +709,8 @@ impl Controller {
 
     fn show_message(&self, text: &str, error: bool) {
         if let Some(ui) = self.ui() {
-            ui.set_message(text.into());
+            // One line: a parser's snippet lines would push its reason out of sight.
+            ui.set_message(raycaster::errors::one_line(text).into());
             ui.set_message_is_error(error);
         }
     }

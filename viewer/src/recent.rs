@@ -34,9 +34,14 @@ fn parse(text: &str) -> Vec<PathBuf> {
     out
 }
 
-/// The list in `file` (empty when it is missing or unreadable).
+/// The largest list file read (a list of [`MAX_RECENT`] paths is far smaller).
+const LIST_MAX_BYTES: u64 = 1 << 20;
+
+/// The list in `file` (empty when it is missing or unreadable, and when it is
+/// no regular file or too big: a named pipe there would block the viewer's
+/// start, `/dev/zero` fill its memory).
 pub(crate) fn load(file: &Path) -> Vec<PathBuf> {
-    std::fs::read_to_string(file)
+    raycaster::files::read_text(file, LIST_MAX_BYTES)
         .map(|t| parse(&t))
         .unwrap_or_default()
 }
@@ -67,6 +72,23 @@ pub(crate) fn add(file: &Path, path: &Path) -> std::io::Result<Vec<PathBuf>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_list_that_is_a_pipe_or_a_device_reads_as_empty_at_once() {
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("recent");
+        let made = std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap();
+        assert!(made.success());
+        let started = std::time::Instant::now();
+        assert!(load(&fifo).is_empty());
+        let zero = dir.path().join("zero");
+        std::os::unix::fs::symlink("/dev/zero", &zero).unwrap();
+        assert!(load(&zero).is_empty());
+        assert!(started.elapsed() < std::time::Duration::from_secs(5));
+    }
 
     #[test]
     fn the_list_keeps_ten_newest_existing_files() {

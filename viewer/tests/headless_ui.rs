@@ -308,6 +308,20 @@ fn the_viewer_runs_headless() {
         "{message}"
     );
 
+    // A session a parser refuses: the message is one line that keeps the
+    // reason (before: its snippet lines pushed it out of sight).
+    let bad = dir.path().join("bad-session.toml");
+    std::fs::write(&bad, "version = 1\n[volume]\nfile = 5\n").unwrap();
+    v.ui().invoke_open_session(bad.display().to_string().into());
+    wait_until(&v, |v| v.ui().get_message_is_error());
+    let message = v.ui().get_message().to_string();
+    assert!(
+        !message.contains('\n')
+            && message.contains("TOML parse error at line 3")
+            && message.contains("invalid type: integer `5`"),
+        "{message}"
+    );
+
     // A file with a resolution pyramid: the first picture samples the coarsest
     // level at once, the resting view refines to full resolution (close enough
     // that a voxel covers a pixel), and the status line names the level.
@@ -351,4 +365,18 @@ fn the_viewer_runs_headless() {
         k => format!("levels 0–{k} by depth"),
     };
     assert!(status.contains(&named), "{status}");
+
+    // Started on a file that does not open, with a scene: the file's error is
+    // said once, and stays in sight after the scene's message.
+    let scene =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../volumes/scenes/shapes-layers10.toml");
+    let missing = dir.path().join("missing.vol");
+    let w = Viewer::new(Source::File(missing.clone()), Some(scene)).unwrap();
+    let message = w.ui().get_message().to_string();
+    assert!(w.ui().get_message_is_error(), "{message}");
+    assert_eq!(message.matches("missing.vol").count(), 1, "{message}");
+    assert!(
+        message.contains("(showing the built-in scene) — loaded scene"),
+        "{message}"
+    );
 }
