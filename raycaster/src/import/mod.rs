@@ -258,7 +258,14 @@ pub(crate) fn check_spacing(
     } else {
         Err(header_error(
             format,
-            format!("spacing {s} on axis {axis} must be a finite non-zero number"),
+            format!(
+                "spacing {} on axis {axis} must be a finite non-zero number of the ±3.4e38 a spacing holds",
+                if s.is_finite() && s.abs() >= 1e15 {
+                    format!("{s:e}")
+                } else {
+                    format!("{s}")
+                }
+            ),
         ))
     }
 }
@@ -770,4 +777,25 @@ fn build<T: Sample>(
     Volume::from_fill::<T>(input.path(), header, |samples| {
         input.read_slab(0, dx, &map, samples)
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_spacing_beyond_f32_is_named_in_scientific_notation() {
+        let e = check_spacing(ImportFormat::Nrrd, 0, 1e300)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("spacing 1e300 on axis 0 must be a finite non-zero number"),
+            "{e}"
+        );
+        assert!(check_spacing(ImportFormat::Nrrd, 1, -0.5).unwrap() == 0.5);
+        let e = check_spacing(ImportFormat::Nrrd, 2, 0.0)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("spacing 0 on axis 2"), "{e}");
+    }
 }
