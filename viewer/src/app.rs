@@ -1241,12 +1241,14 @@ impl Controller {
 
     /// Sets the panels, camera, transfer function, scene and the settings no
     /// panel shows from `session` (its volume is in place); returns a note for
-    /// the message line when the canvas differs from the session's image size.
+    /// the message line when the canvas differs from the session's image size
+    /// or its fixed level is past the volume's coarsest.
     fn restore(&self, session: Session) -> String {
         let Some(ui) = self.ui() else {
             return String::new();
         };
         let settings = session.settings;
+        let mut level_note = String::new();
         {
             let mut st = self.state.borrow_mut();
             if let SessionCamera::Orbit(orbit) = session.camera {
@@ -1255,6 +1257,19 @@ impl Controller {
             st.editor.set_transfer(&settings.transfer);
             st.scene = settings.segments.clone();
             st.level = session.level;
+            // A fixed level past the coarsest renders the coarsest (as
+            // `raycaster render --session` warns).
+            let coarsest = st
+                .current
+                .as_ref()
+                .map_or(0, |c| c.volume.volume.level_count().saturating_sub(1));
+            if let LevelChoice::Fixed(k) = session.level
+                && k as usize > coarsest
+            {
+                level_note = format!(
+                    " (its level {k} is past the volume's coarsest, {coarsest}: showing level {coarsest})"
+                );
+            }
             let preset = STEP_PRESETS.iter().position(|&p| {
                 let mut q = QualityPolicy::default();
                 q.preset = p;
@@ -1300,14 +1315,15 @@ impl Controller {
         });
         ui.set_preset_index(preset.map_or(-1, |i| i as i32));
         let canvas = canvas_size(&ui);
-        if [canvas.0, canvas.1] == session.size {
+        let size_note = if [canvas.0, canvas.1] == session.size {
             String::new()
         } else {
             format!(
                 " (saved at {}×{}; the canvas is {}×{})",
                 session.size[0], session.size[1], canvas.0, canvas.1
             )
-        }
+        };
+        size_note + &level_note
     }
 
     /// The render settings of the view: the panels over the fixed settings,

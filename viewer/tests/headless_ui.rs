@@ -322,6 +322,30 @@ fn the_viewer_runs_headless() {
         "{message}"
     );
 
+    // A session whose fixed level is past the volume's coarsest opens, and
+    // the message says which level shows (as `raycaster render` warns).
+    let deep = dir.path().join("deep.toml");
+    v.ui()
+        .invoke_save_session(deep.display().to_string().into());
+    let text = std::fs::read_to_string(&deep).unwrap();
+    assert!(text.contains("level = \"auto\""), "{text}");
+    // (A fixed level takes no automatic level's bias.)
+    let fixed: Vec<&str> = text
+        .lines()
+        .filter(|l| !l.starts_with("lod_bias"))
+        .collect();
+    let fixed = fixed.join("\n").replace("level = \"auto\"", "level = 99");
+    std::fs::write(&deep, fixed).unwrap();
+    v.ui()
+        .invoke_open_session(deep.display().to_string().into());
+    wait_until(&v, |v| v.ui().get_message().contains("deep.toml"));
+    let message = v.ui().get_message().to_string();
+    assert!(
+        message.contains("its level 99 is past the volume's coarsest, 0: showing level 0")
+            && !v.ui().get_message_is_error(),
+        "{message}"
+    );
+
     // A file with a resolution pyramid: the first picture samples the coarsest
     // level at once, the resting view refines to full resolution (close enough
     // that a voxel covers a pixel), and the status line names the level.
