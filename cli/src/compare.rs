@@ -30,7 +30,7 @@ pub struct CompareArgs {
 pub fn run(args: CompareArgs) -> Result<()> {
     if let Some(path) = &args.diff {
         // Never one of the images compared (`--force` would replace it).
-        let same = |p: &PathBuf| crate::output::same_file(p, path);
+        let same = |p: &PathBuf| raycaster::files::same_file(p, path);
         if same(&args.image) || same(&args.reference) {
             bail!(
                 "{}: is one of the images compared; name another file for --diff",

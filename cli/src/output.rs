@@ -32,7 +32,10 @@ pub fn check_output_of<'a>(
     force: bool,
     inputs: impl IntoIterator<Item = &'a Path>,
 ) -> Result<()> {
-    if let Some(input) = inputs.into_iter().find(|i| same_file(i, output)) {
+    if let Some(input) = inputs
+        .into_iter()
+        .find(|i| raycaster::files::same_file(i, output))
+    {
         bail!(
             "{}: is an input of this command ({}); name another file for the image",
             output.display(),
@@ -40,14 +43,6 @@ pub fn check_output_of<'a>(
         );
     }
     check_output(output, force)
-}
-
-/// Whether two paths name the same existing file (through links and `..`).
-pub fn same_file(a: &Path, b: &Path) -> bool {
-    match (a.canonicalize(), b.canonicalize()) {
-        (Ok(a), Ok(b)) => a == b,
-        _ => false,
-    }
 }
 
 /// Refuses, before any work, an output file that could not be written: a

@@ -137,7 +137,7 @@ pub fn convert(
     write: &WriteOptions,
     job: &Job,
 ) -> Result<ConvertSummary, VolumeError> {
-    if same_file(input.path(), output) {
+    if crate::files::same_file(input.path(), output) {
         return Err(VolumeError::new(output, VolumeErrorKind::SameFile));
     }
     let content = input.content();
@@ -210,14 +210,6 @@ fn copy_slabs<T: Sample>(
     write_volume::<T>(output, header, write, job, |x0, x1, slab| {
         input.read_slab(x0, x1, &map, slab)
     })
-}
-
-/// Whether two paths name the same existing file.
-fn same_file(a: &Path, b: &Path) -> bool {
-    match (a.canonicalize(), b.canonicalize()) {
-        (Ok(a), Ok(b)) => a == b,
-        _ => false,
-    }
 }
 
 #[cfg(test)]

@@ -69,6 +69,14 @@ pub fn check_regular(path: &Path) -> std::io::Result<()> {
     }
 }
 
+/// Whether two paths name the same existing file (through links and `..`).
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    match (a.canonicalize(), b.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    }
+}
+
 /// Reads the regular file `path` as UTF-8 text, refusing files over `max_bytes`
 /// (a text file of settings is small; a huge one is a mistake, not a setting).
 pub fn read_text(path: &Path, max_bytes: u64) -> std::io::Result<String> {

@@ -170,13 +170,11 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
         };
         eprintln!("warning: {}: {why}; {output}", a.input.display());
     }
-    if let Some((start, count)) = input.unused_tail()
+    if let Some(tail) = input.unused_tail()
         && !a.quiet
     {
-        eprintln!(
-            "warning: {}: the file has {count} bytes after its last block (from byte {start}) that are not part of the volume; they are not copied",
-            a.input.display()
-        );
+        let warning = raycaster::volume::unused_tail_warning(&a.input, tail, "they are not copied");
+        eprintln!("{warning}");
     }
     let input_layout = input.header().map(|h| h.layout);
     let layout = match (a.layout, a.brick) {
@@ -254,7 +252,7 @@ pub fn raw_type_name(t: RawType) -> &'static str {
 /// One line on what a foreign file holds.
 fn describe_import(i: &Imported) -> String {
     let ty = raw_type_name(i.sample);
-    let [sx, sy, sz] = i.spacing.map(number_text);
+    let [sx, sy, sz] = i.spacing.map(raycaster::volume::number_text);
     let mut line = format!(
         "{}: {} {} {ty}, spacing {sx} x {sy} x {sz}, {} data",
         i.path.display(),
@@ -266,16 +264,6 @@ fn describe_import(i: &Imported) -> String {
         line += &format!(" (declares value = {slope} * stored + {inter}; stored values are kept)");
     }
     line
-}
-
-/// `v` as people read it: in scientific notation when far from 1 (a lying
-/// header's spacing of 1e30 prints as that, not as 31 digits).
-fn number_text(v: f32) -> String {
-    if v != 0.0 && !(1e-4..1e6).contains(&v.abs()) {
-        format!("{v:e}")
-    } else {
-        format!("{v}")
-    }
 }
 
 /// How a foreign file's samples are stored, for people.

@@ -260,11 +260,7 @@ pub(crate) fn check_spacing(
             format,
             format!(
                 "spacing {} on axis {axis} must be a finite non-zero number of the ±3.4e38 a spacing holds",
-                if s.is_finite() && s.abs() >= 1e15 {
-                    format!("{s:e}")
-                } else {
-                    format!("{s}")
-                }
+                crate::volume::number_text(s)
             ),
         ))
     }

@@ -227,22 +227,7 @@ impl Input {
             return None;
         };
         let len = file.metadata().ok()?.len();
-        let grid = header.block_grid(crate::volume::LINEAR_RANGE_SIDE);
-        let ranges_len = crate::volume::BrickRanges::table_len(&grid);
-        let pyramid = match header.pyramid_offset {
-            Some(offset) => {
-                let plan =
-                    crate::volume::pyramid::PyramidLayout::plan(header, header.pyramid_cells)
-                        .ok()?;
-                Some(offset + plan.block_len())
-            }
-            None => None,
-        };
-        let end = [header.data_end().ok()?]
-            .into_iter()
-            .chain(header.ranges_offset.map(|offset| offset + ranges_len))
-            .chain(pyramid)
-            .max()?;
+        let end = crate::volume::content_end(header).ok()?;
         (len > end).then(|| (end, len - end))
     }
 

@@ -86,6 +86,41 @@ pub fn read_header(path: &Path) -> Result<(Header, File, u64), VolumeError> {
     Ok((header, file, len))
 }
 
+/// Where a file with `header` ends by its format: after its samples, its
+/// value-range table or its embedded resolution pyramid, whichever ends last
+/// (the lengths of both blocks follow from the header). Bytes past it are
+/// [`Volume::unused_tail`].
+pub(crate) fn content_end(header: &Header) -> Result<u64, HeaderError> {
+    let grid = header.block_grid(LINEAR_RANGE_SIDE);
+    let ranges = header
+        .ranges_offset
+        .map(|offset| offset.saturating_add(BrickRanges::table_len(&grid)));
+    let pyramid = match header.pyramid_offset {
+        Some(offset) => {
+            let block = PyramidLayout::plan(header, header.pyramid_cells)?.block_len();
+            Some(offset.saturating_add(block))
+        }
+        None => None,
+    };
+    let data_end = header.data_end()?;
+    Ok([data_end]
+        .into_iter()
+        .chain(ranges)
+        .chain(pyramid)
+        .max()
+        .unwrap_or(data_end))
+}
+
+/// The warning for the `count` bytes from byte `start` of file `path` past its
+/// last block ([`Volume::unused_tail`]), ending with what becomes of them.
+pub fn unused_tail_warning(path: &Path, (start, count): (u64, u64), fate: &str) -> String {
+    let bytes = if count == 1 { "byte" } else { "bytes" };
+    format!(
+        "warning: {}: the file has {count} {bytes} after its last block (from byte {start}) that are not part of the volume; {fate}",
+        path.display()
+    )
+}
+
 /// Whether `path`'s name ends in `.vol` (any case).
 pub fn has_vol_extension(path: &Path) -> bool {
     path.extension()
@@ -115,16 +150,8 @@ impl Volume {
         }
         let data = typed_data(&header, storage.bytes()).at(path)?;
         let ranges = load_ranges(path, &header, &storage, data, &file, len, options)?;
-        let (pyramid, pyramid_end) = load_pyramid(path, &header, &file, len, options.access)?;
-        let ranges_end = header
-            .ranges_offset
-            .map(|offset| offset + ranges.encoded_len());
-        let content_end = [header.data_end().at(path)?]
-            .into_iter()
-            .chain(ranges_end)
-            .chain(pyramid_end)
-            .max()
-            .unwrap_or(0);
+        let pyramid = load_pyramid(path, &header, &file, len, options.access)?;
+        let content_end = content_end(&header).at(path)?;
         Ok(Volume {
             path: path.to_path_buf(),
             header,
@@ -241,11 +268,11 @@ impl Volume {
 
     /// A warning naming [`Self::unused_tail`], if there is one.
     pub fn unused_tail_warning(&self) -> Option<String> {
-        let (start, count) = self.unused_tail?;
-        let bytes = if count == 1 { "byte" } else { "bytes" };
-        Some(format!(
-            "warning: {}: the file has {count} {bytes} after its last block (from byte {start}) that are not part of the volume; they are ignored (a damaged copy, or two files joined?)",
-            self.path.display()
+        let tail = self.unused_tail?;
+        Some(unused_tail_warning(
+            &self.path,
+            tail,
+            "they are ignored (a damaged copy, or two files joined?)",
         ))
     }
 
@@ -480,17 +507,16 @@ fn load_ranges(
     Ok(ranges)
 }
 
-/// A resolution pyramid as read: its levels, the stored level-0 cell ranges
-/// and the length of its block.
+/// A resolution pyramid as read: its levels and the stored level-0 cell
+/// ranges.
 #[derive(Default)]
 struct PyramidBlock {
     levels: Vec<Volume>,
     level0_cells: Option<CellTable>,
-    len: u64,
 }
 
 /// The pyramid of an opened file: embedded (extended header version 2 or
-/// later; with where its block ends), else from a fresh `FILE.pyramid`
+/// later), else from a fresh `FILE.pyramid`
 /// sidecar, else none. A corrupt embedded pyramid is an error; a stale or
 /// unreadable sidecar is ignored.
 fn load_pyramid(
@@ -499,14 +525,12 @@ fn load_pyramid(
     file: &File,
     len: u64,
     access: Access,
-) -> Result<(PyramidBlock, Option<u64>), VolumeError> {
+) -> Result<PyramidBlock, VolumeError> {
     if let Some(start) = header.pyramid_offset {
         let cells = Some(header.pyramid_cells);
-        let block = read_levels(path, header, file, start, len, access, cells)?;
-        let end = start + block.len;
-        return Ok((block, Some(end)));
+        return read_levels(path, header, file, start, len, access, cells);
     }
-    let none = || Ok((PyramidBlock::default(), None));
+    let none = || Ok(PyramidBlock::default());
     let sidecar = pyramid_sidecar_path(path);
     // Never block on a FIFO or read a directory posing as the sidecar.
     let Ok(side) = crate::files::open_regular(&sidecar) else {
@@ -525,7 +549,7 @@ fn load_pyramid(
     if !fresh || !side.metadata().is_ok_and(|m| m.is_file()) {
         return none();
     }
-    let block = read_levels(
+    Ok(read_levels(
         path,
         header,
         &side,
@@ -534,8 +558,7 @@ fn load_pyramid(
         access,
         None,
     )
-    .unwrap_or_default();
-    Ok((block, None))
+    .unwrap_or_default())
 }
 
 /// The pyramid block at `start` of `file`; `cells`: whether the block must
@@ -578,7 +601,6 @@ fn read_levels(
     Ok(PyramidBlock {
         levels,
         level0_cells,
-        len: layout.block_len(),
     })
 }
 

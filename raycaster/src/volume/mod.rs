@@ -24,9 +24,10 @@ pub use cells::{
     default_linear_brick_side, target_cell_step,
 };
 pub use error::{VolumeError, VolumeErrorKind};
+pub(crate) use file::content_end;
 pub use file::{
     OpenOptions, Volume, VolumeData, has_vol_extension, ranges_sidecar_path, read_header,
-    write_pyramid_sidecar,
+    unused_tail_warning, write_pyramid_sidecar,
 };
 pub use grid::BlockGrid;
 pub use header::{
@@ -39,7 +40,7 @@ pub use pyramid::{COARSEST_EDGE, level_dims, pyramid_sidecar_path, pyramid_voxel
 pub use ranges::{BrickRanges, LINEAR_RANGE_SIDE};
 pub use sample::Sample;
 pub use storage::Access;
-pub use units::{HOUNSFIELD, MAX_UNIT_LEN, ValueUnits};
+pub use units::{HOUNSFIELD, MAX_UNIT_LEN, ValueUnits, number_text};
 pub use view::{BrickView, TypedVolume};
 
 pub(crate) use error::AtPath;

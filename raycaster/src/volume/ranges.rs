@@ -188,12 +188,7 @@ impl BrickRanges {
             .fold([u16::MAX, 0], |[lo, hi], r| [lo.min(r[0]), hi.max(r[1])])
     }
 
-    /// Bytes of [`Self::encode`]'s form.
-    pub fn encoded_len(&self) -> u64 {
-        Self::table_len(&self.grid)
-    }
-
-    /// Bytes of the encoded table of the bricks of `grid`.
+    /// Bytes of the encoded table ([`Self::encode`]) of the bricks of `grid`.
     pub fn table_len(grid: &BlockGrid) -> u64 {
         TABLE_HEADER_LEN as u64 + 4 * grid.block_count()
     }

@@ -37,6 +37,21 @@ impl Default for ValueUnits {
     }
 }
 
+/// `v` as people read it: in scientific notation when far from 1, so that a
+/// lying header's spacing of 1e30 prints as that and not as 31 digits
+/// (import summaries and errors).
+pub fn number_text<T>(v: T) -> String
+where
+    T: Into<f64> + Copy + std::fmt::Display + std::fmt::LowerExp,
+{
+    let x: f64 = v.into();
+    if x != 0.0 && !(1e-4..1e6).contains(&x.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
+
 impl ValueUnits {
     /// Values are the stored samples themselves.
     pub const IDENTITY: ValueUnits = ValueUnits {
@@ -107,7 +122,7 @@ impl ValueUnits {
     pub fn format(&self, value: f64) -> String {
         // Whole values print without decimals; others with up to 4 significant
         // decimals.
-        let number = if value.abs() >= 1e15 {
+        let number = if value.is_finite() && value.abs() >= 1e15 {
             // Scientific past what digits show readably (f32 data of ±2e38).
             let text = format!("{value:.4e}");
             let (mantissa, exponent) = text.split_once('e').unwrap_or((&text, "0"));
@@ -202,6 +217,12 @@ mod tests {
         assert_eq!(identity.format(-1.9999999e38), "-2e38");
         assert_eq!(identity.format(1.2345678e20), "1.2346e20");
         assert_eq!(identity.format(123456789.0), "123456789");
+        assert_eq!(identity.format(f64::INFINITY), "inf");
+        assert_eq!(number_text(1e30f32), "1e30");
+        assert_eq!(number_text(0.5f32), "0.5");
+        assert_eq!(number_text(1e-50f64), "1e-50");
+        assert_eq!(number_text(0.0f64), "0");
+        assert_eq!(number_text(f64::NAN), "NaN");
         assert!(ValueUnits::IDENTITY.is_identity());
         assert_eq!(ct.describe(), "value = stored − 32768 (HU)");
         assert_eq!(
