@@ -45,6 +45,10 @@ fn flags_without_effect_get_a_warning_and_the_frame_renders() {
             &["--mode", "mip", "--preintegrate"][..],
             "warning: --preintegrate applies to --mode dvr only; mip frames ignore it",
         ),
+        (
+            &["--step", "1e30"][..],
+            "warning: --step: a step of 1e30 is longer than the volume's diagonal (69 of its smallest spacing): each ray takes one sample at most",
+        ),
     ] {
         let out = raycaster(&[&base[..], extra].concat(), dir.path());
         assert!(out.status.success(), "{}", stderr(&out));

@@ -236,7 +236,7 @@ fn absurd_spacings_are_refused_at_once_not_rendered_forever() {
     let e = stderr(&o);
     assert!(
         e.contains("a ray would take up to")
-            && e.contains("raise --step")
+            && e.contains("raise the step (`--step`")
             && !e.contains("spacing"),
         "{e}"
     );

@@ -204,10 +204,11 @@ fn size_overrides_a_session_and_picture_flags_are_refused() {
 }
 
 #[test]
-fn a_session_level_past_the_coarsest_is_warned_of() {
+fn a_session_level_past_the_coarsest_or_a_step_past_the_volume_is_warned_of() {
     let dir = tempfile::tempdir().unwrap();
     let mut deep = session(Mode::Dvr);
     deep.level = LevelChoice::Fixed(99);
+    deep.settings.step = 5000.0;
     deep.save(&dir.path().join("deep.toml")).unwrap();
     let run = raycaster(
         &["render", "--session", "deep.toml", "-o", "d.png"],
@@ -217,6 +218,16 @@ fn a_session_level_past_the_coarsest_is_warned_of() {
     assert_eq!(
         stderr(&run)
             .matches("warning: deep.toml: `level = 99`: the volume's coarsest level is 0; rendering level 0")
+            .count(),
+        1,
+        "{}",
+        stderr(&run)
+    );
+    assert_eq!(
+        stderr(&run)
+            .matches(
+                "warning: deep.toml: `step`: a step of 5000 is longer than the volume's diagonal"
+            )
             .count(),
         1,
         "{}",

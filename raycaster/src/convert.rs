@@ -111,7 +111,12 @@ pub fn plan_values(
         None if value_type.fits_in(sample_type) => ValueMap::Copy,
         None if value_type == InputType::I16 && sample_type == SampleType::U16 => ValueMap::Offset,
         None => {
-            let (lo, hi) = input.value_range(job)?.unwrap_or((0.0, 0.0));
+            let Some((lo, hi)) = input.value_range(job)? else {
+                return Err(VolumeError::new(
+                    input.path(),
+                    VolumeErrorKind::NoFiniteValues,
+                ));
+            };
             ValueMap::Window(lo, hi)
         }
     };

@@ -301,6 +301,23 @@ fn malformed_files_give_clear_errors() {
         err.contains("the data file (24 bytes, the samples from byte 200) holds 0 bytes of samples but the header needs 24"),
         "{err}"
     );
+    // Float samples without one finite value: refused by name (before: a
+    // volume of zeros that rendered blank without a word).
+    let mut nan =
+        b"NRRD0004\ntype: float\ndimension: 3\nsizes: 2 2 2\nendian: little\nencoding: raw\n\n"
+            .to_vec();
+    nan.extend(
+        [f32::NAN, f32::NEG_INFINITY]
+            .repeat(4)
+            .iter()
+            .flat_map(|v| v.to_le_bytes()),
+    );
+    std::fs::write(d.join("nan.nrrd"), nan).unwrap();
+    let err = import_error(&d.join("nan.nrrd"));
+    assert!(
+        err.contains("nan.nrrd") && err.contains("holds no finite value"),
+        "{err}"
+    );
     let p = copy_fixture(d, "i16.mhd", Some("i16.raw"));
     std::fs::remove_file(d.join("i16.raw")).unwrap();
     assert!(import_error(&p).contains("i16.raw"));

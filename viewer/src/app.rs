@@ -198,7 +198,7 @@ impl Viewer {
         };
         let mut session = None;
         let mut labels_path = None;
-        let ((first, first_source), error) = match &source {
+        let ((mut first, mut first_source), mut error) = match &source {
             Source::BuiltIn(kind, size) => {
                 let source = VolumeSource::BuiltIn {
                     kind: *kind,
@@ -232,6 +232,26 @@ impl Viewer {
                     )),
                 ),
             },
+        };
+        let prepare = |v: &LoadedVolume| {
+            RenderFront::with_labels(v.volume.clone(), v.labels.clone(), None, Some(wake.clone()))
+                .context("cannot prepare the volume for rendering")
+        };
+        let front = match prepare(&first) {
+            Ok(front) => front,
+            // A session whose parts do not fit together (labels of another size):
+            // its error over the built-in scene, as for a session that cannot be read.
+            Err(e) if matches!(source, Source::Session(_)) && error.is_none() => {
+                error = Some(format!(
+                    "{} (showing the built-in scene)",
+                    raycaster::errors::error_text(e.as_ref())
+                ));
+                session = None;
+                labels_path = None;
+                (first, first_source) = fallback()?;
+                prepare(&first)?
+            }
+            Err(e) => return Err(e),
         };
         let nav = navigator_for(&first);
         let editor =
@@ -280,9 +300,6 @@ impl Viewer {
             settle: slint::Timer::default(),
         });
         ACTIVE.with(|a| *a.borrow_mut() = Rc::downgrade(&controller));
-        let front =
-            RenderFront::with_labels(first.volume.clone(), first.labels.clone(), None, Some(wake))
-                .context("cannot prepare the volume for rendering")?;
         let message = format!("opened {}", first.description);
         let recent = match &source {
             Source::File(p) | Source::Session(p) if error.is_none() => Some(p.clone()),

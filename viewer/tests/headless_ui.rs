@@ -403,4 +403,37 @@ fn the_viewer_runs_headless() {
         message.contains("(showing the built-in scene) — loaded scene"),
         "{message}"
     );
+
+    // Started on a session whose label volume has another size: the window
+    // opens with the error over the built-in scene, as for a session that does
+    // not read (before: the viewer exited at start).
+    let labels = dir.path().join("small.labels.vol");
+    let header = raycaster::volume::Header::new(
+        [8; 3],
+        [1.0; 3],
+        raycaster::volume::Layout::Linear,
+        raycaster::volume::SampleType::U8,
+        raycaster::volume::Content::Labels,
+        raycaster::volume::Format::Extended,
+    );
+    let mut bytes = header.encode().unwrap();
+    bytes.extend([1u8; 512]);
+    std::fs::write(&labels, bytes).unwrap();
+    let text = std::fs::read_to_string(&deep).unwrap();
+    let text = text.replacen(
+        "[volume]\n",
+        &format!("[volume]\nlabels = {:?}\n", labels.display().to_string()),
+        1,
+    );
+    assert!(text.contains("small.labels.vol"), "{text}");
+    let mislabelled = dir.path().join("mislabelled.toml");
+    std::fs::write(&mislabelled, text).unwrap();
+    let w = Viewer::new(Source::Session(mislabelled), None).unwrap();
+    let message = w.ui().get_message().to_string();
+    assert!(w.ui().get_message_is_error(), "{message}");
+    assert!(
+        message.contains("small.labels.vol: dimensions [8, 8, 8] differ from the data's")
+            && message.contains("(showing the built-in scene)"),
+        "{message}"
+    );
 }

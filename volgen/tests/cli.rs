@@ -452,6 +452,34 @@ fn float_input_with_infinities_and_nan_is_windowed_by_its_finite_values() {
         3,
         "{samples:?}"
     );
+    // No finite value at all: refused by name, nothing written (before: a
+    // volume of zeros and no word).
+    let nan: Vec<u8> = [f32::NAN, f32::INFINITY]
+        .repeat(8)
+        .iter()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    std::fs::write(d.join("nan.raw"), nan).unwrap();
+    let o = volgen(
+        d,
+        &[
+            "convert",
+            "nan.raw",
+            "--raw",
+            "4x2x2",
+            "--raw-type",
+            "f32",
+            "-o",
+            "n.vol",
+        ],
+    );
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("holds no finite value (every sample is NaN or infinite)"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!d.join("n.vol").exists());
 }
 
 #[test]

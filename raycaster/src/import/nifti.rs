@@ -20,7 +20,7 @@ use super::{
     header_error, unsupported,
 };
 use crate::io::{Endian, RawType};
-use crate::volume::{Orientation, PatientSpace};
+use crate::volume::{MAX_AXIS, Orientation, PatientSpace};
 
 const F: ImportFormat = ImportFormat::Nifti;
 
@@ -128,10 +128,16 @@ pub fn parse_header(bytes: &[u8]) -> Result<NiftiHeader, ImportErrorKind> {
             ),
         ));
     }
-    let sizes: Vec<u64> = dim[1..=3]
-        .iter()
-        .map(|&d| if d < 0 { 0 } else { d as u64 })
-        .collect();
+    if let Some(axis) = (1..=3).find(|&i| dim[i] < 0) {
+        return Err(header_error(
+            F,
+            format!(
+                "dim[{axis}] = {} is negative (a size is 1..={MAX_AXIS})",
+                dim[axis]
+            ),
+        ));
+    }
+    let sizes: Vec<u64> = dim[1..=3].iter().map(|&d| d as u64).collect();
     let dims = check_dims(F, &sizes)?;
     let datatype = i16_at(70);
     let sample = match datatype {
@@ -436,7 +442,7 @@ mod tests {
         let mut cases: Vec<(Vec<u8>, &str)> = vec![
             (header(64, [3, 4, 5], [1.0; 3]), "float64"),
             (header(2, [3, 0, 5], [1.0; 3]), "size 0"),
-            (header(2, [3, -4, 5], [1.0; 3]), "size 0"),
+            (header(2, [3, -4, 5], [1.0; 3]), "dim[2] = -4 is negative"),
             (header(2, [3, 4, 5], [1.0, f32::NAN, 1.0]), "spacing NaN"),
             (good[..200].to_vec(), "348 bytes"),
         ];

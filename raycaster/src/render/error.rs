@@ -88,7 +88,9 @@ fn budget_cause([x, y, z]: [f32; 3], ratio: f64, step: f32) -> String {
             "the spacing {x} x {y} x {z} puts {ratio:.3e} of the smallest spacing in the largest, and the step is {step} of the smallest; check the file's spacing or raise the step"
         )
     } else {
-        format!("the step is {step} voxel; raise --step (0.5 is the default)")
+        format!(
+            "the step is {step} voxel; raise the step (`--step`, or `step` in a session's [render]; 0.5 is the default)"
+        )
     }
 }
 

@@ -46,6 +46,12 @@ pub enum VolumeErrorKind {
     /// Output and input are the same file.
     #[error("is both the input and the output")]
     SameFile,
+    /// Floating-point input without one finite value: no range to map, nothing
+    /// to show.
+    #[error(
+        "holds no finite value (every sample is NaN or infinite): there is no value range to map and nothing to show"
+    )]
+    NoFiniteValues,
     /// The job was cancelled; nothing was written.
     #[error("cancelled; no output was written")]
     Cancelled,
