@@ -162,6 +162,9 @@ struct State {
     canvas: (u32, u32),
     /// A recent-files error was shown (shown once, not on every open).
     recent_error_shown: bool,
+    /// A screenshot asked for while the frame was still rendering: saved when
+    /// the full-quality frame of the view is complete (not half old, half new).
+    pending_screenshot: Option<PathBuf>,
     /// The file browser's folder and the entries it lists.
     browser: Option<(PathBuf, Vec<crate::browser::Entry>)>,
     /// The newest requests' ids, cameras and orbit targets: the annotations of
@@ -286,6 +289,7 @@ impl Viewer {
                     .map(|f| crate::recent::load(&f))
                     .unwrap_or_default(),
                 recent_error_shown: false,
+                pending_screenshot: None,
                 browser: None,
                 canvas: (0, 0),
                 slice_frames: [[0; 4]; 3],
@@ -499,16 +503,17 @@ fn wake_up(scheduled: Arc<AtomicBool>) -> Notify {
 
 /// The canvas in physical pixels (a fallback size before the window is laid out).
 fn canvas_size(ui: &App) -> (u32, u32) {
+    laid_out_canvas(ui).unwrap_or(FALLBACK_CANVAS)
+}
+
+/// The canvas in physical pixels, once the window is laid out.
+fn laid_out_canvas(ui: &App) -> Option<(u32, u32)> {
     let scale = ui.window().scale_factor();
     let canvas = (
         (ui.get_canvas_width() * scale).round() as u32,
         (ui.get_canvas_height() * scale).round() as u32,
     );
-    if canvas.0 < 8 || canvas.1 < 8 {
-        FALLBACK_CANVAS
-    } else {
-        canvas
-    }
+    (canvas.0 >= 8 && canvas.1 >= 8).then_some(canvas)
 }
 
 /// The navigator framing `v` from the default view, in the patient's directions
@@ -702,6 +707,30 @@ fn set_cut_values(ui: &App, v: &CutValues) {
     ui.set_plane_offset(v.offset);
     ui.set_plane_azimuth(v.azimuth);
     ui.set_plane_elevation(v.elevation);
+}
+
+/// What to say of a session saved at `saved` pixels shown on `canvas` (`None`:
+/// not laid out yet, as at start under a window system, whose fallback size
+/// is no size to compare with).
+fn size_note(saved: [u32; 2], canvas: Option<(u32, u32)>) -> String {
+    match canvas {
+        Some((w, h)) if [w, h] == saved => String::new(),
+        Some((w, h)) => format!(
+            " (saved at {}×{}; the canvas is {w}×{h})",
+            saved[0], saved[1]
+        ),
+        None => format!(
+            " (saved at {}×{}; shown at the window's size)",
+            saved[0], saved[1]
+        ),
+    }
+}
+
+/// Whether the newest frame asked for is a full-quality one and has ended: the
+/// frame buffer then holds it whole.
+fn frame_complete(st: &State) -> bool {
+    st.latest
+        .is_some_and(|(id, moving)| !moving && st.ended == Some(id))
 }
 
 /// The first free `STEM-N.EXT` beside `path` (`screenshot.png` → `screenshot-1.png`).
@@ -1331,16 +1360,7 @@ impl Controller {
             TransferFunction::preset(name).is_ok_and(|p| p.points() == settings.transfer.points())
         });
         ui.set_preset_index(preset.map_or(-1, |i| i as i32));
-        let canvas = canvas_size(&ui);
-        let size_note = if [canvas.0, canvas.1] == session.size {
-            String::new()
-        } else {
-            format!(
-                " (saved at {}×{}; the canvas is {}×{})",
-                session.size[0], session.size[1], canvas.0, canvas.1
-            )
-        };
-        size_note + &level_note
+        size_note(session.size, laid_out_canvas(&ui)) + &level_note
     }
 
     /// The render settings of the view: the panels over the fixed settings,
@@ -1542,6 +1562,7 @@ impl Controller {
         }
         self.take_events();
         self.show_frame();
+        self.save_pending_screenshot();
         // The moving frame in flight ended: render the view the camera moved to.
         let follow = {
             let mut st = self.state.borrow_mut();
@@ -1700,7 +1721,41 @@ impl Controller {
         self.request_frame(false);
     }
 
+    /// Saves the frame on screen to `path`, or, while a frame is still
+    /// rendering (tiles of the new view over the old, or the coarse moving
+    /// frame), once the full-quality frame is complete.
     fn save_screenshot(&self, path: &Path) {
+        {
+            let mut st = self.state.borrow_mut();
+            if st.latest.is_some() && !frame_complete(&st) {
+                st.pending_screenshot = Some(path.to_path_buf());
+                drop(st);
+                return self.show_message(
+                    &format!("saving {} when the frame is complete …", path.display()),
+                    false,
+                );
+            }
+            st.pending_screenshot = None;
+        }
+        self.write_screenshot(path);
+    }
+
+    /// Saves a screenshot asked for while the frame rendered, once it is complete.
+    fn save_pending_screenshot(&self) {
+        let due = {
+            let mut st = self.state.borrow_mut();
+            if frame_complete(&st) {
+                st.pending_screenshot.take()
+            } else {
+                None
+            }
+        };
+        if let Some(path) = due {
+            self.write_screenshot(&path);
+        }
+    }
+
+    fn write_screenshot(&self, path: &Path) {
         let image = {
             let st = self.state.borrow();
             let Some(current) = &st.current else { return };
@@ -1935,4 +1990,22 @@ pub fn status_line(
         s.bricks_transparent,
         s.threads,
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::size_note;
+
+    #[test]
+    fn a_session_size_is_compared_with_a_laid_out_canvas_only() {
+        assert_eq!(size_note([640, 480], Some((640, 480))), "");
+        assert_eq!(
+            size_note([800, 600], Some((442, 265))),
+            " (saved at 800×600; the canvas is 442×265)"
+        );
+        // Before layout the fallback 640×480 is no canvas: not named.
+        let start = size_note([800, 600], None);
+        assert_eq!(start, " (saved at 800×600; shown at the window's size)");
+        assert!(!start.contains("640"));
+    }
 }

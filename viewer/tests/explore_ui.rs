@@ -218,6 +218,25 @@ fn the_viewer_cuts_slices_and_remembers_files() {
         text: Key::Control.into(),
     });
     assert!(dir.path().join("shot-2.png").exists());
+    // Asked for while a new view renders, the screenshot waits for its
+    // full-quality frame (before: tiles of two views, or a black tile).
+    key(&v, "y");
+    key(&v, "s");
+    let third = dir.path().join("shot-3.png");
+    assert!(!third.exists(), "saved before the frame was complete");
+    assert!(
+        v.ui().get_message().contains("when the frame is complete"),
+        "{:?}",
+        v.ui().get_message()
+    );
+    settle(&v);
+    assert!(third.exists(), "{:?}", v.ui().get_message());
+    assert!(v.ui().get_message().contains("shot-3.png"));
+    let image = raycaster::render::RgbImage::load_png(&third).unwrap();
+    let on_screen: Vec<u8> = frame(&v).chunks(4).flat_map(|p| p[..3].to_vec()).collect();
+    assert_eq!(image.data(), &on_screen[..], "the view's finished frame");
+    key(&v, "r");
+    settle(&v);
     assert!(v.ui().get_help().contains("R reset"));
 
     // 3. Slice views through the crosshair (the volume's centre at first).
