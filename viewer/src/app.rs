@@ -212,13 +212,7 @@ impl Viewer {
             }
             Source::File(path) => match loader::open_file(path) {
                 Ok(v) => ((v, loader::file_source(path)), None),
-                Err(e) => (
-                    fallback()?,
-                    Some(format!(
-                        "{} (showing the built-in scene)",
-                        raycaster::errors::error_text(e.as_ref())
-                    )),
-                ),
+                Err(e) => (fallback()?, Some(over_built_in_scene(e.as_ref()))),
             },
             Source::Session(path) => match open_session_volume(path, None) {
                 Ok((s, v, labels)) => {
@@ -227,13 +221,7 @@ impl Viewer {
                     labels_path = labels;
                     ((v, source), None)
                 }
-                Err(e) => (
-                    fallback()?,
-                    Some(format!(
-                        "{} (showing the built-in scene)",
-                        raycaster::errors::error_text(e.as_ref())
-                    )),
-                ),
+                Err(e) => (fallback()?, Some(over_built_in_scene(e.as_ref()))),
             },
         };
         let prepare = |v: &LoadedVolume| {
@@ -245,10 +233,7 @@ impl Viewer {
             // A session whose parts do not fit together (labels of another size):
             // its error over the built-in scene, as for a session that cannot be read.
             Err(e) if matches!(source, Source::Session(_)) && error.is_none() => {
-                error = Some(format!(
-                    "{} (showing the built-in scene)",
-                    raycaster::errors::error_text(e.as_ref())
-                ));
+                error = Some(over_built_in_scene(e.as_ref()));
                 session = None;
                 labels_path = None;
                 (first, first_source) = fallback()?;
@@ -724,6 +709,16 @@ fn size_note(saved: [u32; 2], canvas: Option<(u32, u32)>) -> String {
             saved[0], saved[1]
         ),
     }
+}
+
+/// The message of a volume or session that did not open at start, shown over
+/// the built-in scene (the error's trailing newline would become a line of
+/// its own in the one-line message area).
+fn over_built_in_scene(e: &(dyn std::error::Error + 'static)) -> String {
+    format!(
+        "{} (showing the built-in scene)",
+        raycaster::errors::error_text(e).trim_end()
+    )
 }
 
 /// Whether the newest frame asked for is a full-quality one and has ended: the
@@ -1994,7 +1989,19 @@ pub fn status_line(
 
 #[cfg(test)]
 mod tests {
-    use super::size_note;
+    use super::{over_built_in_scene, size_note};
+
+    #[test]
+    fn a_start_error_ending_in_a_newline_reads_as_one_line() {
+        // TOML errors end with a newline: the note must not become a line
+        // that the message area joins on with ": ".
+        let e = std::io::Error::other("t.toml: missing field `transfer`\n");
+        let message = raycaster::errors::one_line(&over_built_in_scene(&e));
+        assert_eq!(
+            message,
+            "t.toml: missing field `transfer` (showing the built-in scene)"
+        );
+    }
 
     #[test]
     fn a_session_size_is_compared_with_a_laid_out_canvas_only() {
