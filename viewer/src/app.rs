@@ -936,6 +936,7 @@ impl Controller {
             .new_volume
             .then(|| install.loaded.volume.volume.unused_tail_warning())
             .flatten();
+        let dropped_screenshot;
         {
             let mut st = self.state.borrow_mut();
             st.busy = false;
@@ -985,8 +986,16 @@ impl Controller {
             st.custom_window = None;
             st.last_stats = None;
             st.first_frame = true;
+            // A screenshot of the old view waits for no frame of the new volume.
+            dropped_screenshot = st.pending_screenshot.take();
         }
         let mut message = install.message;
+        if let Some(path) = dropped_screenshot {
+            message += &format!(
+                " — {} was not saved: the volume changed before its frame was complete",
+                path.display()
+            );
+        }
         if let Some(warning) = tail_warning {
             message = format!("{message} — {warning}");
         }

@@ -240,11 +240,27 @@ fn the_viewer_runs_headless() {
         v.ui().set_message_is_error(false);
     }
 
-    // A good file opens (in the background) and replaces the volume.
+    // A good file opens (in the background) and replaces the volume. A
+    // screenshot asked for while the old view rendered is dropped, and said so:
+    // it would have shown the new volume.
     let good = dir.path().join("shells.vol");
     generate_file(&good, SceneKind::Shells, 48);
+    // (A moving frame: it settles only when the mocked clock moves, so the
+    // volume is installed before the old view is complete.)
+    v.ui().invoke_cut_changed(true);
+    let early = dir.path().join("early.png");
+    v.ui()
+        .invoke_save_screenshot(early.display().to_string().into());
     v.ui().invoke_open_file(good.display().to_string().into());
     wait_until(&v, |v| v.volume_name() == good.display().to_string());
+    let message = v.ui().get_message().to_string();
+    assert!(
+        message
+            .contains("early.png was not saved: the volume changed before its frame was complete"),
+        "{message}"
+    );
+    wait_for_frame(&v);
+    assert!(!early.exists());
     assert!(v.ui().get_volume_info().contains("48×48×48"));
 
     // Segments: a layer scene loads into the panel, renders, edits and saves.
