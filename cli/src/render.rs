@@ -586,8 +586,10 @@ impl Setup {
                 {
                     eprintln!("warning: {}: `level = {k}`: {warning}", path.display());
                 }
-                if let Some(warning) = step_warning(session.settings.step, &volume)
-                    && !args.quiet
+                if let Some(warning) = raycaster::render::step_past_volume(
+                    session.settings.step,
+                    volume.diagonal_voxels(),
+                ) && !args.quiet
                 {
                     eprintln!("warning: {}: `step`: {warning}", path.display());
                 }
@@ -756,25 +758,6 @@ fn level_warning(level: LevelChoice, volume: &Volume) -> Option<String> {
     }
 }
 
-/// What to say of a `step` (in the smallest spacing) longer than `volume`'s
-/// diagonal: every ray then takes one sample at most, a legal but empty frame.
-fn step_warning(step: f32, volume: &Volume) -> Option<String> {
-    let smallest = volume.spacing().into_iter().fold(f32::INFINITY, f32::min);
-    let diagonal = volume
-        .dims()
-        .into_iter()
-        .zip(volume.spacing())
-        .map(|(n, s)| (f64::from(n) * f64::from(s) / f64::from(smallest)).powi(2))
-        .sum::<f64>()
-        .sqrt();
-    (f64::from(step) > diagonal).then(|| {
-        format!(
-            "a step of {} is longer than the volume's diagonal ({diagonal:.0} of its smallest spacing): each ray takes one sample at most (0.5 is the default)",
-            raycaster::volume::number_text(step)
-        )
-    })
-}
-
 /// The session the flags describe, for the opened `volume` (its type chooses
 /// the default transfer function, its size resolves percentages, its box the
 /// framing).
@@ -798,7 +781,9 @@ fn flags_session(args: &RenderArgs, source: VolumeSource, volume: &Volume) -> Re
     {
         eprintln!("{warning}");
     }
-    if let Some(warning) = step_warning(args.step, volume).filter(|_| !args.quiet) {
+    if let Some(warning) = raycaster::render::step_past_volume(args.step, volume.diagonal_voxels())
+        .filter(|_| !args.quiet)
+    {
         eprintln!("warning: --step: {warning}");
     }
     // (In a two-level scene it applies to the objects rendered by DVR.)

@@ -165,6 +165,11 @@ struct State {
     /// A screenshot asked for while the frame was still rendering: saved when
     /// the full-quality frame of the view is complete (not half old, half new).
     pending_screenshot: Option<PathBuf>,
+    /// An existing file *Save PNG* was pressed on once: a second press on the
+    /// same path replaces it.
+    overwrite_armed: Option<PathBuf>,
+    /// The newest request that failed, and its error: no screenshot of it.
+    failed: Option<(u64, String)>,
     /// The file browser's folder and the entries it lists.
     browser: Option<(PathBuf, Vec<crate::browser::Entry>)>,
     /// The newest requests' ids, cameras and orbit targets: the annotations of
@@ -275,6 +280,8 @@ impl Viewer {
                     .unwrap_or_default(),
                 recent_error_shown: false,
                 pending_screenshot: None,
+                overwrite_armed: None,
+                failed: None,
                 browser: None,
                 canvas: (0, 0),
                 slice_frames: [[0; 4]; 3],
@@ -573,7 +580,7 @@ fn connect(ui: &App, c: &Rc<Controller>) {
     on!(on_browser_up, |c| c.browser_up());
     on!(on_browser_open_folder, |c| c.browser_open_folder());
     on!(on_save_screenshot, |c, path| c
-        .save_screenshot(Path::new(path.as_str())));
+        .save_png_pressed(Path::new(path.as_str())));
     on!(on_open_session, |c, path| c
         .open(Source::Session(PathBuf::from(path.as_str()))));
     on!(on_save_session, |c, path| c
@@ -730,6 +737,14 @@ fn frame_complete(st: &State) -> bool {
 
 /// The first free `STEM-N.EXT` beside `path` (`screenshot.png` → `screenshot-1.png`).
 fn numbered_path(path: &Path) -> PathBuf {
+    // A folder (or a path ending in `/`): numbered screenshots inside it.
+    let inside;
+    let path = if path.is_dir() || path.as_os_str().to_string_lossy().ends_with('/') {
+        inside = path.join("screenshot.png");
+        inside.as_path()
+    } else {
+        path
+    };
     let stem = path
         .file_stem()
         .map_or("screenshot".into(), |s| s.to_string_lossy().into_owned());
@@ -927,7 +942,10 @@ impl Controller {
             Ok(install) => install,
             Err(e) => {
                 self.state.borrow_mut().busy = false;
-                self.show_message(&format!("{e} (the previous volume stays)"), true);
+                self.show_message(
+                    &format!("{} (the previous volume stays)", e.trim_end()),
+                    true,
+                );
                 return;
             }
         };
@@ -1320,6 +1338,15 @@ impl Controller {
                     " (its level {k} is past the volume's coarsest, {coarsest}: showing level {coarsest})"
                 );
             }
+            // As `raycaster render --session` warns.
+            if let Some(note) = st.current.as_ref().and_then(|c| {
+                raycaster::render::step_past_volume(
+                    settings.step,
+                    c.volume.volume.diagonal_voxels(),
+                )
+            }) {
+                level_note += &format!(" ({note})");
+            }
             let preset = STEP_PRESETS.iter().position(|&p| {
                 let mut q = QualityPolicy::default();
                 q.preset = p;
@@ -1609,6 +1636,7 @@ impl Controller {
                     FrameEvent::Failed { id, error } => {
                         if latest.is_some_and(|(l, _)| l == id) {
                             st.ended = Some(id);
+                            st.failed = Some((id, error.clone()));
                         }
                         failures.push(error);
                     }
@@ -1732,16 +1760,53 @@ impl Controller {
         {
             let mut st = self.state.borrow_mut();
             if st.latest.is_some() && !frame_complete(&st) {
-                st.pending_screenshot = Some(path.to_path_buf());
+                let replaced = st
+                    .pending_screenshot
+                    .replace(path.to_path_buf())
+                    .filter(|p| p != path);
                 drop(st);
+                let note = replaced.map_or(String::new(), |p| {
+                    format!(" (in place of {}, which was waiting too)", p.display())
+                });
                 return self.show_message(
-                    &format!("saving {} when the frame is complete …", path.display()),
+                    &format!(
+                        "saving {} when the frame is complete …{note}",
+                        path.display()
+                    ),
                     false,
                 );
             }
             st.pending_screenshot = None;
         }
         self.write_screenshot(path);
+    }
+
+    /// The *Save PNG* button: the typed path, which must be named; an existing
+    /// file is replaced only when the button is pressed on it a second time.
+    fn save_png_pressed(&self, path: &Path) {
+        if path.as_os_str().is_empty() {
+            return self.show_message("type a file name for the PNG next to Save PNG", true);
+        }
+        let confirmed = {
+            let mut st = self.state.borrow_mut();
+            let again = st.overwrite_armed.take().is_some_and(|p| p == path);
+            if path.is_file() && !again {
+                st.overwrite_armed = Some(path.to_path_buf());
+                false
+            } else {
+                true
+            }
+        };
+        if !confirmed {
+            return self.show_message(
+                &format!(
+                    "{} exists: press Save PNG again to replace it",
+                    path.display()
+                ),
+                true,
+            );
+        }
+        self.save_screenshot(path);
     }
 
     /// Saves a screenshot asked for while the frame rendered, once it is complete.
@@ -1760,6 +1825,22 @@ impl Controller {
     }
 
     fn write_screenshot(&self, path: &Path) {
+        let failure = {
+            let st = self.state.borrow();
+            st.failed
+                .as_ref()
+                .filter(|(id, _)| st.latest.is_some_and(|(l, _)| l == *id))
+                .map(|(_, e)| e.clone())
+        };
+        if let Some(e) = failure {
+            return self.show_message(
+                &format!(
+                    "cannot save {}: the view's frame did not render: {e}",
+                    path.display()
+                ),
+                true,
+            );
+        }
         let image = {
             let st = self.state.borrow();
             let Some(current) = &st.current else { return };
@@ -1973,9 +2054,14 @@ pub fn status_line(
             format!("level {}", s.level)
         },
         // Steps are rungs of 2^(1/4): two decimals tell them apart.
-        format!("{:.2}", sampling.step)
-            .trim_end_matches('0')
-            .trim_end_matches('.'),
+        if sampling.step >= 1e4 {
+            raycaster::volume::number_text(sampling.step)
+        } else {
+            format!("{:.2}", sampling.step)
+                .trim_end_matches('0')
+                .trim_end_matches('.')
+                .to_string()
+        },
         if sampling.preintegrated {
             " pre-integrated"
         } else {

@@ -193,6 +193,18 @@ fn the_viewer_cuts_slices_and_remembers_files() {
     element(&v, "App::planes-box").invoke_accessible_default_action();
     settle(&v);
     assert!(frame(&v) == plain, "no outlines once unticked");
+    // A folder as the screenshot path: numbered screenshots inside it (before:
+    // `FOLDER-1.png` beside it).
+    let folder = dir.path().join("shots");
+    std::fs::create_dir(&folder).unwrap();
+    v.ui()
+        .set_screenshot_path(folder.display().to_string().into());
+    key(&v, "s");
+    assert!(
+        folder.join("screenshot-1.png").exists(),
+        "{:?}",
+        v.ui().get_message()
+    );
     key(&v, "r");
     settle(&v);
     assert_eq!(v.orbit(), home, "R resets the view");

@@ -296,6 +296,25 @@ fn the_viewer_runs_headless() {
         "the screenshot is the frame on screen"
     );
     assert_eq!((sw, sh), (w, h), "long paths do not resize the canvas");
+    // Save PNG on an existing file: replaced only when pressed again.
+    std::fs::write(&png, b"keep me").unwrap();
+    v.ui()
+        .invoke_save_screenshot(png.display().to_string().into());
+    let message = v.ui().get_message().to_string();
+    assert!(
+        message.contains("shot.png exists: press Save PNG again to replace it"),
+        "{message}"
+    );
+    assert_eq!(std::fs::read(&png).unwrap(), b"keep me");
+    v.ui()
+        .invoke_save_screenshot(png.display().to_string().into());
+    assert!(raycaster::render::RgbImage::load_png(&png).is_ok());
+    // No name: said, not an empty OS error.
+    v.ui().invoke_save_screenshot("".into());
+    assert_eq!(
+        v.ui().get_message(),
+        "type a file name for the PNG next to Save PNG"
+    );
 
     // A scan in a foreign format (a NIfTI-1 fixture written by nibabel) opens directly.
     let nifti = Path::new(env!("CARGO_MANIFEST_DIR")).join("../volumes/fixtures/u8.nii");
@@ -359,6 +378,51 @@ fn the_viewer_runs_headless() {
     assert!(
         message.contains("its level 99 is past the volume's coarsest, 0: showing level 0")
             && !v.ui().get_message_is_error(),
+        "{message}"
+    );
+
+    // A session whose step no frame can take: the viewer says so when the
+    // full-quality frame fails, and refuses a screenshot of the coarse
+    // preview still on screen (before: "saved", over the error).
+    let tiny = dir.path().join("tiny.toml");
+    let text = std::fs::read_to_string(&deep).unwrap();
+    let text: Vec<String> = text
+        .lines()
+        .map(|l| {
+            if l.starts_with("step = ") {
+                "step = 1e-30".to_string()
+            } else {
+                l.replace("level = 99", "level = \"auto\"")
+            }
+        })
+        .collect();
+    std::fs::write(&tiny, text.join("\n")).unwrap();
+    v.ui()
+        .invoke_open_session(tiny.display().to_string().into());
+    wait_until(&v, |v| v.ui().get_message().contains("tiny.toml"));
+    i_slint_backend_testing::mock_elapsed_time(Duration::from_millis(300));
+    slint::platform::update_timers_and_animations();
+    wait_until(&v, |v| v.ui().get_message().contains("cannot render"));
+    let refused = dir.path().join("refused.png");
+    v.ui()
+        .invoke_save_screenshot(refused.display().to_string().into());
+    let message = v.ui().get_message().to_string();
+    assert!(
+        message.contains("refused.png: the view's frame did not render")
+            && v.ui().get_message_is_error(),
+        "{message}"
+    );
+    assert!(!refused.exists());
+    // A step longer than the volume: warned of, as `raycaster render` does.
+    let huge = dir.path().join("huge.toml");
+    let text = std::fs::read_to_string(&tiny).unwrap();
+    std::fs::write(&huge, text.replace("step = 1e-30", "step = 1e30")).unwrap();
+    v.ui()
+        .invoke_open_session(huge.display().to_string().into());
+    wait_until(&v, |v| v.ui().get_message().contains("huge.toml"));
+    let message = v.ui().get_message().to_string();
+    assert!(
+        message.contains("(a step of 1e30 is longer than the volume's diagonal"),
         "{message}"
     );
 

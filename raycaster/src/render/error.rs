@@ -89,7 +89,8 @@ fn budget_cause([x, y, z]: [f32; 3], ratio: f64, step: f32) -> String {
         )
     } else {
         format!(
-            "the step is {step} voxel; raise the step (`--step`, or `step` in a session's [render]; 0.5 is the default)"
+            "the step is {} voxel; raise the step (`--step`, or `step` in a session's [render]; 0.5 is the default)",
+            crate::volume::number_text(step)
         )
     }
 }

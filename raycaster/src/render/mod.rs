@@ -90,6 +90,7 @@ pub use segments::{
 pub use sequential::{render_sequential, render_sequential_levels};
 pub use settings::{
     AUTO_XRAY_DEPTH, DEFAULT_ERT_THRESHOLD, Mode, ModeParameters, RenderSettings, auto_xray_gain,
+    step_past_volume,
 };
 pub use shading::{Light, Shading};
 pub use simd::{SimdLevel, available as simd_levels};

@@ -102,6 +102,18 @@ pub fn auto_xray_gain(diagonal: f32) -> f32 {
     AUTO_XRAY_DEPTH / diagonal.max(1.0)
 }
 
+/// What to say of a `step` (in the smallest spacing) longer than a volume's
+/// diagonal (`Volume::diagonal_voxels`): every ray then takes one sample at
+/// most, a legal but empty frame. `None` for sensible steps.
+pub fn step_past_volume(step: f32, diagonal: f32) -> Option<String> {
+    (step > diagonal).then(|| {
+        format!(
+            "a step of {} is longer than the volume's diagonal ({diagonal:.0} of its smallest spacing): each ray takes one sample at most (0.5 is the default)",
+            crate::volume::number_text(step)
+        )
+    })
+}
+
 /// The automatic X-ray gain's numerator ([`auto_xray_gain`]): about 0.036 for
 /// a 128³ volume, 0.0096 for a 512 × 512 × 48 CT of 0.57 × 0.57 × 5 mm voxels.
 pub const AUTO_XRAY_DEPTH: f32 = 8.0;
