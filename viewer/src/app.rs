@@ -1006,6 +1006,7 @@ impl Controller {
             st.first_frame = true;
             // A screenshot of the old view waits for no frame of the new volume.
             dropped_screenshot = st.pending_screenshot.take();
+            st.failed = None;
         }
         let mut message = install.message;
         if let Some(path) = dropped_screenshot {
@@ -2054,7 +2055,8 @@ pub fn status_line(
             format!("level {}", s.level)
         },
         // Steps are rungs of 2^(1/4): two decimals tell them apart.
-        if sampling.step >= 1e4 {
+        // (Far from the rungs, as a session may give: no "step 0".)
+        if !(0.01..1e4).contains(&sampling.step) {
             raycaster::volume::number_text(sampling.step)
         } else {
             format!("{:.2}", sampling.step)
@@ -2084,7 +2086,26 @@ pub fn status_line(
 
 #[cfg(test)]
 mod tests {
-    use super::{over_built_in_scene, size_note};
+    use super::{Sampling, over_built_in_scene, size_note, status_line};
+
+    #[test]
+    fn the_status_line_names_steps_far_from_the_rungs() {
+        let stats = raycaster::render::FrameStats::default();
+        let line = |step| {
+            status_line(
+                &stats,
+                false,
+                Sampling {
+                    step,
+                    preintegrated: false,
+                },
+                0,
+            )
+        };
+        assert!(line(0.71).contains(" step 0.71 "), "{}", line(0.71));
+        assert!(line(1e-30).contains(" step 1e-30 "), "{}", line(1e-30));
+        assert!(line(1e30).contains(" step 1e30 "), "{}", line(1e30));
+    }
 
     #[test]
     fn a_start_error_ending_in_a_newline_reads_as_one_line() {
