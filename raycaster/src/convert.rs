@@ -90,14 +90,17 @@ impl ValueMap {
 /// default for the input (u8 stays u8, everything else becomes u16); then values are
 /// copied when the output holds them all, i16 → u16 is offset by 32768, and otherwise
 /// `window` (default: the input's own min..max, found in an extra streaming pass)
-/// maps onto the output's full range.
+/// maps onto the output's full range. The third item counts the values that
+/// are NaN or infinite, when that pass ran (they are stored as the window's low
+/// end, and ±∞ as its ends).
 pub fn plan_values(
     input: &Input,
     sample_type: Option<SampleType>,
     window: Option<(f32, f32)>,
     job: &Job,
-) -> Result<(SampleType, ValueMap), VolumeError> {
+) -> Result<(SampleType, ValueMap, Option<u64>), VolumeError> {
     let value_type = input.value_type();
+    let mut non_finite = None;
     let sample_type = sample_type.unwrap_or(match value_type {
         InputType::U8 => SampleType::U8,
         _ => SampleType::U16,
@@ -111,16 +114,18 @@ pub fn plan_values(
         None if value_type.fits_in(sample_type) => ValueMap::Copy,
         None if value_type == InputType::I16 && sample_type == SampleType::U16 => ValueMap::Offset,
         None => {
-            let Some((lo, hi)) = input.value_range(job)? else {
+            let range = input.value_range(job)?;
+            let Some((lo, hi)) = range.finite else {
                 return Err(VolumeError::new(
                     input.path(),
                     VolumeErrorKind::NoFiniteValues,
                 ));
             };
+            non_finite = Some(range.non_finite);
             ValueMap::Window(lo, hi)
         }
     };
-    Ok((sample_type, map))
+    Ok((sample_type, map, non_finite))
 }
 
 /// What a conversion did.
@@ -128,6 +133,9 @@ pub fn plan_values(
 pub struct ConvertSummary {
     /// How values were mapped to samples.
     pub values: ValueMap,
+    /// Input values that were NaN or infinite, as counted by the value-range
+    /// pass of a window not given (0 when it did not run).
+    pub non_finite: u64,
     /// The header written.
     pub header: Header,
     /// The written file.
@@ -177,7 +185,7 @@ pub fn convert(
         None => input.path(),
     };
     header.validate().at(blamed)?;
-    let (_, values) = plan_values(input, Some(sample_type), options.window, job)?;
+    let (_, values, non_finite) = plan_values(input, Some(sample_type), options.window, job)?;
     // Units need the extended header; a thesis file of a windowed input keeps
     // stored values only (the summary's value map says how they were made).
     let header = match (content, options.format) {
@@ -198,6 +206,7 @@ pub fn convert(
     };
     Ok(ConvertSummary {
         values,
+        non_finite: non_finite.unwrap_or(0),
         header,
         written,
     })

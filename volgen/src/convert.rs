@@ -216,6 +216,14 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
     let start = Instant::now();
     let done = convert(&input, &a.output, &options, &write, &job)?;
     bar.finish_and_clear();
+    if done.non_finite > 0 && !a.quiet {
+        let voxels: u64 = done.header.dims.iter().map(|&d| u64::from(d)).product();
+        eprintln!(
+            "warning: {}: {} of its {voxels} values are NaN or infinite: NaN is stored as the window's low end, ±infinity as its ends",
+            a.input.display(),
+            done.non_finite
+        );
+    }
     if !a.quiet {
         let window = match done.values {
             ValueMap::Window(lo, hi) => format!(", values {lo}..={hi} mapped to the full range"),

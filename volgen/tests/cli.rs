@@ -424,6 +424,15 @@ fn float_input_with_infinities_and_nan_is_windowed_by_its_finite_values() {
         "{}",
         stdout(&o)
     );
+    // The values that are not finite are counted, once.
+    assert_eq!(
+        stderr(&o)
+            .matches("f.raw: 3 of its 16 values are NaN or infinite: NaN is stored as the window's low end")
+            .count(),
+        1,
+        "{}",
+        stderr(&o)
+    );
     let info = stdout(&volgen(d, &["info", "f.vol"]));
     assert!(info.contains("min 10, max 25"), "{info}");
     // The samples: a linear u8 file in the thesis format ends with them.

@@ -743,7 +743,7 @@ impl Imported {
         }
         let input = self.input_with(None, u64::MAX, job)?;
         let units = input.units().clone();
-        let (sample_type, values) = plan_values(&input, Some(sample_type), None, &Job::silent())
+        let (sample_type, values, _) = plan_values(&input, Some(sample_type), None, &Job::silent())
             .map_err(|e| ImportError::new(&self.path, e))?;
         let header = Header::new(
             self.dims,

@@ -472,12 +472,14 @@ impl Input {
 
     /// Smallest and largest finite value of the volume (NaN and ±∞ ignored: a
     /// window mapped onto the samples clamps ±∞ to its ends), in one streaming
-    /// pass; `None` when no value is finite.
-    pub fn value_range(&self, job: &Job) -> Result<Option<(f32, f32)>, VolumeError> {
+    /// pass, with the count of values that are not finite.
+    pub fn value_range(&self, job: &Job) -> Result<ValueRange, VolumeError> {
         let dims = self.dims();
         let plane = dims[1] as usize * dims[2] as usize;
         let mut lo_hi = (f32::INFINITY, f32::NEG_INFINITY);
+        let mut non_finite = 0u64;
         let mut fold = |values: &[f32]| {
+            non_finite += values.iter().filter(|v| !v.is_finite()).count() as u64;
             for &v in values.iter().filter(|v| v.is_finite()) {
                 if v < lo_hi.0 {
                     lo_hi.0 = v;
@@ -518,6 +520,18 @@ impl Input {
             }
         }
         let (lo, hi) = lo_hi;
-        Ok((lo <= hi).then_some((lo, hi)))
+        Ok(ValueRange {
+            finite: (lo <= hi).then_some((lo, hi)),
+            non_finite,
+        })
     }
+}
+
+/// What [`Input::value_range`] found.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ValueRange {
+    /// Smallest and largest finite value; `None` when no value is finite.
+    pub finite: Option<(f32, f32)>,
+    /// Values that are NaN or infinite.
+    pub non_finite: u64,
 }

@@ -12,6 +12,6 @@ mod writer;
 
 pub use bytes_read::process_bytes_read;
 pub use decode::{Endian, RawType};
-pub use input::{Input, InputType, RawData, RawOrder, RawSpec};
+pub use input::{Input, InputType, RawData, RawOrder, RawSpec, ValueRange};
 pub(crate) use writer::{CellSink, physical_memory, stream_samples};
 pub use writer::{WriteOptions, WriteSummary, write_volume};
