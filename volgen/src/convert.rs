@@ -36,7 +36,8 @@ use crate::progress::{CANCEL, voxel_bar};
 /// (exact); otherwise (u16/i16/f32 to u8, f32 to u16) they are mapped linearly from
 /// --window (default: the input's own finite min..max) onto the output's full
 /// range; values outside it, ±infinity included, clamp to its ends, and NaN is
-/// stored as its low end. Examples:
+/// stored as its low end (the default window's pass counts them and warns; an
+/// input without one finite value is refused). Examples:
 ///
 ///   volgen convert volumes/data/brainsmall.den --raw 128x128x84 --skip 62 -o brainsmall.vol
 ///
