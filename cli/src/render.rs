@@ -749,13 +749,9 @@ fn flags_source(args: &RenderArgs) -> VolumeSource {
 /// What to say of a fixed `level` past `volume`'s coarsest (it renders the
 /// coarsest).
 fn level_warning(level: LevelChoice, volume: &Volume) -> Option<String> {
-    let coarsest = volume.level_count().saturating_sub(1);
-    match level {
-        LevelChoice::Fixed(k) if k as usize > coarsest => Some(format!(
-            "the volume's coarsest level is {coarsest}; rendering level {coarsest}"
-        )),
-        _ => None,
-    }
+    level.past_coarsest(volume).map(|coarsest| {
+        format!("the volume's coarsest level is {coarsest}; rendering level {coarsest}")
+    })
 }
 
 /// The session the flags describe, for the opened `volume` (its type chooses

@@ -5,11 +5,14 @@ use std::error::Error;
 /// The error and its causes joined by `: `, leaving out a cause whose text the
 /// message already holds (an error that prints its source, and then the source
 /// itself, would otherwise say the same thing twice: "X: X").
+///
+/// Trailing newlines (TOML's errors end with one) are dropped, so that what
+/// follows the text, a cause or a note, stays on its line.
 pub fn error_text(error: &(dyn Error + 'static)) -> String {
-    let mut out = error.to_string();
+    let mut out = error.to_string().trim_end().to_string();
     let mut cause = error.source();
     while let Some(c) = cause {
-        let text = c.to_string();
+        let text = c.to_string().trim_end().to_string();
         if !text.is_empty() && !out.contains(&text) {
             out.push_str(": ");
             out.push_str(&text);
@@ -80,6 +83,14 @@ mod tests {
         assert!(text.contains("… (999723 more characters)\nnext"), "{text}");
         let short = std::io::Error::other("é".repeat(300));
         assert_eq!(error_text(&short), "é".repeat(300));
+    }
+
+    #[test]
+    fn a_trailing_newline_is_dropped_before_a_cause_or_a_note() {
+        let e = std::io::Error::other("missing field `transfer`\n");
+        assert_eq!(error_text(&e), "missing field `transfer`");
+        let wrapped = Outer(std::io::Error::other("line one\n"));
+        assert_eq!(error_text(&wrapped), "rendering failed: line one");
     }
 
     #[test]

@@ -719,12 +719,11 @@ fn size_note(saved: [u32; 2], canvas: Option<(u32, u32)>) -> String {
 }
 
 /// The message of a volume or session that did not open at start, shown over
-/// the built-in scene (the error's trailing newline would become a line of
-/// its own in the one-line message area).
+/// the built-in scene.
 fn over_built_in_scene(e: &(dyn std::error::Error + 'static)) -> String {
     format!(
         "{} (showing the built-in scene)",
-        raycaster::errors::error_text(e).trim_end()
+        raycaster::errors::error_text(e)
     )
 }
 
@@ -942,10 +941,7 @@ impl Controller {
             Ok(install) => install,
             Err(e) => {
                 self.state.borrow_mut().busy = false;
-                self.show_message(
-                    &format!("{} (the previous volume stays)", e.trim_end()),
-                    true,
-                );
+                self.show_message(&format!("{e} (the previous volume stays)"), true);
                 return;
             }
         };
@@ -1310,14 +1306,15 @@ impl Controller {
 
     /// Sets the panels, camera, transfer function, scene and the settings no
     /// panel shows from `session` (its volume is in place); returns a note for
-    /// the message line when the canvas differs from the session's image size
-    /// or its fixed level is past the volume's coarsest.
+    /// the message line when the canvas differs from the session's image size,
+    /// its fixed level is past the volume's coarsest or its step past the
+    /// volume.
     fn restore(&self, session: Session) -> String {
         let Some(ui) = self.ui() else {
             return String::new();
         };
         let settings = session.settings;
-        let mut level_note = String::new();
+        let mut notes = String::new();
         {
             let mut st = self.state.borrow_mut();
             if let SessionCamera::Orbit(orbit) = session.camera {
@@ -1326,27 +1323,21 @@ impl Controller {
             st.editor.set_transfer(&settings.transfer);
             st.scene = settings.segments.clone();
             st.level = session.level;
-            // A fixed level past the coarsest renders the coarsest (as
-            // `raycaster render --session` warns).
-            let coarsest = st
-                .current
-                .as_ref()
-                .map_or(0, |c| c.volume.volume.level_count().saturating_sub(1));
-            if let LevelChoice::Fixed(k) = session.level
-                && k as usize > coarsest
-            {
-                level_note = format!(
-                    " (its level {k} is past the volume's coarsest, {coarsest}: showing level {coarsest})"
-                );
-            }
-            // As `raycaster render --session` warns.
-            if let Some(note) = st.current.as_ref().and_then(|c| {
-                raycaster::render::step_past_volume(
-                    settings.step,
-                    c.volume.volume.diagonal_voxels(),
-                )
-            }) {
-                level_note += &format!(" ({note})");
+            // What `raycaster render --session` warns of: a fixed level past
+            // the coarsest (which renders the coarsest), a step past the volume.
+            if let Some(volume) = st.current.as_ref().map(|c| &c.volume.volume) {
+                if let (LevelChoice::Fixed(k), Some(coarsest)) =
+                    (session.level, session.level.past_coarsest(volume))
+                {
+                    notes = format!(
+                        " (its level {k} is past the volume's coarsest, {coarsest}: showing level {coarsest})"
+                    );
+                }
+                if let Some(note) =
+                    raycaster::render::step_past_volume(settings.step, volume.diagonal_voxels())
+                {
+                    notes += &format!(" ({note})");
+                }
             }
             let preset = STEP_PRESETS.iter().position(|&p| {
                 let mut q = QualityPolicy::default();
@@ -1392,7 +1383,7 @@ impl Controller {
             TransferFunction::preset(name).is_ok_and(|p| p.points() == settings.transfer.points())
         });
         ui.set_preset_index(preset.map_or(-1, |i| i as i32));
-        size_note(session.size, laid_out_canvas(&ui)) + &level_note
+        size_note(session.size, laid_out_canvas(&ui)) + &notes
     }
 
     /// The render settings of the view: the panels over the fixed settings,

@@ -479,8 +479,11 @@ impl Input {
         let mut lo_hi = (f32::INFINITY, f32::NEG_INFINITY);
         let mut non_finite = 0u64;
         let mut fold = |values: &[f32]| {
-            non_finite += values.iter().filter(|v| !v.is_finite()).count() as u64;
-            for &v in values.iter().filter(|v| v.is_finite()) {
+            for &v in values {
+                if !v.is_finite() {
+                    non_finite += 1;
+                    continue;
+                }
                 if v < lo_hi.0 {
                     lo_hi.0 = v;
                 }

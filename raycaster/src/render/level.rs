@@ -46,6 +46,16 @@ impl FromStr for LevelChoice {
 }
 
 impl LevelChoice {
+    /// The coarsest level of `volume`, when this is a fixed level past it: the
+    /// frame then renders the coarsest (a warning's matter, not an error).
+    pub fn past_coarsest(self, volume: &Volume) -> Option<usize> {
+        let coarsest = volume.level_count().saturating_sub(1);
+        match self {
+            LevelChoice::Fixed(k) if k as usize > coarsest => Some(coarsest),
+            _ => None,
+        }
+    }
+
     /// The one level of `volume` to render for `camera` (0 ..= the coarsest
     /// level): for [`LevelChoice::Auto`], the level at the volume's point nearest
     /// to the camera (what frames of a single level sample: two-level scenes,
