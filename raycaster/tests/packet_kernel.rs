@@ -6,8 +6,8 @@
 mod render_support;
 
 use raycaster::render::{
-    Light, Mode, ParallelOptions, RenderSettings, RenderVolume, Shading, SimdLevel, Vec3,
-    render_parallel, render_sequential, simd_levels,
+    ImportanceSource, Light, Mode, ModeParameters, ParallelOptions, RenderSettings, RenderVolume,
+    Shading, SimdLevel, Vec3, render_parallel, render_sequential, simd_levels,
 };
 use raycaster::synth::SceneKind;
 use raycaster::volume::{Access, Layout, SampleType};
@@ -168,6 +168,66 @@ fn value_modes_in_packets_equal_the_scalar_kernel_bit_for_bit_on_every_level() {
         }
     }
     assert_eq!(frames, 150 * levels.len());
+}
+
+/// The modes that read a visible sample's gradient (importance-aware,
+/// context-preserving, tone and silhouette) take the gradient kernel on the
+/// levels with gathers: the same frames to the bit and the same counts as the
+/// scalar kernel, over scenes, sample types, layouts, shading, ray-start
+/// jitter, early termination and empty-space skipping.
+#[test]
+fn gradient_modes_in_packets_equal_the_scalar_kernel_bit_for_bit_on_every_level() {
+    let levels = packet_levels();
+    let dir = tempfile::tempdir().unwrap();
+    let modes = [Mode::Importance, Mode::ContextPreserving, Mode::Silhouette];
+    let mut frames = 0;
+    for kind in [SceneKind::Shapes, SceneKind::Noise] {
+        for (layout, sample_type, brick_side) in LAYOUTS {
+            let file = scene_file(dir.path(), kind, N, layout, sample_type, Access::Mapped);
+            let prepared = RenderVolume::new(&file, brick_side).unwrap();
+            let camera = default_camera(&file, 40);
+            for (round, mode) in modes.into_iter().enumerate() {
+                let combinations = [(true, true), (false, true), (true, false)];
+                for (i, (ert, ess)) in combinations.into_iter().enumerate() {
+                    // Importance from the value, the gradient or the view.
+                    let importance = [
+                        ImportanceSource::Intensity(0.8),
+                        ImportanceSource::Gradient(1.5),
+                        ImportanceSource::Silhouette([1.0, 0.2, 0.9]),
+                    ][i];
+                    let settings = RenderSettings {
+                        mode,
+                        mode_parameters: ModeParameters {
+                            importance,
+                            context: [1.5 + i as f32, 0.4],
+                            ..ModeParameters::default()
+                        },
+                        transfer: scene_preset(kind),
+                        shading: (round != 1 || ess).then(Shading::default),
+                        early_termination: ert.then_some(0.9),
+                        empty_space_skipping: ess,
+                        step: [0.5, 0.3, 0.9][round],
+                        jitter: round == 1,
+                        simd: Some(SimdLevel::Scalar),
+                        ..RenderSettings::default()
+                    };
+                    let options = ParallelOptions {
+                        render_threads: 2,
+                        compositing_threads: 1,
+                        tile_size: [16, 7, 11][round],
+                    };
+                    let name = format!(
+                        "{kind:?} {layout:?} {sample_type:?} bricks {brick_side:?} {} ert {ert} ess {ess}",
+                        mode.name()
+                    );
+                    frames += assert_levels_equal_scalar(
+                        &prepared, &camera, &settings, &options, &levels, &name,
+                    );
+                }
+            }
+        }
+    }
+    assert_eq!(frames, 90 * levels.len());
 }
 
 #[test]

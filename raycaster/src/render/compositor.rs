@@ -133,6 +133,27 @@ pub(crate) struct SampleSite<'s, T: Sample> {
     pub(crate) gradient_scale: Vec3,
 }
 
+impl<'s, T: Sample> SampleSite<'s, T> {
+    /// Sample `k` of the site's ray, of value `value` at voxel position
+    /// `position`; the ray's last sample stands for its fraction of a step.
+    #[inline(always)]
+    pub(crate) fn point(&'s self, k: u32, position: Vec3, value: f32) -> SamplePoint<'s, T> {
+        let ray = self.ray;
+        SamplePoint {
+            value,
+            position,
+            index: k,
+            fraction: if k == ray.samples - 1 {
+                ray.last_fraction
+            } else {
+                1.0
+            },
+            known_gradient: None,
+            site: self,
+        }
+    }
+}
+
 /// One sample as a compositor sees it: its value, where it is, and what it may
 /// ask for (gradient, label, depth) computed only when asked.
 pub(crate) struct SamplePoint<'s, T: Sample> {
@@ -144,6 +165,9 @@ pub(crate) struct SamplePoint<'s, T: Sample> {
     pub index: u32,
     /// The part of a step this sample stands for (below 1 only for a ray's last).
     pub fraction: f32,
+    /// The gradient at the sample when a kernel computed it already (the
+    /// bits [`Self::gradient`] would compute from the site's cell).
+    pub(crate) known_gradient: Option<Vec3>,
     /// The ray, the brick and the cell the sample lies in.
     pub(crate) site: &'s SampleSite<'s, T>,
 }
@@ -165,6 +189,9 @@ impl<'s, T: Sample> SamplePoint<'s, T> {
     /// smallest spacing.
     #[inline]
     pub fn gradient(&self) -> Vec3 {
+        if let Some(gradient) = self.known_gradient {
+            return gradient;
+        }
         let site = self.site;
         site.cell
             .gradient_here(site.volume, &site.brick.sampler, self.position)

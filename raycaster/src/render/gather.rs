@@ -206,6 +206,23 @@ impl<'a> GatherBrick<'a> {
 #[repr(align(64))]
 pub(crate) struct LineAligned<T>(pub(crate) T);
 
+/// A chunk's lanes as the gather kernels fill them: table indices, values,
+/// brick-local positions and gradients (per axis), each eight lanes.
+/// Aligned to a cache line, so that no 32-byte array straddles two lines
+/// (as [`LineAligned`] says).
+#[derive(Debug, Default)]
+#[repr(C, align(64))]
+pub(crate) struct GradientLanes {
+    /// The samples' transfer-table indices.
+    pub(crate) indices: [i32; GATHER_LANES],
+    /// The samples' trilinear values.
+    pub(crate) values: [f32; GATHER_LANES],
+    /// The samples' brick-local positions, per axis.
+    pub(crate) local: [[f32; GATHER_LANES]; 3],
+    /// The samples' gradients before the frame's gradient scale, per axis.
+    pub(crate) gradient: [[f32; GATHER_LANES]; 3],
+}
+
 impl GatherBrick<'_> {
     /// The trilinear values of samples `samples[..n]` of the ray at
     /// `positions` in `sampler`'s brick into `values`, with the scalar
@@ -417,25 +434,25 @@ impl<T: Sample> GatherRay<'_, '_, T> {
         n: usize,
     ) -> Option<usize> {
         let entries = self.table.entries();
-        let mut indices = LineAligned([0i32; GATHER_LANES]);
-        let mut local = LineAligned([[0f32; GATHER_LANES]; 3]);
+        let mut lanes = GradientLanes::default();
         #[cfg(target_arch = "x86_64")]
         #[allow(unsafe_code)]
         // SAFETY: `GatherBrick::new` checked that this CPU has AVX2.
         let (outside, mut visible) =
-            unsafe { x86::chunk_indices(self, samples, n, &mut indices.0, &mut local.0) };
+            unsafe { x86::chunk_indices(self, samples, n, &mut lanes.indices, &mut lanes.local) };
         #[cfg(not(target_arch = "x86_64"))]
         let (outside, mut visible): (u32, u32) = unreachable!("no gather layout off x86-64");
         if outside != 0 {
-            visible |= self.indices_outside_cells(outside, &local.0, &mut indices.0);
+            visible |= self.indices_outside_cells(outside, &mut lanes);
         }
+        let indices = &lanes.indices;
         // The visible samples (opacity above 0: what the scalar `Dvr`
         // composites), in order.
         let ends_ray = samples[n - 1] == self.last_sample;
         while visible != 0 {
             let j = visible.trailing_zeros() as usize;
             visible &= visible - 1;
-            let [r, g, b, a] = entries[indices.0[j] as usize];
+            let [r, g, b, a] = entries[indices[j] as usize];
             if self.over(acc, ([r, g, b], a), samples[j], ends_ray) {
                 return Some(j);
             }
@@ -455,36 +472,12 @@ impl<T: Sample> GatherRay<'_, '_, T> {
         n: usize,
     ) -> Option<usize> {
         let entries = self.table.entries();
-        let mut indices = LineAligned([0i32; GATHER_LANES]);
-        let mut local = LineAligned([[0f32; GATHER_LANES]; 3]);
-        let mut gradient = LineAligned([[0f32; GATHER_LANES]; 3]);
-        #[cfg(target_arch = "x86_64")]
-        #[allow(unsafe_code)]
-        // SAFETY: `GatherBrick::new` checked that this CPU has AVX2.
-        let (outside, mut visible, mut fallback) = unsafe {
-            x86::chunk_gradients(
-                self,
-                samples,
-                n,
-                &mut indices.0,
-                &mut local.0,
-                &mut gradient.0,
-            )
-        };
-        #[cfg(not(target_arch = "x86_64"))]
-        let (outside, mut visible, mut fallback): (u32, u32, u32) =
-            unreachable!("no gather layout off x86-64");
-        if outside != 0 {
-            let seen = self.indices_outside_cells(outside, &local.0, &mut indices.0);
-            visible |= seen;
-            fallback |= seen;
-        }
+        let mut lanes = GradientLanes::default();
+        let mut visible = self.visible_gradients(shade.volume, samples, n, &mut lanes);
         if visible == 0 {
             return None;
         }
-        if fallback != 0 {
-            self.gradients_by_lane(shade, samples, fallback, outside, &local.0, &mut gradient.0);
-        }
+        let (indices, gradient) = (&lanes.indices, &lanes.gradient);
         // Colours and gradients per channel and axis in lanes, shaded four at
         // a time.
         let mut rgb = LineAligned([[0f32; GATHER_LANES]; 3]);
@@ -492,7 +485,7 @@ impl<T: Sample> GatherRay<'_, '_, T> {
         while bits != 0 {
             let j = bits.trailing_zeros() as usize;
             bits &= bits - 1;
-            let entry = entries[indices.0[j] as usize];
+            let entry = entries[indices[j] as usize];
             for (channel, value) in rgb.0.iter_mut().zip(entry) {
                 channel[j] = value;
             }
@@ -503,31 +496,66 @@ impl<T: Sample> GatherRay<'_, '_, T> {
             #[allow(unsafe_code)]
             // SAFETY: `GatherBrick::new` checked that this CPU has AVX2.
             unsafe {
-                x86::shade(
-                    &shade.shading,
-                    n,
-                    &mut rgb.0,
-                    &gradient.0,
-                    scale,
-                    self.lights,
-                )
+                x86::shade(&shade.shading, n, &mut rgb.0, gradient, scale, self.lights)
             };
         } else {
-            self.shade_quads(shade, visible, &mut rgb.0, &gradient.0);
+            self.shade_quads(shade, visible, &mut rgb.0, gradient);
         }
         #[cfg(not(target_arch = "x86_64"))]
-        self.shade_quads(shade, visible, &mut rgb.0, &gradient.0);
+        self.shade_quads(shade, visible, &mut rgb.0, gradient);
         let ends_ray = samples[n - 1] == self.last_sample;
         while visible != 0 {
             let j = visible.trailing_zeros() as usize;
             visible &= visible - 1;
-            let a = entries[indices.0[j] as usize][3];
+            let a = entries[indices[j] as usize][3];
             let color = [rgb.0[0][j], rgb.0[1][j], rgb.0[2][j]];
             if self.over(acc, (color, a), samples[j], ends_ray) {
                 return Some(j);
             }
         }
         None
+    }
+
+    /// The visible samples of `samples[..n]` (a bit per lane) with their
+    /// table indices, values, brick-local positions and gradients (per axis,
+    /// before the gradient scale: the scalar kernel's bits) in `lanes`;
+    /// gathered, or lane by lane where a sample lies on none of the brick's
+    /// cells or its cell's neighbourhood leaves the brick (read from
+    /// `volume`). Only the visible lanes' entries hold.
+    #[inline(always)]
+    pub(crate) fn visible_gradients(
+        &self,
+        volume: &VolumeSampler<'_, T>,
+        samples: &[u32; GATHER_LANES],
+        n: usize,
+        lanes: &mut GradientLanes,
+    ) -> u32 {
+        #[cfg(target_arch = "x86_64")]
+        #[allow(unsafe_code)]
+        // SAFETY: `GatherBrick::new` checked that this CPU has AVX2.
+        let (outside, mut visible, mut fallback) = unsafe {
+            x86::chunk_gradients(
+                self,
+                samples,
+                n,
+                &mut lanes.indices,
+                &mut lanes.values,
+                &mut lanes.local,
+                &mut lanes.gradient,
+            )
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let (outside, mut visible, mut fallback): (u32, u32, u32) =
+            unreachable!("no gather layout off x86-64");
+        if outside != 0 {
+            let seen = self.indices_outside_cells(outside, lanes);
+            visible |= seen;
+            fallback |= seen;
+        }
+        if visible != 0 && fallback != 0 {
+            self.gradients_by_lane(volume, samples, fallback, outside, lanes);
+        }
+        visible
     }
 
     /// Blinn-Phong of the visible lanes' colours `rgb` (per channel) at their
@@ -591,12 +619,11 @@ impl<T: Sample> GatherRay<'_, '_, T> {
     #[cold]
     fn gradients_by_lane(
         &self,
-        shade: &GatherShading<'_, '_, T>,
+        volume: &VolumeSampler<'_, T>,
         samples: &[u32; GATHER_LANES],
         lanes: u32,
         outside: u32,
-        local: &[[f32; GATHER_LANES]; 3],
-        gradient: &mut [[f32; GATHER_LANES]; 3],
+        chunk: &mut GradientLanes,
     ) {
         let origin = self.sampler.origin_voxel();
         let mut cached: Option<([u32; 3], Option<CornerDifferences>)> = None;
@@ -605,6 +632,7 @@ impl<T: Sample> GatherRay<'_, '_, T> {
                 continue;
             }
             let p = Vec3::from(self.positions.at(samples[j]));
+            let local = &chunk.local;
             let l = Vec3A::new(local[0][j], local[1][j], local[2][j]);
             let differences = if outside & (1 << j) != 0 {
                 None
@@ -616,7 +644,7 @@ impl<T: Sample> GatherRay<'_, '_, T> {
                 let d = match cached {
                     Some((at, d)) if at == global => d,
                     _ => {
-                        let d = shade.volume.corner_differences(self.sampler, global);
+                        let d = volume.corner_differences(self.sampler, global);
                         cached = Some((global, d));
                         d
                     }
@@ -625,31 +653,29 @@ impl<T: Sample> GatherRay<'_, '_, T> {
             };
             let g = match differences {
                 Some((d, f)) => gradient_from_differences(&d, f.to_array()),
-                None => shade.volume.gradient(self.sampler, p),
+                None => volume.gradient(self.sampler, p),
             };
             for a in 0..3 {
-                gradient[a][j] = g[a];
+                chunk.gradient[a][j] = g[a];
             }
         }
     }
 
-    /// The table indices of the lanes in `outside` (a bit per lane), whose
-    /// positions lie on no cell of the brick (its upper face): each from
-    /// [`BrickSampler::value_local`], as the scalar kernel reads them. Returns
-    /// those of them that are visible.
+    /// The values and table indices of the lanes in `outside` (a bit per
+    /// lane), whose positions lie on no cell of the brick (its upper face),
+    /// into `lanes`: each from [`BrickSampler::value_local`], as the scalar
+    /// kernel reads them. Returns those of them that are visible.
     #[cold]
-    fn indices_outside_cells(
-        &self,
-        outside: u32,
-        local: &[[f32; GATHER_LANES]; 3],
-        indices: &mut [i32; GATHER_LANES],
-    ) -> u32 {
+    fn indices_outside_cells(&self, outside: u32, lanes: &mut GradientLanes) -> u32 {
         let mut visible = 0;
-        for (j, index) in indices.iter_mut().enumerate() {
+        for j in 0..GATHER_LANES {
             if outside & (1 << j) != 0 {
+                let local = &lanes.local;
                 let l = glam::Vec3::new(local[0][j], local[1][j], local[2][j]);
-                let i = self.table.index(self.sampler.value_local(l));
-                *index = i as i32;
+                let value = self.sampler.value_local(l);
+                let i = self.table.index(value);
+                lanes.values[j] = value;
+                lanes.indices[j] = i as i32;
                 if self.table.entries()[i][3] > 0.0 {
                     visible |= 1 << j;
                 }
@@ -698,6 +724,13 @@ mod x86 {
         outside: u32,
         /// Lanes on a cell (bits).
         in_cell_bits: u32,
+    }
+
+    /// `f` itself: a closure bound to a name can carry `#[inline(always)]`
+    /// only as an argument (attributes on expressions are unstable).
+    #[inline(always)]
+    fn inlined<F>(f: F) -> F {
+        f
     }
 
     /// Makes the calling function align its stack frame to a cache line (a
@@ -1125,7 +1158,8 @@ mod x86 {
         (lanes.cells.outside, lanes.visible)
     }
 
-    /// [`chunk_indices`], and the gradients of the visible samples whose cells'
+    /// [`chunk_indices`] with the samples' values into `values` (of the lanes
+    /// on cells), and the gradients of the visible samples whose cells'
     /// 4×4×4 neighbourhoods lie in the brick's neighbourhood source (the brick,
     /// or for linear storage the volume), per axis into `gradient`: the
     /// central differences at the cell's corners, interpolated as
@@ -1144,12 +1178,15 @@ mod x86 {
         samples: &[u32; GATHER_LANES],
         n: usize,
         indices: &mut [i32; GATHER_LANES],
+        values: &mut [f32; GATHER_LANES],
         local: &mut [[f32; GATHER_LANES]; 3],
         gradient: &mut [[f32; GATHER_LANES]; 3],
     ) -> (u32, u32, u32) {
         let brick = ray.brick;
         // SAFETY: the CPU has AVX2 (this function's contract).
         let lanes = unsafe { chunk_lanes(ray, samples, n, indices, local) };
+        // SAFETY: `values` holds eight `f32`s; an unaligned store.
+        unsafe { _mm256_storeu_ps(values.as_mut_ptr(), lanes.cells.value) };
         if lanes.visible == 0 {
             return (lanes.cells.outside, 0, 0);
         }
@@ -1219,11 +1256,14 @@ mod x86 {
         // lower face (lower corner 0) or 3 beyond its upper face (lower
         // corner `max_cell`): what their offsets add.
         let zero = _mm256_setzero_ps();
-        let fix = |a: usize, at: __m256, by: i32| {
-            let crossing =
-                _mm256_castps_si256(_mm256_cmp_ps::<_CMP_EQ_OQ>(lanes.cells.lower[a], at));
-            _mm256_and_si256(crossing, _mm256_set1_epi32(by))
-        };
+        let fix = inlined(
+            #[inline(always)]
+            |a: usize, at: __m256, by: i32| {
+                let crossing =
+                    _mm256_castps_si256(_mm256_cmp_ps::<_CMP_EQ_OQ>(lanes.cells.lower[a], at));
+                _mm256_and_si256(crossing, _mm256_set1_epi32(by))
+            },
+        );
         let below: [__m256i; 3] = std::array::from_fn(|a| fix(a, zero, -brick.wrap[a]));
         let above: [__m256i; 3] =
             std::array::from_fn(|a| fix(a, _mm256_set1_ps(brick.max_cell[a]), brick.wrap[a]));
@@ -1237,38 +1277,50 @@ mod x86 {
         // SAFETY: every voxel of a lane of `mask` is a sample of the source's
         // slice (this function's contract: the wrap across a face addresses it
         // in the next stored brick); the CPU has AVX2.
-        let at = |x: i32, y: i32, z: i32| {
-            let relative = (x - 1) * sx + (y - 1) * sy + (z - 1) * sz;
-            let mut offset = lanes.cells.offset;
-            for (a, c) in [x, y, z].into_iter().enumerate() {
-                if c == 0 {
-                    offset = _mm256_add_epi32(offset, below[a]);
-                } else if c == 3 {
-                    offset = _mm256_add_epi32(offset, above[a]);
+        let at = inlined(
+            #[inline(always)]
+            |x: i32, y: i32, z: i32| {
+                let relative = (x - 1) * sx + (y - 1) * sy + (z - 1) * sz;
+                let mut offset = lanes.cells.offset;
+                for (a, c) in [x, y, z].into_iter().enumerate() {
+                    if c == 0 {
+                        offset = _mm256_add_epi32(offset, below[a]);
+                    } else if c == 3 {
+                        offset = _mm256_add_epi32(offset, above[a]);
+                    }
                 }
-            }
-            (offset, relative)
-        };
-        let v = |x: i32, y: i32, z: i32| unsafe {
-            let (offset, relative) = at(x, y, z);
-            read(source, size, offset, relative, mask, NEAR)
-        };
+                (offset, relative)
+            },
+        );
+        let v = inlined(
+            #[inline(always)]
+            |x: i32, y: i32, z: i32| unsafe {
+                let (offset, relative) = at(x, y, z);
+                read(source, size, offset, relative, mask, NEAR)
+            },
+        );
         // Voxels (x, y, 1) and (x, y, 2): consecutive samples (z's stride is
         // one sample, `GatherBrick::new`; neither crosses a z face), one
         // gather.
         // SAFETY: as `v`'s, for both voxels; a read from (x, y, 1) starts
         // below the farthest, which `NEAR` covers.
-        let pair = |x: i32, y: i32| unsafe {
-            let (offset, relative) = at(x, y, 1);
-            read_pair(source, size, offset, relative, mask, NEAR)
-        };
+        let pair = inlined(
+            #[inline(always)]
+            |x: i32, y: i32| unsafe {
+                let (offset, relative) = at(x, y, 1);
+                read_pair(source, size, offset, relative, mask, NEAR)
+            },
+        );
         let c = &lanes.cells.corners;
         let half = _mm256_set1_ps(0.5);
-        let mut store = |axis: usize, d: [__m256; 8]| {
-            let g = _mm256_mul_ps(trilinear(&d, lanes.cells.fraction), half);
-            // SAFETY: `gradient[axis]` holds eight `f32`s; an unaligned store.
-            unsafe { _mm256_storeu_ps(gradient[axis].as_mut_ptr(), g) };
-        };
+        let mut store = inlined(
+            #[inline(always)]
+            |axis: usize, d: [__m256; 8]| {
+                let g = _mm256_mul_ps(trilinear(&d, lanes.cells.fraction), half);
+                // SAFETY: `gradient[axis]` holds eight `f32`s; an unaligned store.
+                unsafe { _mm256_storeu_ps(gradient[axis].as_mut_ptr(), g) };
+            },
+        );
         // Central differences at corner `i` (x = i >> 2, y = (i >> 1) & 1,
         // z = i & 1), one axis at a time; exact in any order (whole numbers).
         // Along x: the voxels below the lower x face and above the upper, at

@@ -7,6 +7,7 @@ use std::sync::Arc;
 use glam::{Vec3, Vec4};
 
 use super::compositor::{Compositor, SamplePoint};
+use super::gather_gradients::march_gradients;
 use super::optics::{
     importance_composite, light_vectors, over, partial_step, shading_intensity, smoothstep,
 };
@@ -810,6 +811,15 @@ impl Compositor for Importance {
     fn resolve(&self, st: &Accumulation) -> [f32; 4] {
         st.rgba()
     }
+    /// The gradient kernel ([`march_gradients`]): a transparent sample
+    /// composites nothing.
+    fn march_packets<T: Sample>(
+        &self,
+        work: &mut PacketWork<'_, '_, T, Accumulation>,
+        level: SimdLevel,
+    ) -> bool {
+        march_gradients(self, &self.table, work, level)
+    }
 }
 
 /// Context-preserving rendering (Bruckner et al.):
@@ -851,6 +861,15 @@ impl Compositor for ContextPreserving {
     }
     fn resolve(&self, st: &Accumulation) -> [f32; 4] {
         st.rgba()
+    }
+    /// The gradient kernel ([`march_gradients`]): a transparent sample
+    /// composites nothing.
+    fn march_packets<T: Sample>(
+        &self,
+        work: &mut PacketWork<'_, '_, T, Accumulation>,
+        level: SimdLevel,
+    ) -> bool {
+        march_gradients(self, &self.table, work, level)
     }
 }
 
@@ -899,6 +918,15 @@ impl Compositor for Silhouette {
     }
     fn resolve(&self, st: &Accumulation) -> [f32; 4] {
         st.rgba()
+    }
+    /// The gradient kernel ([`march_gradients`]): a transparent sample
+    /// composites nothing.
+    fn march_packets<T: Sample>(
+        &self,
+        work: &mut PacketWork<'_, '_, T, Accumulation>,
+        level: SimdLevel,
+    ) -> bool {
+        march_gradients(self, &self.table, work, level)
     }
 }
 

@@ -284,19 +284,19 @@ pub(crate) fn fold_sample<T: Sample, C: Compositor>(
     value: f32,
     ert_threshold: f32,
 ) -> bool {
-    let ray = site.ray;
-    let sample = SamplePoint {
-        value,
-        position,
-        index: k,
-        fraction: if k == ray.samples - 1 {
-            ray.last_fraction
-        } else {
-            1.0
-        },
-        site,
-    };
-    c.sample(acc, &sample);
+    fold_point(c, acc, &site.point(k, position, value), ert_threshold)
+}
+
+/// [`fold_sample`] of a sample built already (one whose gradient a kernel
+/// computed: [`SamplePoint::known_gradient`]).
+#[inline(always)]
+pub(crate) fn fold_point<T: Sample, C: Compositor>(
+    c: &C,
+    acc: &mut C::State,
+    sample: &SamplePoint<'_, T>,
+    ert_threshold: f32,
+) -> bool {
+    c.sample(acc, sample);
     c.opacity(acc) >= ert_threshold || c.finished(acc)
 }
 

@@ -19,6 +19,7 @@ mod error;
 mod frame;
 mod front;
 mod gather;
+mod gather_gradients;
 mod gather_values;
 mod geometry;
 mod image;

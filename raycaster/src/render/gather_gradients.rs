@@ -1,0 +1,175 @@
+//! The kernel of the compositors that read a visible sample's value and
+//! gradient and classify it with a 1D table (importance-aware,
+//! context-preserving, tone and silhouette): eight samples of one ray at a
+//! time, their positions, cells, corner reads, trilinear values, table
+//! indices and, for the visible ones, gradients in SIMD lanes with hardware
+//! gathers ([`GatherRay::visible_gradients`], the scalar kernel's bits, as DVR
+//! reads them); then each visible sample folded in order by the compositor's
+//! own [`Compositor::sample`], its gradient handed over
+//! ([`super::compositor::SamplePoint::known_gradient`]), with the stopping
+//! rule of the scalar loop.
+//!
+//! A sample whose table entry is transparent is left out: these compositors
+//! return at once for it, leaving the ray's state as it was (so the ray,
+//! below its threshold before, is below it after). The frames are
+//! bit-identical to the scalar kernel's, which `tests/packet_kernel.rs`
+//! checks on every level.
+
+use glam::Vec3;
+
+use super::cell_cache::CellCache;
+use super::compositor::Compositor;
+use super::gather::{
+    ChunkFolder, GATHER_LANES, GatherBrick, GatherRay, GradientLanes, march_run_in_chunks,
+    march_runs_in_chunks,
+};
+use super::march::{BrickVisit, RunMarcher, fold_point, march_each_run};
+use super::packet::PacketWork;
+use super::runs::SampleRuns;
+use super::simd::SimdLevel;
+use super::transfer::{TABLE_SIZE, TransferTable};
+use crate::volume::Sample;
+
+/// Marches `work`'s rays with the gradient kernel at `level` when it has one
+/// there (AVX2 or AVX-512, with gathers that can address the brick, and a 1D
+/// `table`): `false` leaves them to the scalar loop. For compositors whose
+/// [`Compositor::sample`] composites nothing for a sample whose entry in
+/// `table` is transparent, and reads of a visible one its value, position,
+/// index, fraction, ray and gradient ([`SamplePoint::gradient`]), never the
+/// ray's cell cache as the last value left it.
+///
+/// [`SamplePoint::gradient`]: super::compositor::SamplePoint::gradient
+pub(crate) fn march_gradients<T: Sample, C: Compositor>(
+    c: &C,
+    table: &TransferTable,
+    work: &mut PacketWork<'_, '_, T, C::State>,
+    level: SimdLevel,
+) -> bool {
+    if !matches!(level, SimdLevel::Avx2 | SimdLevel::Avx512)
+        || table.is_2d()
+        || table.entries().len() != TABLE_SIZE
+    {
+        return false;
+    }
+    let Some(gather) = GatherBrick::new(&work.brick.sampler, work.volume) else {
+        return false;
+    };
+    #[cfg(target_arch = "x86_64")]
+    #[allow(unsafe_code)]
+    // SAFETY: `GatherBrick::new` checked that this CPU has AVX2.
+    unsafe {
+        march_gradients_avx2(c, table, work, &gather)
+    };
+    #[cfg(not(target_arch = "x86_64"))]
+    march_gradients_in_chunks(c, table, work, &gather);
+    true
+}
+
+/// [`march_gradients_in_chunks`] compiled for AVX2.
+///
+/// # Safety
+/// The CPU has AVX2.
+#[cfg(target_arch = "x86_64")]
+#[allow(unsafe_code)]
+#[target_feature(enable = "avx2")]
+unsafe fn march_gradients_avx2<T: Sample, C: Compositor>(
+    c: &C,
+    table: &TransferTable,
+    work: &mut PacketWork<'_, '_, T, C::State>,
+    gather: &GatherBrick<'_>,
+) {
+    march_gradients_in_chunks(c, table, work, gather)
+}
+
+/// Each of the task's rays through the brick, its samples in chunks of
+/// gathered values and gradients.
+#[inline(always)]
+fn march_gradients_in_chunks<T: Sample, C: Compositor>(
+    c: &C,
+    table: &TransferTable,
+    work: &mut PacketWork<'_, '_, T, C::State>,
+    gather: &GatherBrick<'_>,
+) {
+    // For what a compositor reads beside the value and gradient.
+    let cell = CellCache::default();
+    work.for_each_visit(
+        #[inline(always)]
+        |visit, item, state, counters| {
+            let ray = visit.ray;
+            visit.march(c, item.first, item.last, state, counters, || GradientRay {
+                c,
+                visit,
+                cell: &cell,
+                lanes: GatherRay {
+                    brick: gather,
+                    sampler: &visit.brick.sampler,
+                    table,
+                    positions: ray.positions(visit.volume.last()),
+                    last_sample: ray.samples - 1,
+                    last_fraction: ray.last_fraction,
+                    ert_threshold: visit.plan.ert_threshold,
+                    shade: None,
+                    lights: (Vec3::ZERO, Vec3::ZERO),
+                },
+            });
+        },
+    );
+}
+
+/// One ray's visit of a brick, its values and gradients gathered.
+struct GradientRay<'v, 'b, T: Sample, C> {
+    c: &'v C,
+    visit: BrickVisit<'v, 'b, T>,
+    cell: &'v CellCache,
+    /// The gathers of the ray's samples (its chunks' lanes).
+    lanes: GatherRay<'v, 'b, T>,
+}
+
+impl<T: Sample, C: Compositor> RunMarcher<C::State> for GradientRay<'_, '_, T, C> {
+    #[inline(always)]
+    fn march_run(&mut self, acc: &mut C::State, first: u32, end: u32) -> Option<u32> {
+        march_run_in_chunks(self, acc, first, end)
+    }
+
+    /// Eight samples per chunk across runs, unless the compositor skips runs
+    /// by its state (each run is then asked before it is marched).
+    #[inline(always)]
+    fn march_runs<D: Compositor<State = C::State>>(
+        &mut self,
+        c: &D,
+        ess: bool,
+        acc: &mut C::State,
+        runs: &mut SampleRuns<'_, D>,
+    ) -> (u64, u64, Option<u32>) {
+        if D::STATE_SKIPS || !runs.skips_cells() {
+            return march_each_run(self, c, ess, acc, runs);
+        }
+        march_runs_in_chunks(self, acc, runs)
+    }
+}
+
+impl<T: Sample, C: Compositor> ChunkFolder<C::State> for GradientRay<'_, '_, T, C> {
+    /// Stops at the opacity threshold, or when the compositor is finished.
+    #[inline(always)]
+    fn chunk(&self, acc: &mut C::State, samples: &[u32; GATHER_LANES], n: usize) -> Option<usize> {
+        let mut lanes = GradientLanes::default();
+        let mut visible = self
+            .lanes
+            .visible_gradients(self.visit.volume, samples, n, &mut lanes);
+        let plan = self.visit.plan;
+        let site = self.visit.site(self.cell);
+        let g = &lanes.gradient;
+        while visible != 0 {
+            let j = visible.trailing_zeros() as usize;
+            visible &= visible - 1;
+            let k = samples[j];
+            let position = self.lanes.positions.at(k).into();
+            let mut point = site.point(k, position, lanes.values[j]);
+            point.known_gradient = Some(Vec3::new(g[0][j], g[1][j], g[2][j]) * plan.gradient_scale);
+            if fold_point(self.c, acc, &point, plan.ert_threshold) {
+                return Some(j);
+            }
+        }
+        None
+    }
+}
