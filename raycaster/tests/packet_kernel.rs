@@ -171,15 +171,21 @@ fn value_modes_in_packets_equal_the_scalar_kernel_bit_for_bit_on_every_level() {
 }
 
 /// The modes that read a visible sample's gradient (importance-aware,
-/// context-preserving, tone and silhouette) take the gradient kernel on the
-/// levels with gathers: the same frames to the bit and the same counts as the
-/// scalar kernel, over scenes, sample types, layouts, shading, ray-start
-/// jitter, early termination and empty-space skipping.
+/// context-preserving, tone and silhouette, and DVR with a 2D transfer
+/// function) take the gradient kernel on the levels with gathers: the same
+/// frames to the bit and the same counts as the scalar kernel, over scenes,
+/// sample types, layouts, shading, ray-start jitter, 1D and 2D functions,
+/// early termination and empty-space skipping.
 #[test]
 fn gradient_modes_in_packets_equal_the_scalar_kernel_bit_for_bit_on_every_level() {
     let levels = packet_levels();
     let dir = tempfile::tempdir().unwrap();
-    let modes = [Mode::Importance, Mode::ContextPreserving, Mode::Silhouette];
+    let modes = [
+        Mode::Importance,
+        Mode::ContextPreserving,
+        Mode::Silhouette,
+        Mode::Dvr,
+    ];
     let mut frames = 0;
     for kind in [SceneKind::Shapes, SceneKind::Noise] {
         for (layout, sample_type, brick_side) in LAYOUTS {
@@ -195,6 +201,8 @@ fn gradient_modes_in_packets_equal_the_scalar_kernel_bit_for_bit_on_every_level(
                         ImportanceSource::Gradient(1.5),
                         ImportanceSource::Silhouette([1.0, 0.2, 0.9]),
                     ][i];
+                    // A 2D function for DVR always (its 1D one takes the
+                    // DVR kernel), for the others once.
                     let settings = RenderSettings {
                         mode,
                         mode_parameters: ModeParameters {
@@ -202,19 +210,24 @@ fn gradient_modes_in_packets_equal_the_scalar_kernel_bit_for_bit_on_every_level(
                             context: [1.5 + i as f32, 0.4],
                             ..ModeParameters::default()
                         },
-                        transfer: scene_preset(kind),
+                        transfer: {
+                            let mut tf = scene_preset(kind);
+                            tf.gradient_ramp = (mode == Mode::Dvr || i == 2)
+                                .then_some([0.02, 0.3 + 0.2 * i as f32]);
+                            tf
+                        },
                         shading: (round != 1 || ess).then(Shading::default),
                         early_termination: ert.then_some(0.9),
                         empty_space_skipping: ess,
-                        step: [0.5, 0.3, 0.9][round],
-                        jitter: round == 1,
+                        step: [0.5, 0.3, 0.9, 0.6][round],
+                        jitter: round % 2 == 1,
                         simd: Some(SimdLevel::Scalar),
                         ..RenderSettings::default()
                     };
                     let options = ParallelOptions {
                         render_threads: 2,
                         compositing_threads: 1,
-                        tile_size: [16, 7, 11][round],
+                        tile_size: [16, 7, 11, 13][round],
                     };
                     let name = format!(
                         "{kind:?} {layout:?} {sample_type:?} bricks {brick_side:?} {} ert {ert} ess {ess}",
@@ -227,7 +240,7 @@ fn gradient_modes_in_packets_equal_the_scalar_kernel_bit_for_bit_on_every_level(
             }
         }
     }
-    assert_eq!(frames, 90 * levels.len());
+    assert_eq!(frames, 120 * levels.len());
 }
 
 #[test]

@@ -1,19 +1,20 @@
 //! The kernel of the compositors that read a visible sample's value and
-//! gradient and classify it with a 1D table (importance-aware,
-//! context-preserving, tone and silhouette): eight samples of one ray at a
-//! time, their positions, cells, corner reads, trilinear values, table
-//! indices and, for the visible ones, gradients in SIMD lanes with hardware
-//! gathers ([`GatherRay::visible_gradients`], the scalar kernel's bits, as DVR
-//! reads them); then each visible sample folded in order by the compositor's
-//! own [`Compositor::sample`], its gradient handed over
+//! gradient (importance-aware, context-preserving, tone and silhouette, and
+//! DVR with a 2D transfer function, whose opacity depends on the gradient's
+//! magnitude): eight samples of one ray at a time, their positions, cells,
+//! corner reads, trilinear values, table indices and, for the visible ones,
+//! gradients in SIMD lanes with hardware gathers
+//! ([`GatherRay::visible_gradients`], the scalar kernel's bits, as DVR reads
+//! them); then each visible sample folded in order by the compositor's own
+//! [`Compositor::sample`], its gradient handed over
 //! ([`super::compositor::SamplePoint::known_gradient`]), with the stopping
 //! rule of the scalar loop.
 //!
-//! A sample whose table entry is transparent is left out: these compositors
-//! return at once for it, leaving the ray's state as it was (so the ray,
-//! below its threshold before, is below it after). The frames are
-//! bit-identical to the scalar kernel's, which `tests/packet_kernel.rs`
-//! checks on every level.
+//! A sample whose 1D table entry is transparent is left out: these
+//! compositors composite nothing for it (with a 2D table too), leaving the
+//! ray's state as it was (so the ray, below its threshold before, is below it
+//! after). The frames are bit-identical to the scalar kernel's, which
+//! `tests/packet_kernel.rs` checks on every level.
 
 use glam::Vec3;
 
@@ -31,12 +32,14 @@ use super::transfer::{TABLE_SIZE, TransferTable};
 use crate::volume::Sample;
 
 /// Marches `work`'s rays with the gradient kernel at `level` when it has one
-/// there (AVX2 or AVX-512, with gathers that can address the brick, and a 1D
-/// `table`): `false` leaves them to the scalar loop. For compositors whose
-/// [`Compositor::sample`] composites nothing for a sample whose entry in
-/// `table` is transparent, and reads of a visible one its value, position,
-/// index, fraction, ray and gradient ([`SamplePoint::gradient`]), never the
-/// ray's cell cache as the last value left it.
+/// there (AVX2 or AVX-512, with gathers that can address the brick): `false`
+/// leaves them to the scalar loop. For compositors whose
+/// [`Compositor::sample`] composites nothing for a sample whose 1D entry in
+/// `table` is transparent (a 2D table's opacity is that entry's scaled by
+/// the gradient's factor, at most 1, so it is transparent too), and reads of
+/// a visible one its value, position, index, fraction, ray and gradient
+/// ([`SamplePoint::gradient`]), never the ray's cell cache as the last value
+/// left it.
 ///
 /// [`SamplePoint::gradient`]: super::compositor::SamplePoint::gradient
 pub(crate) fn march_gradients<T: Sample, C: Compositor>(
@@ -45,9 +48,7 @@ pub(crate) fn march_gradients<T: Sample, C: Compositor>(
     work: &mut PacketWork<'_, '_, T, C::State>,
     level: SimdLevel,
 ) -> bool {
-    if !matches!(level, SimdLevel::Avx2 | SimdLevel::Avx512)
-        || table.is_2d()
-        || table.entries().len() != TABLE_SIZE
+    if !matches!(level, SimdLevel::Avx2 | SimdLevel::Avx512) || table.entries().len() != TABLE_SIZE
     {
         return false;
     }

@@ -563,9 +563,13 @@ impl Compositor for Dvr {
         work: &mut PacketWork<'_, '_, T, Accumulation>,
         level: SimdLevel,
     ) -> bool {
-        // The packet kernel composites plain samples of a 1D table.
-        if self.table.is_2d() || self.table.preintegrated().is_some() {
+        // The packet kernel composites plain samples of a 1D table; a 2D
+        // table's opacity needs every visible sample's gradient.
+        if self.table.preintegrated().is_some() {
             return false;
+        }
+        if self.table.is_2d() {
+            return march_gradients(self, &self.table, work, level);
         }
         let lanes = DvrLanes {
             table: &self.table,
