@@ -119,7 +119,7 @@ pub struct BenchArgs {
     #[arg(long)]
     sequential: bool,
 
-    /// Marching kernel of the parallel renderer (as `raycaster render --simd`):
+    /// Marching kernel of both renderers (as `raycaster render --simd`):
     /// auto, scalar, sse4.1, avx2, avx512, neon.
     #[arg(long, default_value = "auto", value_parser = crate::render::parse_simd, value_name = "LEVEL")]
     simd: crate::render::SimdChoice,

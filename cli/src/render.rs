@@ -238,19 +238,23 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = raycaster::render::DEFAULT_TILE_SIZE, value_parser = clap::value_parser!(u32).range(1..=4096), value_name = "PX")]
     tile: u32,
 
-    /// Render with the sequential reference renderer (one thread, image order).
-    #[arg(long, conflicts_with_all = ["threads", "compositors", "tile", "simd"])]
+    /// Render with the sequential reference renderer (one thread, image order;
+    /// with `--simd scalar` the oracle every faster path is compared with).
+    #[arg(long, conflicts_with_all = ["threads", "compositors", "tile"])]
     sequential: bool,
 
-    /// Marching kernel of the parallel renderer: `scalar` (one sample at a time:
-    /// the reference), or several samples of a ray at a time in SIMD lanes,
-    /// compiled for `sse4.1`, `avx2`, `avx512` (x86-64) or `neon` (aarch64),
-    /// which composite the same image. They serve DVR with a 1D, not
-    /// pre-integrated transfer function (with hardware gathers on `avx2` and
-    /// `avx512`), and on `avx2` and `avx512` the `mip`, `average`, `xray`,
-    /// `first-hit` and `sabella` modes; other frames use the scalar kernel.
-    /// `auto`: `avx2` where the CPU has it (DVR unshaded 1.6–2.3×, shaded
-    /// 1.2–1.6× the scalar kernel's speed; docs/benchmarks.md), else `scalar`.
+    /// Marching kernel: `scalar` (one sample at a time: the reference), or
+    /// several samples of a ray at a time in SIMD lanes, compiled for
+    /// `sse4.1`, `avx2`, `avx512` (x86-64) or `neon` (aarch64), which composite
+    /// the same image. They serve DVR with a 1D, not pre-integrated transfer
+    /// function (with hardware gathers on `avx2` and `avx512`), and on `avx2`
+    /// and `avx512` DVR with a 2D function and the `mip`, `average`, `xray`,
+    /// `first-hit`, `sabella`, `importance`, `context` and `silhouette` modes;
+    /// other frames (pre-integrated DVR, two-level scenes) use the scalar
+    /// kernel. `auto`: `avx2` where the CPU has it (DVR unshaded 1.6–2.3×,
+    /// shaded 1.2–1.6× the scalar kernel's speed; docs/benchmarks.md), else
+    /// `scalar`; with `--sequential`, `auto` is `scalar` (a packet of one ray
+    /// per brick visit is slower there) and a named level is used.
     #[arg(long, default_value = "auto", value_parser = parse_simd, value_name = "LEVEL")]
     simd: SimdChoice,
 

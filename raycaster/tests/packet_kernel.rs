@@ -243,43 +243,51 @@ fn gradient_modes_in_packets_equal_the_scalar_kernel_bit_for_bit_on_every_level(
     assert_eq!(frames, 120 * levels.len());
 }
 
+/// The sequential renderer (the scalar loop: the oracle) against the parallel
+/// one on each packet level, and against itself on each packet level (packets
+/// of one ray), for the kernels' modes: DVR, a value mode and a gradient mode.
 #[test]
 fn packets_equal_the_sequential_renderer() {
     let kind = SceneKind::Shapes;
     let volume = scene_volume(kind, N);
     let prepared = RenderVolume::new(&volume, Some(12)).unwrap();
     let camera = default_camera(&volume, 40);
-    let settings = RenderSettings {
-        transfer: scene_preset(kind),
-        ..RenderSettings::default()
-    };
-    let reference = render_sequential(&prepared, &camera, &settings).unwrap();
-    for level in packet_levels() {
-        let options = ParallelOptions {
-            render_threads: 3,
-            compositing_threads: 2,
-            tile_size: 9,
+    for mode in [Mode::Dvr, Mode::Mip, Mode::Silhouette] {
+        let settings = RenderSettings {
+            mode,
+            transfer: scene_preset(kind),
+            ..RenderSettings::default()
         };
-        let frame = render_parallel(
-            &prepared,
-            &camera,
-            &RenderSettings {
-                simd: Some(level),
-                ..settings.clone()
-            },
-            &options,
-        )
-        .unwrap();
-        assert_images_match(
-            &format!("packets-{level}"),
-            &frame.to_image(),
-            &reference.to_image(),
-            1,
-        );
-        assert_eq!(
-            frame.stats.counters.samples, reference.stats.counters.samples,
-            "{level}"
-        );
+        let at = |simd| RenderSettings {
+            simd: Some(simd),
+            ..settings.clone()
+        };
+        let reference = render_sequential(&prepared, &camera, &at(SimdLevel::Scalar)).unwrap();
+        let name = mode.name();
+        for level in packet_levels() {
+            // The sequential renderer's packets of one ray: the scalar bits.
+            let one_ray = render_sequential(&prepared, &camera, &at(level)).unwrap();
+            assert!(one_ray.rgba == reference.rgba, "{name} sequential {level}");
+            let counts = (one_ray.stats.counters, reference.stats.counters);
+            assert_eq!(counts.0, counts.1, "{name} sequential {level}");
+            let options = ParallelOptions {
+                render_threads: 3,
+                compositing_threads: 2,
+                tile_size: 9,
+            };
+            let frame = render_parallel(&prepared, &camera, &at(level), &options).unwrap();
+            assert_images_match(
+                &format!("packets-{name}-{level}"),
+                &frame.to_image(),
+                &reference.to_image(),
+                1,
+            );
+            let samples = (
+                frame.stats.counters.samples,
+                reference.stats.counters.samples,
+            );
+            assert_eq!(samples.0, samples.1, "{name} {level}");
+        }
     }
 }
 

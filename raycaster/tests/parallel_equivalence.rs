@@ -8,7 +8,7 @@ mod render_support;
 
 use raycaster::render::{
     Camera, ClipPlane, ClipRegion, CropBox, Mode, ParallelOptions, Projection, RenderSettings,
-    RenderVolume, Renderer, Vec3, render_parallel, render_sequential, simd_levels,
+    RenderVolume, Renderer, SimdLevel, Vec3, render_parallel, render_sequential, simd_levels,
 };
 use raycaster::synth::SceneKind;
 use raycaster::volume::{Access, Layout, SampleType, Volume};
@@ -209,7 +209,7 @@ fn parallel_equals_sequential_over_the_parameter_matrix() {
         };
         let cam = camera(view, volume);
         let prepared = RenderVolume::new(volume, brick_side).unwrap();
-        let reference = render_sequential(&prepared, &cam, &settings).unwrap();
+        let reference = render_sequential(&prepared, &cam, &scalar(&settings)).unwrap();
         let options = ParallelOptions {
             render_threads: threads,
             compositing_threads: 1 + round % 2,
@@ -268,7 +268,7 @@ fn logical_sub_bricks_of_a_bricked_file_render_the_same() {
         ..RenderSettings::default()
     };
     let whole = RenderVolume::new(&file, None).unwrap();
-    let reference = render_sequential(&whole, &cam, &settings)
+    let reference = render_sequential(&whole, &cam, &scalar(&settings))
         .unwrap()
         .to_image();
     for side in [4, 6, 16] {
@@ -327,7 +327,7 @@ fn a_camera_on_brick_faces_inside_the_volume_renders_as_the_sequential_renderer(
                 transfer: scene_preset(kind),
                 ..RenderSettings::default()
             };
-            let reference = render_sequential(&prepared, &cam, &settings).unwrap();
+            let reference = render_sequential(&prepared, &cam, &scalar(&settings)).unwrap();
             let options = ParallelOptions {
                 render_threads: 2,
                 compositing_threads: 1,
@@ -344,4 +344,12 @@ fn a_camera_on_brick_faces_inside_the_volume_renders_as_the_sequential_renderer(
         }
     }
     assert_eq!(checked, 15);
+}
+
+/// `settings` on the scalar kernel: the sequential renderer as the oracle.
+fn scalar(settings: &RenderSettings) -> RenderSettings {
+    RenderSettings {
+        simd: Some(SimdLevel::Scalar),
+        ..settings.clone()
+    }
 }

@@ -4,7 +4,11 @@
 //! It is deliberately simple and is the oracle every faster renderer is compared
 //! with: for each pixel inside the volume's projected rectangle, find the brick
 //! owning the ray's next sample, let the kernel march the samples that brick owns,
-//! and repeat until the ray leaves the volume, terminates early or hits.
+//! and repeat until the ray leaves the volume, terminates early or hits. It
+//! marches with the scalar loop, the reference the packet kernels are compared
+//! with, unless [`RenderSettings::simd`] names a packet level: then with that
+//! kernel, a packet of one ray per brick visit, where the compositor has one
+//! (the same bits; slower than the scalar loop here, so `auto` keeps it).
 
 use std::time::Instant;
 
@@ -17,11 +21,13 @@ use super::frame::Frame;
 use super::level::DepthBand;
 use super::march::{BrickContext, march_brick};
 use super::ownership::owned_samples;
+use super::packet::{PacketItem, PacketWork};
 use super::parallel::{check_levels, continue_in_level, level_plans};
 use super::pixel::PixelState;
 use super::prepared::{FramePlan, RenderVolume};
 use super::sampler::VolumeSampler;
 use super::settings::RenderSettings;
+use super::simd::SimdLevel;
 use super::state_buffer::{StateBuffer, StateBytes};
 use crate::volume::{Sample, TypedVolume, VolumeData};
 
@@ -54,6 +60,12 @@ pub fn render_sequential_levels(
     let mut counters = Counters::default();
     let (mut bricks, mut transparent) = (0, 0);
     let mut incoming: Option<StateBuffer> = None;
+    // Packets of one ray only where a level is named: under `auto` the scalar
+    // loop is faster here (each brick visit of one ray pays the gathers'
+    // set-up; docs/benchmarks.md, section 5).
+    let packets = settings
+        .simd
+        .is_some_and(|level| level != SimdLevel::Scalar);
     for (i, (&(volume, _), plan)) in passes.iter().zip(&plans).enumerate() {
         let mut outgoing = (i + 1 < passes.len()).then(|| StateBuffer::new(full, record));
         let states = LevelStates {
@@ -68,6 +80,7 @@ pub fn render_sequential_levels(
                 plan,
                 frame: &mut frame,
                 states,
+                packets,
             }),
             VolumeData::U16(data) => plan.compositor.run(SequentialPass {
                 volume,
@@ -76,6 +89,7 @@ pub fn render_sequential_levels(
                 plan,
                 frame: &mut frame,
                 states,
+                packets,
             }),
         };
         bricks += volume.geometry().grid().block_count();
@@ -110,6 +124,9 @@ struct SequentialPass<'p, 'v, 'd, T: Sample> {
     plan: &'p FramePlan,
     frame: &'p mut Frame,
     states: LevelStates<'p>,
+    /// Whether to march in the plan's packet kernel (a level named in the
+    /// settings, not the scalar one).
+    packets: bool,
 }
 
 impl<T: Sample> CompositorJob for SequentialPass<'_, '_, '_, T> {
@@ -123,6 +140,7 @@ impl<T: Sample> CompositorJob for SequentialPass<'_, '_, '_, T> {
             plan,
             frame,
             mut states,
+            packets,
         } = self;
         let geometry = volume.geometry();
         let sampler = VolumeSampler::new(*data);
@@ -179,18 +197,40 @@ impl<T: Sample> CompositorJob for SequentialPass<'_, '_, '_, T> {
                         Some((first, last)) if first <= k && k <= last => last,
                         _ => k,
                     };
-                    march_brick(
-                        c,
-                        plan,
-                        &sampler,
-                        &brick,
-                        &CellCache::default(),
-                        &ray,
-                        k,
-                        last,
-                        state,
-                        &mut counters,
-                    );
+                    // A packet kernel of one ray where one was asked for, or
+                    // the scalar loop.
+                    let rays = [Some(ray)];
+                    let in_packets = packets
+                        && c.march_packets(
+                            &mut PacketWork {
+                                plan,
+                                volume: &sampler,
+                                brick: &brick,
+                                rays: &rays,
+                                states: std::slice::from_mut(state),
+                                items: &[PacketItem {
+                                    pixel: 0,
+                                    first: k,
+                                    last,
+                                }],
+                                counters: &mut counters,
+                            },
+                            plan.simd,
+                        );
+                    if !in_packets {
+                        march_brick(
+                            c,
+                            plan,
+                            &sampler,
+                            &brick,
+                            &CellCache::default(),
+                            &ray,
+                            k,
+                            last,
+                            state,
+                            &mut counters,
+                        );
+                    }
                 }
             }
             match states.outgoing.as_deref_mut() {

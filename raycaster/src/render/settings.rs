@@ -167,10 +167,10 @@ pub struct RenderSettings {
     /// Two-level compositing of a segmented volume: when set, each object's own
     /// transfer function and local mode replace `mode` and `transfer`'s colours.
     pub segments: Option<SegmentScene>,
-    /// The marching kernel of the parallel renderer: `None` for
-    /// [`SimdLevel::automatic`], [`SimdLevel::Scalar`] for one ray at a time (the
-    /// reference), or a packet level (an error if this CPU lacks it). The
-    /// sequential renderer always marches one ray at a time.
+    /// The marching kernel: `None` for [`SimdLevel::automatic`] (the sequential
+    /// renderer: the scalar loop, faster there), [`SimdLevel::Scalar`] for one
+    /// sample at a time (the reference), or a packet level (an error if this
+    /// CPU lacks it), which both renderers then use.
     pub simd: Option<SimdLevel>,
     /// Pre-integrated transfer tables (Engel et al. 2001) for DVR, plain and the
     /// DVR segments of two-level scenes: each sample stands for the segment to
