@@ -7,7 +7,7 @@ mod render_support;
 
 use raycaster::render::{
     ImportanceSource, Light, Mode, ModeParameters, ParallelOptions, RenderSettings, RenderVolume,
-    Shading, SimdLevel, Vec3, render_parallel, render_sequential, simd_levels,
+    SegmentScene, Shading, SimdLevel, Vec3, render_parallel, render_sequential, simd_levels,
 };
 use raycaster::synth::SceneKind;
 use raycaster::volume::{Access, Layout, SampleType};
@@ -241,6 +241,99 @@ fn gradient_modes_in_packets_equal_the_scalar_kernel_bit_for_bit_on_every_level(
         }
     }
     assert_eq!(frames, 120 * levels.len());
+}
+
+/// Two-level scenes take the value kernel on the levels with gathers (their
+/// values gathered, every sample folded by the scene's compositor, a gradient
+/// read through the cell cache where an object asks for one) unless every
+/// object is shaded DVR: the same frames to the bit and the same counts as
+/// the scalar kernel, over value-layer scenes of every local mode,
+/// pre-integrated DVR objects, layouts, sample types, ray-start jitter, early
+/// termination and empty-space skipping.
+#[test]
+fn two_level_scenes_in_packets_equal_the_scalar_kernel_bit_for_bit_on_every_level() {
+    let levels = packet_levels();
+    let dir = tempfile::tempdir().unwrap();
+    let scenes = [
+        // Every local mode, one per layer.
+        r#"layers = [[0.0, 0.12], [0.12, 0.3], [0.3, 0.45], [0.45, 0.6], [0.6, 0.75], [0.75, 0.9], [0.9, 1.0]]
+[[object]]
+tf = "shapes"
+mode = "xray"
+[[object]]
+tf = "shapes"
+mode = "importance"
+importance = "gradient"
+weight = 4.0
+[[object]]
+tf = "shapes"
+mode = "mip"
+[[object]]
+tf = "shapes"
+mode = "silhouette"
+[[object]]
+tf = "shapes"
+mode = "context"
+[[object]]
+tf = "shapes"
+mode = "dvr"
+[[object]]
+tf = "shapes"
+mode = "first-hit"
+"#,
+        // DVR objects only (transparent layers skipped): the scalar loop when
+        // shaded, the value kernel when not.
+        r#"layers = [[0.0, 0.3], [0.3, 0.55], [0.55, 1.0]]
+global = "dvr"
+[[object]]
+tf = "shapes"
+[[object]]
+tf = "shapes"
+[[object]]
+tf = "shapes"
+"#,
+    ];
+    let mut frames = 0;
+    for (layout, sample_type, brick_side) in LAYOUTS {
+        let kind = SceneKind::Shapes;
+        let file = scene_file(dir.path(), kind, N, layout, sample_type, Access::Mapped);
+        let prepared = RenderVolume::new(&file, brick_side).unwrap();
+        let camera = default_camera(&file, 40);
+        for (round, text) in scenes.into_iter().enumerate() {
+            let scene = SegmentScene::parse(text, dir.path()).unwrap();
+            let combinations = [
+                (true, true, false),
+                (false, true, true),
+                (true, false, true),
+            ];
+            for (i, (ert, ess, preintegrated)) in combinations.into_iter().enumerate() {
+                let settings = RenderSettings {
+                    segments: Some(scene.clone()),
+                    transfer: scene_preset(kind),
+                    shading: (i != 1).then(Shading::default),
+                    early_termination: ert.then_some(0.9),
+                    empty_space_skipping: ess,
+                    preintegrated,
+                    step: if preintegrated { 1.0 } else { 0.5 },
+                    jitter: (round + i) % 2 == 1,
+                    simd: Some(SimdLevel::Scalar),
+                    ..RenderSettings::default()
+                };
+                let options = ParallelOptions {
+                    render_threads: 2,
+                    compositing_threads: 1,
+                    tile_size: [16, 7, 11][i],
+                };
+                let name = format!(
+                    "{layout:?} {sample_type:?} bricks {brick_side:?} scene {round} ert {ert} ess {ess} pre {preintegrated}"
+                );
+                frames += assert_levels_equal_scalar(
+                    &prepared, &camera, &settings, &options, &levels, &name,
+                );
+            }
+        }
+    }
+    assert_eq!(frames, 30 * levels.len());
 }
 
 /// The sequential renderer (the scalar loop: the oracle) against the parallel

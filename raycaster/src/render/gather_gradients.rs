@@ -7,7 +7,7 @@
 //! ([`GatherRay::visible_gradients`], the scalar kernel's bits, as DVR reads
 //! them); then each visible sample folded in order by the compositor's own
 //! [`Compositor::sample`], its gradient handed over
-//! ([`super::compositor::SamplePoint::known_gradient`]), with the stopping
+//! ([`SampleGradient::Known`]), with the stopping
 //! rule of the scalar loop.
 //!
 //! A sample whose 1D table entry is transparent is left out: these
@@ -19,7 +19,7 @@
 use glam::Vec3;
 
 use super::cell_cache::CellCache;
-use super::compositor::Compositor;
+use super::compositor::{Compositor, SampleGradient};
 use super::gather::{
     ChunkFolder, GATHER_LANES, GatherBrick, GatherRay, GradientLanes, march_run_in_chunks,
     march_runs_in_chunks,
@@ -166,7 +166,8 @@ impl<T: Sample, C: Compositor> ChunkFolder<C::State> for GradientRay<'_, '_, T, 
             let k = samples[j];
             let position = self.lanes.positions.at(k).into();
             let mut point = site.point(k, position, lanes.values[j]);
-            point.known_gradient = Some(Vec3::new(g[0][j], g[1][j], g[2][j]) * plan.gradient_scale);
+            point.gradient =
+                SampleGradient::Known(Vec3::new(g[0][j], g[1][j], g[2][j]) * plan.gradient_scale);
             if fold_point(self.c, acc, &point, plan.ert_threshold) {
                 return Some(j);
             }

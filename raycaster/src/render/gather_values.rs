@@ -10,11 +10,11 @@
 //! scalar kernel's, which `tests/packet_kernel.rs` checks on every level.
 
 use super::cell_cache::CellCache;
-use super::compositor::Compositor;
+use super::compositor::{Compositor, SampleGradient};
 use super::gather::{
     ChunkFolder, GATHER_LANES, GatherBrick, LineAligned, march_run_in_chunks, march_runs_in_chunks,
 };
-use super::march::{BrickVisit, RunMarcher, fold_sample, march_each_run};
+use super::march::{BrickVisit, RunMarcher, fold_point, march_each_run};
 use super::packet::PacketWork;
 use super::pixel::SamplePositions;
 use super::runs::SampleRuns;
@@ -130,8 +130,10 @@ impl<T: Sample, C: Compositor> ChunkFolder<C::State> for ValueRay<'_, '_, T, C> 
             .chunk_values(&brick.sampler, &self.positions, samples, n, &mut values.0);
         let site = self.visit.site(self.cell);
         for (j, (&k, &value)) in samples.iter().zip(&values.0).take(n).enumerate() {
-            let position = self.positions.at(k).into();
-            if fold_sample(self.c, acc, &site, k, position, value, plan.ert_threshold) {
+            let mut point = site.point(k, self.positions.at(k).into(), value);
+            // (The cell cache never read this value.)
+            point.gradient = SampleGradient::AtPosition;
+            if fold_point(self.c, acc, &point, plan.ert_threshold) {
                 return Some(j);
             }
         }

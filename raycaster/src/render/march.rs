@@ -288,7 +288,7 @@ pub(crate) fn fold_sample<T: Sample, C: Compositor>(
 }
 
 /// [`fold_sample`] of a sample built already (one whose gradient a kernel
-/// computed: [`SamplePoint::known_gradient`]).
+/// computed, or comes from elsewhere: [`SamplePoint::gradient`]).
 #[inline(always)]
 pub(crate) fn fold_point<T: Sample, C: Compositor>(
     c: &C,

@@ -10,10 +10,13 @@ use std::sync::Arc;
 
 use super::clip::ClipRegion;
 use super::compositor::{Compositor, SamplePoint};
+use super::gather_values::march_values;
 use super::local::{Accumulation, LocalCompositor};
 use super::optics::over_premultiplied;
+use super::packet::PacketWork;
 use super::segments::{GlobalMode, LocalMode, Membership, SegmentScene};
 use super::shading::Shading;
+use super::simd::SimdLevel;
 use super::state_buffer::{Reader, StateCodec, put_f32, put_u32};
 use super::transfer::{TransferFunction, TransferTable};
 use crate::volume::Sample;
@@ -81,6 +84,12 @@ pub(crate) struct TwoLevel {
     /// Every visible object composites by emission–absorption: transparent
     /// samples contribute nothing, so empty space may be skipped.
     all_dvr: bool,
+    /// Whether the value kernel marches the scene on a packet level: not when
+    /// every visible object is DVR that reads each visible sample's gradient
+    /// (shaded, or a 2D function), where the cell cache that serves the
+    /// gradient reads the value's corners anyway and the gathered values only
+    /// add (`shapes-layers10`: 0.249 s against 0.214 s for the scalar loop).
+    gathers_values: bool,
     /// Per object id: where the object shows (voxels of the level rendered),
     /// `None` everywhere; empty when no object has a region.
     clips: Vec<Option<ClipRegion>>,
@@ -162,9 +171,11 @@ impl TwoLevel {
                 clips[o.id as usize] = Some(o.clip.at_level(level_scale));
             }
         }
+        let gradients_everywhere = shading.is_some() || tables.iter().any(|(_, t)| t.is_2d());
         TwoLevel {
             clips,
             objects,
+            gathers_values: !(all_dvr && gradients_everywhere),
             tables: tables.into_iter().map(|(_, t)| t).collect(),
             layers,
             disjoint,
@@ -339,5 +350,18 @@ impl Compositor for TwoLevel {
 
     fn depth(&self, st: &SegmentedState) -> f32 {
         st.depth
+    }
+
+    /// The value kernel ([`march_values`]), unless every object reads a
+    /// gradient at each visible sample: the samples' values gathered, each
+    /// folded here (a change of object closes a segment whatever its
+    /// opacity), a gradient read through the cell cache where an object's
+    /// compositor asks for one.
+    fn march_packets<T: Sample>(
+        &self,
+        work: &mut PacketWork<'_, '_, T, SegmentedState>,
+        level: SimdLevel,
+    ) -> bool {
+        self.gathers_values && march_values(self, work, level)
     }
 }
