@@ -248,13 +248,14 @@ pub struct RenderArgs {
     /// `sse4.1`, `avx2`, `avx512` (x86-64) or `neon` (aarch64), which composite
     /// the same image. They serve DVR with a 1D, not pre-integrated transfer
     /// function (with hardware gathers on `avx2` and `avx512`), and on `avx2`
-    /// and `avx512` DVR with a 2D function and the `mip`, `average`, `xray`,
-    /// `first-hit`, `sabella`, `importance`, `context` and `silhouette` modes;
-    /// other frames (pre-integrated DVR, two-level scenes) use the scalar
-    /// kernel. `auto`: `avx2` where the CPU has it (DVR unshaded 1.6–2.3×,
-    /// shaded 1.2–1.6× the scalar kernel's speed; docs/benchmarks.md), else
-    /// `scalar`; with `--sequential`, `auto` is `scalar` (a packet of one ray
-    /// per brick visit is slower there) and a named level is used.
+    /// and `avx512` DVR with a 2D function, the `mip`, `average`, `xray`,
+    /// `first-hit`, `sabella`, `importance`, `context` and `silhouette` modes
+    /// and two-level scenes (`--segments`) but those of shaded DVR objects
+    /// only; other frames (pre-integrated DVR) use the scalar kernel. `auto`:
+    /// `avx2` where the CPU has it (DVR unshaded 1.6–2.3×, shaded 1.2–1.6× the
+    /// scalar kernel's speed; docs/benchmarks.md), else `scalar`; with
+    /// `--sequential`, `auto` is `scalar` (a packet of one ray per brick visit
+    /// is slower there) and a named level is used.
     #[arg(long, default_value = "auto", value_parser = parse_simd, value_name = "LEVEL")]
     simd: SimdChoice,
 
