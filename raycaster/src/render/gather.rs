@@ -302,29 +302,32 @@ pub(crate) struct GatherShading<'v, 'a, T: Sample> {
     pub volume: &'v VolumeSampler<'a, T>,
 }
 
-impl<T: Sample> RunMarcher<Accumulation> for GatherRay<'_, '_, T> {
+/// A [`ChunkFolder`] as the marcher of a ray's visit: eight samples per
+/// chunk, across runs ([`march_runs_in_chunks`]) unless the compositor skips
+/// runs by its state (each run is then asked before it is marched) or the
+/// visit skips no cells (it is one run).
+pub(crate) struct Chunked<F>(pub(crate) F);
+
+impl<S, F: ChunkFolder<S>> RunMarcher<S> for Chunked<F> {
     /// Samples `first..end` into `acc`, front to back; `Some(k)` when the ray
-    /// reached the opacity threshold with sample `k − 1`.
+    /// stopped with sample `k − 1`.
     #[inline(always)]
-    fn march_run(&mut self, acc: &mut Accumulation, first: u32, end: u32) -> Option<u32> {
-        march_run_in_chunks(self, acc, first, end)
+    fn march_run(&mut self, acc: &mut S, first: u32, end: u32) -> Option<u32> {
+        march_run_in_chunks(&self.0, acc, first, end)
     }
 
-    /// Every run of `runs`, eight samples per chunk whatever run they belong
-    /// to ([`march_runs_in_chunks`]).
     #[inline(always)]
-    fn march_runs<C: Compositor<State = Accumulation>>(
+    fn march_runs<C: Compositor<State = S>>(
         &mut self,
         c: &C,
         ess: bool,
-        acc: &mut Accumulation,
+        acc: &mut S,
         runs: &mut SampleRuns<'_, C>,
     ) -> (u64, u64, Option<u32>) {
-        // (Without skipping the visit is one run: no chunk to fill across.)
         if C::STATE_SKIPS || !runs.skips_cells() {
             return march_each_run(self, c, ess, acc, runs);
         }
-        march_runs_in_chunks(self, acc, runs)
+        march_runs_in_chunks(&self.0, acc, runs)
     }
 }
 
@@ -340,7 +343,7 @@ pub(crate) trait ChunkFolder<S> {
 /// `folder`; `Some(k)` when the ray stopped before sample `k`, as
 /// [`RunMarcher::march_run`].
 #[inline(always)]
-pub(crate) fn march_run_in_chunks<S>(
+fn march_run_in_chunks<S>(
     folder: &impl ChunkFolder<S>,
     acc: &mut S,
     first: u32,
@@ -365,7 +368,7 @@ pub(crate) fn march_run_in_chunks<S>(
 /// [`RunMarcher::march_runs`]. A ray that stops counts the samples skipped
 /// before its last sample's run only, as one run at a time does.
 #[inline(always)]
-pub(crate) fn march_runs_in_chunks<S, C: Compositor>(
+fn march_runs_in_chunks<S, C: Compositor>(
     folder: &impl ChunkFolder<S>,
     acc: &mut S,
     runs: &mut SampleRuns<'_, C>,
@@ -1545,7 +1548,7 @@ mod tests {
                         gradient_scale: Vec3::new(0.9, 1.1, 1.3),
                         volume: &volume,
                     });
-                    let mut ray = GatherRay {
+                    let ray = GatherRay {
                         brick: &brick,
                         sampler: &sampler,
                         table: &table,
@@ -1566,7 +1569,7 @@ mod tests {
                         Accumulation::starting_at(0.0),
                         Accumulation::starting_at(0.0),
                     );
-                    let gathered = ray.march_run(&mut a, first, count);
+                    let gathered = march_run_in_chunks(&ray, &mut a, first, count);
                     let scalar = scalar_run(&ray, view_dir, &mut b, first, count);
                     assert_eq!(gathered, scalar, "round {round}");
                     assert_eq!(a.alpha.to_bits(), b.alpha.to_bits(), "round {round}");

@@ -20,13 +20,9 @@ use glam::Vec3;
 
 use super::cell_cache::CellCache;
 use super::compositor::{Compositor, SampleGradient};
-use super::gather::{
-    ChunkFolder, GATHER_LANES, GatherBrick, GatherRay, GradientLanes, march_run_in_chunks,
-    march_runs_in_chunks,
-};
-use super::march::{BrickVisit, RunMarcher, fold_point, march_each_run};
+use super::gather::{ChunkFolder, Chunked, GATHER_LANES, GatherBrick, GatherRay, GradientLanes};
+use super::march::{BrickVisit, fold_point};
 use super::packet::PacketWork;
-use super::runs::SampleRuns;
 use super::simd::SimdLevel;
 use super::transfer::{TABLE_SIZE, TransferTable};
 use crate::volume::Sample;
@@ -97,21 +93,23 @@ fn march_gradients_in_chunks<T: Sample, C: Compositor>(
         #[inline(always)]
         |visit, item, state, counters| {
             let ray = visit.ray;
-            visit.march(c, item.first, item.last, state, counters, || GradientRay {
-                c,
-                visit,
-                cell: &cell,
-                lanes: GatherRay {
-                    brick: gather,
-                    sampler: &visit.brick.sampler,
-                    table,
-                    positions: ray.positions(visit.volume.last()),
-                    last_sample: ray.samples - 1,
-                    last_fraction: ray.last_fraction,
-                    ert_threshold: visit.plan.ert_threshold,
-                    shade: None,
-                    lights: (Vec3::ZERO, Vec3::ZERO),
-                },
+            visit.march(c, item.first, item.last, state, counters, || {
+                Chunked(GradientRay {
+                    c,
+                    visit,
+                    cell: &cell,
+                    lanes: GatherRay {
+                        brick: gather,
+                        sampler: &visit.brick.sampler,
+                        table,
+                        positions: ray.positions(visit.volume.last()),
+                        last_sample: ray.samples - 1,
+                        last_fraction: ray.last_fraction,
+                        ert_threshold: visit.plan.ert_threshold,
+                        shade: None,
+                        lights: (Vec3::ZERO, Vec3::ZERO),
+                    },
+                })
             });
         },
     );
@@ -124,29 +122,6 @@ struct GradientRay<'v, 'b, T: Sample, C> {
     cell: &'v CellCache,
     /// The gathers of the ray's samples (its chunks' lanes).
     lanes: GatherRay<'v, 'b, T>,
-}
-
-impl<T: Sample, C: Compositor> RunMarcher<C::State> for GradientRay<'_, '_, T, C> {
-    #[inline(always)]
-    fn march_run(&mut self, acc: &mut C::State, first: u32, end: u32) -> Option<u32> {
-        march_run_in_chunks(self, acc, first, end)
-    }
-
-    /// Eight samples per chunk across runs, unless the compositor skips runs
-    /// by its state (each run is then asked before it is marched).
-    #[inline(always)]
-    fn march_runs<D: Compositor<State = C::State>>(
-        &mut self,
-        c: &D,
-        ess: bool,
-        acc: &mut C::State,
-        runs: &mut SampleRuns<'_, D>,
-    ) -> (u64, u64, Option<u32>) {
-        if D::STATE_SKIPS || !runs.skips_cells() {
-            return march_each_run(self, c, ess, acc, runs);
-        }
-        march_runs_in_chunks(self, acc, runs)
-    }
 }
 
 impl<T: Sample, C: Compositor> ChunkFolder<C::State> for GradientRay<'_, '_, T, C> {

@@ -11,13 +11,10 @@
 
 use super::cell_cache::CellCache;
 use super::compositor::{Compositor, SampleGradient};
-use super::gather::{
-    ChunkFolder, GATHER_LANES, GatherBrick, LineAligned, march_run_in_chunks, march_runs_in_chunks,
-};
-use super::march::{BrickVisit, RunMarcher, fold_point, march_each_run};
+use super::gather::{ChunkFolder, Chunked, GATHER_LANES, GatherBrick, LineAligned};
+use super::march::{BrickVisit, fold_point};
 use super::packet::PacketWork;
 use super::pixel::SamplePositions;
-use super::runs::SampleRuns;
 use super::simd::SimdLevel;
 use crate::volume::Sample;
 
@@ -77,12 +74,14 @@ fn march_values_in_chunks<T: Sample, C: Compositor>(
     work.for_each_visit(
         #[inline(always)]
         |visit, item, state, counters| {
-            visit.march(c, item.first, item.last, state, counters, || ValueRay {
-                c,
-                visit,
-                gather,
-                cell: &cell,
-                positions: visit.ray.positions(visit.volume.last()),
+            visit.march(c, item.first, item.last, state, counters, || {
+                Chunked(ValueRay {
+                    c,
+                    visit,
+                    gather,
+                    cell: &cell,
+                    positions: visit.ray.positions(visit.volume.last()),
+                })
             });
         },
     );
@@ -95,29 +94,6 @@ struct ValueRay<'v, 'b, T: Sample, C> {
     gather: &'v GatherBrick<'b>,
     cell: &'v CellCache,
     positions: SamplePositions,
-}
-
-impl<T: Sample, C: Compositor> RunMarcher<C::State> for ValueRay<'_, '_, T, C> {
-    #[inline(always)]
-    fn march_run(&mut self, acc: &mut C::State, first: u32, end: u32) -> Option<u32> {
-        march_run_in_chunks(self, acc, first, end)
-    }
-
-    /// Eight samples per chunk across runs, unless the compositor skips runs
-    /// by its state (each run is then asked before it is marched).
-    #[inline(always)]
-    fn march_runs<D: Compositor<State = C::State>>(
-        &mut self,
-        c: &D,
-        ess: bool,
-        acc: &mut C::State,
-        runs: &mut SampleRuns<'_, D>,
-    ) -> (u64, u64, Option<u32>) {
-        if D::STATE_SKIPS || !runs.skips_cells() {
-            return march_each_run(self, c, ess, acc, runs);
-        }
-        march_runs_in_chunks(self, acc, runs)
-    }
 }
 
 impl<T: Sample, C: Compositor> ChunkFolder<C::State> for ValueRay<'_, '_, T, C> {

@@ -31,7 +31,7 @@ use glam::{Mat4, Vec3, Vec3A, Vec4};
 
 use super::cell_cache::CellCache;
 use super::counters::Counters;
-use super::gather::{GatherBrick, GatherRay, GatherShading};
+use super::gather::{Chunked, GatherBrick, GatherRay, GatherShading};
 use super::local::{Accumulation, Dvr};
 use super::march::{BrickContext, BrickVisit, RunMarcher};
 use super::optics::over_sample;
@@ -206,18 +206,20 @@ fn march_dvr_chunks<T: Sample>(
             let (c, first, last, ray) = (dvr.runs_compositor, item.first, item.last, visit.ray);
             let positions = || ray.positions(visit.volume.last());
             if let Some(brick) = &gather_brick {
-                visit.march(c, first, last, state, counters, || GatherRay {
-                    brick,
-                    sampler: &visit.brick.sampler,
-                    table: dvr.table,
-                    positions: positions(),
-                    last_sample: ray.samples - 1,
-                    last_fraction: ray.last_fraction,
-                    ert_threshold: visit.plan.ert_threshold,
-                    shade: gather_shading.as_ref(),
-                    lights: dvr
-                        .shading
-                        .map_or((Vec3::ZERO, Vec3::ZERO), |s| s.ray_lights(ray.view_dir)),
+                visit.march(c, first, last, state, counters, || {
+                    Chunked(GatherRay {
+                        brick,
+                        sampler: &visit.brick.sampler,
+                        table: dvr.table,
+                        positions: positions(),
+                        last_sample: ray.samples - 1,
+                        last_fraction: ray.last_fraction,
+                        ert_threshold: visit.plan.ert_threshold,
+                        shade: gather_shading.as_ref(),
+                        lights: dvr
+                            .shading
+                            .map_or((Vec3::ZERO, Vec3::ZERO), |s| s.ray_lights(ray.view_dir)),
+                    })
                 });
             } else {
                 visit.march(c, first, last, state, counters, || DvrChunks {
