@@ -1,13 +1,15 @@
-//! The kernel of the compositors that read nothing of a sample but its value
-//! and where it lies on its ray (maximum, average, X-ray, first hit,
-//! Sabella's): eight samples of one ray at a time, their positions, cells,
-//! corner reads and trilinear values in SIMD lanes with hardware gathers
-//! ([`GatherBrick::chunk_values`], the scalar kernel's bits), then each
-//! sample folded in order by the compositor's own [`Compositor::sample`],
-//! with the stopping rule of the scalar loop. Whatever else a compositor
-//! asks of a sample (the value before it, a gradient at a refined hit) is
-//! read as the scalar loop reads it, so the frames are bit-identical to the
-//! scalar kernel's, which `tests/packet_kernel.rs` checks on every level.
+//! The kernel of the compositors that read a sample's value and where it
+//! lies on its ray, and a gradient at most now and then (maximum, average,
+//! X-ray, first hit, Sabella's, and two-level scenes): eight samples of one
+//! ray at a time, their positions, cells, corner reads and trilinear values in
+//! SIMD lanes with hardware gathers ([`GatherBrick::chunk_values`], the scalar
+//! kernel's bits), then each sample folded in order by the compositor's own
+//! [`Compositor::sample`], with the stopping rule of the scalar loop.
+//! Whatever else a compositor asks of a sample (the value before it, a
+//! gradient at a refined hit, a two-level object's gradient at the sample:
+//! [`SampleGradient::AtPosition`]) is read as the scalar loop reads it, a
+//! function of the position, so the frames are bit-identical to the scalar
+//! kernel's, which `tests/packet_kernel.rs` checks on every level.
 
 use super::cell_cache::CellCache;
 use super::compositor::{Compositor, SampleGradient};
@@ -20,10 +22,10 @@ use crate::volume::Sample;
 
 /// Marches `work`'s rays with the value kernel at `level` when it has one
 /// there (AVX2 or AVX-512, with gathers that can address the brick): `false`
-/// leaves them to the scalar loop. For compositors whose
-/// [`Compositor::sample`] reads only the sample's value, position, index,
-/// fraction and ray, and what the volume holds elsewhere: never the ray's
-/// cell cache as the last value left it (a gradient at the sample).
+/// leaves them to the scalar loop. Any compositor gets the scalar loop's
+/// results; it pays for those whose [`Compositor::sample`] reads mostly the
+/// sample's value, position, index, fraction and ray (a gradient at the
+/// sample is read through the cell cache, which the gathers did not fill).
 pub(crate) fn march_values<T: Sample, C: Compositor>(
     c: &C,
     work: &mut PacketWork<'_, '_, T, C::State>,
