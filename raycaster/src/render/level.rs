@@ -217,7 +217,7 @@ pub struct LevelBand {
 /// where the ray enters the box of all levels (moved on by the ray's jitter):
 /// level `k`'s step is `2^k` times the finest level's, so a coarser level's
 /// samples are a subset of a finer one's. A boundary between two levels is moved
-/// to the coarser level's first sample at or beyond it ([`Self::ray_interval`]):
+/// to the coarser level's first sample at or beyond it (`DepthBand::ray_interval`):
 /// the finer level's last sample there stands for a whole step, and the coarser
 /// level's first sample takes over exactly where it ends — no gap and no overlap
 /// (no crack) between levels.

@@ -71,7 +71,7 @@ pub struct Partition {
 
 impl Partition {
     /// Cuts `volume`'s brick grid into `parts` boxes for frames with `settings`
-    /// (see [`Partition::balanced`]).
+    /// (see `Partition::balanced`).
     pub fn new(
         volume: &RenderVolume<'_>,
         settings: &RenderSettings,

@@ -172,8 +172,8 @@ impl<'a> RenderVolume<'a> {
     /// empty-space skipping: its bricks' step. From this step on, a ray can
     /// cross a brick between two samples without a sample in it, which no visit
     /// of that brick sees, and the frame plan turns skipping off (see
-    /// [`Dvr::range_empty`](super::local::Dvr)); below it the run walker checks
-    /// the cells between samples ([`super::runs::SampleRuns`]).
+    /// `Dvr::range_empty`); below it the run walker checks the cells between
+    /// samples (`SampleRuns`).
     pub fn preintegrated_skipping_below(&self) -> f32 {
         self.geometry.brick_step()
     }

@@ -66,15 +66,20 @@ impl SimdLevel {
     /// else [`SimdLevel::Scalar`].
     ///
     /// On AVX2, DVR with a 1D, not pre-integrated transfer function runs the
-    /// kernel with hardware gathers ([`super::gather`]): on this project's
+    /// kernel with hardware gathers (`render/gather.rs`): on this project's
     /// 2-core VM 1.6–2.3× the scalar kernel's samples per second unshaded,
     /// 1.2–1.6× shaded (docs/benchmarks.md, section 5). The modes that read
     /// only their samples' values (maximum, average, X-ray, first hit,
-    /// Sabella's) take their values from the same gathers
-    /// ([`super::gather_values`]: average, X-ray and Sabella's 1.8× faster
-    /// than before it, maximum 1.04×, first hit the same). Every other
-    /// frame takes the scalar kernel whatever the level (its compositor
-    /// declines `Compositor::march_packets`, per task). Every frame is the
+    /// Sabella's) and two-level scenes take their values from the same
+    /// gathers (`render/gather_values.rs`: average, X-ray and Sabella's 1.8×
+    /// faster than before it, maximum 1.04×, first hit the same, two-level
+    /// scenes 1.08–1.14×); importance, context-preserving and silhouette
+    /// frames and DVR with a 2D function their values and gradients
+    /// (`render/gather_gradients.rs`, 1.10–1.28× at step 0.5). Every other
+    /// frame (pre-integrated DVR, a two-level scene of shaded DVR objects
+    /// only) takes the scalar kernel whatever the level (its compositor
+    /// declines `Compositor::march_packets`, per task). The sequential
+    /// renderer takes the scalar kernel under `None`. Every frame is the
     /// same whichever level renders it.
     pub fn automatic() -> SimdLevel {
         if SimdLevel::Avx2.is_available() {
