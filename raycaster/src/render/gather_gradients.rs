@@ -44,6 +44,30 @@ pub(crate) fn march_gradients<T: Sample, C: Compositor>(
     work: &mut PacketWork<'_, '_, T, C::State>,
     level: SimdLevel,
 ) -> bool {
+    march_gradients_folding::<T, C, false>(c, table, work, level)
+}
+
+/// [`march_gradients`] for a compositor that must see every sample (a
+/// two-level scene, where a transparent sample of another object closes a
+/// segment): each is folded, the visible ones under `table` with their
+/// gathered gradients, the others reading theirs through the cell cache if
+/// they ask ([`SampleGradient::AtPosition`]).
+pub(crate) fn march_gradients_every_sample<T: Sample, C: Compositor>(
+    c: &C,
+    table: &TransferTable,
+    work: &mut PacketWork<'_, '_, T, C::State>,
+    level: SimdLevel,
+) -> bool {
+    march_gradients_folding::<T, C, true>(c, table, work, level)
+}
+
+/// [`march_gradients`], folding every sample when `EVERY`.
+fn march_gradients_folding<T: Sample, C: Compositor, const EVERY: bool>(
+    c: &C,
+    table: &TransferTable,
+    work: &mut PacketWork<'_, '_, T, C::State>,
+    level: SimdLevel,
+) -> bool {
     if !matches!(level, SimdLevel::Avx2 | SimdLevel::Avx512) || table.entries().len() != TABLE_SIZE
     {
         return false;
@@ -55,10 +79,10 @@ pub(crate) fn march_gradients<T: Sample, C: Compositor>(
     #[allow(unsafe_code)]
     // SAFETY: `GatherBrick::new` checked that this CPU has AVX2.
     unsafe {
-        march_gradients_avx2(c, table, work, &gather)
+        march_gradients_avx2::<T, C, EVERY>(c, table, work, &gather)
     };
     #[cfg(not(target_arch = "x86_64"))]
-    march_gradients_in_chunks(c, table, work, &gather);
+    march_gradients_in_chunks::<T, C, EVERY>(c, table, work, &gather);
     true
 }
 
@@ -69,19 +93,19 @@ pub(crate) fn march_gradients<T: Sample, C: Compositor>(
 #[cfg(target_arch = "x86_64")]
 #[allow(unsafe_code)]
 #[target_feature(enable = "avx2")]
-unsafe fn march_gradients_avx2<T: Sample, C: Compositor>(
+unsafe fn march_gradients_avx2<T: Sample, C: Compositor, const EVERY: bool>(
     c: &C,
     table: &TransferTable,
     work: &mut PacketWork<'_, '_, T, C::State>,
     gather: &GatherBrick<'_>,
 ) {
-    march_gradients_in_chunks(c, table, work, gather)
+    march_gradients_in_chunks::<T, C, EVERY>(c, table, work, gather)
 }
 
 /// Each of the task's rays through the brick, its samples in chunks of
 /// gathered values and gradients.
 #[inline(always)]
-fn march_gradients_in_chunks<T: Sample, C: Compositor>(
+fn march_gradients_in_chunks<T: Sample, C: Compositor, const EVERY: bool>(
     c: &C,
     table: &TransferTable,
     work: &mut PacketWork<'_, '_, T, C::State>,
@@ -94,7 +118,7 @@ fn march_gradients_in_chunks<T: Sample, C: Compositor>(
         |visit, item, state, counters| {
             let ray = visit.ray;
             visit.march(c, item.first, item.last, state, counters, || {
-                Chunked(GradientRay {
+                Chunked(GradientRay::<T, C, EVERY> {
                     c,
                     visit,
                     cell: &cell,
@@ -116,7 +140,7 @@ fn march_gradients_in_chunks<T: Sample, C: Compositor>(
 }
 
 /// One ray's visit of a brick, its values and gradients gathered.
-struct GradientRay<'v, 'b, T: Sample, C> {
+struct GradientRay<'v, 'b, T: Sample, C, const EVERY: bool> {
     c: &'v C,
     visit: BrickVisit<'v, 'b, T>,
     cell: &'v CellCache,
@@ -124,25 +148,36 @@ struct GradientRay<'v, 'b, T: Sample, C> {
     lanes: GatherRay<'v, 'b, T>,
 }
 
-impl<T: Sample, C: Compositor> ChunkFolder<C::State> for GradientRay<'_, '_, T, C> {
+impl<T: Sample, C: Compositor, const EVERY: bool> ChunkFolder<C::State>
+    for GradientRay<'_, '_, T, C, EVERY>
+{
     /// Stops at the opacity threshold, or when the compositor is finished.
     #[inline(always)]
     fn chunk(&self, acc: &mut C::State, samples: &[u32; GATHER_LANES], n: usize) -> Option<usize> {
         let mut lanes = GradientLanes::default();
-        let mut visible = self
+        let visible = self
             .lanes
             .visible_gradients(self.visit.volume, samples, n, &mut lanes);
         let plan = self.visit.plan;
         let site = self.visit.site(self.cell);
         let g = &lanes.gradient;
-        while visible != 0 {
-            let j = visible.trailing_zeros() as usize;
-            visible &= visible - 1;
+        let gradient = |j: usize| {
+            SampleGradient::Known(Vec3::new(g[0][j], g[1][j], g[2][j]) * plan.gradient_scale)
+        };
+        // Every sample in order, or the visible ones (the others composite
+        // nothing).
+        let mut lanes_left = if EVERY { (1u32 << n) - 1 } else { visible };
+        while lanes_left != 0 {
+            let j = lanes_left.trailing_zeros() as usize;
+            lanes_left &= lanes_left - 1;
             let k = samples[j];
             let position = self.lanes.positions.at(k).into();
             let mut point = site.point(k, position, lanes.values[j]);
-            point.gradient =
-                SampleGradient::Known(Vec3::new(g[0][j], g[1][j], g[2][j]) * plan.gradient_scale);
+            point.gradient = if !EVERY || visible & (1 << j) != 0 {
+                gradient(j)
+            } else {
+                SampleGradient::AtPosition
+            };
             if fold_point(self.c, acc, &point, plan.ert_threshold) {
                 return Some(j);
             }
