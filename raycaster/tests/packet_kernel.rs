@@ -246,8 +246,8 @@ fn gradient_modes_in_packets_equal_the_scalar_kernel_bit_for_bit_on_every_level(
 /// Two-level scenes take the value kernel on the levels with gathers (their
 /// values gathered, every sample folded by the scene's compositor, a gradient
 /// read through the cell cache where an object asks for one), or the gradient
-/// kernel folding every sample when every object is shaded DVR of one
-/// function: the same frames to the bit and the same counts as
+/// kernel folding every sample when every object is shaded DVR: the same
+/// frames to the bit and the same counts as
 /// the scalar kernel, over value-layer scenes of every local mode,
 /// pre-integrated DVR objects, layouts, sample types, ray-start jitter, early
 /// termination and empty-space skipping.
@@ -282,13 +282,13 @@ mode = "dvr"
 tf = "shapes"
 mode = "first-hit"
 "#,
-        // DVR objects of one function only (transparent layers skipped): the
-        // gradient kernel folding every sample when shaded, the value kernel
-        // when not.
+        // DVR objects only, of two functions (transparent layers skipped):
+        // the gradient kernel folding every sample when shaded, the value
+        // kernel when not.
         r#"layers = [[0.0, 0.3], [0.3, 0.55], [0.55, 1.0]]
 global = "dvr"
 [[object]]
-tf = "shapes"
+tf = "cloud"
 [[object]]
 tf = "shapes"
 [[object]]

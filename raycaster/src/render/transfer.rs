@@ -550,6 +550,33 @@ impl TransferTable {
         self
     }
 
+    /// A table whose entries are visible where an entry of any of `tables`
+    /// is (each entry's opacity the largest of theirs), for a kernel that
+    /// asks only which samples some table shows; `None` when they map values
+    /// to entries differently (another domain) or there is none.
+    pub(crate) fn visible_under_any(tables: &[&TransferTable]) -> Option<TransferTable> {
+        let (first, rest) = tables.split_first()?;
+        let same_map = |t: &TransferTable| {
+            t.offset == first.offset
+                && t.scale == first.scale
+                && t.entries.len() == first.entries.len()
+        };
+        if !rest.iter().all(|t| same_map(t)) {
+            return None;
+        }
+        let mut union = TransferTable::clone(first);
+        union.preintegrated = None;
+        for t in rest {
+            for (u, e) in union.entries.iter_mut().zip(&t.entries) {
+                u[3] = u[3].max(e[3]);
+            }
+            for (u, b) in union.visible_bits.iter_mut().zip(&t.visible_bits) {
+                *u |= b;
+            }
+        }
+        Some(union)
+    }
+
     /// The pre-integrated table, if this table has one.
     #[inline]
     pub(crate) fn preintegrated(&self) -> Option<&PreintegratedTable> {
@@ -1470,6 +1497,30 @@ mod tests {
         // Both beyond the top: the constant end value.
         let top = pre.lookup(2500.0, 3000.0);
         assert!((top[3] - corrected_alpha(0.9, 0.5)).abs() < 1e-4, "{top:?}");
+    }
+
+    #[test]
+    fn a_union_table_shows_what_any_of_its_tables_shows() {
+        let a = TransferTable::new(&TransferFunction::preset("shapes").unwrap(), 255, 0.7);
+        let b = TransferTable::new(&TransferFunction::preset("ct-bone").unwrap(), 255, 0.7);
+        let union = TransferTable::visible_under_any(&[&a, &b]).unwrap();
+        for i in 0..TABLE_SIZE {
+            let visible = |t: &TransferTable| t.visible_bits()[i / 32] >> (i % 32) & 1 == 1;
+            let either = visible(&a) || visible(&b);
+            assert_eq!(visible(&union), either, "entry {i}");
+            assert_eq!(union.entries()[i][3] > 0.0, either, "entry {i}");
+        }
+        // Some entry is visible under one table only, both ways.
+        let only = |x: &TransferTable, y: &TransferTable| {
+            (0..TABLE_SIZE).any(|i| x.entries()[i][3] > 0.0 && y.entries()[i][3] <= 0.0)
+        };
+        assert!(only(&a, &b) && only(&b, &a));
+        // Another domain maps values to other entries: no union.
+        let mut tf = TransferFunction::preset("shapes").unwrap();
+        tf.domain = Some([10.0, 200.0]);
+        let c = TransferTable::new(&tf, 255, 0.7);
+        assert!(TransferTable::visible_under_any(&[&a, &c]).is_none());
+        assert!(TransferTable::visible_under_any(&[]).is_none());
     }
 
     #[test]

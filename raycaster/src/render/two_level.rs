@@ -90,8 +90,13 @@ pub(crate) struct TwoLevel {
     /// (shaded, or a 2D function), where the cell cache that serves the
     /// gradient reads the value's corners anyway and gathered values alone
     /// only add (`shapes-layers10`: 0.249 s against 0.214 s for the scalar
-    /// loop; the gradient kernel, with one table: 0.202 s).
+    /// loop; the gradient kernel: 0.202 s).
     gathers_values: bool,
+    /// Where every object reads gradients (not `gathers_values`) and no table
+    /// is pre-integrated: a table visible where any object's is, for the
+    /// gradient kernel that folds every sample (`None`: the tables map values
+    /// differently, and the scene keeps the scalar loop).
+    visible_under_any: Option<Arc<TransferTable>>,
     /// Per object id: where the object shows (voxels of the level rendered),
     /// `None` everywhere; empty when no object has a region.
     clips: Vec<Option<ClipRegion>>,
@@ -174,10 +179,17 @@ impl TwoLevel {
             }
         }
         let gradients_everywhere = shading.is_some() || tables.iter().any(|(_, t)| t.is_2d());
+        let gathers_values = !(all_dvr && gradients_everywhere);
+        let plain: Vec<&TransferTable> = tables.iter().map(|(_, t)| &**t).collect();
+        let visible_under_any = (!gathers_values
+            && plain.iter().all(|t| t.preintegrated().is_none()))
+        .then(|| TransferTable::visible_under_any(&plain).map(Arc::new))
+        .flatten();
         TwoLevel {
             clips,
             objects,
-            gathers_values: !(all_dvr && gradients_everywhere),
+            gathers_values,
+            visible_under_any,
             tables: tables.into_iter().map(|(_, t)| t).collect(),
             layers,
             disjoint,
@@ -358,10 +370,10 @@ impl Compositor for TwoLevel {
     /// gradient at each visible sample: the samples' values gathered, each
     /// folded here (a change of object closes a segment whatever its
     /// opacity), a gradient read through the cell cache where an object's
-    /// compositor asks for one. When every object reads gradients and all
-    /// share one table (not pre-integrated), the gradient kernel folding
-    /// every sample ([`march_gradients_every_sample`]): the samples visible
-    /// under that table get their gradients gathered.
+    /// compositor asks for one. When every object reads gradients and the
+    /// tables map values alike (none pre-integrated), the gradient kernel
+    /// folding every sample ([`march_gradients_every_sample`]): the samples
+    /// visible under any object's table get their gradients gathered.
     fn march_packets<T: Sample>(
         &self,
         work: &mut PacketWork<'_, '_, T, SegmentedState>,
@@ -370,11 +382,9 @@ impl Compositor for TwoLevel {
         if self.gathers_values {
             return march_values(self, work, level);
         }
-        match self.tables.as_slice() {
-            [table] if table.preintegrated().is_none() => {
-                march_gradients_every_sample(self, table, work, level)
-            }
-            _ => false,
+        match &self.visible_under_any {
+            Some(table) => march_gradients_every_sample(self, table, work, level),
+            None => false,
         }
     }
 }
