@@ -250,9 +250,9 @@ pub struct RenderArgs {
     /// function (with hardware gathers on `avx2` and `avx512`), and on `avx2`
     /// and `avx512` DVR with a 2D function, the `mip`, `average`, `xray`,
     /// `first-hit`, `sabella`, `importance`, `context` and `silhouette` modes
-    /// and two-level scenes (`--segments`) but those of shaded DVR objects of
-    /// several transfer functions; other frames (pre-integrated DVR) use the
-    /// scalar kernel. `auto`:
+    /// and two-level scenes (`--segments`; those of shaded DVR objects only
+    /// when their functions share a domain); other frames (pre-integrated
+    /// DVR) use the scalar kernel. `auto`:
     /// `avx2` where the CPU has it (DVR unshaded 1.6–2.3×, shaded 1.2–1.6× the
     /// scalar kernel's speed; docs/benchmarks.md), else `scalar`; with
     /// `--sequential`, `auto` is `scalar` (a packet of one ray per brick visit

@@ -74,11 +74,11 @@ impl SimdLevel {
     /// gathers (`render/gather_values.rs`: average, X-ray and Sabella's 1.8×
     /// faster than before it, maximum 1.04×, first hit the same, two-level
     /// scenes 1.08–1.14×, 1.10× with shaded DVR objects of one function and
-    /// the gradients gathered too); importance, context-preserving and silhouette
+    /// the gradients gathered too: `render/gather_gradients.rs`); importance, context-preserving and silhouette
     /// frames and DVR with a 2D function their values and gradients
     /// (`render/gather_gradients.rs`, 1.10–1.28× at step 0.5). Every other
-    /// frame (pre-integrated DVR, a two-level scene of shaded DVR objects of
-    /// several transfer functions) takes the scalar kernel whatever the level (its compositor
+    /// frame (pre-integrated DVR, a two-level scene of shaded DVR objects
+    /// whose functions have different domains) takes the scalar kernel whatever the level (its compositor
     /// declines `Compositor::march_packets`, per task). The sequential
     /// renderer takes the scalar kernel under `None`. Every frame is the
     /// same whichever level renders it.
