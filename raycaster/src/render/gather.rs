@@ -32,6 +32,7 @@ use super::pixel::SamplePositions;
 use super::runs::SampleRuns;
 use super::sampler::{BrickSampler, CornerDifferences, VolumeSampler, gradient_from_differences};
 use super::shading::Shading;
+use super::simd::SimdLevel;
 use super::transfer::TransferTable;
 use crate::volume::Sample;
 
@@ -221,6 +222,22 @@ pub(crate) struct GradientLanes {
     pub(crate) local: [[f32; GATHER_LANES]; 3],
     /// The samples' gradients before the frame's gradient scale, per axis.
     pub(crate) gradient: [[f32; GATHER_LANES]; 3],
+}
+
+impl<'a> GatherBrick<'a> {
+    /// [`Self::new`] for a task marched at `level`: `None` too unless the
+    /// level has hardware gathers (AVX2, AVX-512). What the kernels that
+    /// gather only (values, gradients) ask before they take a task.
+    pub(crate) fn at_level<T: Sample>(
+        level: SimdLevel,
+        sampler: &BrickSampler<'a, T>,
+        volume: &VolumeSampler<'a, T>,
+    ) -> Option<Self> {
+        if !matches!(level, SimdLevel::Avx2 | SimdLevel::Avx512) {
+            return None;
+        }
+        GatherBrick::new(sampler, volume)
+    }
 }
 
 impl GatherBrick<'_> {

@@ -68,11 +68,10 @@ fn march_gradients_folding<T: Sample, C: Compositor, const EVERY: bool>(
     work: &mut PacketWork<'_, '_, T, C::State>,
     level: SimdLevel,
 ) -> bool {
-    if !matches!(level, SimdLevel::Avx2 | SimdLevel::Avx512) || table.entries().len() != TABLE_SIZE
-    {
+    if table.entries().len() != TABLE_SIZE {
         return false;
     }
-    let Some(gather) = GatherBrick::new(&work.brick.sampler, work.volume) else {
+    let Some(gather) = GatherBrick::at_level(level, &work.brick.sampler, work.volume) else {
         return false;
     };
     #[cfg(target_arch = "x86_64")]

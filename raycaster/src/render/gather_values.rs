@@ -31,10 +31,7 @@ pub(crate) fn march_values<T: Sample, C: Compositor>(
     work: &mut PacketWork<'_, '_, T, C::State>,
     level: SimdLevel,
 ) -> bool {
-    if !matches!(level, SimdLevel::Avx2 | SimdLevel::Avx512) {
-        return false;
-    }
-    let Some(gather) = GatherBrick::new(&work.brick.sampler, work.volume) else {
+    let Some(gather) = GatherBrick::at_level(level, &work.brick.sampler, work.volume) else {
         return false;
     };
     #[cfg(target_arch = "x86_64")]
