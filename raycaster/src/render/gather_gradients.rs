@@ -1,20 +1,20 @@
 //! The kernel of the compositors that read a visible sample's value and
-//! gradient (importance-aware, context-preserving, tone and silhouette, and
-//! DVR with a 2D transfer function, whose opacity depends on the gradient's
-//! magnitude): eight samples of one ray at a time, their positions, cells,
-//! corner reads, trilinear values, table indices and, for the visible ones,
-//! gradients in SIMD lanes with hardware gathers
-//! ([`GatherRay::visible_gradients`], the scalar kernel's bits, as DVR reads
-//! them); then each visible sample folded in order by the compositor's own
-//! [`Compositor::sample`], its gradient handed over
-//! ([`SampleGradient::Known`]), with the stopping
-//! rule of the scalar loop.
+//! gradient (importance-aware, context-preserving, tone and silhouette, DVR
+//! with a 2D transfer function, whose opacity depends on the gradient's
+//! magnitude, and two-level scenes of shaded DVR objects): eight samples of
+//! one ray at a time, their positions, cells, corner reads, trilinear values,
+//! table indices and, for the visible ones, gradients in SIMD lanes with
+//! hardware gathers ([`GatherRay::visible_gradients`], the scalar kernel's
+//! bits, as DVR reads them); then each visible sample folded in order by the
+//! compositor's own [`Compositor::sample`], its gradient handed over
+//! ([`SampleGradient::Known`]), with the stopping rule of the scalar loop.
 //!
 //! A sample whose 1D table entry is transparent is left out: these
 //! compositors composite nothing for it (with a 2D table too), leaving the
 //! ray's state as it was (so the ray, below its threshold before, is below it
-//! after). The frames are bit-identical to the scalar kernel's, which
-//! `tests/packet_kernel.rs` checks on every level.
+//! after). A two-level scene sees every sample
+//! ([`march_gradients_every_sample`]). The frames are bit-identical to the
+//! scalar kernel's, which `tests/packet_kernel.rs` checks on every level.
 
 use glam::Vec3;
 
