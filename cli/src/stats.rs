@@ -12,7 +12,7 @@ pub fn table(s: &FrameStats) -> String {
     format!(
         "image            {}×{} ({} pixels)\n\
          rays cast        {}\n\
-         samples taken    {} ({:.1} per ray)\n\
+         samples taken    {} ({:.1} per ray; {:.1} % in SIMD lanes)\n\
          skipped (empty)  {} samples ({:.1} %){}\n\
          terminated early {} rays ({:.1} %)\n\
          tasks            {} (tile × brick), {} skipped as occluded\n\
@@ -25,6 +25,7 @@ pub fn table(s: &FrameStats) -> String {
         c.rays,
         c.samples,
         c.samples as f64 / c.rays.max(1) as f64,
+        pct(c.samples_in_lanes, c.samples),
         c.samples_skipped_empty,
         pct(c.samples_skipped_empty, considered),
         // (The parallel renderer plans transparent bricks out: it never
@@ -77,6 +78,7 @@ pub fn json(
         "threads": s.threads,
         "rays": c.rays,
         "samples": c.samples,
+        "samples_in_lanes": c.samples_in_lanes,
         "samples_skipped_empty": c.samples_skipped_empty,
         "rays_terminated": c.rays_terminated,
         "brick_visits": c.brick_visits,

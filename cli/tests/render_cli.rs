@@ -195,6 +195,19 @@ fn renders_a_file_and_reports_stats_as_json() {
     assert_eq!(none["ert"], serde_json::json!(false));
     assert_eq!(none["ert_threshold"], serde_json::Value::Null);
     assert_eq!(none["ess"], serde_json::json!(false));
+    // How many samples a SIMD kernel marched: none on the scalar kernel and
+    // in the sequential renderer under `auto`; every one of this DVR frame
+    // where the automatic level has a kernel (AVX2).
+    let lanes = |v: &serde_json::Value| v["samples_in_lanes"].as_u64().unwrap();
+    assert_eq!(lanes(&run(&["--simd", "scalar"])), 0);
+    assert_eq!(lanes(&run(&["--sequential"])), 0);
+    let automatic = raycaster::render::SimdLevel::automatic();
+    let expected = if automatic == raycaster::render::SimdLevel::Scalar {
+        0
+    } else {
+        samples(&both)
+    };
+    assert_eq!(lanes(&both), expected, "{both}");
     // Human-readable counters on stderr.
     let out = raycaster(
         &[
@@ -215,6 +228,7 @@ fn renders_a_file_and_reports_stats_as_json() {
     for needle in [
         "rays cast",
         "samples taken",
+        "% in SIMD lanes",
         "terminated early",
         "skipped (empty)",
     ] {

@@ -22,6 +22,10 @@ pub struct Counters {
     pub tasks_skipped_occluded: u64,
     /// (tile, brick) tasks rendered (parallel renderer).
     pub tasks: u64,
+    /// Of `samples`, those a SIMD packet kernel marched (the others: the
+    /// scalar loop). The only count that depends on the kernel: every kernel
+    /// takes the same samples.
+    pub samples_in_lanes: u64,
 }
 
 impl std::ops::AddAssign for Counters {
@@ -34,6 +38,7 @@ impl std::ops::AddAssign for Counters {
         self.brick_visits_skipped += o.brick_visits_skipped;
         self.tasks_skipped_occluded += o.tasks_skipped_occluded;
         self.tasks += o.tasks;
+        self.samples_in_lanes += o.samples_in_lanes;
     }
 }
 

@@ -456,6 +456,7 @@ impl FrameJob<'_> {
                     }
                 }
                 let level = self.plan.simd;
+                let samples_before = counters.samples;
                 let in_packets = level != SimdLevel::Scalar
                     && c.march_packets(
                         &mut PacketWork {
@@ -469,7 +470,9 @@ impl FrameJob<'_> {
                         },
                         level,
                     );
-                if !in_packets {
+                if in_packets {
+                    counters.samples_in_lanes += counters.samples - samples_before;
+                } else {
                     let cell = CellCache::default();
                     for item in &items {
                         let (Some(ray), state) =

@@ -558,7 +558,7 @@ impl TileSink for BandSink {
 }
 
 impl RankStats {
-    const WORDS: usize = 17;
+    const WORDS: usize = 18;
 
     fn to_bytes(self) -> Vec<u8> {
         let c = self.counters;
@@ -581,6 +581,7 @@ impl RankStats {
             c.tasks_skipped_occluded,
             c.tasks,
             u64::from(self.bands),
+            c.samples_in_lanes,
         ];
         for w in words {
             out.extend_from_slice(&w.to_le_bytes());
@@ -612,10 +613,11 @@ impl RankStats {
                 brick_visits_skipped: w[13],
                 tasks_skipped_occluded: w[14],
                 tasks: w[15],
+                samples_in_lanes: w[17],
             },
             bands: w[16] as u32,
-            render: Duration::from_nanos(w[17]),
-            relay: Duration::from_nanos(w[18]),
+            render: Duration::from_nanos(w[18]),
+            relay: Duration::from_nanos(w[19]),
         })
     }
 

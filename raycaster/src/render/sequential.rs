@@ -200,6 +200,7 @@ impl<T: Sample> CompositorJob for SequentialPass<'_, '_, '_, T> {
                     // A packet kernel of one ray where one was asked for, or
                     // the scalar loop.
                     let rays = [Some(ray)];
+                    let samples_before = counters.samples;
                     let in_packets = packets
                         && c.march_packets(
                             &mut PacketWork {
@@ -217,7 +218,9 @@ impl<T: Sample> CompositorJob for SequentialPass<'_, '_, '_, T> {
                             },
                             plan.simd,
                         );
-                    if !in_packets {
+                    if in_packets {
+                        counters.samples_in_lanes += counters.samples - samples_before;
+                    } else {
                         march_brick(
                             c,
                             plan,
