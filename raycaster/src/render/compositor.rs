@@ -8,6 +8,7 @@
 use glam::Vec3;
 
 use super::cell_cache::CellCache;
+use super::gather_gradients::march_gradients;
 use super::gather_values::march_values;
 use super::local::{LocalCompositor, with_local};
 use super::march::BrickContext;
@@ -16,6 +17,7 @@ use super::pixel::PixelRay;
 use super::sampler::VolumeSampler;
 use super::simd::SimdLevel;
 use super::state_buffer::StateCodec;
+use super::transfer::TransferTable;
 use super::two_level::TwoLevel;
 use crate::volume::Sample;
 
@@ -107,10 +109,20 @@ pub(crate) trait Compositor: Sync {
         f32::INFINITY
     }
 
+    /// The 1D table of a compositor that reads a visible sample's gradient
+    /// and composites nothing for a sample whose entry in it is transparent:
+    /// it takes the gradient kernel ([`march_gradients`]). `None` (the
+    /// default) for the others.
+    fn gradient_kernel_table(&self) -> Option<&TransferTable> {
+        None
+    }
+
     /// Marches a task's rays in packets of SIMD lanes at `level` (never
     /// [`SimdLevel::Scalar`]) when this compositor has a packet kernel for the
     /// frame, with the results and counts of [`super::march::march_brick`] for
-    /// each ray; `false` (the default) leaves them to that loop.
+    /// each ray; `false` leaves them to that loop. By default the gradient
+    /// kernel for a [`Self::gradient_kernel_table`], else the value kernel for
+    /// a compositor that [`Self::READS_ONLY_VALUES`].
     fn march_packets<T: Sample>(
         &self,
         work: &mut PacketWork<'_, '_, T, Self::State>,
@@ -119,7 +131,10 @@ pub(crate) trait Compositor: Sync {
     where
         Self: Sized,
     {
-        Self::READS_ONLY_VALUES && march_values(self, work, level)
+        match self.gradient_kernel_table() {
+            Some(table) => march_gradients(self, table, work, level),
+            None => Self::READS_ONLY_VALUES && march_values(self, work, level),
+        }
     }
 }
 

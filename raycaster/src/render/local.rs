@@ -815,14 +815,9 @@ impl Compositor for Importance {
     fn resolve(&self, st: &Accumulation) -> [f32; 4] {
         st.rgba()
     }
-    /// The gradient kernel ([`march_gradients`]): a transparent sample
-    /// composites nothing.
-    fn march_packets<T: Sample>(
-        &self,
-        work: &mut PacketWork<'_, '_, T, Accumulation>,
-        level: SimdLevel,
-    ) -> bool {
-        march_gradients(self, &self.table, work, level)
+    /// A transparent sample composites nothing.
+    fn gradient_kernel_table(&self) -> Option<&TransferTable> {
+        Some(&self.table)
     }
 }
 
@@ -866,14 +861,9 @@ impl Compositor for ContextPreserving {
     fn resolve(&self, st: &Accumulation) -> [f32; 4] {
         st.rgba()
     }
-    /// The gradient kernel ([`march_gradients`]): a transparent sample
-    /// composites nothing.
-    fn march_packets<T: Sample>(
-        &self,
-        work: &mut PacketWork<'_, '_, T, Accumulation>,
-        level: SimdLevel,
-    ) -> bool {
-        march_gradients(self, &self.table, work, level)
+    /// A transparent sample composites nothing.
+    fn gradient_kernel_table(&self) -> Option<&TransferTable> {
+        Some(&self.table)
     }
 }
 
@@ -923,14 +913,9 @@ impl Compositor for Silhouette {
     fn resolve(&self, st: &Accumulation) -> [f32; 4] {
         st.rgba()
     }
-    /// The gradient kernel ([`march_gradients`]): a transparent sample
-    /// composites nothing.
-    fn march_packets<T: Sample>(
-        &self,
-        work: &mut PacketWork<'_, '_, T, Accumulation>,
-        level: SimdLevel,
-    ) -> bool {
-        march_gradients(self, &self.table, work, level)
+    /// A transparent sample composites nothing.
+    fn gradient_kernel_table(&self) -> Option<&TransferTable> {
+        Some(&self.table)
     }
 }
 

@@ -30,6 +30,7 @@
 use glam::{Mat4, Vec3, Vec3A, Vec4};
 
 use super::cell_cache::CellCache;
+use super::compositor::Compositor;
 use super::counters::Counters;
 use super::gather::{Chunked, GatherBrick, GatherRay, GatherShading};
 use super::local::{Accumulation, Dvr};
@@ -96,6 +97,23 @@ impl<'w, 'b, T: Sample, S> PacketWork<'w, 'b, T, S> {
             };
             march(visit, item, state, self.counters);
         }
+    }
+
+    /// Marches the task's rays with `c`'s packet kernel at `level` where it
+    /// has one (never at [`SimdLevel::Scalar`]), counting the samples it took
+    /// as in lanes; `false` leaves them to the scalar loop. What both
+    /// renderers ask of a task before the scalar loop.
+    pub(crate) fn march_in_lanes<C: Compositor<State = S>>(
+        mut self,
+        c: &C,
+        level: SimdLevel,
+    ) -> bool {
+        let before = self.counters.samples;
+        let marched = level != SimdLevel::Scalar && c.march_packets(&mut self, level);
+        if marched {
+            self.counters.samples_in_lanes += self.counters.samples - before;
+        }
+        marched
     }
 }
 

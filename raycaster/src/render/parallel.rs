@@ -33,7 +33,6 @@ use super::renderer::{FrameJobFn, Renderer, WorkerPool};
 use super::sampler::VolumeSampler;
 use super::schedule::FrameSchedule;
 use super::settings::RenderSettings;
-use super::simd::SimdLevel;
 use super::state_buffer::{StateBuffer, StateBytes};
 use super::tile::Tile;
 use crate::volume::{Sample, TypedVolume, VolumeData};
@@ -455,24 +454,17 @@ impl FrameJob<'_> {
                         );
                     }
                 }
-                let level = self.plan.simd;
-                let samples_before = counters.samples;
-                let in_packets = level != SimdLevel::Scalar
-                    && c.march_packets(
-                        &mut PacketWork {
-                            plan: self.plan,
-                            volume: &sampler,
-                            brick: &context,
-                            rays: &tile.rays,
-                            states: &mut tile.states,
-                            items: &items,
-                            counters: &mut counters,
-                        },
-                        level,
-                    );
-                if in_packets {
-                    counters.samples_in_lanes += counters.samples - samples_before;
-                } else {
+                let in_packets = PacketWork {
+                    plan: self.plan,
+                    volume: &sampler,
+                    brick: &context,
+                    rays: &tile.rays,
+                    states: &mut tile.states,
+                    items: &items,
+                    counters: &mut counters,
+                }
+                .march_in_lanes(c, self.plan.simd);
+                if !in_packets {
                     let cell = CellCache::default();
                     for item in &items {
                         let (Some(ray), state) =

@@ -200,27 +200,22 @@ impl<T: Sample> CompositorJob for SequentialPass<'_, '_, '_, T> {
                     // A packet kernel of one ray where one was asked for, or
                     // the scalar loop.
                     let rays = [Some(ray)];
-                    let samples_before = counters.samples;
                     let in_packets = packets
-                        && c.march_packets(
-                            &mut PacketWork {
-                                plan,
-                                volume: &sampler,
-                                brick: &brick,
-                                rays: &rays,
-                                states: std::slice::from_mut(state),
-                                items: &[PacketItem {
-                                    pixel: 0,
-                                    first: k,
-                                    last,
-                                }],
-                                counters: &mut counters,
-                            },
-                            plan.simd,
-                        );
-                    if in_packets {
-                        counters.samples_in_lanes += counters.samples - samples_before;
-                    } else {
+                        && PacketWork {
+                            plan,
+                            volume: &sampler,
+                            brick: &brick,
+                            rays: &rays,
+                            states: std::slice::from_mut(state),
+                            items: &[PacketItem {
+                                pixel: 0,
+                                first: k,
+                                last,
+                            }],
+                            counters: &mut counters,
+                        }
+                        .march_in_lanes(c, plan.simd);
+                    if !in_packets {
                         march_brick(
                             c,
                             plan,
