@@ -391,17 +391,26 @@ tf = "shapes"
 
 /// The sequential renderer (the scalar loop: the oracle) against the parallel
 /// one on each packet level, and against itself on each packet level (packets
-/// of one ray), for the kernels' modes: DVR, a value mode and a gradient mode.
+/// of one ray), for the kernels' modes: DVR, a value mode, a gradient mode and
+/// pre-integrated DVR.
 #[test]
 fn packets_equal_the_sequential_renderer() {
     let kind = SceneKind::Shapes;
     let volume = scene_volume(kind, N);
     let prepared = RenderVolume::new(&volume, Some(12)).unwrap();
     let camera = default_camera(&volume, 40);
-    for mode in [Mode::Dvr, Mode::Mip, Mode::Silhouette] {
+    let cases = [
+        (Mode::Dvr, false),
+        (Mode::Mip, false),
+        (Mode::Silhouette, false),
+        (Mode::Dvr, true),
+    ];
+    for (mode, preintegrated) in cases {
         let settings = RenderSettings {
             mode,
             transfer: scene_preset(kind),
+            preintegrated,
+            step: if preintegrated { 1.0 } else { 0.5 },
             ..RenderSettings::default()
         };
         let at = |simd| RenderSettings {
@@ -409,7 +418,7 @@ fn packets_equal_the_sequential_renderer() {
             ..settings.clone()
         };
         let reference = render_sequential(&prepared, &camera, &at(SimdLevel::Scalar)).unwrap();
-        let name = mode.name();
+        let name = format!("{}{}", mode.name(), if preintegrated { " pre" } else { "" });
         for level in packet_levels() {
             // The sequential renderer's packets of one ray: the scalar bits.
             let one_ray = render_sequential(&prepared, &camera, &at(level)).unwrap();
@@ -424,7 +433,8 @@ fn packets_equal_the_sequential_renderer() {
                 ..counts
             };
             assert_eq!(without_lanes, reference_counts, "{name} sequential {level}");
-            let kernel = mode == Mode::Dvr || has_gathers(level);
+            // (Pre-integrated DVR: the scalar loop on every level.)
+            let kernel = !preintegrated && (mode == Mode::Dvr || has_gathers(level));
             assert_eq!(
                 lanes > 0,
                 kernel,

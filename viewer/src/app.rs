@@ -2034,7 +2034,7 @@ pub fn status_line(
     let ms = s.time.as_secs_f64() * 1e3;
     let rays = c.rays.max(1) as f64;
     format!(
-        "{}{}×{} in {ms:.0} ms · {} · step {}{} · {:.1} MB read from disk · {:.1} M samples/s · {:.2} M samples ({:.1}/ray) · \
+        "{}{}×{} in {ms:.0} ms · {} · step {}{} · {:.1} MB read from disk · {:.1} M samples/s · {:.2} M samples ({:.1}/ray, {:.0} % in SIMD lanes) · \
          {:.0} % skipped empty · {:.0} % rays ended early · {} tasks ({} occluded) · {} bricks \
          ({} transparent) · {} threads",
         if interactive { "interactive " } else { "" },
@@ -2064,6 +2064,7 @@ pub fn status_line(
         s.samples_per_second() / 1e6,
         c.samples as f64 / 1e6,
         c.samples as f64 / rays,
+        100.0 * c.samples_in_lanes as f64 / c.samples.max(1) as f64,
         100.0 * c.samples_skipped_empty as f64
             / (c.samples + c.samples_skipped_empty).max(1) as f64,
         100.0 * c.rays_terminated as f64 / rays,
@@ -2096,6 +2097,31 @@ mod tests {
         assert!(line(0.71).contains(" step 0.71 "), "{}", line(0.71));
         assert!(line(1e-30).contains(" step 1e-30 "), "{}", line(1e-30));
         assert!(line(1e30).contains(" step 1e30 "), "{}", line(1e30));
+    }
+
+    #[test]
+    fn the_status_line_says_how_many_samples_a_simd_kernel_took() {
+        let mut stats = raycaster::render::FrameStats::default();
+        stats.counters.rays = 10;
+        stats.counters.samples = 400;
+        stats.counters.samples_in_lanes = 300;
+        let sampling = Sampling {
+            step: 0.5,
+            preintegrated: false,
+        };
+        let line = status_line(&stats, false, sampling, 0);
+        assert!(
+            line.contains("M samples (40.0/ray, 75 % in SIMD lanes)"),
+            "{line}"
+        );
+        // A frame of no samples divides by nothing.
+        let empty = status_line(
+            &raycaster::render::FrameStats::default(),
+            false,
+            sampling,
+            0,
+        );
+        assert!(empty.contains("(0.0/ray, 0 % in SIMD lanes)"), "{empty}");
     }
 
     #[test]
