@@ -16,11 +16,6 @@ use render_support::*;
 
 const N: u32 = 36;
 
-/// Whether `level` has hardware gathers (the value and gradient kernels).
-fn has_gathers(level: SimdLevel) -> bool {
-    matches!(level, SimdLevel::Avx2 | SimdLevel::Avx512)
-}
-
 fn packet_levels() -> Vec<SimdLevel> {
     simd_levels()
         .iter()
@@ -196,7 +191,7 @@ fn value_modes_in_packets_equal_the_scalar_kernel_bit_for_bit_on_every_level() {
                         &options,
                         &levels,
                         &name,
-                        has_gathers,
+                        SimdLevel::has_gathers,
                     );
                 }
             }
@@ -275,7 +270,7 @@ fn gradient_modes_in_packets_equal_the_scalar_kernel_bit_for_bit_on_every_level(
                         &options,
                         &levels,
                         &name,
-                        has_gathers,
+                        SimdLevel::has_gathers,
                     );
                 }
             }
@@ -380,7 +375,7 @@ tf = "shapes"
                     |level| {
                         // Shaded DVR objects with pre-integrated tables: the
                         // scalar loop.
-                        has_gathers(level) && !(round == 1 && i == 2)
+                        level.has_gathers() && !(round == 1 && i == 2)
                     },
                 );
             }
@@ -434,7 +429,7 @@ fn packets_equal_the_sequential_renderer() {
             };
             assert_eq!(without_lanes, reference_counts, "{name} sequential {level}");
             // (Pre-integrated DVR: the scalar loop on every level.)
-            let kernel = !preintegrated && (mode == Mode::Dvr || has_gathers(level));
+            let kernel = !preintegrated && (mode == Mode::Dvr || level.has_gathers());
             assert_eq!(
                 lanes > 0,
                 kernel,

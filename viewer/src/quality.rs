@@ -6,7 +6,8 @@ use std::time::Duration;
 /// Frame time a moving frame aims for (the pacing budget).
 pub const MOVING_BUDGET: Duration = Duration::from_millis(50);
 /// Range of the pacing factor P: moving frames are rendered at resolution 0.5/P
-/// and twice the still step × P, so P = 0.5 is the still quality.
+/// (and, with [`QualityPolicy::coarse_steps`], twice the still step × P), so
+/// P = 0.5 is the still quality.
 const PACING_RANGE: (f32, f32) = (0.5, 4.0);
 /// Pyramid levels moving frames start coarser than the automatic choice.
 const START_LEVEL_BIAS: u32 = 1;
@@ -60,15 +61,24 @@ pub struct FrameQuality {
 }
 
 /// Chooses the quality of still and moving frames, and paces moving frames:
-/// their resolution and step follow a factor learnt from the moving frames
-/// before, so that they take about [`MOVING_BUDGET`] — coarser on a slow machine
-/// or a large volume, up to the still quality on a fast one.
+/// their resolution (and step, [`Self::coarse_steps`]) follow a factor learnt
+/// from the moving frames before, so that they take about [`MOVING_BUDGET`] —
+/// coarser on a slow machine or a large volume, up to the still quality on a
+/// fast one.
 #[derive(Clone, Debug)]
 pub struct QualityPolicy {
     /// The step preset.
     pub preset: StepPreset,
     /// Render moving frames at full quality too (no pacing).
     pub full_quality_only: bool,
+    /// Moving frames coarsen their step with their resolution (pre-integrated
+    /// from a voxel on): where a sample costs much, on the scalar kernel.
+    /// Where the frames' SIMD level has hardware gathers a sample costs
+    /// little beside its ray, and a plain step of the still frame's costs
+    /// less than a coarser pre-integrated one (a third to a half at the moving
+    /// frames' size, docs/viewer.md "Pacing"): moving frames then keep the
+    /// still step and coarsen their resolution only.
+    pub coarse_steps: bool,
     /// The pacing factor P (see [`PACING_RANGE`]); 1 at the start: half
     /// resolution and twice the still step.
     pacing: f32,
@@ -82,6 +92,7 @@ impl Default for QualityPolicy {
         QualityPolicy {
             preset: StepPreset::Fine,
             full_quality_only: false,
+            coarse_steps: !raycaster::render::SimdLevel::automatic().has_gathers(),
             pacing: 1.0,
             level_bias: START_LEVEL_BIAS,
         }
@@ -109,6 +120,12 @@ impl QualityPolicy {
             return self.still();
         }
         let still = self.still().step;
+        if !self.coarse_steps {
+            return FrameQuality {
+                resolution: 0.5 / self.pacing,
+                ..self.still()
+            };
+        }
         // 2·P times the still step, rounded to a rung (P = 0.5: the still step).
         let rungs = ((2.0 * self.pacing).log2() * STEP_RUNGS_PER_DOUBLING).round();
         let step = still * (rungs / STEP_RUNGS_PER_DOUBLING).exp2();
@@ -126,8 +143,9 @@ impl QualityPolicy {
     }
 
     /// Learns from a finished moving frame: its cost scales with pixels × samples
-    /// per ray, i.e. with `factor⁻³`, so the factor moves by the cube root of the
-    /// time ratio to the budget. Beyond what resolution and step can do, the
+    /// per ray, i.e. with `factor⁻³` (`factor⁻²` without
+    /// [`Self::coarse_steps`]), so the factor moves by the cube (square) root
+    /// of the time ratio to the budget. Beyond what resolution and step can do, the
     /// pyramid level follows the budget: a frame well over it with the pacing at
     /// its coarsest makes the next moving frames one level coarser (unless it
     /// sampled the coarsest level, `at_coarsest`), one well under it with the
@@ -138,7 +156,12 @@ impl QualityPolicy {
         }
         let ratio = time.as_secs_f32() / MOVING_BUDGET.as_secs_f32();
         let (lo, hi) = PACING_RANGE;
-        self.pacing = (self.pacing * ratio.cbrt()).clamp(lo, hi);
+        let by = if self.coarse_steps {
+            ratio.cbrt()
+        } else {
+            ratio.sqrt()
+        };
+        self.pacing = (self.pacing * by).clamp(lo, hi);
         if ratio > LEVEL_STEP_RATIO && self.pacing >= hi && !at_coarsest {
             self.level_bias += 1;
         } else if ratio < 1.0 / LEVEL_STEP_RATIO && self.pacing <= lo {
@@ -157,9 +180,17 @@ impl QualityPolicy {
 mod tests {
     use super::*;
 
+    /// The policy of coarse moving steps (the scalar kernel's).
+    fn coarse_steps() -> QualityPolicy {
+        QualityPolicy {
+            coarse_steps: true,
+            ..QualityPolicy::default()
+        }
+    }
+
     #[test]
     fn moving_frames_are_coarser_unless_full_quality_only() {
-        let mut q = QualityPolicy::default();
+        let mut q = coarse_steps();
         for preset in [StepPreset::Fine, StepPreset::Coarse, StepPreset::Adaptive] {
             q.preset = preset;
             q.full_quality_only = false;
@@ -179,7 +210,7 @@ mod tests {
         for preset in [StepPreset::Fine, StepPreset::Coarse, StepPreset::Adaptive] {
             let mut q = QualityPolicy {
                 preset,
-                ..QualityPolicy::default()
+                ..coarse_steps()
             };
             let base = q.moving();
             q.moving_frame_took(Duration::from_millis(400), false);
@@ -209,7 +240,7 @@ mod tests {
 
     #[test]
     fn moving_frames_take_a_coarser_level_when_pacing_cannot_keep_the_budget() {
-        let mut q = QualityPolicy::default();
+        let mut q = coarse_steps();
         assert_eq!(q.moving_level_bias(), START_LEVEL_BIAS as f32);
         let slow = Duration::from_millis(400);
         // Resolution and step coarsen first; then each slow frame a level.
@@ -249,7 +280,7 @@ mod tests {
         for preset in [StepPreset::Fine, StepPreset::Coarse, StepPreset::Adaptive] {
             let mut q = QualityPolicy {
                 preset,
-                ..QualityPolicy::default()
+                ..coarse_steps()
             };
             let still = q.still().step;
             let mut steps = Vec::new();
@@ -287,8 +318,45 @@ mod tests {
         }
         // The fine preset's first moving frame (twice its half-voxel step) is at
         // one voxel: pre-integrated.
-        let q = QualityPolicy::default();
+        let q = coarse_steps();
         assert_eq!((q.moving().step, q.moving().preintegrated), (1.0, true));
+    }
+
+    #[test]
+    fn with_gathers_moving_frames_keep_the_still_step_and_pace_their_resolution() {
+        assert_eq!(
+            QualityPolicy::default().coarse_steps,
+            !raycaster::render::SimdLevel::automatic().has_gathers(),
+            "the policy follows the frames' SIMD level"
+        );
+        for preset in [StepPreset::Fine, StepPreset::Coarse, StepPreset::Adaptive] {
+            let mut q = QualityPolicy {
+                preset,
+                coarse_steps: false,
+                ..QualityPolicy::default()
+            };
+            let still = q.still();
+            let base = q.moving();
+            assert_eq!((base.step, base.preintegrated), (still.step, false));
+            assert_eq!(base.resolution, 0.5, "{preset:?}");
+            // 4× the budget: half the resolution (cost ÷ 4).
+            q.moving_frame_took(Duration::from_millis(200), false);
+            let paced = q.moving();
+            assert!((base.resolution / paced.resolution - 2.0).abs() < 1e-4);
+            assert_eq!((paced.step, paced.preintegrated), (still.step, false));
+            for _ in 0..20 {
+                q.moving_frame_took(Duration::from_millis(400), false);
+            }
+            assert_eq!(q.moving().resolution, 0.5 / PACING_RANGE.1);
+            assert_eq!(q.moving().step, still.step, "{preset:?}");
+            for _ in 0..20 {
+                q.moving_frame_took(Duration::from_millis(5), false);
+            }
+            assert_eq!(q.moving(), still, "never finer than a still frame");
+            q.full_quality_only = true;
+            q.moving_frame_took(Duration::from_millis(400), false);
+            assert_eq!(q.moving(), still);
+        }
     }
 
     #[test]

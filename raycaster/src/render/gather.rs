@@ -233,7 +233,7 @@ impl<'a> GatherBrick<'a> {
         sampler: &BrickSampler<'a, T>,
         volume: &VolumeSampler<'a, T>,
     ) -> Option<Self> {
-        if !matches!(level, SimdLevel::Avx2 | SimdLevel::Avx512) {
+        if !level.has_gathers() {
             return None;
         }
         GatherBrick::new(sampler, volume)

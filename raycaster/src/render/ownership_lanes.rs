@@ -96,9 +96,7 @@ impl<'g> BrickOwnership<'g> {
     /// Whether the questions are answered in lanes at `level` (which then
     /// needs the tile's [`RayLanes`]).
     pub(crate) fn in_lanes(level: SimdLevel) -> bool {
-        cfg!(target_arch = "x86_64")
-            && matches!(level, SimdLevel::Avx2 | SimdLevel::Avx512)
-            && level.is_available()
+        cfg!(target_arch = "x86_64") && level.has_gathers() && level.is_available()
     }
 
     /// Appends to `items` the samples the brick owns of each ray among the

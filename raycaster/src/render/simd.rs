@@ -56,6 +56,14 @@ impl SimdLevel {
         available().contains(&self)
     }
 
+    /// Whether this level has hardware gathers (AVX2, AVX-512): the levels
+    /// whose kernels gather a sample's voxels, so that a sample costs little
+    /// beside its ray (the DVR, value and gradient kernels; docs/benchmarks.md,
+    /// section 5).
+    pub fn has_gathers(self) -> bool {
+        matches!(self, SimdLevel::Avx2 | SimdLevel::Avx512)
+    }
+
     /// The widest level this machine runs (detected once per process).
     pub fn widest() -> SimdLevel {
         *available().last().expect("scalar is always available")
