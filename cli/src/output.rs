@@ -7,20 +7,8 @@ use anyhow::{Result, bail};
 /// Refuses, before any rendering, an image output that could not be written:
 /// not a `.png` name, or [`check_file`]'s reasons.
 pub fn check_output(output: &Path, force: bool) -> Result<()> {
-    let is_png = output
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("png"));
-    if output
-        .file_name()
-        .is_some_and(|n| n.eq_ignore_ascii_case(".png"))
-    {
-        bail!("{}: the image needs a name before .png", output.display());
-    }
-    if !is_png {
-        bail!(
-            "{}: only PNG images are written; name the output with .png",
-            output.display()
-        );
+    if let Some(problem) = raycaster::files::png_name_problem(output) {
+        bail!("{}: {problem}", output.display());
     }
     check_file(output, force)
 }

@@ -191,6 +191,23 @@ pub fn remove_partial_outputs() {
     }
 }
 
+/// Why `path` cannot name a PNG image we write, if it cannot: its name is
+/// only `.png`, or it does not end in `.png` (any case). The CLI's `-o` and
+/// the viewer's *Save PNG* share the rule: PNG data under another extension
+/// would mislead whatever opens the file by its name.
+pub fn png_name_problem(path: &Path) -> Option<&'static str> {
+    if path
+        .file_name()
+        .is_some_and(|n| n.eq_ignore_ascii_case(".png"))
+    {
+        return Some("the image needs a name before .png");
+    }
+    let is_png = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"));
+    (!is_png).then_some("only PNG images are written; name the file with .png")
+}
+
 /// The folder `path` is in (`.` for a bare name).
 pub fn parent_dir(path: &Path) -> &Path {
     path.parent()
@@ -307,6 +324,20 @@ pub fn human_bytes(n: u64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn png_names_end_in_png_and_have_a_stem() {
+        for ok in ["a.png", "dir/shot.PNG", "x.y.Png"] {
+            assert_eq!(png_name_problem(Path::new(ok)), None, "{ok}");
+        }
+        assert_eq!(
+            png_name_problem(Path::new("dir/.png")),
+            Some("the image needs a name before .png")
+        );
+        for bad in ["a.jpg", "shot", "png", "a.png.tmp", "dir/"] {
+            assert!(png_name_problem(Path::new(bad)).is_some(), "{bad}");
+        }
+    }
 
     #[test]
     fn stale_partials_of_dead_processes_are_removed_live_ones_kept() {

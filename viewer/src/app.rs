@@ -734,7 +734,8 @@ fn frame_complete(st: &State) -> bool {
         .is_some_and(|(id, moving)| !moving && st.ended == Some(id))
 }
 
-/// The first free `STEM-N.EXT` beside `path` (`screenshot.png` → `screenshot-1.png`).
+/// The first free `STEM-N.png` beside `path` (`screenshot.png` →
+/// `screenshot-1.png`; `shot.jpg` → `shot-1.png`: the data are PNG).
 fn numbered_path(path: &Path) -> PathBuf {
     // A folder (or a path ending in `/`): numbered screenshots inside it.
     let inside;
@@ -747,12 +748,10 @@ fn numbered_path(path: &Path) -> PathBuf {
     let stem = path
         .file_stem()
         .map_or("screenshot".into(), |s| s.to_string_lossy().into_owned());
-    let ext = path
-        .extension()
-        .map_or("png".into(), |s| s.to_string_lossy().into_owned());
+    // (PNG data: named .png whatever the field's extension.)
     let dir = path.parent().unwrap_or(Path::new(""));
     (1u32..)
-        .map(|n| dir.join(format!("{stem}-{n}.{ext}")))
+        .map(|n| dir.join(format!("{stem}-{n}.png")))
         .find(|p| !p.exists())
         .unwrap_or_else(|| path.to_path_buf())
 }
@@ -1779,6 +1778,9 @@ impl Controller {
         if path.as_os_str().is_empty() {
             return self.show_message("type a file name for the PNG next to Save PNG", true);
         }
+        if let Some(problem) = raycaster::files::png_name_problem(path) {
+            return self.show_message(&format!("{}: {problem}", path.display()), true);
+        }
         let confirmed = {
             let mut st = self.state.borrow_mut();
             let again = st.overwrite_armed.take().is_some_and(|p| p == path);
@@ -2078,7 +2080,7 @@ pub fn status_line(
 
 #[cfg(test)]
 mod tests {
-    use super::{Sampling, over_built_in_scene, size_note, status_line};
+    use super::{Sampling, numbered_path, over_built_in_scene, size_note, status_line};
 
     #[test]
     fn the_status_line_names_steps_far_from_the_rungs() {
@@ -2097,6 +2099,20 @@ mod tests {
         assert!(line(0.71).contains(" step 0.71 "), "{}", line(0.71));
         assert!(line(1e-30).contains(" step 1e-30 "), "{}", line(1e-30));
         assert!(line(1e30).contains(" step 1e30 "), "{}", line(1e30));
+    }
+
+    #[test]
+    fn numbered_screenshots_are_named_png() {
+        let dir = tempfile::tempdir().unwrap();
+        let base = dir.path().join("shot.jpg");
+        assert_eq!(numbered_path(&base), dir.path().join("shot-1.png"));
+        std::fs::write(dir.path().join("shot-1.png"), b"").unwrap();
+        assert_eq!(numbered_path(&base), dir.path().join("shot-2.png"));
+        // A folder: screenshots inside it.
+        assert_eq!(
+            numbered_path(dir.path()),
+            dir.path().join("screenshot-1.png")
+        );
     }
 
     #[test]

@@ -319,6 +319,16 @@ fn the_viewer_runs_headless() {
         v.ui().get_message(),
         "type a file name for the PNG next to Save PNG"
     );
+    // Another extension: refused as the CLI's -o refuses it, nothing written.
+    let jpg = png.with_extension("jpg");
+    v.ui()
+        .invoke_save_screenshot(jpg.display().to_string().into());
+    let message = v.ui().get_message().to_string();
+    assert!(
+        message.ends_with("shot.jpg: only PNG images are written; name the file with .png"),
+        "{message}"
+    );
+    assert!(!jpg.exists());
 
     // A scan in a foreign format (a NIfTI-1 fixture written by nibabel) opens directly.
     let nifti = Path::new(env!("CARGO_MANIFEST_DIR")).join("../volumes/fixtures/u8.nii");
