@@ -619,6 +619,9 @@ impl Setup {
                 volume.path().display()
             );
         }
+        if let (Some(path), Some(problem)) = (&session.labels, session.labels_problem()) {
+            bail!("{}: {problem}", path.display());
+        }
         let labels = match (&session.settings.segments, &session.labels) {
             (Some(_), Some(path)) => Some(open_labels(path)?),
             (Some(scene), None) => match (&scene.membership, &session.source) {

@@ -105,6 +105,34 @@ fn a_label_volume_given_as_data_points_at_labels_and_segments() {
     );
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("not labels"), "{}", stderr(&o));
+    // Labels for a scene of value layers: they would be ignored; said.
+    let layers = d.join("layers.toml");
+    std::fs::write(
+        &layers,
+        "layers = [[0.1, 1.0]]\n[[object]]\nid = 1\nmode = \"dvr\"\n",
+    )
+    .unwrap();
+    let o = raycaster(
+        &[
+            "render",
+            "x.vol",
+            "--segments",
+            "layers.toml",
+            "--labels",
+            "x.labels.vol",
+            "-o",
+            "c.png",
+        ],
+        d,
+    );
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(
+        e.contains("x.labels.vol: the scene takes its objects from value layers"),
+        "{e}"
+    );
+    assert_eq!(e.lines().count(), 1, "said once: {e}");
+    assert!(!d.join("c.png").exists());
 }
 
 #[test]

@@ -51,8 +51,8 @@ use serde::Deserialize;
 
 use crate::render::{
     Camera, CameraError, ClipPlane, ClipRegion, ControlPoint, CropBox, ImportanceSource,
-    LevelChoice, Light, Mode, ModeParameters, Orbit, Projection, RenderSettings, SabellaDepth,
-    SabellaMapping, SabellaOutput, SceneError, SegmentScene, Shading, TransferError,
+    LevelChoice, Light, Membership, Mode, ModeParameters, Orbit, Projection, RenderSettings,
+    SabellaDepth, SabellaMapping, SabellaOutput, SceneError, SegmentScene, Shading, TransferError,
     TransferFunction, check_domain, check_gradient_ramp,
 };
 use crate::source::VolumeSource;
@@ -451,6 +451,27 @@ fn path_field(field: &str, path: PathBuf, base: &Path) -> Result<PathBuf, Sessio
 }
 
 impl Session {
+    /// Why the session's label volume has no use, if it has none: a label
+    /// volume gives a label scene its objects, and the session has no
+    /// two-level scene, or one whose objects come from value layers.
+    pub fn labels_problem(&self) -> Option<&'static str> {
+        self.labels.as_ref()?;
+        match self
+            .settings
+            .segments
+            .as_ref()
+            .map(|scene| &scene.membership)
+        {
+            None => Some(
+                "a label volume gives a two-level label scene its objects, and there is no scene",
+            ),
+            Some(Membership::Layers(_)) => Some(
+                "the scene takes its objects from value layers (`layers =`), not from a label volume",
+            ),
+            Some(Membership::Labels(_)) => None,
+        }
+    }
+
     /// Reads a session file; relative paths in it are relative to its folder.
     /// The volume and label files must exist.
     pub fn load(path: &Path) -> Result<Session, SessionError> {
@@ -527,7 +548,7 @@ impl Session {
         let transfer = transfer(&file.transfer, base)?;
         let (settings, level) = settings(&file, transfer, base)?;
         let slices = file.slices.as_ref().map(slice_views).transpose()?;
-        Ok(Session {
+        let session = Session {
             source,
             labels,
             size,
@@ -535,7 +556,11 @@ impl Session {
             settings,
             level,
             slices,
-        })
+        };
+        if let Some(problem) = session.labels_problem() {
+            return Err(invalid("volume.labels", problem));
+        }
+        Ok(session)
     }
 
     /// The session as TOML that [`Session::parse`] reads back to an equal session
@@ -1358,7 +1383,9 @@ mod tests {
             access: Access::Mapped,
         };
         s.labels = Some(PathBuf::from("/data/lung1.labels.vol"));
+        s.settings.segments = Some(label_scene());
         assert_eq!(round_trip(&s), s);
+        s.settings.segments = None;
         if let SessionCamera::Orbit(mut o) = sample().camera {
             o.vfov_deg = None;
             let mut s = sample();
@@ -1392,6 +1419,39 @@ mod tests {
         }
         assert_eq!(num(0.5), "0.5");
         assert_eq!(num(0.1), "0.1");
+    }
+
+    /// A one-object label scene (its labels file `l.vol` beside `base`).
+    fn label_scene() -> SegmentScene {
+        SegmentScene::parse(
+            "labels = \"l.vol\"\n[[object]]\nid = 1\nmode = \"dvr\"\ntf = \"shapes\"\n",
+            Path::new("/data"),
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn a_label_volume_without_a_label_scene_is_refused() {
+        let mut s = sample();
+        s.labels = Some(PathBuf::from("/data/v.labels.vol"));
+        let refused = |s: &Session| {
+            Session::parse(&s.to_toml().unwrap(), Path::new("/"))
+                .unwrap_err()
+                .to_string()
+        };
+        assert!(refused(&s).contains("there is no scene"), "{}", refused(&s));
+        s.settings.segments = Some(SegmentScene {
+            membership: Membership::Layers(vec![[0.05, 0.35], [0.35, 1.0]]),
+            ..label_scene()
+        });
+        assert!(
+            refused(&s).contains("value layers (`layers =`), not from a label volume"),
+            "{}",
+            refused(&s)
+        );
+        s.settings.segments = Some(label_scene());
+        assert_eq!(s.labels_problem(), None);
+        assert_eq!(round_trip(&s), s);
     }
 
     #[test]
@@ -1440,6 +1500,7 @@ mod tests {
             access: Access::Mapped,
         };
         s.labels = Some(PathBuf::from("v.labels.vol"));
+        s.settings.segments = Some(label_scene());
         let back = Session::parse(&s.to_toml().unwrap(), Path::new("/sessions")).unwrap();
         assert_eq!(
             back.source,
