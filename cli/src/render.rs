@@ -583,6 +583,12 @@ impl Setup {
                 if let Some(size) = args.size {
                     session.size = size;
                 }
+                if let Some(problem) = session.image_size_problem() {
+                    bail!(
+                        "{}: {problem} (--size WxH renders the session at another size)",
+                        path.display()
+                    );
+                }
                 // The kernel does not change the picture: a session leaves it to the flag.
                 session.settings.simd = args.simd.0;
                 let volume = open_volume(&session.source, args)?;

@@ -267,6 +267,46 @@ fn bad_sessions_are_refused_by_field() {
 }
 
 #[test]
+fn a_session_image_too_large_is_refused_unless_size_replaces_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = session(Mode::Dvr).to_toml().unwrap();
+    assert!(good.contains("width = 72"));
+    std::fs::write(
+        dir.path().join("huge.toml"),
+        good.replace("width = 72", "width = 100000"),
+    )
+    .unwrap();
+    let run = raycaster(
+        &["render", "--session", "huge.toml", "-o", "x.png"],
+        dir.path(),
+    );
+    assert_eq!(run.status.code(), Some(1));
+    let e = stderr(&run);
+    assert!(
+        e.starts_with(
+            "error: huge.toml: image.width = 100000 pixels: must lie in 1..=16384 (--size WxH"
+        ),
+        "{e}"
+    );
+    assert!(!dir.path().join("x.png").exists());
+    let run = raycaster(
+        &[
+            "render",
+            "--session",
+            "huge.toml",
+            "--size",
+            "40x30",
+            "-o",
+            "x.png",
+        ],
+        dir.path(),
+    );
+    assert!(run.status.success(), "{}", stderr(&run));
+    let image = raycaster::render::RgbImage::load_png(&dir.path().join("x.png")).unwrap();
+    assert_eq!((image.width(), image.height()), (40, 30));
+}
+
+#[test]
 fn errors_in_transfer_function_and_scene_files_name_the_file() {
     let dir = tempfile::tempdir().unwrap();
     let write = |name: &str, text: &str| std::fs::write(dir.path().join(name), text).unwrap();

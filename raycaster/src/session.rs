@@ -451,6 +451,20 @@ fn path_field(field: &str, path: PathBuf, base: &Path) -> Result<PathBuf, Sessio
 }
 
 impl Session {
+    /// Why the session's image cannot be rendered at its size, if it cannot:
+    /// a side over [`MAX_IMAGE_SIDE`]. Reading accepts it, so that a size given
+    /// elsewhere (`raycaster render --size`, the viewer's canvas) can take its
+    /// place.
+    pub fn image_size_problem(&self) -> Option<String> {
+        [
+            ("image.width", self.size[0]),
+            ("image.height", self.size[1]),
+        ]
+        .into_iter()
+        .find(|&(_, side)| !(1..=MAX_IMAGE_SIDE).contains(&side))
+        .map(|(name, side)| format!("{name} = {side} pixels: must lie in 1..={MAX_IMAGE_SIDE}"))
+    }
+
     /// Why the session's label volume has no use, if it has none: a label
     /// volume gives a label scene its objects, and the session has no
     /// two-level scene, or one whose objects come from value layers.
@@ -533,11 +547,13 @@ impl Session {
             None => None,
         };
         let size = [file.image.width, file.image.height];
+        // (A side over the largest is refused where the size is rendered,
+        // `Self::image_size_problem`: a smaller size can replace it.)
         for (name, side) in [("image.width", size[0]), ("image.height", size[1])] {
-            if !(1..=MAX_IMAGE_SIDE).contains(&side) {
+            if side == 0 {
                 return Err(invalid(
                     name,
-                    format!("{side} pixels: must lie in 1..={MAX_IMAGE_SIDE}"),
+                    format!("0 pixels: must lie in 1..={MAX_IMAGE_SIDE}"),
                 ));
             }
         }
