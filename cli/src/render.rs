@@ -843,8 +843,14 @@ fn open_volume(source: &VolumeSource, args: &RenderArgs) -> Result<Volume> {
                 imported.sample_bytes(),
                 progress_after(args),
                 &done,
-                || imported.to_volume_with(limit, &job),
+                || imported.to_volume_counting(limit, &job),
             )?;
+            let (volume, non_finite) = volume;
+            if non_finite > 0 && !args.quiet {
+                let warning =
+                    raycaster::convert::non_finite_warning(path, non_finite, imported.voxels());
+                eprintln!("warning: {warning}");
+            }
             Ok(volume)
         }
         VolumeSource::File { path, .. } => {

@@ -573,6 +573,41 @@ fn a_domain_outside_the_data_warns() {
     assert!(!stderr(&o).contains("warning"), "{}", stderr(&o));
 }
 
+/// A float scan with NaN or infinite values among finite ones renders (the
+/// non-finite values stored as the window's ends), and `render` and `slice`
+/// say how many there were, once, as `volgen convert` does; `-q` silences it.
+#[test]
+fn non_finite_values_of_a_scan_are_counted_and_said_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut nrrd =
+        b"NRRD0004\ntype: float\ndimension: 3\nsizes: 4 4 4\nendian: little\nencoding: raw\n\n"
+            .to_vec();
+    nrrd.extend((0..64).flat_map(|i| {
+        let v = if i % 16 == 3 { f32::NAN } else { i as f32 };
+        v.to_le_bytes()
+    }));
+    std::fs::write(d.join("f.nrrd"), nrrd).unwrap();
+    let said = "warning: f.nrrd: 4 of its 64 values are NaN or infinite: NaN is stored as the window's low end, ±infinity as its ends";
+    let o = raycaster(&["render", "f.nrrd", "--size", "24", "-o", "a.png"], d);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(stderr(&o).matches(said).count(), 1, "{}", stderr(&o));
+    let o = raycaster(
+        &[
+            "slice", "f.nrrd", "--axis", "z", "--index", "1", "-o", "s.png",
+        ],
+        d,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(stderr(&o).matches(said).count(), 1, "{}", stderr(&o));
+    let o = raycaster(
+        &["render", "f.nrrd", "--size", "24", "-q", "-o", "b.png"],
+        d,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("NaN"), "{}", stderr(&o));
+}
+
 #[test]
 fn reading_a_compressed_scan_shows_progress() {
     use std::io::Write;

@@ -128,6 +128,16 @@ pub fn plan_values(
     Ok((sample_type, map, non_finite))
 }
 
+/// The warning for a conversion or import that stored `non_finite` of its
+/// `voxels` values (NaN or infinite) as the window's ends: said once, by
+/// `volgen convert`, `raycaster render` and the viewer alike.
+pub fn non_finite_warning(path: &Path, non_finite: u64, voxels: u64) -> String {
+    format!(
+        "{}: {non_finite} of its {voxels} values are NaN or infinite: NaN is stored as the window's low end, ±infinity as its ends",
+        path.display()
+    )
+}
+
 /// What a conversion did.
 #[derive(Clone, Debug)]
 pub struct ConvertSummary {

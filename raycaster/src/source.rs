@@ -79,6 +79,9 @@ pub struct OpenedVolume {
     pub preset: &'static str,
     /// The stored-value domain that suits it; see [`Self::default_domain`].
     pub domain: Option<[f32; 2]>,
+    /// What opening it should tell its user beside its name: a scan's values
+    /// that were NaN or infinite ([`crate::convert::non_finite_warning`]).
+    pub warning: Option<String>,
 }
 
 /// The preset that suits a built-in scene.
@@ -108,10 +111,11 @@ pub fn open(source: &VolumeSource) -> Result<OpenedVolume, SourceError> {
                 name,
                 preset: scene_preset(*kind),
                 domain: None,
+                warning: None,
             })
         }
         VolumeSource::File { path, access } => {
-            let volume = open_file(path, *access)?;
+            let (volume, warning) = open_file(path, *access)?;
             let fit = crate::windows::fit(&volume);
             Ok(OpenedVolume {
                 volume,
@@ -119,22 +123,35 @@ pub fn open(source: &VolumeSource) -> Result<OpenedVolume, SourceError> {
                 name: path.display().to_string(),
                 preset: fit.preset,
                 domain: fit.domain,
+                warning,
             })
         }
     }
 }
 
-fn open_file(path: &Path, access: Access) -> Result<Volume, SourceError> {
+/// The volume at `path`, and the warning its import gave, if any.
+fn open_file(path: &Path, access: Access) -> Result<(Volume, Option<String>), SourceError> {
     if path.as_os_str().is_empty() {
         return Err(SourceError::NoPath);
     }
+    let mut warning = None;
     let volume = if crate::import::detect(path).is_some() {
-        crate::import::open_volume_any(path, DEFAULT_IN_MEMORY_LIMIT).map_err(|source| {
-            SourceError::Import {
-                path: path.to_path_buf(),
-                source,
-            }
-        })?
+        let import_error = |source| SourceError::Import {
+            path: path.to_path_buf(),
+            source,
+        };
+        let imported = crate::import::open(path).map_err(import_error)?;
+        let (volume, non_finite) = imported
+            .to_volume_counting(DEFAULT_IN_MEMORY_LIMIT, &crate::job::Job::silent())
+            .map_err(import_error)?;
+        if non_finite > 0 {
+            warning = Some(crate::convert::non_finite_warning(
+                path,
+                non_finite,
+                imported.voxels(),
+            ));
+        }
+        volume
     } else {
         let options = OpenOptions {
             access,
@@ -148,7 +165,7 @@ fn open_file(path: &Path, access: Access) -> Result<Volume, SourceError> {
     if volume.content() == Content::Labels {
         return Err(SourceError::LabelsNotData(path.to_path_buf()));
     }
-    Ok(volume)
+    Ok((volume, warning))
 }
 
 impl OpenedVolume {

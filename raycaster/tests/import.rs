@@ -318,6 +318,35 @@ fn malformed_files_give_clear_errors() {
         err.contains("nan.nrrd") && err.contains("holds no finite value"),
         "{err}"
     );
+    // Some finite values among NaNs: imported, the NaNs counted and said
+    // (as `volgen convert` says it), in the library and when opened.
+    let mut some_nan =
+        b"NRRD0004\ntype: float\ndimension: 3\nsizes: 2 2 2\nendian: little\nencoding: raw\n\n"
+            .to_vec();
+    some_nan.extend(
+        [1.0, f32::NAN, 3.0, f32::INFINITY, 2.0, 5.0, f32::NAN, 4.0]
+            .iter()
+            .flat_map(|v: &f32| v.to_le_bytes()),
+    );
+    let some_nan_path = d.join("some-nan.nrrd");
+    std::fs::write(&some_nan_path, some_nan).unwrap();
+    let imported = import::open(&some_nan_path).unwrap();
+    let (volume, non_finite) = imported
+        .to_volume_counting(1 << 20, &raycaster::job::Job::silent())
+        .unwrap();
+    assert_eq!((non_finite, volume.dims()), (3, [2, 2, 2]));
+    let opened = raycaster::source::open(&raycaster::source::VolumeSource::File {
+        path: some_nan_path.clone(),
+        access: raycaster::volume::Access::Mapped,
+    })
+    .unwrap();
+    let warning = opened.warning.expect("a warning");
+    assert!(
+        warning.ends_with(
+            "some-nan.nrrd: 3 of its 8 values are NaN or infinite: NaN is stored as the window's low end, ±infinity as its ends"
+        ),
+        "{warning}"
+    );
     let p = copy_fixture(d, "i16.mhd", Some("i16.raw"));
     std::fs::remove_file(d.join("i16.raw")).unwrap();
     assert!(import_error(&p).contains("i16.raw"));

@@ -296,7 +296,7 @@ impl Viewer {
             settle: slint::Timer::default(),
         });
         ACTIVE.with(|a| *a.borrow_mut() = Rc::downgrade(&controller));
-        let message = format!("opened {}", first.description);
+        let message = first.opened_message(&first.description);
         let recent = match &source {
             Source::File(p) | Source::Session(p) if error.is_none() => Some(p.clone()),
             _ => None,
@@ -901,8 +901,10 @@ impl Controller {
             )
             .context("cannot prepare the volume for rendering")?;
             let message = match &source {
-                Source::Session(path) => format!("opened session {}", path.display()),
-                _ => format!("opened {}", volume.description),
+                Source::Session(path) => {
+                    volume.opened_message(&format!("session {}", path.display()))
+                }
+                _ => volume.opened_message(&volume.description),
             };
             Ok(Install {
                 message,

@@ -35,6 +35,19 @@ pub struct LoadedVolume {
     pub histogram: Vec<u64>,
     /// The preset that suits it.
     pub preset: &'static str,
+    /// What opening it should tell its user (a scan's NaN or infinite values).
+    pub warning: Option<String>,
+}
+
+impl LoadedVolume {
+    /// The message line's words once it opened: `opened` and `what` (its
+    /// description, or the session it came from), with its warning if any.
+    pub fn opened_message(&self, what: &str) -> String {
+        match &self.warning {
+            Some(warning) => format!("opened {what}; warning: {warning}"),
+            None => format!("opened {what}"),
+        }
+    }
 }
 
 /// The built-in scene `kind` of `size³` voxels (seed 1), as the viewer starts with.
@@ -76,6 +89,7 @@ fn finish(opened: OpenedVolume) -> LoadedVolume {
         labels,
         name,
         preset,
+        warning,
         ..
     } = opened;
     let labels = labels.map(Arc::new);
@@ -96,6 +110,7 @@ fn finish(opened: OpenedVolume) -> LoadedVolume {
         domain,
         histogram,
         preset,
+        warning,
     }
 }
 
@@ -165,6 +180,31 @@ mod tests {
         assert_eq!(loaded.histogram.len(), HISTOGRAM_BINS);
         assert_eq!(loaded.histogram.iter().sum::<u64>(), 32 * 32 * 32);
         assert!(loaded.description.contains("32×32×32"));
+        assert_eq!(loaded.warning, None);
+        assert_eq!(loaded.opened_message("x"), "opened x");
+    }
+
+    #[test]
+    fn a_scan_with_nan_values_opens_and_says_how_many() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("f.nrrd");
+        let mut nrrd =
+            b"NRRD0004\ntype: float\ndimension: 3\nsizes: 2 2 2\nendian: little\nencoding: raw\n\n"
+                .to_vec();
+        nrrd.extend(
+            [1.0f32, f32::NAN, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0]
+                .iter()
+                .flat_map(|v| v.to_le_bytes()),
+        );
+        std::fs::write(&path, nrrd).unwrap();
+        let loaded = open_file(&path).unwrap();
+        let message = loaded.opened_message(&loaded.description);
+        assert!(
+            message.starts_with("opened ")
+                && message.contains("; warning: ")
+                && message.contains("f.nrrd: 1 of its 8 values are NaN or infinite"),
+            "{message}"
+        );
     }
 
     #[test]

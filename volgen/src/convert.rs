@@ -219,11 +219,8 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
     bar.finish_and_clear();
     if done.non_finite > 0 && !a.quiet {
         let voxels: u64 = done.header.dims.iter().map(|&d| u64::from(d)).product();
-        eprintln!(
-            "warning: {}: {} of its {voxels} values are NaN or infinite: NaN is stored as the window's low end, ±infinity as its ends",
-            a.input.display(),
-            done.non_finite
-        );
+        let warning = raycaster::convert::non_finite_warning(&a.input, done.non_finite, voxels);
+        eprintln!("warning: {warning}");
     }
     if !a.quiet {
         let window = match done.values {

@@ -721,6 +721,13 @@ impl Imported {
     /// slices) to `job`: up to [`Self::sample_bytes`] in all; raw files report
     /// nothing (they are read in one pass at disk speed).
     pub fn to_volume_with(&self, limit: u64, job: &Job) -> Result<Volume, ImportError> {
+        Ok(self.to_volume_counting(limit, job)?.0)
+    }
+
+    /// [`Self::to_volume_with`], and how many of the scan's values were NaN or
+    /// infinite (stored as the window's ends, as `volgen convert` stores
+    /// them; [`crate::convert::non_finite_warning`] says so).
+    pub fn to_volume_counting(&self, limit: u64, job: &Job) -> Result<(Volume, u64), ImportError> {
         let sample_type = self.default_sample_type();
         let samples = self.voxels() * sample_type.size();
         if samples > limit {
@@ -743,8 +750,9 @@ impl Imported {
         }
         let input = self.input_with(None, u64::MAX, job)?;
         let units = input.units().clone();
-        let (sample_type, values, _) = plan_values(&input, Some(sample_type), None, &Job::silent())
-            .map_err(|e| ImportError::new(&self.path, e))?;
+        let (sample_type, values, non_finite) =
+            plan_values(&input, Some(sample_type), None, &Job::silent())
+                .map_err(|e| ImportError::new(&self.path, e))?;
         let header = Header::new(
             self.dims,
             self.spacing,
@@ -759,7 +767,8 @@ impl Imported {
             SampleType::U8 => build::<u8>(&input, &header, values),
             SampleType::U16 => build::<u16>(&input, &header, values),
         };
-        volume.map_err(|e| ImportError::new(&self.path, e))
+        let volume = volume.map_err(|e| ImportError::new(&self.path, e))?;
+        Ok((volume, non_finite.unwrap_or(0)))
     }
 }
 
