@@ -132,8 +132,9 @@ pub fn plan_values(
 /// `voxels` values (NaN or infinite) as the window's ends: said once, by
 /// `volgen convert`, `raycaster render` and the viewer alike.
 pub fn non_finite_warning(path: &Path, non_finite: u64, voxels: u64) -> String {
+    let verb = if non_finite == 1 { "is" } else { "are" };
     format!(
-        "{}: {non_finite} of its {voxels} values are NaN or infinite: NaN is stored as the window's low end, ±infinity as its ends",
+        "{}: {non_finite} of its {voxels} values {verb} NaN or infinite: NaN is stored as the window's low end, ±infinity as its ends",
         path.display()
     )
 }

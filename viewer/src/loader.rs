@@ -202,7 +202,7 @@ mod tests {
         assert!(
             message.starts_with("opened ")
                 && message.contains("; warning: ")
-                && message.contains("f.nrrd: 1 of its 8 values are NaN or infinite"),
+                && message.contains("f.nrrd: 1 of its 8 values is NaN or infinite"),
             "{message}"
         );
     }
