@@ -1426,7 +1426,7 @@ impl Controller {
         st.quality.preset = StepPreset::from_index(ui.get_step_index());
         let (w, h) = canvas_size(&ui);
         let step = Self::still_step(&ui, &st);
-        Some(Session {
+        let mut session = Session {
             source: st.source.clone(),
             labels: st.labels_path.clone(),
             size: [w, h],
@@ -1434,7 +1434,13 @@ impl Controller {
             settings: Self::view_settings(&ui, &st, step),
             level: st.level,
             slices: Some(Self::slice_views(&ui, &st)),
-        })
+        };
+        // The label volume a session brought stays with a label scene only
+        // (the scene cleared or replaced by layers: a session that reads).
+        if session.labels_problem().is_some() {
+            session.labels = None;
+        }
+        Some(session)
     }
 
     /// The slice views as a session holds them.

@@ -284,4 +284,51 @@ fn sessions_save_render_and_restore_the_picture() {
     assert!(!v.ui().get_objects().row_data(0).unwrap().visible);
     assert!(v.ui().get_preintegrate() && v.ui().get_jitter());
     assert!(frame(&v).2 == with_scene, "the scene's picture is restored");
+    drop(v);
+
+    // 6. A session's label volume stays with a label scene: with the scene
+    // cleared, Save session writes no `labels =` (which reading refuses
+    // without a label scene), and the saved session opens.
+    let data = dir.path().join("shells.vol");
+    support::generate_file(&data, SceneKind::Shells, 24);
+    let labels = dir.path().join("shells.labels.vol");
+    let header = raycaster::volume::Header::new(
+        [24; 3],
+        [1.0; 3],
+        raycaster::volume::Layout::Bricked { side: 16 },
+        raycaster::volume::SampleType::U8,
+        raycaster::volume::Content::Labels,
+        raycaster::volume::Format::Extended,
+    );
+    raycaster::generate::generate(
+        SceneKind::Shells.build([24; 3], 1).as_ref(),
+        &header,
+        &labels,
+        &Default::default(),
+        &raycaster::job::Job::silent(),
+    )
+    .unwrap();
+    let mut labelled = session.clone();
+    labelled.source = raycaster::source::VolumeSource::File {
+        path: data,
+        access: raycaster::volume::Access::Mapped,
+    };
+    labelled.labels = Some(labels);
+    labelled.settings.segments = Some(
+        raycaster::render::SegmentScene::parse(
+            "labels = \"shells.labels.vol\"\n[[object]]\nid = 1\ntf = \"shells\"\nmode = \"dvr\"\n",
+            dir.path(),
+        )
+        .unwrap(),
+    );
+    let labelled_path = dir.path().join("labelled.toml");
+    std::fs::write(&labelled_path, labelled.to_toml().unwrap()).unwrap();
+    let v = viewer(Source::Session(labelled_path));
+    assert_eq!(v.ui().get_objects().row_count(), 1, "the label scene");
+    v.ui().invoke_clear_scene();
+    settle(&v);
+    let cleared = dir.path().join("cleared.toml");
+    save_session(&v, &cleared);
+    let reread = Session::load(&cleared).unwrap();
+    assert_eq!((reread.labels, reread.settings.segments), (None, None));
 }
