@@ -520,6 +520,20 @@ fn the_viewer_runs_headless() {
         1,
     );
     assert!(text.contains("small.labels.vol"), "{text}");
+    // Without a label scene the label volume has no use: said.
+    assert!(!text.contains("[scene]"), "{text}");
+    let sceneless = dir.path().join("sceneless.toml");
+    std::fs::write(&sceneless, &text).unwrap();
+    let w = Viewer::new(Source::Session(sceneless), None).unwrap();
+    let message = w.ui().get_message().to_string();
+    assert!(w.ui().get_message_is_error(), "{message}");
+    assert!(
+        message.contains("`volume.labels`: a label volume gives a two-level label scene its objects, and there is no scene (showing the built-in scene)"),
+        "{message}"
+    );
+    drop(w);
+    let text = text
+        + "\n[scene]\nlabels = \"small.labels.vol\"\n[[scene.object]]\nid = 1\ntf = \"shapes\"\nmode = \"dvr\"\n";
     let mislabelled = dir.path().join("mislabelled.toml");
     std::fs::write(&mislabelled, text).unwrap();
     let w = Viewer::new(Source::Session(mislabelled), None).unwrap();
