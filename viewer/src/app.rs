@@ -1904,10 +1904,10 @@ impl Controller {
         self.in_background(
             format!("opening labels {} …", labels.display()),
             move |wake| {
-                let label_volume = Arc::new(
-                    Volume::open(&labels)
-                        .with_context(|| format!("cannot open labels {}", labels.display()))?,
-                );
+                // (The volume's error names the file.)
+                let label_volume = Arc::new(Volume::open(&labels).context(
+                    "the scene's label volume (its `labels =`, read beside the scene file)",
+                )?);
                 let front = RenderFront::with_labels(
                     volume.volume.clone(),
                     Some(label_volume.clone()),

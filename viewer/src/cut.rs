@@ -69,9 +69,18 @@ impl CutValues {
                 crop_voxel(self.lo[a], last[a]),
                 crop_voxel(self.hi[a], last[a]),
             );
-            // Crossed sliders keep one plane of voxels, never an inverted box.
+            // Crossed sliders keep the voxels between them, never an inverted
+            // box; sliders that meet keep one voxel's slab (a flat box holds
+            // no sample, and sessions and `--crop` refuse it).
             lo[a] = l.min(h);
             hi[a] = l.max(h);
+            if hi[a] == lo[a] {
+                if hi[a] < last[a] {
+                    hi[a] += 1.0;
+                } else {
+                    lo[a] -= 1.0;
+                }
+            }
         }
         let crop = (lo != Vec3::ZERO || hi != last).then_some(CropBox { lo, hi });
         let planes = if self.plane {
@@ -147,6 +156,21 @@ mod tests {
         let crop = v.region([101; 3]).crop.unwrap();
         assert_eq!((crop.lo.x, crop.hi.x), (25.0, 75.0));
         assert!(v.region([101; 3]).validate().is_ok());
+    }
+
+    #[test]
+    fn sliders_that_meet_keep_a_slab_of_one_voxel() {
+        for (at, slab) in [(0.0, (0.0, 1.0)), (0.5, (50.0, 51.0)), (1.0, (99.0, 100.0))] {
+            let v = CutValues {
+                lo: [at, 0.0, 0.0],
+                hi: [at, 1.0, 1.0],
+                ..CutValues::default()
+            };
+            let region = v.region([101; 3]);
+            let crop = region.crop.unwrap();
+            assert_eq!((crop.lo.x, crop.hi.x), slab, "sliders at {at}");
+            assert!(region.validate().is_ok());
+        }
     }
 
     #[test]

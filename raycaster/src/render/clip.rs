@@ -67,8 +67,12 @@ impl ClipRegion {
             if !(lo.is_finite() && hi.is_finite()) {
                 return bad(format!("crop box {lo} – {hi} is not finite"));
             }
-            if lo.cmpgt(hi).any() {
-                return bad(format!("crop box {lo} – {hi} is inverted (lo > hi)"));
+            // (A box flat along an axis holds no sample: an empty picture.
+            // `raycaster render --crop` refuses it the same way.)
+            if lo.cmpge(hi).any() {
+                return bad(format!(
+                    "crop box {lo} – {hi} is empty or inverted (lo ≥ hi along an axis)"
+                ));
             }
         }
         if self.planes.len() > MAX_CLIP_PLANES {
@@ -268,6 +272,15 @@ mod tests {
                 .to_string()
                 .contains("inverted")
         );
+        let flat = ClipRegion {
+            crop: Some(CropBox {
+                lo: Vec3::new(0.0, 0.0, 4.0),
+                hi: Vec3::new(9.0, 9.0, 4.0),
+            }),
+            planes: Vec::new(),
+        };
+        let e = flat.validate().unwrap_err().to_string();
+        assert!(e.contains("is empty or inverted"), "{e}");
         let zero = ClipRegion {
             crop: None,
             planes: vec![ClipPlane {
