@@ -209,11 +209,14 @@ fn run_foreign(a: &InfoArgs) -> anyhow::Result<()> {
     let units = imported.units();
     let to_value = |v: f32| units.value(f64::from(v)) as f32;
     let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+    let mut non_finite = 0u64;
     input.for_each_slab(8 << 20, &to_value, &job, |slab| {
         for &v in slab {
             if v.is_finite() {
                 lo = lo.min(v);
                 hi = hi.max(v);
+            } else {
+                non_finite += 1;
             }
         }
     })?;
@@ -249,6 +252,13 @@ fn run_foreign(a: &InfoArgs) -> anyhow::Result<()> {
         units.format(f64::from(lo)),
         units.format(f64::from(hi))
     );
+    if non_finite > 0 {
+        // (What convert, render and the viewer store them as.)
+        let verb = if non_finite == 1 { "is" } else { "are" };
+        println!(
+            "            {non_finite} of the {voxels} values {verb} NaN or infinite (left out of the histogram; stored as the window's ends)"
+        );
+    }
     let used = if whole {
         // (Bins past the largest value stay out.)
         ((f64::from(hi - lo) / width) as usize + 1).min(BINS)

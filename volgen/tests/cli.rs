@@ -435,6 +435,20 @@ fn float_input_with_infinities_and_nan_is_windowed_by_its_finite_values() {
     );
     let info = stdout(&volgen(d, &["info", "f.vol"]));
     assert!(info.contains("min 10, max 25"), "{info}");
+    // `info` on a float scan counts them too (the same values as an NRRD).
+    let mut nrrd =
+        b"NRRD0004\ntype: float\ndimension: 3\nsizes: 4 2 2\nendian: little\nencoding: raw\n\n"
+            .to_vec();
+    nrrd.extend(values.iter().flat_map(|v| v.to_le_bytes()));
+    std::fs::write(d.join("f.nrrd"), nrrd).unwrap();
+    let o = volgen(d, &["info", "f.nrrd"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let info = stdout(&o);
+    assert!(
+        info.contains("min 10, max 25")
+            && info.contains("3 of the 16 values are NaN or infinite (left out of the histogram"),
+        "{info}"
+    );
     // The samples: a linear u8 file in the thesis format ends with them.
     let o = volgen(
         d,
