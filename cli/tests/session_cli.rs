@@ -363,10 +363,12 @@ fn errors_in_transfer_function_and_scene_files_name_the_file() {
         "missing.toml",
         "layers = [[0, 1]]\n[[object]]\ntf = \"nope.tf\"\n",
     );
-    write(
-        "level.toml",
-        "version = 1\n[volume]\nscene = \"shapes\"\nsize = 16\n[render]\nlevel = -1\n",
-    );
+    let whole = session(Mode::Dvr).to_toml().unwrap();
+    let level = whole
+        .lines()
+        .find(|l| l.starts_with("level = "))
+        .expect("a level line");
+    write("level.toml", &whole.replace(level, "level = -1"));
     for (extra, needle) in [
         (
             ["--segments", "tf5.toml"],

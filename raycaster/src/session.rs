@@ -450,6 +450,42 @@ fn path_field(field: &str, path: PathBuf, base: &Path) -> Result<PathBuf, Sessio
     Ok(base.join(path))
 }
 
+/// The tables every session has.
+const REQUIRED_TABLES: [&str; 4] = ["volume", "image", "camera", "transfer"];
+
+/// The session's outline, when the field-by-field reading finds a field
+/// missing: a version this raycaster reads, and the tables every session has,
+/// each said by name (the reading reports a missing table as TOML's "missing
+/// field" at line 1, and an unknown version as whatever else is missing).
+fn check_outline(text: &str) -> Result<(), SessionError> {
+    // (Syntax errors are the field-by-field reading's to report.)
+    let Ok(table) = text.parse::<toml::Table>() else {
+        return Ok(());
+    };
+    match table.get("version") {
+        None => return Err(invalid("version", "missing: write `version = 1`")),
+        Some(toml::Value::Integer(v)) if *v != i64::from(SESSION_VERSION) => {
+            return Err(invalid(
+                "version",
+                format!(
+                    "version {v} is not known (this raycaster reads version {SESSION_VERSION})"
+                ),
+            ));
+        }
+        // (A version that is no integer: the field's reading says so.)
+        Some(_) => {}
+    }
+    if let Some(missing) = REQUIRED_TABLES.iter().find(|t| !table.contains_key(**t)) {
+        return Err(invalid(
+            missing,
+            format!(
+                "the [{missing}] table is missing (every session has [volume], [image], [camera] and [transfer]; docs/viewer.md, \"Sessions\")"
+            ),
+        ));
+    }
+    Ok(())
+}
+
 impl Session {
     /// Why the session's image cannot be rendered at its size, if it cannot:
     /// a side over [`MAX_IMAGE_SIDE`]. Reading accepts it, so that a size given
@@ -527,8 +563,17 @@ impl Session {
     /// Parses a session; relative paths are joined to `base`. Nothing is read
     /// from disk except transfer-function files an embedded scene names.
     pub fn parse(text: &str, base: &Path) -> Result<Session, SessionError> {
-        let file: SessionFile =
-            toml::from_str(text).map_err(|e| SessionError::Syntax(e.to_string()))?;
+        let file: SessionFile = match toml::from_str(text) {
+            Ok(file) => file,
+            Err(e) => {
+                // A missing table, or a version this raycaster does not read,
+                // said by name rather than as "missing field" at line 1.
+                if e.message().starts_with("missing field") {
+                    check_outline(text)?;
+                }
+                return Err(SessionError::Syntax(e.to_string()));
+            }
+        };
         match file.version {
             Some(SESSION_VERSION) => {}
             Some(v) => {
@@ -1661,8 +1706,30 @@ mod tests {
         )
         .unwrap_err();
         assert!(e.to_string().contains("version"), "{e}");
-        let e = Session::parse("", Path::new("")).unwrap_err();
-        assert!(matches!(e, SessionError::Syntax(_)), "{e}");
+        // The outline first: the version, then each missing table by name.
+        for (text, said) in [
+            ("", "`version`: missing: write `version = 1`"),
+            ("version = 2\n", "version 2 is not known"),
+            ("version = 1\n", "the [volume] table is missing"),
+        ] {
+            let e = Session::parse(text, Path::new("")).unwrap_err().to_string();
+            assert!(e.contains(said), "{text:?}: {e}");
+        }
+        let without_transfer = sample().to_toml().unwrap();
+        let start = without_transfer.find("[transfer]").unwrap();
+        let end = without_transfer[start + 1..]
+            .find("\n[")
+            .map_or(without_transfer.len(), |i| start + 1 + i);
+        let without_transfer =
+            format!("{}{}", &without_transfer[..start], &without_transfer[end..]);
+        let e = Session::parse(&without_transfer, Path::new(""))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("`transfer`: the [transfer] table is missing (every session has"),
+            "{e}"
+        );
+        assert_eq!(e.lines().count(), 1, "one line: {e}");
         let e = Session::parse(
             &format!(
                 "{}\n[scene]\nglobal = \"sideways\"\nlayers = [[0.0, 1.0]]\n",
