@@ -1111,8 +1111,67 @@ fn camera(
 ) -> Result<SessionCamera> {
     let [w, h] = args.size.unwrap_or(DEFAULT_SIZE);
     let spec = camera_spec(args, (lo, hi), axes);
-    spec.camera(w, h).context("invalid camera")?;
+    if let Err(e) = spec.camera(w, h) {
+        match camera_flags_problem(args, &spec) {
+            Some(problem) => bail!("{problem}"),
+            None => return Err(anyhow::Error::new(e).context("invalid camera")),
+        }
+    }
     Ok(spec)
+}
+
+/// Which camera flags make the view impossible, said with their names and a
+/// way out, when the camera the flags build has no view.
+fn camera_flags_problem(args: &RenderArgs, spec: &SessionCamera) -> Option<String> {
+    let (position, target, up) = match spec {
+        SessionCamera::LookAt {
+            position,
+            target,
+            up,
+            ..
+        } => (*position, *target, *up),
+        SessionCamera::Orbit(orbit) => (orbit.position(), orbit.target, orbit.axes.z_axis),
+    };
+    // As the flags write them: `x,y,z`.
+    let flag = |v: raycaster::render::Vec3| v.to_array().map(|c| c.to_string()).join(",");
+    let view = target - position;
+    if !view.length_squared().is_finite() {
+        return Some(match args.distance {
+            Some(d) => format!(
+                "--distance {}: the camera is too far away for its view to be computed; give a distance nearer the volume's size",
+                raycaster::volume::number_text(d)
+            ),
+            None => format!(
+                "the camera at {} is too far from its target {} for its view to be computed",
+                flag(position),
+                flag(target)
+            ),
+        });
+    }
+    if view.length_squared() == 0.0 {
+        return Some(format!(
+            "--position {} and --target {} are the same point: the camera looks nowhere",
+            flag(position),
+            flag(target)
+        ));
+    }
+    if up.length_squared() == 0.0 || !up.is_finite() {
+        return Some(format!("--up {}: not a direction", flag(up)));
+    }
+    if view.normalize().cross(up.normalize()).length() < 1e-6 {
+        let other = if up.normalize().dot(raycaster::render::Vec3::Y).abs() > 0.9 {
+            "0,0,1"
+        } else {
+            "0,1,0"
+        };
+        return Some(format!(
+            "the camera looks along its up direction --up {} (from {} to {}): give another --up, e.g. --up {other}",
+            flag(up),
+            flag(position),
+            flag(target)
+        ));
+    }
+    None
 }
 
 fn camera_spec(

@@ -199,6 +199,38 @@ fn negative_numbers_are_values() {
     assert!(o.status.success(), "{}", stderr(&o));
 }
 
+/// A camera the flags make impossible is refused naming the flags and a way
+/// out (before: one line about "view direction and up vector" for all).
+#[test]
+fn impossible_cameras_name_their_flags() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for (flags, said) in [
+        (
+            &["--position", "0,0,500", "--target", "0,0,0"][..],
+            "error: the camera looks along its up direction --up 0,0,1 (from 0,0,500 to 0,0,0): give another --up, e.g. --up 0,1,0",
+        ),
+        (
+            &["--position", "8,8,8", "--target", "8,8,8"][..],
+            "error: --position 8,8,8 and --target 8,8,8 are the same point: the camera looks nowhere",
+        ),
+        (
+            &["--distance", "1e30"][..],
+            "error: --distance 1e30: the camera is too far away for its view to be computed",
+        ),
+        (&["--up", "0,0,0"][..], "error: --up 0,0,0: not a direction"),
+    ] {
+        let mut args = flags.to_vec();
+        args.extend(["-o", "c.png"]);
+        let o = render(d, &args);
+        assert_eq!(o.status.code(), Some(1), "{flags:?}");
+        let e = stderr(&o);
+        assert!(e.starts_with(said), "{flags:?}: {e}");
+        assert_eq!(e.lines().count(), 1, "{e}");
+        assert!(!d.join("c.png").exists());
+    }
+}
+
 #[test]
 fn a_closed_stdout_is_a_quiet_exit_not_a_panic() {
     use std::os::unix::process::ExitStatusExt;
