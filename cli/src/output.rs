@@ -7,6 +7,10 @@ use anyhow::{Result, bail};
 /// Refuses, before any rendering, an image output that could not be written:
 /// not a `.png` name, or [`check_file`]'s reasons.
 pub fn check_output(output: &Path, force: bool) -> Result<()> {
+    // (A folder first: its name is rarely the problem.)
+    if output.is_dir() {
+        bail!("{}: is a directory; name a file", output.display());
+    }
     if let Some(problem) = raycaster::files::png_name_problem(output) {
         bail!("{}: {problem}", output.display());
     }

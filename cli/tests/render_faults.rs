@@ -825,4 +825,12 @@ fn render_and_slice_never_write_the_image_over_their_input() {
         "{}",
         stderr(&o)
     );
+    // A folder as the output is said as one, whatever its name.
+    std::fs::create_dir(d.join("out")).unwrap();
+    let o = raycaster(&["render", "v.png", "-o", "out", "--size", "16"], d);
+    assert!(
+        stderr(&o).starts_with("error: out: is a directory; name a file"),
+        "{}",
+        stderr(&o)
+    );
 }
