@@ -10,6 +10,11 @@ use raycaster::render::Orbit;
 const ROTATE_PER_PIXEL: f32 = 0.01;
 /// Zoom factor per wheel notch (120 units, one line on most mice).
 const ZOOM_PER_NOTCH: f32 = 1.15;
+/// The wheel zooms in at most this much from the framing of the volume (a
+/// voxel of a 128³ volume then spans hundreds of pixels)…
+const MAX_ZOOM_IN: f32 = 100.0;
+/// …and out at most this much (the volume then a twentieth of the view).
+const MAX_ZOOM_OUT: f32 = 20.0;
 /// Elevation of the top and bottom views: just short of the pole.
 const POLE: f32 = FRAC_PI_2 - 1e-3;
 
@@ -155,12 +160,29 @@ impl Navigator {
         self.drag = None;
     }
 
-    /// The wheel turned by `delta` units (positive: away from the user, zoom in).
+    /// The wheel turned by `delta` units (positive: away from the user, zoom
+    /// in); returns whether the camera changed. The distance stays within
+    /// [`MAX_ZOOM_IN`] and [`MAX_ZOOM_OUT`] of the volume's framing (before,
+    /// the wheel zoomed out to a dot and in to an empty view).
     pub fn wheel(&mut self, delta: f32) -> bool {
         if delta == 0.0 || !delta.is_finite() {
             return false;
         }
-        self.orbit.zoom(ZOOM_PER_NOTCH.powf(-delta / 120.0));
+        let home = self.home.distance;
+        let d = self.orbit.distance;
+        let wanted = d * ZOOM_PER_NOTCH.powf(-delta / 120.0);
+        let allowed = wanted.clamp(home / MAX_ZOOM_IN, home * MAX_ZOOM_OUT);
+        // (A restored session may lie beyond the limits: the wheel brings it
+        // back, never further out.)
+        let factor = if wanted < d {
+            allowed.min(d) / d
+        } else {
+            allowed.max(d) / d
+        };
+        if factor == 1.0 || !factor.is_finite() {
+            return false;
+        }
+        self.orbit.zoom(factor);
         true
     }
 }
@@ -209,6 +231,24 @@ mod tests {
         n.wheel(-120.0);
         assert!((n.orbit().distance - d).abs() < 1e-3);
         assert!(!n.wheel(f32::NAN));
+    }
+
+    #[test]
+    fn the_wheel_stops_at_its_limits_and_comes_back() {
+        let mut n = navigator();
+        let home = n.orbit().distance;
+        for _ in 0..200 {
+            n.wheel(120.0);
+        }
+        assert!((n.orbit().distance - home / MAX_ZOOM_IN).abs() < home * 1e-5);
+        assert!(!n.wheel(120.0), "no closer");
+        assert!(n.wheel(-120.0), "out again");
+        for _ in 0..200 {
+            n.wheel(-120.0);
+        }
+        assert!((n.orbit().distance - home * MAX_ZOOM_OUT).abs() < home * 1e-3);
+        assert!(!n.wheel(-120.0), "no farther");
+        assert!(n.wheel(120.0));
     }
 
     #[test]
