@@ -2044,7 +2044,7 @@ pub fn status_line(
     let ms = s.time.as_secs_f64() * 1e3;
     let rays = c.rays.max(1) as f64;
     format!(
-        "{}{}×{} in {ms:.0} ms · {} · step {}{} · {:.1} MB read from disk · {:.1} M samples/s · {:.2} M samples ({:.1}/ray, {:.0} % in SIMD lanes) · \
+        "{}{}×{} in {ms:.0} ms · {} · step {}{} · {:.1} MB read from disk by the viewer · {:.1} M samples/s · {:.2} M samples ({:.1}/ray, {:.0} % in SIMD lanes) · \
          {:.0} % skipped empty · {:.0} % rays ended early · {} tasks ({} occluded) · {} bricks \
          ({} transparent) · {} threads",
         if interactive { "interactive " } else { "" },
