@@ -371,6 +371,24 @@ fn the_viewer_runs_headless() {
         "{message}"
     );
 
+    // A label scene whose label file is missing (the volume is a file: no
+    // built-in labels): said once, as the scene's `labels =`.
+    let scene = dir.path().join("missing-labels.toml");
+    std::fs::write(
+        &scene,
+        "labels = \"nowhere.labels.vol\"\n[[object]]\nid = 1\ntf = \"shapes\"\nmode = \"dvr\"\n",
+    )
+    .unwrap();
+    v.ui().invoke_load_scene(scene.display().to_string().into());
+    wait_until(&v, |v| v.ui().get_message_is_error());
+    let message = v.ui().get_message().to_string();
+    assert!(
+        message
+            .starts_with("the scene's label volume (its `labels =`, read beside the scene file): ")
+            && message.matches("nowhere.labels.vol").count() == 1,
+        "{message}"
+    );
+
     // A session whose fixed level is past the volume's coarsest opens, and
     // the message says which level shows (as `raycaster render` warns).
     let deep = dir.path().join("deep.toml");
