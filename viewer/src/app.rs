@@ -2045,8 +2045,8 @@ pub fn status_line(
     let rays = c.rays.max(1) as f64;
     format!(
         "{}{}×{} in {ms:.0} ms · {} · step {}{} · {:.1} MB read from disk by the viewer · {:.1} M samples/s · {:.2} M samples ({:.1}/ray, {:.0} % in SIMD lanes) · \
-         {:.0} % skipped empty · {:.0} % rays ended early · {} tasks ({} occluded) · {} bricks \
-         ({} transparent) · {} threads",
+         {:.0} % skipped empty · {:.0} % rays ended early · {} ({} occluded) · {} \
+         ({} transparent) · {}",
         if interactive { "interactive " } else { "" },
         s.width,
         s.height,
@@ -2078,12 +2078,21 @@ pub fn status_line(
         100.0 * c.samples_skipped_empty as f64
             / (c.samples + c.samples_skipped_empty).max(1) as f64,
         100.0 * c.rays_terminated as f64 / rays,
-        c.tasks,
+        counted(c.tasks, "task"),
         c.tasks_skipped_occluded,
-        s.bricks,
+        counted(s.bricks, "brick"),
         s.bricks_transparent,
-        s.threads,
+        counted(s.threads as u64, "thread"),
     )
+}
+
+/// `n` and `noun`, plural unless `n` is 1 ("1 brick", "729 bricks").
+fn counted(n: u64, noun: &str) -> String {
+    if n == 1 {
+        format!("1 {noun}")
+    } else {
+        format!("{n} {noun}s")
+    }
 }
 
 #[cfg(test)]
@@ -2146,6 +2155,18 @@ mod tests {
             0,
         );
         assert!(empty.contains("(0.0/ray, 0 % in SIMD lanes)"), "{empty}");
+        assert!(
+            empty.contains("· 0 tasks (0 occluded) · 0 bricks"),
+            "{empty}"
+        );
+        // One of a kind is said in the singular.
+        let mut one = raycaster::render::FrameStats::default();
+        (one.bricks, one.threads, one.counters.tasks) = (1, 1, 1);
+        let line = status_line(&one, false, sampling, 0);
+        assert!(
+            line.contains("· 1 task (0 occluded) · 1 brick (0 transparent) · 1 thread"),
+            "{line}"
+        );
     }
 
     #[test]
