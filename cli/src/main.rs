@@ -17,6 +17,10 @@ mod stats;
 use clap::{Parser, Subcommand};
 
 /// CPU ray casting of huge bricked, memory-mapped volumes.
+///
+/// Exit status: 0 done, 1 failed (the error says why, in one line), 2 the
+/// command line is wrong (an unknown flag, or a value a flag does not take),
+/// 130 interrupted (Ctrl-C, SIGTERM, SIGHUP: no partial output is left).
 #[derive(Parser, Debug)]
 #[command(name = "raycaster", version, propagate_version = true)]
 struct Cli {

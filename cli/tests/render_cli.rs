@@ -23,6 +23,29 @@ fn renders_the_built_in_scene_without_arguments_but_the_output() {
     assert!(stderr(&out).contains("wrote render.png"));
 }
 
+/// The exit statuses `--help` documents: 2 for a command line that is wrong,
+/// 1 for a failure past it.
+#[test]
+fn exit_statuses_are_the_documented_ones() {
+    let dir = tempfile::tempdir().unwrap();
+    let help = raycaster(&["--help"], dir.path());
+    assert!(help.status.success());
+    assert!(
+        String::from_utf8_lossy(&help.stdout)
+            .contains("Exit status: 0 done, 1 failed (the error says why, in one line), 2 the command line is wrong"),
+        "{}",
+        String::from_utf8_lossy(&help.stdout)
+    );
+    for (args, code) in [
+        (&["render", "--no-such-flag"][..], 2),
+        (&["render", "--size", "0"][..], 2),
+        (&["render", "missing.vol", "-o", "a.png"][..], 1),
+    ] {
+        let o = raycaster(args, dir.path());
+        assert_eq!(o.status.code(), Some(code), "{args:?}: {}", stderr(&o));
+    }
+}
+
 #[test]
 fn flags_without_effect_get_a_warning_and_the_frame_renders() {
     let dir = tempfile::tempdir().unwrap();

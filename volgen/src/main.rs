@@ -18,7 +18,8 @@ use clap::{Parser, Subcommand};
 /// Outputs are written to a temporary file beside the target and renamed when
 /// complete: a failed or interrupted run (Ctrl-C) leaves no partial file, and an
 /// existing file is only replaced with --force. Exit status: 0 done, 1 failed,
-/// 130 interrupted (Ctrl-C, SIGTERM, SIGHUP).
+/// 2 the command line is wrong (an unknown flag, or a value a flag does not
+/// take), 130 interrupted (Ctrl-C, SIGTERM, SIGHUP).
 #[derive(Parser, Debug)]
 #[command(
     name = "volgen",
