@@ -292,22 +292,7 @@ fn sessions_save_render_and_restore_the_picture() {
     let data = dir.path().join("shells.vol");
     support::generate_file(&data, SceneKind::Shells, 24);
     let labels = dir.path().join("shells.labels.vol");
-    let header = raycaster::volume::Header::new(
-        [24; 3],
-        [1.0; 3],
-        raycaster::volume::Layout::Bricked { side: 16 },
-        raycaster::volume::SampleType::U8,
-        raycaster::volume::Content::Labels,
-        raycaster::volume::Format::Extended,
-    );
-    raycaster::generate::generate(
-        SceneKind::Shells.build([24; 3], 1).as_ref(),
-        &header,
-        &labels,
-        &Default::default(),
-        &raycaster::job::Job::silent(),
-    )
-    .unwrap();
+    support::generate_labels(&labels, SceneKind::Shells, 24);
     let mut labelled = session.clone();
     labelled.source = raycaster::source::VolumeSource::File {
         path: data,

@@ -25,12 +25,23 @@ pub fn headless_platform() {
 // Not every test file writes volumes.
 #[allow(dead_code)]
 pub fn generate_file(path: &Path, kind: SceneKind, size: u32) {
+    generate_content(path, kind, size, raycaster::volume::Content::Scalar);
+}
+
+/// [`generate_file`] of the scene's labels (a label volume), as `volgen
+/// generate` writes them beside the data.
+#[allow(dead_code)]
+pub fn generate_labels(path: &Path, kind: SceneKind, size: u32) {
+    generate_content(path, kind, size, raycaster::volume::Content::Labels);
+}
+
+fn generate_content(path: &Path, kind: SceneKind, size: u32, content: raycaster::volume::Content) {
     let header = raycaster::volume::Header::new(
         [size; 3],
         [1.0; 3],
         raycaster::volume::Layout::Bricked { side: 16 },
         raycaster::volume::SampleType::U8,
-        raycaster::volume::Content::Scalar,
+        content,
         raycaster::volume::Format::Extended,
     );
     raycaster::generate::generate(
