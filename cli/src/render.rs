@@ -843,12 +843,10 @@ fn open_volume(source: &VolumeSource, args: &RenderArgs) -> Result<Volume> {
                 imported.sample_bytes(),
                 progress_after(args),
                 &done,
-                || imported.to_volume_counting(limit, &job),
+                || imported.to_volume_noting(limit, &job),
             )?;
-            let (volume, non_finite) = volume;
-            if non_finite > 0 && !args.quiet {
-                let warning =
-                    raycaster::convert::non_finite_warning(path, non_finite, imported.voxels());
+            let (volume, warning) = volume;
+            if let Some(warning) = warning.filter(|_| !args.quiet) {
                 eprintln!("warning: {warning}");
             }
             Ok(volume)

@@ -69,14 +69,11 @@ pub fn run(args: SliceArgs) -> Result<()> {
     crate::output::check_output_of(&args.output, args.force, [args.file.as_path()])?;
     raycaster::files::guard_mapped_file(&args.file);
     let volume = if raycaster::import::detect(&args.file).is_some() {
-        let imported = raycaster::import::open(&args.file)?;
-        let (volume, non_finite) = imported.to_volume_counting(
+        let (volume, warning) = raycaster::import::open(&args.file)?.to_volume_noting(
             raycaster::import::DEFAULT_IN_MEMORY_LIMIT,
             &raycaster::job::Job::silent(),
         )?;
-        if non_finite > 0 && !args.quiet {
-            let warning =
-                raycaster::convert::non_finite_warning(&args.file, non_finite, imported.voxels());
+        if let Some(warning) = warning.filter(|_| !args.quiet) {
             eprintln!("warning: {warning}");
         }
         volume

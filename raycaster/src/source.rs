@@ -134,33 +134,25 @@ fn open_file(path: &Path, access: Access) -> Result<(Volume, Option<String>), So
     if path.as_os_str().is_empty() {
         return Err(SourceError::NoPath);
     }
-    let mut warning = None;
-    let volume = if crate::import::detect(path).is_some() {
+    let (volume, warning) = if crate::import::detect(path).is_some() {
         let import_error = |source| SourceError::Import {
             path: path.to_path_buf(),
             source,
         };
-        let imported = crate::import::open(path).map_err(import_error)?;
-        let (volume, non_finite) = imported
-            .to_volume_counting(DEFAULT_IN_MEMORY_LIMIT, &crate::job::Job::silent())
-            .map_err(import_error)?;
-        if non_finite > 0 {
-            warning = Some(crate::convert::non_finite_warning(
-                path,
-                non_finite,
-                imported.voxels(),
-            ));
-        }
-        volume
+        crate::import::open(path)
+            .map_err(import_error)?
+            .to_volume_noting(DEFAULT_IN_MEMORY_LIMIT, &crate::job::Job::silent())
+            .map_err(import_error)?
     } else {
         let options = OpenOptions {
             access,
             ..OpenOptions::default()
         };
-        Volume::open_with(path, options).map_err(|source| SourceError::Volume {
+        let volume = Volume::open_with(path, options).map_err(|source| SourceError::Volume {
             path: path.to_path_buf(),
             source,
-        })?
+        })?;
+        (volume, None)
     };
     if volume.content() == Content::Labels {
         return Err(SourceError::LabelsNotData(path.to_path_buf()));

@@ -331,10 +331,21 @@ fn malformed_files_give_clear_errors() {
     let some_nan_path = d.join("some-nan.nrrd");
     std::fs::write(&some_nan_path, some_nan).unwrap();
     let imported = import::open(&some_nan_path).unwrap();
-    let (volume, non_finite) = imported
-        .to_volume_counting(1 << 20, &raycaster::job::Job::silent())
+    let (volume, noted) = imported
+        .to_volume_noting(1 << 20, &raycaster::job::Job::silent())
         .unwrap();
-    assert_eq!((non_finite, volume.dims()), (3, [2, 2, 2]));
+    assert_eq!(volume.dims(), [2, 2, 2]);
+    let noted = noted.expect("a warning");
+    assert!(
+        noted.contains("3 of its 8 values are NaN or infinite"),
+        "{noted}"
+    );
+    // All finite: nothing to say.
+    let (_, quiet) = import::open(&fixtures().join("u8.nii"))
+        .unwrap()
+        .to_volume_noting(1 << 20, &raycaster::job::Job::silent())
+        .unwrap();
+    assert_eq!(quiet, None);
     let opened = raycaster::source::open(&raycaster::source::VolumeSource::File {
         path: some_nan_path.clone(),
         access: raycaster::volume::Access::Mapped,

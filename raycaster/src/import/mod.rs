@@ -721,13 +721,18 @@ impl Imported {
     /// slices) to `job`: up to [`Self::sample_bytes`] in all; raw files report
     /// nothing (they are read in one pass at disk speed).
     pub fn to_volume_with(&self, limit: u64, job: &Job) -> Result<Volume, ImportError> {
-        Ok(self.to_volume_counting(limit, job)?.0)
+        Ok(self.to_volume_noting(limit, job)?.0)
     }
 
-    /// [`Self::to_volume_with`], and how many of the scan's values were NaN or
-    /// infinite (stored as the window's ends, as `volgen convert` stores
-    /// them; [`crate::convert::non_finite_warning`] says so).
-    pub fn to_volume_counting(&self, limit: u64, job: &Job) -> Result<(Volume, u64), ImportError> {
+    /// [`Self::to_volume_with`], and the warning its values call for: how many
+    /// were NaN or infinite (stored as the window's ends, as `volgen convert`
+    /// stores them; [`crate::convert::non_finite_warning`]), `None` when all
+    /// were finite.
+    pub fn to_volume_noting(
+        &self,
+        limit: u64,
+        job: &Job,
+    ) -> Result<(Volume, Option<String>), ImportError> {
         let sample_type = self.default_sample_type();
         let samples = self.voxels() * sample_type.size();
         if samples > limit {
@@ -768,7 +773,10 @@ impl Imported {
             SampleType::U16 => build::<u16>(&input, &header, values),
         };
         let volume = volume.map_err(|e| ImportError::new(&self.path, e))?;
-        Ok((volume, non_finite.unwrap_or(0)))
+        let warning = non_finite
+            .filter(|&n| n > 0)
+            .map(|n| crate::convert::non_finite_warning(&self.path, n, self.voxels()));
+        Ok((volume, warning))
     }
 }
 
