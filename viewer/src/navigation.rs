@@ -171,14 +171,10 @@ impl Navigator {
         let home = self.home.distance;
         let d = self.orbit.distance;
         let wanted = d * ZOOM_PER_NOTCH.powf(-delta / 120.0);
-        let allowed = wanted.clamp(home / MAX_ZOOM_IN, home * MAX_ZOOM_OUT);
         // (A restored session may lie beyond the limits: the wheel brings it
         // back, never further out.)
-        let factor = if wanted < d {
-            allowed.min(d) / d
-        } else {
-            allowed.max(d) / d
-        };
+        let limits = ((home / MAX_ZOOM_IN).min(d), (home * MAX_ZOOM_OUT).max(d));
+        let factor = wanted.clamp(limits.0, limits.1) / d;
         if factor == 1.0 || !factor.is_finite() {
             return false;
         }
@@ -249,6 +245,13 @@ mod tests {
         assert!((n.orbit().distance - home * MAX_ZOOM_OUT).abs() < home * 1e-3);
         assert!(!n.wheel(-120.0), "no farther");
         assert!(n.wheel(120.0));
+        // A camera beyond the limits (a restored session) only comes back.
+        let mut far = *n.orbit();
+        far.distance = home * 50.0;
+        n.set_orbit(far);
+        assert!(!n.wheel(-120.0), "no farther out");
+        assert!(n.wheel(120.0));
+        assert!(n.orbit().distance < home * 50.0);
     }
 
     #[test]

@@ -119,20 +119,20 @@ impl QualityPolicy {
         if self.full_quality_only {
             return self.still();
         }
-        let still = self.still().step;
+        let (still, resolution) = (self.still(), 0.5 / self.pacing);
         if !self.coarse_steps {
             return FrameQuality {
-                resolution: 0.5 / self.pacing,
-                ..self.still()
+                resolution,
+                ..still
             };
         }
         // 2·P times the still step, rounded to a rung (P = 0.5: the still step).
         let rungs = ((2.0 * self.pacing).log2() * STEP_RUNGS_PER_DOUBLING).round();
-        let step = still * (rungs / STEP_RUNGS_PER_DOUBLING).exp2();
+        let step = still.step * (rungs / STEP_RUNGS_PER_DOUBLING).exp2();
         FrameQuality {
-            resolution: 0.5 / self.pacing,
+            resolution,
             step,
-            preintegrated: step > still && step >= PREINTEGRATE_FROM_STEP,
+            preintegrated: step > still.step && step >= PREINTEGRATE_FROM_STEP,
         }
     }
 
