@@ -450,6 +450,18 @@ fn path_field(field: &str, path: PathBuf, base: &Path) -> Result<PathBuf, Sessio
     Ok(base.join(path))
 }
 
+/// A session's `version`: present, and the one this raycaster reads.
+fn check_version(version: Option<i64>) -> Result<(), SessionError> {
+    match version {
+        Some(v) if v == i64::from(SESSION_VERSION) => Ok(()),
+        Some(v) => Err(invalid(
+            "version",
+            format!("version {v} is not known (this raycaster reads version {SESSION_VERSION})"),
+        )),
+        None => Err(invalid("version", "missing: write `version = 1`")),
+    }
+}
+
 /// The tables every session has.
 const REQUIRED_TABLES: [&str; 4] = ["volume", "image", "camera", "transfer"];
 
@@ -463,15 +475,8 @@ fn check_outline(text: &str) -> Result<(), SessionError> {
         return Ok(());
     };
     match table.get("version") {
-        None => return Err(invalid("version", "missing: write `version = 1`")),
-        Some(toml::Value::Integer(v)) if *v != i64::from(SESSION_VERSION) => {
-            return Err(invalid(
-                "version",
-                format!(
-                    "version {v} is not known (this raycaster reads version {SESSION_VERSION})"
-                ),
-            ));
-        }
+        None => check_version(None)?,
+        Some(toml::Value::Integer(v)) => check_version(Some(*v))?,
         // (A version that is no integer: the field's reading says so.)
         Some(_) => {}
     }
@@ -574,18 +579,7 @@ impl Session {
                 return Err(SessionError::Syntax(e.to_string()));
             }
         };
-        match file.version {
-            Some(SESSION_VERSION) => {}
-            Some(v) => {
-                return Err(invalid(
-                    "version",
-                    format!(
-                        "version {v} is not known (this raycaster reads version {SESSION_VERSION})"
-                    ),
-                ));
-            }
-            None => return Err(invalid("version", "missing: write `version = 1`")),
-        }
+        check_version(file.version.map(i64::from))?;
         let source = volume_source(&file.volume, base)?;
         let labels = match &file.volume.labels {
             Some(p) => Some(path_field("volume.labels", p.clone(), base)?),
