@@ -36,19 +36,43 @@ const LAYOUTS: [(Layout, SampleType, Option<u32>); 5] = [
     (Layout::Bricked { side: 16 }, SampleType::U8, Some(6)),
 ];
 
-/// Renders `settings` (on the scalar kernel) on each of `levels` too and
-/// asserts the same frame to the bit and the same counts, and that a packet
-/// kernel marched samples at `level` exactly where `in_lanes(level)` says;
-/// the frames compared.
+/// Scene `kind` in each of [`LAYOUTS`], prepared and framed at `size` pixels:
+/// `visit(layout, prepared, camera)`, `layout` naming the scene and layout
+/// for messages.
+fn for_each_layout(
+    dir: &std::path::Path,
+    kind: SceneKind,
+    size: u32,
+    mut visit: impl FnMut(&str, &RenderVolume<'_>, &raycaster::render::Camera),
+) {
+    for (layout, sample_type, brick_side) in LAYOUTS {
+        let file = scene_file(dir, kind, N, layout, sample_type, Access::Mapped);
+        let prepared = RenderVolume::new(&file, brick_side).unwrap();
+        let camera = default_camera(&file, size);
+        let name = format!("{kind:?} {layout:?} {sample_type:?} bricks {brick_side:?}");
+        visit(&name, &prepared, &camera);
+    }
+}
+
+/// Renders `settings` (on the scalar kernel; two render threads, one
+/// compositor, tiles of `tile_size`) on each of `levels` too and asserts the
+/// same frame to the bit and the same counts, and that a packet kernel
+/// marched samples at `level` exactly where `in_lanes(level)` says; the
+/// frames compared.
 fn assert_levels_equal_scalar(
     prepared: &RenderVolume<'_>,
     camera: &raycaster::render::Camera,
     settings: &RenderSettings,
-    options: &ParallelOptions,
+    tile_size: u32,
     levels: &[SimdLevel],
     name: &str,
     in_lanes: impl Fn(SimdLevel) -> bool,
 ) -> usize {
+    let options = &ParallelOptions {
+        render_threads: 2,
+        compositing_threads: 1,
+        tile_size,
+    };
     let scalar = render_parallel(prepared, camera, settings, options).unwrap();
     let counts = scalar.stats.counters;
     assert!(counts.samples > 0, "{name}");
@@ -93,10 +117,7 @@ fn packets_equal_the_scalar_kernel_bit_for_bit_on_every_level() {
     let dir = tempfile::tempdir().unwrap();
     let mut frames = 0;
     for kind in [SceneKind::Shapes, SceneKind::Noise, SceneKind::Shells] {
-        for (layout, sample_type, brick_side) in LAYOUTS {
-            let file = scene_file(dir.path(), kind, N, layout, sample_type, Access::Mapped);
-            let prepared = RenderVolume::new(&file, brick_side).unwrap();
-            let camera = default_camera(&file, 48);
+        for_each_layout(dir.path(), kind, 48, |layout, prepared, camera| {
             let lights = [
                 None,
                 Some(Shading::default()),
@@ -117,26 +138,20 @@ fn packets_equal_the_scalar_kernel_bit_for_bit_on_every_level() {
                         simd: Some(SimdLevel::Scalar),
                         ..RenderSettings::default()
                     };
-                    let options = ParallelOptions {
-                        render_threads: 2,
-                        compositing_threads: 1,
-                        tile_size: [16, 7, 32][round],
-                    };
-                    let name = format!(
-                        "{kind:?} {layout:?} {sample_type:?} bricks {brick_side:?} light {round} ert {ert} ess {ess}"
-                    );
+                    let tile_size = [16, 7, 32][round];
+                    let name = format!("{layout} light {round} ert {ert} ess {ess}");
                     frames += assert_levels_equal_scalar(
-                        &prepared,
-                        &camera,
+                        prepared,
+                        camera,
                         &settings,
-                        &options,
+                        tile_size,
                         &levels,
                         &name,
                         |_| true,
                     );
                 }
             }
-        }
+        });
     }
     assert_eq!(frames, 135 * levels.len());
 }
@@ -159,10 +174,7 @@ fn value_modes_in_packets_equal_the_scalar_kernel_bit_for_bit_on_every_level() {
     ];
     let mut frames = 0;
     for kind in [SceneKind::Shapes, SceneKind::Noise] {
-        for (layout, sample_type, brick_side) in LAYOUTS {
-            let file = scene_file(dir.path(), kind, N, layout, sample_type, Access::Mapped);
-            let prepared = RenderVolume::new(&file, brick_side).unwrap();
-            let camera = default_camera(&file, 40);
+        for_each_layout(dir.path(), kind, 40, |layout, prepared, camera| {
             for (round, mode) in modes.into_iter().enumerate() {
                 for (ert, ess) in [(true, true), (false, true), (true, false)] {
                     let settings = RenderSettings {
@@ -175,27 +187,20 @@ fn value_modes_in_packets_equal_the_scalar_kernel_bit_for_bit_on_every_level() {
                         simd: Some(SimdLevel::Scalar),
                         ..RenderSettings::default()
                     };
-                    let options = ParallelOptions {
-                        render_threads: 2,
-                        compositing_threads: 1,
-                        tile_size: [16, 7, 32, 11, 9][round],
-                    };
-                    let name = format!(
-                        "{kind:?} {layout:?} {sample_type:?} bricks {brick_side:?} {} ert {ert} ess {ess}",
-                        mode.name()
-                    );
+                    let tile_size = [16, 7, 32, 11, 9][round];
+                    let name = format!("{layout} {} ert {ert} ess {ess}", mode.name());
                     frames += assert_levels_equal_scalar(
-                        &prepared,
-                        &camera,
+                        prepared,
+                        camera,
                         &settings,
-                        &options,
+                        tile_size,
                         &levels,
                         &name,
                         SimdLevel::has_gathers,
                     );
                 }
             }
-        }
+        });
     }
     assert_eq!(frames, 150 * levels.len());
 }
@@ -218,10 +223,7 @@ fn gradient_modes_in_packets_equal_the_scalar_kernel_bit_for_bit_on_every_level(
     ];
     let mut frames = 0;
     for kind in [SceneKind::Shapes, SceneKind::Noise] {
-        for (layout, sample_type, brick_side) in LAYOUTS {
-            let file = scene_file(dir.path(), kind, N, layout, sample_type, Access::Mapped);
-            let prepared = RenderVolume::new(&file, brick_side).unwrap();
-            let camera = default_camera(&file, 40);
+        for_each_layout(dir.path(), kind, 40, |layout, prepared, camera| {
             for (round, mode) in modes.into_iter().enumerate() {
                 let combinations = [(true, true), (false, true), (true, false)];
                 for (i, (ert, ess)) in combinations.into_iter().enumerate() {
@@ -254,27 +256,20 @@ fn gradient_modes_in_packets_equal_the_scalar_kernel_bit_for_bit_on_every_level(
                         simd: Some(SimdLevel::Scalar),
                         ..RenderSettings::default()
                     };
-                    let options = ParallelOptions {
-                        render_threads: 2,
-                        compositing_threads: 1,
-                        tile_size: [16, 7, 11, 13][round],
-                    };
-                    let name = format!(
-                        "{kind:?} {layout:?} {sample_type:?} bricks {brick_side:?} {} ert {ert} ess {ess}",
-                        mode.name()
-                    );
+                    let tile_size = [16, 7, 11, 13][round];
+                    let name = format!("{layout} {} ert {ert} ess {ess}", mode.name());
                     frames += assert_levels_equal_scalar(
-                        &prepared,
-                        &camera,
+                        prepared,
+                        camera,
                         &settings,
-                        &options,
+                        tile_size,
                         &levels,
                         &name,
                         SimdLevel::has_gathers,
                     );
                 }
             }
-        }
+        });
     }
     assert_eq!(frames, 120 * levels.len());
 }
@@ -332,11 +327,8 @@ tf = "shapes"
 "#,
     ];
     let mut frames = 0;
-    for (layout, sample_type, brick_side) in LAYOUTS {
-        let kind = SceneKind::Shapes;
-        let file = scene_file(dir.path(), kind, N, layout, sample_type, Access::Mapped);
-        let prepared = RenderVolume::new(&file, brick_side).unwrap();
-        let camera = default_camera(&file, 40);
+    let kind = SceneKind::Shapes;
+    for_each_layout(dir.path(), kind, 40, |layout, prepared, camera| {
         for (round, text) in scenes.into_iter().enumerate() {
             let scene = SegmentScene::parse(text, dir.path()).unwrap();
             let combinations = [
@@ -357,19 +349,14 @@ tf = "shapes"
                     simd: Some(SimdLevel::Scalar),
                     ..RenderSettings::default()
                 };
-                let options = ParallelOptions {
-                    render_threads: 2,
-                    compositing_threads: 1,
-                    tile_size: [16, 7, 11][i],
-                };
-                let name = format!(
-                    "{layout:?} {sample_type:?} bricks {brick_side:?} scene {round} ert {ert} ess {ess} pre {preintegrated}"
-                );
+                let tile_size = [16, 7, 11][i];
+                let name =
+                    format!("{layout} scene {round} ert {ert} ess {ess} pre {preintegrated}");
                 frames += assert_levels_equal_scalar(
-                    &prepared,
-                    &camera,
+                    prepared,
+                    camera,
                     &settings,
-                    &options,
+                    tile_size,
                     &levels,
                     &name,
                     |level| {
@@ -380,7 +367,7 @@ tf = "shapes"
                 );
             }
         }
-    }
+    });
     assert_eq!(frames, 30 * levels.len());
 }
 
