@@ -162,6 +162,11 @@ struct State {
     canvas: (u32, u32),
     /// A recent-files error was shown (shown once, not on every open).
     recent_error_shown: bool,
+    /// What the red message on screen says went wrong, where it is a state the
+    /// viewer leaves again (a frame or the slices that could not be drawn):
+    /// the message goes when that part draws again. `None` for any other
+    /// message, which stays until the next one.
+    shown_failure: Option<Failure>,
     /// A screenshot asked for while the frame was still rendering: saved when
     /// the full-quality frame of the view is complete (not half old, half new).
     pending_screenshot: Option<PathBuf>,
@@ -180,6 +185,16 @@ struct State {
     slice_window: [f32; 2],
     window_drag_base: [f32; 2],
     custom_window: Option<[f32; 2]>,
+}
+
+/// A part of the view that could not be drawn, said on the message line until
+/// it draws again.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Failure {
+    /// A frame of the 3D view (its camera or its render).
+    Frame,
+    /// The slice views.
+    Slices,
 }
 
 thread_local! {
@@ -279,6 +294,7 @@ impl Viewer {
                     .map(|f| crate::recent::load(&f))
                     .unwrap_or_default(),
                 recent_error_shown: false,
+                shown_failure: None,
                 pending_screenshot: None,
                 overwrite_armed: None,
                 failed: None,
@@ -762,10 +778,35 @@ impl Controller {
     }
 
     fn show_message(&self, text: &str, error: bool) {
+        self.state.borrow_mut().shown_failure = None;
         if let Some(ui) = self.ui() {
             // One line: a parser's snippet lines would push its reason out of sight.
             ui.set_message(raycaster::errors::one_line(text).into());
             ui.set_message_is_error(error);
+        }
+    }
+
+    /// Says that `part` could not be drawn, until it draws again
+    /// ([`Self::part_drawn`]).
+    fn show_failure(&self, part: Failure, text: &str) {
+        self.show_message(text, true);
+        self.state.borrow_mut().shown_failure = Some(part);
+    }
+
+    /// `part` drew: the message that said it could not goes (any other
+    /// message stays).
+    fn part_drawn(&self, part: Failure) {
+        let cleared = {
+            let mut st = self.state.borrow_mut();
+            let cleared = st.shown_failure == Some(part);
+            if cleared {
+                st.shown_failure = None;
+            }
+            cleared
+        };
+        if let (true, Some(ui)) = (cleared, self.ui()) {
+            ui.set_message("".into());
+            ui.set_message_is_error(false);
         }
     }
 
@@ -1206,8 +1247,9 @@ impl Controller {
         st.slice_frames = frames;
         st.slice_window = window;
         drop(st);
-        if let Some(error) = error {
-            self.show_message(&error, true);
+        match error {
+            Some(error) => self.show_failure(Failure::Slices, &error),
+            None => self.part_drawn(Failure::Slices),
         }
         if ui.get_show_planes() {
             self.redraw_frame();
@@ -1514,7 +1556,7 @@ impl Controller {
             Ok(camera) => camera,
             Err(e) => {
                 drop(st);
-                self.show_message(&format!("camera: {e}"), true);
+                self.show_failure(Failure::Frame, &format!("camera: {e}"));
                 return;
             }
         };
@@ -1610,6 +1652,7 @@ impl Controller {
 
     fn take_events(&self) {
         let mut failures = Vec::new();
+        let mut latest_done = false;
         {
             let mut guard = self.state.borrow_mut();
             let st = &mut *guard;
@@ -1626,6 +1669,7 @@ impl Controller {
                             st.quality.moving_frame_took(stats.time, coarsest);
                         }
                         if latest.is_some_and(|(l, _)| l == id) {
+                            latest_done = true;
                             st.last_stats = Some((stats, moving));
                             st.last_sampling = st.latest_sampling;
                             st.ended = Some(id);
@@ -1644,7 +1688,9 @@ impl Controller {
             }
         }
         if let Some(e) = failures.last() {
-            self.show_message(&format!("cannot render: {e}"), true);
+            self.show_failure(Failure::Frame, &format!("cannot render: {e}"));
+        } else if latest_done {
+            self.part_drawn(Failure::Frame);
         }
         let status = {
             let st = self.state.borrow();

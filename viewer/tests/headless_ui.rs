@@ -445,6 +445,19 @@ fn the_viewer_runs_headless() {
         "{message}"
     );
     assert!(!refused.exists());
+    // Another step preset: the frame renders, and the message that said it
+    // could not goes with it (before: it stayed, red, over a good picture).
+    v.ui()
+        .invoke_open_session(tiny.display().to_string().into());
+    wait_until(&v, |v| v.ui().get_message().contains("tiny.toml"));
+    i_slint_backend_testing::mock_elapsed_time(Duration::from_millis(300));
+    slint::platform::update_timers_and_animations();
+    wait_until(&v, |v| v.ui().get_message().contains("cannot render"));
+    let other = if v.ui().get_step_index() == 0 { 1 } else { 0 };
+    v.ui().set_step_index(other);
+    v.ui().invoke_settings_changed();
+    wait_until(&v, |v| v.ui().get_message().is_empty());
+    assert!(!v.ui().get_message_is_error());
     // A step longer than the volume: warned of, as `raycaster render` does.
     let huge = dir.path().join("huge.toml");
     let text = std::fs::read_to_string(&tiny).unwrap();
