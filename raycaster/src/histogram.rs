@@ -131,8 +131,8 @@ impl Histogram {
         let bins = self.over_data(16);
         let [lo, hi] = self.value_range();
         s += &format!(
-            "            {} bins over the values present, {} to {} (of {} to {})\n",
-            bins.len(),
+            "            {} over the values present, {} to {} (of {} to {})\n",
+            crate::text::counted(bins.len() as u64, "bin"),
             stored(lo),
             stored(hi),
             stored(0),
@@ -143,7 +143,10 @@ impl Histogram {
             unit: String::new(),
             ..units.clone()
         };
-        let label = |v: u16| plain.format(plain.value(f64::from(v)));
+        // Labels that tell neighbouring bins apart, however narrow the values.
+        let width = bins.get(1).map_or(1, |b| b.0 - bins[0].0);
+        let resolution = f64::from(width) * units.scale.abs();
+        let label = |v: u16| plain.format_resolved(plain.value(f64::from(v)), resolution);
         for (i, &(first, c)) in bins.iter().enumerate() {
             let last = bins.get(i + 1).map_or(hi, |next| next.0 - 1);
             // Log scale: a few voxels of a rare value still show.
@@ -205,5 +208,32 @@ mod tests {
         );
         assert!(text.contains("    -1768..-1518"), "{text}");
         assert!(text.contains("at -32768 HU 0.0 %"), "{text}");
+    }
+
+    #[test]
+    fn narrow_bins_get_labels_that_tell_them_apart() {
+        // Float data of 3..3.0001 mapped onto u16: bins 6.25e-6 wide.
+        let counts: Vec<u64> = (0..=u16::MAX as u64).map(|v| v % 3).collect();
+        let h = Histogram::from_counts(counts);
+        let units = ValueUnits::new(1e-4 / 65535.0, 3.0, "").unwrap();
+        let text = h.summary(u16::MAX, &units);
+        let labels: Vec<&str> = text
+            .lines()
+            .skip(2)
+            .map(|l| l.split_whitespace().next().unwrap())
+            .collect();
+        assert_eq!(labels.len(), 16, "{text}");
+        let mut distinct = labels.clone();
+        distinct.dedup();
+        assert_eq!(distinct, labels, "{text}");
+        assert!(labels[1].starts_with("3.000006"), "{text}");
+        // One value: one bin, said in the singular.
+        let mut counts = vec![0u64; 256];
+        counts[3] = 64;
+        let text = Histogram::from_counts(counts).summary(255, &ValueUnits::IDENTITY);
+        assert!(
+            text.contains("1 bin over the values present, 3 to 3"),
+            "{text}"
+        );
     }
 }

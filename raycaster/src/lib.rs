@@ -34,5 +34,6 @@ pub mod session;
 pub mod slice;
 pub mod source;
 pub mod synth;
+pub mod text;
 pub mod volume;
 pub mod windows;

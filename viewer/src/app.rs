@@ -26,6 +26,7 @@ use raycaster::session::{Session, SessionCamera, SliceViews, SliceWindow};
 use raycaster::slice::Axis;
 use raycaster::source::VolumeSource;
 use raycaster::synth::SceneKind;
+use raycaster::text::counted;
 use raycaster::volume::{Content, Volume, write_file_atomically};
 use slint::{
     ComponentHandle, Image, ModelRc, Rgba8Pixel, SharedPixelBuffer, SharedString, VecModel,
@@ -2130,15 +2131,6 @@ pub fn status_line(
         s.bricks_transparent,
         counted(s.threads as u64, "thread"),
     )
-}
-
-/// `n` and `noun`, plural unless `n` is 1 ("1 brick", "729 bricks").
-fn counted(n: u64, noun: &str) -> String {
-    if n == 1 {
-        format!("1 {noun}")
-    } else {
-        format!("{n} {noun}s")
-    }
 }
 
 #[cfg(test)]

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use clap::Args;
 use raycaster::io::Input;
 use raycaster::job::Job;
-use raycaster::volume::{Format, Layout, OpenOptions, Volume};
+use raycaster::volume::{Format, Layout, OpenOptions, ValueUnits, Volume};
 
 use crate::generate::{describe_layout, describe_levels, describe_size};
 use crate::progress::{CANCEL, voxel_bar};
@@ -262,17 +262,20 @@ fn run_foreign(a: &InfoArgs) -> anyhow::Result<()> {
     let used = if whole {
         // (Bins past the largest value stay out.)
         ((f64::from(hi - lo) / width) as usize + 1).min(BINS)
-    } else {
+    } else if width > 0.0 {
         BINS
+    } else {
+        // One value: one bin (not sixteen with the same label).
+        1
     };
-    println!("histogram   {used} bins over min..max, bars on a log scale");
+    println!(
+        "histogram   {} over min..max, bars on a log scale",
+        raycaster::text::counted(used as u64, "bin")
+    );
     let peak = counts.iter().copied().max().unwrap_or(1).max(1) as f64;
-    let number = |v: f64| {
-        format!("{v:.6}")
-            .trim_end_matches('0')
-            .trim_end_matches('.')
-            .to_string()
-    };
+    // Six decimals, or more where bins are narrower (labels that differ).
+    let resolution = if width > 0.0 { width.min(2e-6) } else { 2e-6 };
+    let number = |v: f64| ValueUnits::IDENTITY.format_resolved(v, resolution);
     for (i, &c) in counts.iter().take(used).enumerate() {
         let from = f64::from(lo) + width * i as f64;
         let label = if whole {

@@ -318,6 +318,43 @@ fn sigterm_while_converting_a_compressed_scan_cancels_cleanly() {
 }
 
 #[test]
+fn info_charts_a_constant_or_narrow_float_file_with_labels_that_differ() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let header =
+        b"NRRD0004\ntype: float\ndimension: 3\nsizes: 4 4 4\nendian: little\nencoding: raw\n\n";
+    let write = |name: &str, value: &dyn Fn(usize) -> f32| {
+        let mut nrrd = header.to_vec();
+        (0..64).for_each(|i| nrrd.extend(value(i).to_le_bytes()));
+        std::fs::write(d.join(name), nrrd).unwrap();
+    };
+    let chart = |name: &str| {
+        let o = volgen(d, &["info", name]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let out = String::from_utf8_lossy(&o.stdout).into_owned();
+        let labels: Vec<String> = out
+            .lines()
+            .skip_while(|l| !l.starts_with("histogram"))
+            .skip(1)
+            .map(|l| l.split_whitespace().next().unwrap().to_string())
+            .collect();
+        (out, labels)
+    };
+    // One value: one bin (before: sixteen, each labelled 3).
+    write("constant.nrrd", &|_| 3.0);
+    let (out, labels) = chart("constant.nrrd");
+    assert!(out.contains("histogram   1 bin over min..max"), "{out}");
+    assert_eq!(labels, ["3"], "{out}");
+    // Values 1e-5 apart: sixteen bins, no two labelled alike.
+    write("narrow.nrrd", &|i| 1000.0 + i as f32 * 1e-5);
+    let (out, labels) = chart("narrow.nrrd");
+    assert_eq!(labels.len(), 16, "{out}");
+    let mut distinct = labels.clone();
+    distinct.dedup();
+    assert_eq!(distinct, labels, "{out}");
+}
+
+#[test]
 fn info_reads_foreign_files_in_their_own_units() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();

@@ -120,8 +120,21 @@ impl ValueUnits {
 
     /// `value` with its unit, as people read it: `-1000 HU`, `0.25`.
     pub fn format(&self, value: f64) -> String {
+        self.format_resolved(value, 1.0)
+    }
+
+    /// [`Self::format`] with enough decimals that values `resolution` apart
+    /// read differently (at least its four): the edges of histogram bins a
+    /// ten-thousandth wide, `3.000006..3.000012`, not `3..3`.
+    pub fn format_resolved(&self, value: f64, resolution: f64) -> String {
         // Whole values print without decimals; others with up to 4 significant
-        // decimals.
+        // decimals, or as many as `resolution` asks (half of it shows, so two
+        // values that far apart never round to one text).
+        let decimals = if resolution.is_finite() && resolution > 0.0 {
+            ((-(resolution / 2.0).log10()).ceil().max(0.0) as usize).clamp(4, 15)
+        } else {
+            4
+        };
         let number = if value.is_finite() && value.abs() >= 1e15 {
             // Scientific past what digits show readably (f32 data of ±2e38).
             let text = format!("{value:.4e}");
@@ -131,7 +144,7 @@ impl ValueUnits {
         } else if value.fract() == 0.0 {
             format!("{value:.0}")
         } else {
-            let text = format!("{value:.4}");
+            let text = format!("{value:.decimals$}");
             text.trim_end_matches('0').trim_end_matches('.').to_string()
         };
         if self.unit.is_empty() {
