@@ -3,10 +3,11 @@
 
 use anyhow::{Result, bail};
 
-/// Bytes a frame takes per pixel, measured: about 56 (`raycaster render
-/// --size 4096 --step 1000` peaks at 0.92 GB: the pixels' compositing states,
-/// the frame's floats, the image and its PNG encoding), with a margin.
-const FRAME_BYTES_PER_PIXEL: u64 = 64;
+/// Bytes a frame takes per pixel, measured: about 56 at 4096² (`raycaster
+/// render --size 4096 --step 1000` peaks at 0.92 GB: the pixels' compositing
+/// states, the frame's floats, the image and its PNG encoding) and 65 at
+/// 16384² (17.5 GB), with a margin.
+const FRAME_BYTES_PER_PIXEL: u64 = 72;
 
 /// Refuses a `width × height` frame that would take more memory than the
 /// machine has available (`MemAvailable` of `/proc/meminfo`; no check where
@@ -50,9 +51,10 @@ mod tests {
         let e = frame_fits(16384, 16384, 11 * gb).unwrap_err().to_string();
         assert_eq!(
             e,
-            "a 16384×16384 frame needs about 17.2 GB of memory and 11.0 GB are available; render a smaller --size"
+            "a 16384×16384 frame needs about 19.3 GB of memory and 11.0 GB are available; render a smaller --size"
         );
         assert!(frame_fits(16384, 16384, 20 * gb).is_ok());
+        assert!(frame_fits(16384, 16384, 18 * gb).is_err());
         // This machine reports its memory.
         assert!(available_bytes().is_some_and(|b| b > 0));
     }
