@@ -132,11 +132,18 @@ pub fn plan_values(
 /// `voxels` values (NaN or infinite) as the window's ends: said once, by
 /// `volgen convert`, `raycaster render` and the viewer alike.
 pub fn non_finite_warning(path: &Path, non_finite: u64, voxels: u64) -> String {
-    let verb = if non_finite == 1 { "is" } else { "are" };
     format!(
-        "{}: {non_finite} of its {voxels} values {verb} NaN or infinite: NaN is stored as the window's low end, ±infinity as its ends",
-        path.display()
+        "{}: {}: NaN is stored as the window's low end, ±infinity as its ends",
+        path.display(),
+        non_finite_count(non_finite, voxels)
     )
+}
+
+/// `non_finite` of `voxels` values said as a count: "3 of its 16 values are
+/// NaN or infinite" (what [`non_finite_warning`] and `volgen info` say).
+pub fn non_finite_count(non_finite: u64, voxels: u64) -> String {
+    let verb = if non_finite == 1 { "is" } else { "are" };
+    format!("{non_finite} of its {voxels} values {verb} NaN or infinite")
 }
 
 /// What a conversion did.

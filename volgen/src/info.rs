@@ -254,9 +254,9 @@ fn run_foreign(a: &InfoArgs) -> anyhow::Result<()> {
     );
     if non_finite > 0 {
         // (What convert, render and the viewer store them as.)
-        let verb = if non_finite == 1 { "is" } else { "are" };
         println!(
-            "            {non_finite} of the {voxels} values {verb} NaN or infinite (left out of the histogram; stored as the window's ends)"
+            "            {} (left out of the histogram; stored as the window's ends)",
+            raycaster::convert::non_finite_count(non_finite, voxels)
         );
     }
     let used = if whole {

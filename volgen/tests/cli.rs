@@ -446,7 +446,7 @@ fn float_input_with_infinities_and_nan_is_windowed_by_its_finite_values() {
     let info = stdout(&o);
     assert!(
         info.contains("min 10, max 25")
-            && info.contains("3 of the 16 values are NaN or infinite (left out of the histogram"),
+            && info.contains("3 of its 16 values are NaN or infinite (left out of the histogram"),
         "{info}"
     );
     // The samples: a linear u8 file in the thesis format ends with them.
