@@ -229,36 +229,51 @@ fn without_temp_path(e: std::io::Error) -> std::io::Error {
     }
 }
 
-/// Removes `.NAME.PID.XXXXXX.partial` files in `dir` whose process is gone. Best
-/// effort: a file that cannot be removed stays.
+/// Removes `.NAME.PID.XXXXXX.partial` files in `dir` whose process is gone,
+/// and the partial files of those (`..NAME.PID.XXXXXX.partial.PID.YYYYYY.partial`:
+/// an output staged under a partial name, as `volgen generate` stages a
+/// volume and its labels, was itself being written). Best effort: a file
+/// that cannot be removed stays.
 fn remove_stale_partials(dir: &Path, name: &str) {
     let Ok(entries) = std::fs::read_dir(dir) else {
         return;
     };
     let prefix = format!(".{name}.");
+    let nested = format!("..{name}.");
     for entry in entries.flatten() {
         let file_name = entry.file_name();
-        let Some(rest) = file_name
-            .to_str()
-            .and_then(|n| n.strip_prefix(&prefix))
-            .and_then(|n| n.strip_suffix(".partial"))
+        let Some(file_name) = file_name.to_str() else {
+            continue;
+        };
+        let Some(pid) = file_name
+            .strip_prefix(&prefix)
+            .and_then(partial_pid)
+            .or_else(|| file_name.strip_prefix(&nested).and_then(nested_partial_pid))
         else {
             continue;
         };
-        // PID.XXXXXX: the random part has no dot.
-        let Some((pid, random)) = rest.split_once('.') else {
-            continue;
-        };
-        let Ok(pid) = pid.parse::<i32>() else {
-            continue;
-        };
-        if random.contains('.') || pid <= 0 || process_alive(pid) {
+        if pid <= 0 || process_alive(pid) {
             continue;
         }
         if entry.file_type().is_ok_and(|t| t.is_file()) {
             let _ = std::fs::remove_file(entry.path());
         }
     }
+}
+
+/// The process of a partial file's name after its target's, `PID.XXXXXX.partial`
+/// (the random part has no dot).
+fn partial_pid(rest: &str) -> Option<i32> {
+    let (pid, random) = rest.strip_suffix(".partial")?.split_once('.')?;
+    (!random.contains('.')).then(|| pid.parse().ok())?
+}
+
+/// The process of a partial file of a partial file, `PID.XXXXXX.partial.PID.YYYYYY.partial`
+/// after its target's name (one process wrote both).
+fn nested_partial_pid(rest: &str) -> Option<i32> {
+    let (outer, inner) = rest.split_once(".partial.")?;
+    let pid = partial_pid(&format!("{outer}.partial"))?;
+    (partial_pid(inner)? == pid).then_some(pid)
 }
 
 /// Whether process `pid` exists (it may belong to another user).
@@ -349,7 +364,20 @@ mod tests {
             .path()
             .join(format!(".a.vol.{}.XyZ789.partial", std::process::id()));
         let other = dir.path().join(".b.vol.99999999.AbC123.partial");
-        for p in [&dead, &live, &other] {
+        // A staged output's own partial file, of the same dead process.
+        let nested = dir
+            .path()
+            .join("..a.vol.99999999.AbC123.partial.99999999.QrS456.partial");
+        // Names like ours that are not (a dotted random part; two processes).
+        let lookalikes = [
+            ".a.vol.99999999.Ab.C.partial",
+            "..a.vol.99999999.AbC123.partial.99999998.QrS456.partial",
+        ]
+        .map(|n| dir.path().join(n));
+        for p in [&dead, &live, &other, &nested]
+            .into_iter()
+            .chain(&lookalikes)
+        {
             std::fs::write(p, b"x").unwrap();
         }
         let tmp = temp_file_beside(&target).unwrap();
@@ -364,6 +392,8 @@ mod tests {
             "{name}"
         );
         assert!(!dead.exists());
+        assert!(!nested.exists());
+        assert!(lookalikes.iter().all(|p| p.exists()));
         assert!(live.exists());
         assert!(other.exists());
         let e = temp_file_beside(&dir.path().join("nodir/a.vol")).unwrap_err();

@@ -9,7 +9,10 @@ use raycaster::generate::generate;
 use raycaster::io::WriteOptions;
 use raycaster::job::Job;
 use raycaster::synth::SceneKind;
-use raycaster::volume::{Content, Format, Header, Layout, SampleType, pyramid_voxels};
+use raycaster::volume::{
+    Content, Format, Header, Layout, SampleType, pyramid_sidecar_path, pyramid_voxels,
+    ranges_sidecar_path,
+};
 
 use crate::args::{FormatArg, LayoutArg, SampleArg, parse_brick, parse_dims, parse_spacing};
 use crate::output::{check_output, output_name_warning};
@@ -156,7 +159,11 @@ pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
         h.content = Content::Labels;
         outputs.push((path, h));
     }
-    let mut finished: Vec<PathBuf> = Vec::new();
+    // Every output is written under a hidden name beside its target and moved
+    // into place only when all are complete: a failed, full or interrupted
+    // run leaves the files that were there as they were (a new volume beside
+    // the old labels, or none, is not what was asked for).
+    let mut done = Vec::new();
     for (path, header) in outputs {
         let what = if header.content == Content::Labels {
             "labels"
@@ -174,27 +181,40 @@ pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
             .with_progress(&on_progress)
             .with_cancel(&CANCEL);
         let start = Instant::now();
-        let written = match generate(scene.as_ref(), &header, &path, &options, &job) {
-            Ok(written) => written,
-            Err(e) => {
-                // The run writes all its outputs or none: the volume without
-                // its labels is not what was asked for.
-                for done in &finished {
-                    let _ = std::fs::remove_file(done);
-                }
-                return Err(e.into());
-            }
+        let staged = Staged::beside(&path)?;
+        let staged_options = WriteOptions {
+            overwrite: true,
+            ..options
         };
-        finished.push(path.clone());
+        let written = generate(
+            scene.as_ref(),
+            &header,
+            staged.path(),
+            &staged_options,
+            &job,
+        )
+        .map_err(|mut e| {
+            // (Errors name the file asked for, not its hidden name.)
+            if e.path == staged.path() {
+                e.path = path.clone();
+            }
+            anyhow::Error::from(e)
+        })?;
         let secs = start.elapsed().as_secs_f64();
         bar.finish_and_clear();
-        if !a.quiet {
+        done.push((path, header, staged, written, secs));
+    }
+    for (path, _, staged, _, _) in &mut done {
+        staged.move_to(path, a.force)?;
+    }
+    if !a.quiet {
+        for (path, header, _, written, secs) in &done {
             let [lo, hi] = written.ranges.overall();
             println!(
                 "wrote {}: {} {}{}, {} bytes in {:.2} s ({:.1} M voxels/s), values {lo}..={hi}",
                 path.display(),
                 describe_size(header.dims),
-                describe_layout(&header),
+                describe_layout(header),
                 describe_pyramid(written.pyramid_levels),
                 written.file_bytes,
                 secs,
@@ -203,6 +223,72 @@ pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// An output written under a hidden name beside its target (the same
+/// folder, so the move is a rename), with the sidecars the writer put beside
+/// it; removed when dropped unless moved into place.
+struct Staged {
+    path: Option<tempfile::TempPath>,
+}
+
+impl Staged {
+    /// A fresh hidden name beside `target` (a partial file of it, as the
+    /// writer's own: removed by a later run if this one is killed).
+    fn beside(target: &Path) -> anyhow::Result<Staged> {
+        let path = raycaster::files::temp_file_beside(target)
+            .with_context(|| format!("{}: cannot write beside it", target.display()))?
+            .into_temp_path();
+        Ok(Staged { path: Some(path) })
+    }
+
+    fn path(&self) -> &Path {
+        self.path
+            .as_deref()
+            .expect("a staged output is in place until moved")
+    }
+
+    /// The file's sidecars (thesis files' brick ranges and pyramid).
+    fn sidecars(path: &Path) -> [PathBuf; 2] {
+        [ranges_sidecar_path(path), pyramid_sidecar_path(path)]
+    }
+
+    /// Moves the file and its sidecars to `target` (replacing what is there
+    /// only with `force`); a sidecar of the old target that the new file has
+    /// not is removed.
+    fn move_to(&mut self, target: &Path, force: bool) -> anyhow::Result<()> {
+        let path = self.path.take().expect("a staged output is moved once");
+        let sidecars = Staged::sidecars(&path);
+        let moved = if force {
+            path.persist(target)
+        } else {
+            path.persist_noclobber(target)
+        };
+        moved.map_err(|e| {
+            self.path = Some(e.path);
+            anyhow::Error::from(e.error).context(format!("{}: cannot write it", target.display()))
+        })?;
+        for (from, to) in sidecars.iter().zip(Staged::sidecars(target)) {
+            if from.exists() {
+                std::fs::rename(from, &to)
+                    .with_context(|| format!("{}: cannot write it", to.display()))?;
+            } else if to.exists() {
+                std::fs::remove_file(&to)
+                    .with_context(|| format!("{}: cannot remove the old file", to.display()))?;
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Staged {
+    fn drop(&mut self) {
+        if let Some(path) = &self.path {
+            for sidecar in Staged::sidecars(path) {
+                let _ = std::fs::remove_file(sidecar);
+            }
+        }
+    }
 }
 
 /// Whether `a` and `b` name the same file: the same name in the same folder,

@@ -119,6 +119,53 @@ fn a_second_signal_exits_at_once_and_leaves_no_partial_file() {
     );
 }
 
+/// A scene with labels writes both files or neither: interrupted while the
+/// labels are written, the volume and labels that were there stay as they
+/// were (before: the new volume replaced the old, then was deleted).
+#[test]
+fn an_interrupted_run_with_labels_keeps_the_files_it_would_replace() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let o = volgen(
+        d,
+        &[
+            "generate", "--scene", "shells", "--size", "24", "-o", "s.vol",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let old = ["s.vol", "s.labels.vol"].map(|n| std::fs::read(d.join(n)).unwrap());
+    let child = Command::new(env!("CARGO_BIN_EXE_volgen"))
+        .current_dir(d)
+        .args([
+            "generate", "--scene", "shells", "--size", "500", "-o", "s.vol", "--force",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    while !files_in(d).iter().any(|n| n.starts_with(".s.labels.vol.")) {
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "{:?}",
+            files_in(d)
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGTERM) }, 0);
+    let o = wait_at_most(child, Duration::from_secs(60));
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(130), "{e}");
+    assert!(
+        e.contains("s.labels.vol: cancelled") && !e.contains(".partial"),
+        "{e}"
+    );
+    assert!(String::from_utf8_lossy(&o.stdout).is_empty(), "no 'wrote'");
+    assert_eq!(files_in(d), ["s.labels.vol", "s.vol"]);
+    let now = ["s.vol", "s.labels.vol"].map(|n| std::fs::read(d.join(n)).unwrap());
+    assert!(now == old, "the old files changed");
+}
+
 #[test]
 fn an_impossible_size_is_refused_up_front() {
     let dir = tempfile::tempdir().unwrap();
