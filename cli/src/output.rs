@@ -19,19 +19,26 @@ pub fn check_output(output: &Path, force: bool) -> Result<()> {
 
 /// [`check_output`] for a command that reads `inputs`: an output that is one
 /// of them is refused too (`--force` would replace the input with the image).
-pub fn check_output_of<'a>(
+pub fn check_output_of<I: AsRef<Path>>(
     output: &Path,
     force: bool,
-    inputs: impl IntoIterator<Item = &'a Path>,
+    inputs: impl IntoIterator<Item = I>,
 ) -> Result<()> {
     if let Some(input) = inputs
         .into_iter()
-        .find(|i| raycaster::files::same_file(i, output))
+        .find(|i| raycaster::files::same_file(i.as_ref(), output))
     {
+        let input = input.as_ref();
+        // (The input's own name where the image's is another way to write it,
+        // a data file a header names.)
+        let which = if input == output {
+            String::new()
+        } else {
+            format!(" ({})", input.display())
+        };
         bail!(
-            "{}: is an input of this command ({}); name another file for the image",
-            output.display(),
-            input.display()
+            "{}: is an input of this command{which}; name another file for the image",
+            output.display()
         );
     }
     check_output(output, force)

@@ -491,13 +491,20 @@ impl From<ModeArg> for Mode {
     }
 }
 
-/// The files the command reads that the flags name (the image must be none
-/// of them).
-pub(crate) fn input_paths(args: &RenderArgs) -> impl Iterator<Item = &Path> {
-    [&args.file, &args.session, &args.segments, &args.labels]
+/// The files the command reads (the image must be none of them): those the
+/// flags name (a `--tf` that is a file, not a preset), and a foreign FILE's
+/// detached data file.
+pub(crate) fn input_paths(args: &RenderArgs) -> Vec<PathBuf> {
+    let named = [&args.file, &args.session, &args.segments, &args.labels]
         .into_iter()
         .flatten()
-        .map(PathBuf::as_path)
+        .cloned();
+    let tf = args.tf.as_ref().map(PathBuf::from).filter(|p| p.is_file());
+    let data = args
+        .file
+        .iter()
+        .flat_map(|f| raycaster::import::data_files(f));
+    named.chain(tf).chain(data).collect()
 }
 
 /// Runs the render command.
@@ -506,7 +513,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         return crate::distributed::run(args);
     }
     check_arguments(&args)?;
-    crate::output::check_output_of(&args.output, args.force, input_paths(&args))?;
+    crate::output::check_output_of(&args.output, args.force, &input_paths(&args))?;
     let setup = Setup::new(&args)?;
     crate::memory::check_frame(setup.camera.width(), setup.camera.height())?;
     let prepared = setup.prepared_bands(&args)?;

@@ -66,7 +66,9 @@ enum AxisArg {
 
 /// Runs the slice command.
 pub fn run(args: SliceArgs) -> Result<()> {
-    crate::output::check_output_of(&args.output, args.force, [args.file.as_path()])?;
+    let inputs =
+        std::iter::once(args.file.clone()).chain(raycaster::import::data_files(&args.file));
+    crate::output::check_output_of(&args.output, args.force, inputs)?;
     raycaster::files::guard_mapped_file(&args.file);
     let volume = if raycaster::import::detect(&args.file).is_some() {
         let (volume, warning) = raycaster::import::open(&args.file)?.to_volume_noting(

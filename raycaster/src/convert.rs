@@ -168,7 +168,7 @@ pub fn convert(
     write: &WriteOptions,
     job: &Job,
 ) -> Result<ConvertSummary, VolumeError> {
-    if crate::files::same_file(input.path(), output) {
+    if input.files().any(|f| crate::files::same_file(f, output)) {
         return Err(VolumeError::new(output, VolumeErrorKind::SameFile));
     }
     let content = input.content();

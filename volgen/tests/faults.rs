@@ -166,6 +166,37 @@ fn an_interrupted_run_with_labels_keeps_the_files_it_would_replace() {
     assert!(now == old, "the old files changed");
 }
 
+/// A header's detached data file is an input: converting onto it is refused
+/// as converting onto the header is (before: `--force` replaced the samples).
+#[test]
+fn convert_never_writes_over_a_header_s_data_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let samples: Vec<u8> = (0..64).collect();
+    std::fs::write(d.join("scan.raw"), &samples).unwrap();
+    std::fs::write(
+        d.join("scan.mhd"),
+        "ObjectType = Image\nNDims = 3\nDimSize = 4 4 4\nElementType = MET_UCHAR\nElementDataFile = scan.raw\n",
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("scan.nhdr"),
+        "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 4 4 4\nencoding: raw\ndata file: scan.raw\n",
+    )
+    .unwrap();
+    for header in ["scan.mhd", "scan.nhdr"] {
+        let o = volgen(d, &["convert", header, "-o", "scan.raw", "--force"]);
+        assert_eq!(o.status.code(), Some(1), "{header}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains("scan.raw: is both the input and the output"),
+            "{header}: {}",
+            stderr(&o)
+        );
+        assert_eq!(std::fs::read(d.join("scan.raw")).unwrap(), samples);
+    }
+    assert_eq!(files_in(d), ["scan.mhd", "scan.nhdr", "scan.raw"]);
+}
+
 #[test]
 fn an_impossible_size_is_refused_up_front() {
     let dir = tempfile::tempdir().unwrap();

@@ -378,6 +378,21 @@ pub(crate) fn check_spacing_ratio(
     ))
 }
 
+/// The files a foreign volume at `path` is read from beside itself (a NRRD,
+/// MetaImage or NIfTI header's detached data file), for commands that refuse
+/// to write over their inputs; nothing for a `.vol` file, a DICOM series or a
+/// file that does not parse (its error is said where it is opened).
+pub fn data_files(path: &Path) -> Vec<PathBuf> {
+    match detect(path) {
+        Some(ImportFormat::Nrrd | ImportFormat::Nifti | ImportFormat::MetaImage) => {
+            open_unchecked(path)
+                .map(|imported| imported.files().skip(1).map(Path::to_path_buf).collect())
+                .unwrap_or_default()
+        }
+        _ => Vec::new(),
+    }
+}
+
 /// Parses the foreign file at `path` (any supported format).
 pub fn open(path: &Path) -> Result<Imported, ImportError> {
     open_unchecked(path).and_then(|imported| {
@@ -438,7 +453,16 @@ impl Imported {
         let input = self.unscaled_input(scratch_dir, memory_max, job)?;
         Ok(input
             .with_units(self.units())
-            .with_orientation(self.orientation.clone()))
+            .with_orientation(self.orientation.clone())
+            .also_reading(self.files().map(Path::to_path_buf).collect()))
+    }
+
+    /// Every file the volume is read from: the header, its detached data file,
+    /// a series' slices.
+    pub fn files(&self) -> impl Iterator<Item = &Path> {
+        [self.path.as_path(), self.data_path.as_path()]
+            .into_iter()
+            .chain(self.slices.iter().map(|(p, _)| p.as_path()))
     }
 
     /// What the file's stored values mean: its rescale slope and intercept (or

@@ -112,6 +112,9 @@ pub struct Input {
     units: ValueUnits,
     /// Where the volume lies in the patient, when the source says.
     orientation: Option<Orientation>,
+    /// Other files the input reads (a foreign header's detached data file,
+    /// a DICOM series' slices): no output may be one of them.
+    also_reads: Vec<PathBuf>,
 }
 
 impl Input {
@@ -163,6 +166,7 @@ impl Input {
             spacing,
             units: ValueUnits::IDENTITY,
             orientation: None,
+            also_reads: Vec::new(),
         })
     }
 
@@ -176,6 +180,7 @@ impl Input {
             orientation: header.orientation.clone(),
             source: Source::Vol(header),
             spacing: None,
+            also_reads: Vec::new(),
         })
     }
 
@@ -259,6 +264,18 @@ impl Input {
     /// The file being read.
     pub fn path(&self) -> &Path {
         &self.path
+    }
+
+    /// This input noting that it reads `files` too (a foreign header's data
+    /// file, a series' slices).
+    pub fn also_reading(mut self, files: Vec<PathBuf>) -> Input {
+        self.also_reads = files;
+        self
+    }
+
+    /// Every file the input reads: [`Self::path`] and those it also reads.
+    pub fn files(&self) -> impl Iterator<Item = &Path> {
+        std::iter::once(self.path.as_path()).chain(self.also_reads.iter().map(PathBuf::as_path))
     }
 
     /// Voxel counts on x, y, z.
