@@ -156,7 +156,7 @@ mod mpi_rank {
         let local = world.split_shared(rank).size().max(1) as usize;
         let checked = check_arguments(&args).and_then(|()| {
             if rank == 0 {
-                check_output_of(&args.output, args.force, &crate::render::input_paths(&args))
+                check_output_of(&args.output, args.force, crate::render::input_paths(&args))
             } else {
                 Ok(())
             }

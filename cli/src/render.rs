@@ -513,7 +513,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         return crate::distributed::run(args);
     }
     check_arguments(&args)?;
-    crate::output::check_output_of(&args.output, args.force, &input_paths(&args))?;
+    crate::output::check_output_of(&args.output, args.force, input_paths(&args))?;
     let setup = Setup::new(&args)?;
     crate::memory::check_frame(setup.camera.width(), setup.camera.height())?;
     let prepared = setup.prepared_bands(&args)?;
