@@ -17,7 +17,7 @@ use raycaster_benches::{
     parse_sample_type,
 };
 
-use crate::args::parse_size;
+use crate::args::{parse_positive, parse_size};
 use crate::plot;
 use crate::render::ModeArg;
 
@@ -69,17 +69,17 @@ pub struct BenchArgs {
 
     /// Render-thread counts to try [default: 1, the powers of two below the
     /// core count, and the core count: 1,2 on two cores].
-    #[arg(long, value_delimiter = ',', default_values_t = default_threads(), hide_default_value = true, value_name = "N,..")]
+    #[arg(long, value_delimiter = ',', default_values_t = default_threads(), hide_default_value = true, value_parser = parse_threads, value_name = "N,..")]
     threads: Vec<usize>,
 
     /// Tile sizes to try (pixels) [default: 8,16,32].
-    #[arg(long, value_delimiter = ',', default_values_t = [8, 16, 32], hide_default_value = true, value_name = "PX,..")]
+    #[arg(long, value_delimiter = ',', default_values_t = [8, 16, 32], hide_default_value = true, value_parser = clap::value_parser!(u32).range(1..=4096), value_name = "PX,..")]
     tiles: Vec<u32>,
 
     /// Brick sides to try [default: 8,16,32; on a bricked volume those of them
     /// that tile its bricks (side−1 divides the volume's side−1), else its own
     /// side].
-    #[arg(long, value_delimiter = ',', value_name = "N,..")]
+    #[arg(long, value_delimiter = ',', value_parser = clap::value_parser!(u32).range(2..=1024), value_name = "N,..")]
     bricks: Vec<u32>,
 
     /// Optimisation settings to try: none, ert, ess, both.
@@ -99,7 +99,7 @@ pub struct BenchArgs {
     transfer: &'static str,
 
     /// Timed frames per configuration (the fastest is reported).
-    #[arg(long, default_value_t = 3, value_name = "N")]
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..), value_name = "N")]
     frames: u32,
 
     /// Untimed frames before the timed ones (page cache, allocations).
@@ -107,7 +107,7 @@ pub struct BenchArgs {
     warm_up: u32,
 
     /// Sample step in voxels.
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.5, value_parser = parse_positive, value_name = "VOXELS")]
     step: f32,
 
     /// Pre-integrated transfer tables, as `raycaster render --preintegrate`
@@ -144,6 +144,15 @@ pub struct BenchArgs {
 
 /// The most render threads a case may ask for (as `raycaster render --threads`).
 const MAX_THREADS: usize = 1024;
+
+/// A `--threads` count: 1 to [`MAX_THREADS`].
+fn parse_threads(s: &str) -> Result<usize, String> {
+    match s.trim().parse::<usize>() {
+        Ok(n) if (1..=MAX_THREADS).contains(&n) => Ok(n),
+        Ok(n) => Err(format!("{n} is not in 1..={MAX_THREADS}")),
+        Err(e) => Err(e.to_string()),
+    }
+}
 
 fn default_threads() -> Vec<usize> {
     let cores = raycaster_benches::cores();
@@ -314,18 +323,6 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
         args.volume_size = args.volume_size.min(96);
         args.image = [128, 128];
         args.frames = 1;
-    }
-    if args.frames == 0 || args.threads.contains(&0) || args.tiles.contains(&0) {
-        bail!("--frames, --threads and --tiles must be at least 1");
-    }
-    if let Some(&n) = args.threads.iter().find(|&&n| n > MAX_THREADS) {
-        bail!("--threads {n}: at most {MAX_THREADS} render threads");
-    }
-    if args.bricks.iter().any(|&b| b < 2) {
-        bail!("--bricks must be at least 2");
-    }
-    if !(args.step > 0.0 && args.step.is_finite()) {
-        bail!("--step must be a positive number");
     }
     // The outputs are checked before the sweep, not after it.
     if let Some(csv) = &args.csv {

@@ -395,6 +395,59 @@ fn long_frames_show_progress() {
     assert!(stderr(&o).is_empty(), "{}", stderr(&o));
 }
 
+/// Bench's sweep lists are read as render reads its flags: a value out of
+/// range is a wrong command line (exit 2), said before anything runs. (Before:
+/// `--bricks 100000` aborted on a 62 TB allocation; the others exited 1.)
+#[test]
+fn bench_refuses_out_of_range_lists_as_a_wrong_command_line() {
+    let dir = tempfile::tempdir().unwrap();
+    for (flag, value) in [
+        ("--bricks", "100000"),
+        ("--bricks", "8,1"),
+        ("--threads", "0"),
+        ("--threads", "5000"),
+        ("--tiles", "0"),
+        ("--frames", "0"),
+        ("--step", "0"),
+    ] {
+        let o = raycaster(&["bench", "--quick", flag, value], dir.path());
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{flag} {value}: {e}");
+        assert!(
+            e.starts_with(&format!("error: invalid value")),
+            "{flag} {value}: {e}"
+        );
+        assert!(e.contains(flag), "{e}");
+    }
+}
+
+/// A logical brick past the volume's size renders as the one brick it is:
+/// as fast as that brick, and the same picture (before: `--brick 1000
+/// --sequential` on 64³ ran for over a minute over empty cells).
+#[test]
+fn a_brick_larger_than_the_volume_is_the_one_brick_of_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for (brick, out) in [("1000", "big.png"), ("64", "one.png")] {
+        let o = raycaster(
+            &[
+                "render",
+                "--brick",
+                brick,
+                "--sequential",
+                "--size",
+                "48",
+                "-o",
+                out,
+            ],
+            d,
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let big = std::fs::read(d.join("big.png")).unwrap();
+    assert!(big == std::fs::read(d.join("one.png")).unwrap());
+}
+
 #[test]
 fn bench_reports_median_and_spread_writes_csv_as_it_goes_and_warns_on_one_frame() {
     let dir = tempfile::tempdir().unwrap();

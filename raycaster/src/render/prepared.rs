@@ -70,10 +70,14 @@ impl<'a> RenderVolume<'a> {
                 }
                 BlockGrid::new(volume.dims(), side)
             }
-            Layout::Linear => BlockGrid::new(
-                volume.dims(),
-                brick_side.unwrap_or_else(|| default_linear_brick_side(volume.dims())),
-            ),
+            Layout::Linear => {
+                let side = brick_side.unwrap_or_else(|| default_linear_brick_side(volume.dims()));
+                // A brick past the volume's largest side is the one brick of
+                // that side (the same grid), not a grid of cells over empty
+                // space.
+                let largest = volume.dims().into_iter().max().unwrap_or(2).max(2);
+                BlockGrid::new(volume.dims(), side.min(largest))
+            }
         };
         Ok(RenderVolume {
             volume,
