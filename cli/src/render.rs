@@ -599,6 +599,9 @@ impl Setup {
                 // The kernel does not change the picture: a session leaves it to the flag.
                 session.settings.simd = args.simd.0;
                 let volume = open_volume(&session.source, args)?;
+                if let Err(e) = session.settings.clip.check_overlaps(volume.dims()) {
+                    bail!("{}: `crop`: {e}", path.display());
+                }
                 if let (Some(warning), LevelChoice::Fixed(k)) =
                     (level_warning(session.level, &volume), session.level)
                     && !args.quiet

@@ -249,6 +249,13 @@ fn bad_sessions_are_refused_by_field() {
             "missing.vol",
         ),
         ("version = 1", "version = 9", "version"),
+        // A crop box beside the volume: refused as `--crop` refuses it
+        // (before: an empty picture, exit 0).
+        (
+            "crop = [0.0, 0.0, 0.0, 39.0, 30.0, 39.0]",
+            "crop = [100.0, 0.0, 0.0, 200.0, 30.0, 39.0]",
+            "lies outside the volume along x",
+        ),
     ] {
         assert!(good.contains(from), "{from}");
         std::fs::write(dir.path().join("bad.toml"), good.replace(from, to)).unwrap();

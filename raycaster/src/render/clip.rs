@@ -98,6 +98,26 @@ impl ClipRegion {
         Ok(())
     }
 
+    /// Refuses a crop box that lies outside a volume of `dims` voxels along an
+    /// axis (its picture would be empty; `raycaster render --crop` refuses it
+    /// the same way, by the flag's name).
+    pub fn check_overlaps(&self, dims: [u32; 3]) -> Result<(), RenderError> {
+        let Some(CropBox { lo, hi }) = self.crop else {
+            return Ok(());
+        };
+        for (a, name) in ["x", "y", "z"].into_iter().enumerate() {
+            let last = dims[a].saturating_sub(1) as f32;
+            // (Half a voxel of slack: a coarser level's voxels reach that far
+            // past the full-resolution volume's, in its coordinates.)
+            if hi[a] < -0.5 || lo[a] > last + 0.5 {
+                return Err(RenderError::Clip(format!(
+                    "crop box {lo} – {hi} lies outside the volume along {name} (0..{last} voxels)"
+                )));
+            }
+        }
+        Ok(())
+    }
+
     /// The region in the voxel coordinates of a pyramid level whose voxels span
     /// `scale` (`2^k`) level-0 voxels, the region being in level-0 voxels: level
     /// `k`'s voxel `(0, 0, 0)` sits at `(scale − 1)/2` level-0 voxels.
@@ -281,6 +301,39 @@ mod tests {
         };
         let e = flat.validate().unwrap_err().to_string();
         assert!(e.contains("is empty or inverted"), "{e}");
+        // A box beside the volume (32 voxels a side) along y; one that
+        // overlaps it, or reaches past its end by under half a voxel (where a
+        // coarser level's voxels lie), is kept.
+        let boxed = |lo: [f32; 3], hi: [f32; 3]| ClipRegion {
+            crop: Some(CropBox {
+                lo: Vec3::from(lo),
+                hi: Vec3::from(hi),
+            }),
+            planes: Vec::new(),
+        };
+        let e = boxed([0.0, 40.0, 0.0], [9.0, 50.0, 9.0])
+            .check_overlaps([32; 3])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("lies outside the volume along y (0..31 voxels)"),
+            "{e}"
+        );
+        assert!(
+            boxed([0.0, 20.0, 0.0], [9.0, 50.0, 9.0])
+                .check_overlaps([32; 3])
+                .is_ok()
+        );
+        assert!(
+            boxed([0.0, 31.4, 0.0], [9.0, 50.0, 9.0])
+                .check_overlaps([32; 3])
+                .is_ok()
+        );
+        assert!(
+            boxed([-9.0, 0.0, 0.0], [-1.0, 9.0, 9.0])
+                .check_overlaps([32; 3])
+                .is_err()
+        );
         let zero = ClipRegion {
             crop: None,
             planes: vec![ClipPlane {

@@ -245,6 +245,7 @@ impl FramePlan {
             return Err(RenderError::IsoValue(settings.iso_value));
         }
         settings.clip.validate()?;
+        settings.clip.check_overlaps(volume.volume().dims())?;
         let simd = match settings.simd {
             None => SimdLevel::automatic(),
             Some(level) if level.is_available() => level,
