@@ -654,6 +654,18 @@ impl Setup {
             },
             (None, _) => None,
         };
+        // (Said here in the files' own sizes; the renderer compares the
+        // pyramid levels it samples.)
+        if let Some(labels) = &labels
+            && labels.dims() != volume.dims()
+        {
+            let [x, y, z] = labels.dims();
+            let [vx, vy, vz] = volume.dims();
+            bail!(
+                "{}: the labels are {x}x{y}x{z} voxels and the volume {vx}x{vy}x{vz}: a label volume labels the voxels of its volume, one for one",
+                labels.path().display()
+            );
+        }
         let camera = session.camera().context("invalid camera")?;
         // Two-level scenes sample one level, and with labels the labels of the
         // same level, when they have it.

@@ -133,6 +133,29 @@ fn a_label_volume_given_as_data_points_at_labels_and_segments() {
     );
     assert_eq!(e.lines().count(), 1, "said once: {e}");
     assert!(!d.join("c.png").exists());
+    // Labels of another size: said in the files' own sizes (before: those of
+    // the pyramid level the frame sampled, which neither file is).
+    write_vol(&d.join("y.vol"), [12; 3], [1.0; 3], Content::Scalar);
+    let o = raycaster(
+        &[
+            "render",
+            "y.vol",
+            "--segments",
+            "s.toml",
+            "--labels",
+            "x.labels.vol",
+            "-o",
+            "d.png",
+        ],
+        d,
+    );
+    assert_eq!(o.status.code(), Some(1));
+    let e = stderr(&o);
+    assert!(
+        e.contains("x.labels.vol: the labels are 8x8x8 voxels and the volume 12x12x12"),
+        "{e}"
+    );
+    assert!(!d.join("d.png").exists());
 }
 
 #[test]
