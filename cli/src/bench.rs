@@ -344,6 +344,11 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
         // Until the volume is open: a placeholder that opens it.
         args.bricks = DEFAULT_BRICKS.to_vec();
     }
+    if let Some(file) = &args.file
+        && let Some(problem) = raycaster::import::vol_only_problem(file)
+    {
+        bail!("{}: {problem}", file.display());
+    }
     let cases_then = cases(&args);
     let Some(first) = cases_then.first() else {
         bail!(

@@ -441,6 +441,41 @@ fn bench_refuses_out_of_range_lists_as_a_wrong_command_line() {
     }
 }
 
+/// Bench reads `.vol` files only, and says so of a foreign volume; a folder
+/// named like a volume file is said to be a folder.
+#[test]
+fn bench_names_what_it_reads_and_folders_named_vol_are_folders() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut nrrd = b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 4 4 4\nencoding: raw\n\n".to_vec();
+    nrrd.extend([7u8; 64]);
+    std::fs::write(d.join("s.nrrd"), nrrd).unwrap();
+    let o = raycaster(&["bench", "s.nrrd", "--quick"], d);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("s.nrrd: is a NRRD volume, and this command reads .vol files"),
+        "{}",
+        stderr(&o)
+    );
+    std::fs::create_dir(d.join("d.vol")).unwrap();
+    for args in [
+        &["render", "d.vol", "-o", "x.png"][..],
+        &[
+            "slice", "d.vol", "--axis", "z", "--index", "0", "-o", "x.png",
+        ],
+        &["bench", "d.vol", "--quick"],
+    ] {
+        let o = raycaster(args, d);
+        assert_eq!(o.status.code(), Some(1), "{args:?}");
+        assert!(
+            stderr(&o).contains("d.vol: is a directory"),
+            "{args:?}: {}",
+            stderr(&o)
+        );
+        assert!(!d.join("x.png").exists());
+    }
+}
+
 /// A logical brick past the volume's size renders as the one brick it is:
 /// as fast as that brick, and the same picture (before: `--brick 1000
 /// --sequential` on 64³ ran for over a minute over empty cells).

@@ -35,6 +35,9 @@ pub struct PyramidArgs {
 }
 
 pub fn run(a: PyramidArgs) -> anyhow::Result<()> {
+    if let Some(problem) = raycaster::import::vol_only_problem(&a.file) {
+        anyhow::bail!("{}: {problem}", a.file.display());
+    }
     let volume = Volume::open(&a.file)?;
     let dims = volume.dims();
     if level_dims(dims).is_empty() {

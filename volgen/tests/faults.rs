@@ -197,6 +197,35 @@ fn convert_never_writes_over_a_header_s_data_file() {
     assert_eq!(files_in(d), ["scan.mhd", "scan.nhdr", "scan.raw"]);
 }
 
+/// Commands that read `.vol` files only say so of a foreign volume, and a
+/// folder named like a volume file is said to be a folder (before: "its name
+/// ends in none of .vol, .nrrd, …" of a .nrrd; a DICOM search of the folder).
+#[test]
+fn vol_only_commands_and_folders_named_vol_say_what_they_are() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut nrrd = b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 4 4 4\nencoding: raw\n\n".to_vec();
+    nrrd.extend([7u8; 64]);
+    std::fs::write(d.join("s.nrrd"), nrrd).unwrap();
+    let o = volgen(d, &["pyramid", "s.nrrd"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("s.nrrd: is a NRRD volume, and this command reads .vol files: `volgen convert s.nrrd -o NAME.vol`"),
+        "{}",
+        stderr(&o)
+    );
+    std::fs::create_dir(d.join("d.vol")).unwrap();
+    for args in [&["info", "d.vol"][..], &["pyramid", "d.vol"]] {
+        let o = volgen(d, args);
+        assert_eq!(o.status.code(), Some(1), "{args:?}");
+        assert!(
+            stderr(&o).contains("d.vol: is a directory"),
+            "{args:?}: {}",
+            stderr(&o)
+        );
+    }
+}
+
 #[test]
 fn an_impossible_size_is_refused_up_front() {
     let dir = tempfile::tempdir().unwrap();

@@ -316,13 +316,15 @@ pub const FOREIGN_EXTENSIONS: [(&str, ImportFormat); 8] = [
 /// Which format `path` is, by extension, then by its first bytes; `None` for `.vol`
 /// files and anything unknown. A folder is taken for a DICOM series.
 pub fn detect(path: &Path) -> Option<ImportFormat> {
-    if path.is_dir() {
-        return Some(ImportFormat::Dicom);
-    }
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default();
+    if path.is_dir() {
+        // (A folder named like a volume file is said to be a folder where it
+        // is opened as one, not searched for DICOM files.)
+        return (!name.ends_with(".vol")).then_some(ImportFormat::Dicom);
+    }
     if let Some((_, f)) = FOREIGN_EXTENSIONS
         .iter()
         .find(|(ext, _)| name.ends_with(ext))
@@ -391,6 +393,19 @@ pub fn data_files(path: &Path) -> Vec<PathBuf> {
         }
         _ => Vec::new(),
     }
+}
+
+/// Why a command that reads `.vol` files only cannot take `path`: a foreign
+/// volume (NRRD, NIfTI-1, MetaImage, a DICOM series), with the conversion
+/// that makes one. `None` for anything else (a `.vol` file, or a file whose
+/// own open says what is wrong with it).
+pub fn vol_only_problem(path: &Path) -> Option<String> {
+    let format = detect(path)?;
+    Some(format!(
+        "is a {} volume, and this command reads .vol files: `volgen convert {} -o NAME.vol` makes one",
+        format.name(),
+        path.display()
+    ))
 }
 
 /// Parses the foreign file at `path` (any supported format).
