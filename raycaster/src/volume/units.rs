@@ -26,7 +26,7 @@ pub struct ValueUnits {
     pub scale: f64,
     /// Value of stored sample 0 (finite).
     pub offset: f64,
-    /// The unit's name, at most [`MAX_UNIT_LEN`] UTF-8 bytes without NUL ("" =
+    /// The unit's name, at most [`MAX_UNIT_LEN`] UTF-8 bytes, no control characters ("" =
     /// unknown).
     pub unit: String,
 }
@@ -79,9 +79,11 @@ impl ValueUnits {
                 self.scale, self.offset
             )));
         }
-        if self.unit.len() > MAX_UNIT_LEN || self.unit.contains('\0') {
+        // (No control characters: a unit is printed to terminals, where an
+        // escape sequence in a file would act.)
+        if self.unit.len() > MAX_UNIT_LEN || self.unit.chars().any(char::is_control) {
             return Err(HeaderError::BadUnits(format!(
-                "unit {:?} must be at most {MAX_UNIT_LEN} bytes without NUL",
+                "unit {:?} must be at most {MAX_UNIT_LEN} bytes of printable text",
                 self.unit
             )));
         }
@@ -252,6 +254,9 @@ mod tests {
             (1.0, f64::INFINITY, ""),
             (1.0, 0.0, "a unit name far too long"),
             (1.0, 0.0, "a\0b"),
+            // An escape sequence (clears a terminal that prints it).
+            (1.0, 0.0, "\u{1b}[2J"),
+            (1.0, 0.0, "HU\n"),
         ] {
             assert!(ValueUnits::new(scale, offset, unit).is_err(), "{unit:?}");
         }
@@ -264,7 +269,9 @@ mod tests {
         not_utf8[24] = 0xff;
         let mut zero_scale = good;
         zero_scale[8..16].copy_from_slice(&0.0f64.to_le_bytes());
-        for block in [bad_magic, trailing, not_utf8, zero_scale] {
+        let mut escape = good;
+        escape[24] = 0x1b;
+        for block in [bad_magic, trailing, not_utf8, zero_scale, escape] {
             assert!(ValueUnits::decode(&block).is_err());
         }
         assert!(ValueUnits::decode(&good[..40]).is_err());
