@@ -85,8 +85,9 @@ pub fn run(a: PyramidArgs) -> anyhow::Result<()> {
         let sidecar = pyramid_sidecar_path(&a.file);
         let bytes = std::fs::metadata(&sidecar).map(|m| m.len()).unwrap_or(0);
         println!(
-            "wrote {}: {levels} levels, {bytes} bytes in {:.2} s",
+            "wrote {}: {}, {bytes} bytes in {:.2} s",
             sidecar.display(),
+            crate::generate::describe_levels(levels),
             start.elapsed().as_secs_f64()
         );
     }
