@@ -229,8 +229,21 @@ fn orientation(
         (steps, [rows[0][3], rows[1][3], rows[2][3]])
     };
     let qform = || {
-        let (b, c, d) = (f(256), f(260), f(264));
-        let a = (1.0 - (b * b + c * c + d * d)).max(0.0).sqrt();
+        let (mut b, mut c, mut d) = (f(256), f(260), f(264));
+        // A unit quaternion's b² + c² + d² is at most 1. Past it by a rounding
+        // error (a half turn, a = 0): (b, c, d) normalised, as nifti1_io does.
+        // Past it by more the form is broken (a rotation that also scales):
+        // NaN, which no volume's axes are, so the form is passed over.
+        let norm = b * b + c * c + d * d;
+        let a = if norm <= 1.0 {
+            (1.0 - norm).sqrt()
+        } else if norm <= 1.0 + 1e-3 {
+            let s = norm.sqrt().recip();
+            (b, c, d) = (b * s, c * s, d * s);
+            0.0
+        } else {
+            f64::NAN
+        };
         let rotation = [
             [
                 a * a + b * b - c * c - d * d,
@@ -409,6 +422,29 @@ mod tests {
         h[108..112].copy_from_slice(&0f32.to_le_bytes());
         std::fs::write(&hdr, &h).unwrap();
         assert_eq!(open(&hdr).unwrap().dims, [2, 2, 2]);
+    }
+
+    #[test]
+    fn a_quaternion_past_unit_length_is_normalised_or_passed_over() {
+        let with_qform = |bcd: [f32; 3]| {
+            let mut h = header(2, [3, 4, 5], [1.0, 2.0, 3.0]);
+            h[252..254].copy_from_slice(&1i16.to_le_bytes());
+            for (i, q) in bcd.iter().enumerate() {
+                h[256 + 4 * i..260 + 4 * i].copy_from_slice(&q.to_le_bytes());
+            }
+            parse_header(&h).unwrap()
+        };
+        // b = c = d = 1: no rotation (it would scale the axes threefold).
+        let broken = with_qform([1.0, 1.0, 1.0]);
+        assert!(broken.orientation.is_none());
+        assert_eq!(broken.spacing, [1.0, 2.0, 3.0]);
+        // A half turn about z written with a rounding error: a rotation, the
+        // spacing kept.
+        let half_turn = with_qform([0.0, 0.0, 1.000_1]);
+        assert!(half_turn.orientation.is_some());
+        for (s, want) in half_turn.spacing.iter().zip([1.0, 2.0, 3.0]) {
+            assert!((s - want).abs() < 1e-4, "{:?}", half_turn.spacing);
+        }
     }
 
     #[test]
