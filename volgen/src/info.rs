@@ -230,15 +230,15 @@ fn run_foreign(a: &InfoArgs) -> anyhow::Result<()> {
     // Whole-number values (every type but f32, unscaled) get whole-number bins.
     let whole = imported.sample != raycaster::io::RawType::F32 && imported.scaling.is_none();
     let width = if whole {
-        ((f64::from(hi - lo) + 1.0) / BINS as f64).ceil()
+        (((f64::from(hi) - f64::from(lo)) + 1.0) / BINS as f64).ceil()
     } else {
-        f64::from(hi - lo) / BINS as f64
+        (f64::from(hi) - f64::from(lo)) / BINS as f64
     };
     input.for_each_slab(8 << 20, &to_value, &job, |slab| {
         for &v in slab {
             if v.is_finite() {
                 let i = if width > 0.0 {
-                    ((f64::from(v - lo) / width) as usize).min(BINS - 1)
+                    (((f64::from(v) - f64::from(lo)) / width) as usize).min(BINS - 1)
                 } else {
                     0
                 };
@@ -261,7 +261,7 @@ fn run_foreign(a: &InfoArgs) -> anyhow::Result<()> {
     }
     let used = if whole {
         // (Bins past the largest value stay out.)
-        ((f64::from(hi - lo) / width) as usize + 1).min(BINS)
+        (((f64::from(hi) - f64::from(lo)) / width) as usize + 1).min(BINS)
     } else if width > 0.0 {
         BINS
     } else {

@@ -459,6 +459,12 @@ fn info_charts_a_constant_or_narrow_float_file_with_labels_that_differ() {
     let mut distinct = labels.clone();
     distinct.dedup();
     assert_eq!(distinct, labels, "{out}");
+    // The whole f32 range: bins of finite width (before: NaN and inf, the
+    // range's width overflowing f32).
+    write("huge.nrrd", &|i| if i % 2 == 0 { 3.4e38 } else { -3.4e38 });
+    let (out, labels) = chart("huge.nrrd");
+    assert_eq!(labels.len(), 16, "{out}");
+    assert!(!out.contains("NaN") && !out.contains("inf"), "{out}");
 }
 
 #[test]
