@@ -182,6 +182,11 @@ pub fn convert(
             "a label volume stays u8 ids: no other sample type, no window",
         ));
     }
+    if content == Content::Labels && options.format == Format::Thesis {
+        return Err(spec_error(
+            "the thesis header cannot mark a label volume (it would read as values); use the extended format",
+        ));
+    }
     if sample_type == SampleType::U16 && options.format == Format::Thesis {
         return Err(spec_error(
             "the thesis format holds u8 samples only; use the extended format for u16",

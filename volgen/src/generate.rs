@@ -72,7 +72,8 @@ pub struct GenerateArgs {
     /// Sample type.
     #[arg(long = "type", value_enum, default_value_t = SampleArg::U8)]
     sample_type: SampleArg,
-    /// Header format (thesis: readable by the reference thesis's tools; u8 only).
+    /// Header format (thesis: readable by the reference thesis's tools; u8 only;
+    /// a label volume takes the extended header, the only one that marks labels).
     #[arg(long, value_enum, default_value_t = FormatArg::Extended)]
     format: FormatArg,
     /// Seed for the random placement of scene objects.
@@ -154,9 +155,16 @@ pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
 
     let mut outputs = vec![(a.output.clone(), header.clone())];
     if let Some(path) = labels {
-        let mut h = header.clone();
-        h.sample_type = SampleType::U8;
-        h.content = Content::Labels;
+        // The thesis header cannot mark labels (they would read as values):
+        // the labels take the extended header, which `wrote` names.
+        let h = Header::new(
+            a.size,
+            a.spacing,
+            layout,
+            SampleType::U8,
+            Content::Labels,
+            Format::Extended,
+        );
         outputs.push((path, h));
     }
     // Every output is written under a hidden name beside its target and moved

@@ -226,6 +226,49 @@ fn vol_only_commands_and_folders_named_vol_say_what_they_are() {
     }
 }
 
+/// The thesis header cannot mark labels: a thesis scene's labels take the
+/// extended header (before: a thesis label file that read as values), and a
+/// conversion of labels to the thesis format is refused.
+#[test]
+fn labels_never_take_the_thesis_header() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let o = volgen(
+        d,
+        &[
+            "generate", "--scene", "shells", "--size", "20", "--format", "thesis", "-o", "t.vol",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(
+        out.contains("t.vol: 20x20x20 u8 bricked (side 16), thesis header"),
+        "{out}"
+    );
+    assert!(
+        out.contains("t.labels.vol: 20x20x20 u8 labels bricked (side 16), extended header"),
+        "{out}"
+    );
+    let o = volgen(
+        d,
+        &[
+            "convert",
+            "t.labels.vol",
+            "--format",
+            "thesis",
+            "-o",
+            "x.vol",
+        ],
+    );
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("the thesis header cannot mark a label volume"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!d.join("x.vol").exists());
+}
+
 #[test]
 fn an_impossible_size_is_refused_up_front() {
     let dir = tempfile::tempdir().unwrap();
