@@ -476,6 +476,35 @@ fn bench_names_what_it_reads_and_folders_named_vol_are_folders() {
     }
 }
 
+/// A foreign file whose samples are cut short is said to be, whatever size
+/// its header declares (before: a 35 TB declaration was refused as too large
+/// to open in memory, with the advice to convert it, which then failed).
+#[test]
+fn a_truncated_foreign_file_is_said_to_be_before_its_size_is_weighed() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut nrrd =
+        b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 32767 32767 32767\nencoding: raw\n\n"
+            .to_vec();
+    nrrd.extend([0u8; 1000]);
+    std::fs::write(d.join("t.nrrd"), nrrd).unwrap();
+    for args in [
+        &["render", "t.nrrd", "-o", "x.png"][..],
+        &[
+            "slice", "t.nrrd", "--axis", "z", "--index", "0", "-o", "x.png",
+        ],
+    ] {
+        let o = raycaster(args, d);
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {e}");
+        assert!(
+            e.contains("holds 1000 bytes of samples but the header needs"),
+            "{e}"
+        );
+        assert!(!e.contains("limit"), "{e}");
+    }
+}
+
 /// A logical brick past the volume's size renders as the one brick it is:
 /// as fast as that brick, and the same picture (before: `--brick 1000
 /// --sequential` on 64³ ran for over a minute over empty cells).

@@ -516,23 +516,7 @@ impl Imported {
         })?;
         let data = match self.encoding {
             Encoding::Raw => {
-                let len = file.metadata().map_err(at_data)?.len();
-                let actual = len.saturating_sub(self.data_offset);
-                if actual != self.sample_bytes() {
-                    return Err(ImportError::new(
-                        &self.data_path,
-                        ImportErrorKind::WrongDataSize {
-                            what: match self.data_offset {
-                                0 => "the data file".into(),
-                                start => format!(
-                                    "the data file ({len} bytes, the samples from byte {start})"
-                                ),
-                            },
-                            expected: self.sample_bytes(),
-                            actual,
-                        },
-                    ));
-                }
+                self.check_raw_size(file.metadata().map_err(at_data)?.len())?;
                 let spec = RawSpec {
                     skip: self.data_offset,
                     ..spec
@@ -549,6 +533,26 @@ impl Imported {
         };
         Input::from_raw_data(&self.path, data, spec, Some(self.spacing))
             .map_err(|e| ImportError::new(&self.path, e))
+    }
+
+    /// Refuses uncompressed samples in a data file of `len` bytes that does
+    /// not hold exactly what the header says (truncated, or longer).
+    fn check_raw_size(&self, len: u64) -> Result<(), ImportError> {
+        let actual = len.saturating_sub(self.data_offset);
+        if actual == self.sample_bytes() {
+            return Ok(());
+        }
+        Err(ImportError::new(
+            &self.data_path,
+            ImportErrorKind::WrongDataSize {
+                what: match self.data_offset {
+                    0 => "the data file".into(),
+                    start => format!("the data file ({len} bytes, the samples from byte {start})"),
+                },
+                expected: self.sample_bytes(),
+                actual,
+            },
+        ))
     }
 
     /// Decompresses the stream after `data_offset`, drops `skip_after_decode` bytes
@@ -772,6 +776,13 @@ impl Imported {
         limit: u64,
         job: &Job,
     ) -> Result<(Volume, Option<String>), ImportError> {
+        // A truncated file is said as one before its declared size is
+        // weighed against the limit (the size is what is wrong with it).
+        if self.encoding == Encoding::Raw
+            && let Ok(meta) = std::fs::metadata(&self.data_path)
+        {
+            self.check_raw_size(meta.len())?;
+        }
         let sample_type = self.default_sample_type();
         let samples = self.voxels() * sample_type.size();
         if samples > limit {
