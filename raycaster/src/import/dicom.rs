@@ -321,7 +321,7 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
             != (first.rows, first.columns, first.sample, first.endian)
         {
             return Err(mismatch(format!(
-                "is {}x{} {:?} but {} is {}x{} {:?}",
+                "is {}x{} {} but {} is {}x{} {}",
                 s.columns,
                 s.rows,
                 s.sample,

@@ -13,6 +13,18 @@ pub enum RawType {
     F32,
 }
 
+impl std::fmt::Display for RawType {
+    /// `u8`, `u16`, `i16`, `f32`: as the tools' flags and messages write types.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            RawType::U8 => "u8",
+            RawType::U16 => "u16",
+            RawType::I16 => "i16",
+            RawType::F32 => "f32",
+        })
+    }
+}
+
 impl RawType {
     /// Bytes per sample.
     pub fn size(self) -> usize {

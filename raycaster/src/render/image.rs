@@ -102,7 +102,8 @@ impl RgbImage {
         Ok(())
     }
 
-    /// Reads an 8-bit RGB or RGBA PNG (alpha is dropped).
+    /// Reads a PNG as 8-bit RGB: any colour type and depth (palette and grey
+    /// images expanded, 16-bit samples cut to their high byte, alpha dropped).
     pub fn load_png(path: &Path) -> Result<RgbImage, ImageError> {
         let file = crate::files::open_regular(path).map_err(|source| ImageError::Io {
             path: path.to_path_buf(),
@@ -118,6 +119,7 @@ impl RgbImage {
         decoder.set_limits(png::Limits {
             bytes: (MAX_LOAD_PIXELS * 8) as usize,
         });
+        decoder.set_transformations(png::Transformations::normalize_to_color8());
         let mut reader = decoder.read_info().map_err(|e| png_err(e.to_string()))?;
         let (width, height) = (reader.info().width, reader.info().height);
         if u64::from(width) * u64::from(height) > MAX_LOAD_PIXELS {
@@ -132,14 +134,25 @@ impl RgbImage {
         let info = reader
             .next_frame(&mut buf)
             .map_err(|e| png_err(e.to_string()))?;
-        let channels = match (info.color_type, info.bit_depth) {
-            (png::ColorType::Rgb, png::BitDepth::Eight) => 3,
-            (png::ColorType::Rgba, png::BitDepth::Eight) => 4,
-            other => return Err(png_err(format!("unsupported PNG format {other:?}"))),
+        // (After the transformations: 8 bits, no palette.)
+        let (channels, grey) = match info.color_type {
+            png::ColorType::Grayscale => (1, true),
+            png::ColorType::GrayscaleAlpha => (2, true),
+            png::ColorType::Rgb => (3, false),
+            png::ColorType::Rgba => (4, false),
+            png::ColorType::Indexed => {
+                return Err(png_err("a palette image the decoder did not expand".into()));
+            }
         };
         let data = buf[..info.buffer_size()]
             .chunks_exact(channels)
-            .flat_map(|px| [px[0], px[1], px[2]])
+            .flat_map(|px| {
+                if grey {
+                    [px[0]; 3]
+                } else {
+                    [px[0], px[1], px[2]]
+                }
+            })
             .collect();
         Ok(RgbImage::new(info.width, info.height, data))
     }
@@ -217,6 +230,60 @@ mod tests {
         assert_eq!(img.diff(&other).data[4], 24);
         assert!(RgbImage::load_png(&dir.path().join("none.png")).is_err());
         assert!(img.save_png(&dir.path().join("no/dir/a.png")).is_err());
+    }
+
+    /// Grey, 16-bit, palette and 1-bit PNGs (what other tools write) read as
+    /// the RGB they show (before: "unsupported PNG format (Rgba, Sixteen)").
+    #[test]
+    fn every_png_colour_type_and_depth_reads_as_rgb() {
+        let dir = tempfile::tempdir().unwrap();
+        let write = |name: &str, colour, depth, palette: Option<&[u8]>, data: &[u8]| {
+            let path = dir.path().join(name);
+            let file = std::fs::File::create(&path).unwrap();
+            let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), 2, 1);
+            encoder.set_color(colour);
+            encoder.set_depth(depth);
+            if let Some(p) = palette {
+                encoder.set_palette(p.to_vec());
+            }
+            let mut writer = encoder.write_header().unwrap();
+            writer.write_image_data(data).unwrap();
+            writer.finish().unwrap();
+            RgbImage::load_png(&path).unwrap().data
+        };
+        use png::{BitDepth::*, ColorType::*};
+        assert_eq!(
+            write("g.png", Grayscale, Eight, None, &[7, 200]),
+            [7, 7, 7, 200, 200, 200]
+        );
+        assert_eq!(
+            write("ga.png", GrayscaleAlpha, Eight, None, &[7, 0, 200, 255]),
+            [7, 7, 7, 200, 200, 200]
+        );
+        assert_eq!(
+            write(
+                "rgba16.png",
+                Rgba,
+                Sixteen,
+                None,
+                &[1, 0, 2, 0, 3, 0, 4, 0, 9, 9, 8, 8, 7, 7, 6, 6]
+            ),
+            [1, 2, 3, 9, 8, 7]
+        );
+        assert_eq!(
+            write(
+                "p.png",
+                Indexed,
+                Eight,
+                Some(&[10, 20, 30, 40, 50, 60]),
+                &[1, 0]
+            ),
+            [40, 50, 60, 10, 20, 30]
+        );
+        assert_eq!(
+            write("bw.png", Grayscale, One, None, &[0b0100_0000]),
+            [0, 0, 0, 255, 255, 255]
+        );
     }
 
     #[test]

@@ -74,6 +74,16 @@ pub enum SampleType {
     U16,
 }
 
+impl std::fmt::Display for SampleType {
+    /// `u8`, `u16`: as the tools' flags and messages write types.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            SampleType::U8 => "u8",
+            SampleType::U16 => "u16",
+        })
+    }
+}
+
 impl SampleType {
     /// Bytes per stored sample.
     pub fn size(self) -> u64 {
@@ -238,7 +248,7 @@ pub enum HeaderError {
         expected: u64,
     },
     /// Samples handed over in memory are not of the header's type.
-    #[error("the header declares {header:?} samples but {samples:?} samples were given")]
+    #[error("the header declares {header} samples but {samples} samples were given")]
     SampleTypeMismatch {
         /// The header's sample type.
         header: SampleType,
@@ -246,7 +256,7 @@ pub enum HeaderError {
         samples: SampleType,
     },
     /// A label volume whose samples are not u8.
-    #[error("label volumes hold u8 object ids; this one declares {0:?} samples")]
+    #[error("label volumes hold u8 object ids; this one declares {0} samples")]
     LabelsNotU8(SampleType),
     /// The sizes multiply past what 64 bits hold.
     #[error("sizes overflow: the sample data would exceed 2^64 bytes")]
