@@ -568,7 +568,7 @@ impl Session {
     /// Parses a session; relative paths are joined to `base`. Nothing is read
     /// from disk except transfer-function files an embedded scene names.
     pub fn parse(text: &str, base: &Path) -> Result<Session, SessionError> {
-        let file: SessionFile = match toml::from_str(text) {
+        let file: SessionFile = match toml::from_str(crate::text::without_bom(text)) {
             Ok(file) => file,
             Err(e) => {
                 // A missing table, or a version this raycaster does not read,

@@ -9,9 +9,23 @@ pub fn counted(n: u64, noun: &str) -> String {
     }
 }
 
+/// `text` without the byte-order mark some editors put at the start of a UTF-8
+/// file (Windows Notepad): the tools' text files read the same with or
+/// without it.
+pub fn without_bom(text: &str) -> &str {
+    text.strip_prefix('\u{feff}').unwrap_or(text)
+}
+
 #[cfg(test)]
 mod tests {
-    use super::counted;
+    use super::{counted, without_bom};
+
+    #[test]
+    fn a_byte_order_mark_is_dropped_and_only_it() {
+        assert_eq!(without_bom("\u{feff}point 0"), "point 0");
+        assert_eq!(without_bom("point 0"), "point 0");
+        assert_eq!(without_bom("a\u{feff}"), "a\u{feff}");
+    }
 
     #[test]
     fn one_is_singular_and_every_other_count_plural() {

@@ -308,8 +308,8 @@ impl SegmentScene {
     ///
     /// The whole format is described in `docs/segments.md`.
     pub fn parse(text: &str, base: &Path) -> Result<SegmentScene, SceneError> {
-        let file: SceneFile =
-            toml::from_str(text).map_err(|e| SceneError::Syntax(e.to_string()))?;
+        let file: SceneFile = toml::from_str(crate::text::without_bom(text))
+            .map_err(|e| SceneError::Syntax(e.to_string()))?;
         let membership = match (file.labels, file.layers) {
             (Some(labels), None) => {
                 if labels.as_os_str().is_empty() {

@@ -295,7 +295,7 @@ impl TransferFunction {
         let mut points = Vec::new();
         let mut domain = None;
         let mut gradient_ramp = None;
-        for (i, raw_line) in text.lines().enumerate() {
+        for (i, raw_line) in crate::text::without_bom(text).lines().enumerate() {
             let line = i + 1;
             let content = raw_line.split('#').next().unwrap_or("").trim();
             if content.is_empty() {
@@ -1123,6 +1123,12 @@ mod tests {
         }
         assert!(check_domain([0.0, 1.0]).is_ok());
         assert!(check_gradient_ramp([0.1, f32::NAN]).is_err());
+        // A file saved with a byte-order mark reads as without one.
+        let text = "point 0 0 0 0 0\npoint 1 1 1 1 1\n";
+        assert_eq!(
+            TransferFunction::parse(&format!("\u{feff}{text}")).unwrap(),
+            TransferFunction::parse(text).unwrap()
+        );
     }
 
     use super::*;
