@@ -598,7 +598,8 @@ impl Setup {
                 }
                 // The kernel does not change the picture: a session leaves it to the flag.
                 session.settings.simd = args.simd.0;
-                let volume = open_volume(&session.source, args)?;
+                let volume = open_volume(&session.source, args)
+                    .with_context(|| format!("{}: the session's `volume`", path.display()))?;
                 if let Err(e) = session.settings.clip.check_overlaps(volume.dims()) {
                     bail!("{}: `crop`: {e}", path.display());
                 }
@@ -647,7 +648,7 @@ impl Setup {
                 }
                 (Membership::Labels(path), VolumeSource::File { .. }) => {
                     Some(open_labels(path).context(
-                        "the scene's label volume (its `labels =`, read beside the scene file; --labels FILE names another)",
+                        "the scene's label volume (its `labels =`, read beside the scene file; --labels FILE, or a session's `volume.labels`, names another)",
                     )?)
                 }
                 (Membership::Layers(_), _) => None,
@@ -910,7 +911,7 @@ fn built_in_labels(kind: SceneKind, n: u32, seed: u64) -> Result<Volume> {
     let name = format!("built-in {} labels {n}³", kind.name());
     synthesize_labels(scene.as_ref(), &name, [n; 3], [1.0; 3])?.with_context(|| {
         format!(
-            "the built-in `{}` scene has no label volume; give --labels FILE or a layer scene",
+            "the built-in `{}` scene has no label volume: name one (--labels FILE, or a session's `volume.labels`) or use a scene of value layers",
             kind.name()
         )
     })

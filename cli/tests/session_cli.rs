@@ -249,6 +249,12 @@ fn bad_sessions_are_refused_by_field() {
             "missing.vol",
         ),
         ("version = 1", "version = 9", "version"),
+        // A file that is there but is no volume: said as the session's.
+        (
+            "scene = \"shapes\"\nsize = 40\nseed = 3",
+            "file = \".\"",
+            "the session's `volume`: .: ",
+        ),
         // A crop box beside the volume: refused as `--crop` refuses it
         // (before: an empty picture, exit 0).
         (
