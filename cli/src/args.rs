@@ -174,6 +174,13 @@ pub fn parse_finite(s: &str) -> Result<f32, String> {
         .ok_or_else(|| format!("{s:?} must be a finite number"))
 }
 
+/// A vertical field of view in degrees: strictly between 0 and 180.
+pub fn parse_fov(s: &str) -> Result<f32, String> {
+    parse_in_range(s)?
+        .filter(|&v| v > 0.0 && v < 180.0)
+        .ok_or_else(|| format!("{s:?} must lie strictly between 0 and 180 degrees"))
+}
+
 /// A positive finite number.
 pub fn parse_positive(s: &str) -> Result<f32, String> {
     parse_in_range(s)?

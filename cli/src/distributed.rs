@@ -40,7 +40,7 @@ mod mpi_rank {
     };
 
     use crate::output::check_output_of;
-    use crate::render::{RenderArgs, Setup, check_arguments, finish, parallel_options};
+    use crate::render::{RenderArgs, Setup, finish, parallel_options};
 
     /// An error already reported (by this rank or another): exit quietly with
     /// failure.
@@ -154,13 +154,11 @@ mod mpi_rank {
         let rank = world.rank();
         // Ranks sharing this machine share its cores.
         let local = world.split_shared(rank).size().max(1) as usize;
-        let checked = check_arguments(&args).and_then(|()| {
-            if rank == 0 {
-                check_output_of(&args.output, args.force, crate::render::input_paths(&args))
-            } else {
-                Ok(())
-            }
-        });
+        let checked = if rank == 0 {
+            check_output_of(&args.output, args.force, crate::render::input_paths(&args))
+        } else {
+            Ok(())
+        };
         agree(&world, checked)?;
         let mut setup = agree(&world, Setup::new(&args))?;
         if Compositing::from(args.compositing) == Compositing::DirectSend {

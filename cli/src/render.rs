@@ -22,7 +22,8 @@ use raycaster::volume::{Access, Content, OpenOptions, SampleType, Volume};
 
 use crate::args::{
     ClipArg, Coord, IsoArg, WindowArg, parse_clip, parse_color, parse_crop, parse_direction,
-    parse_finite, parse_iso, parse_positive, parse_size, parse_threshold, parse_vec3, parse_window,
+    parse_finite, parse_fov, parse_iso, parse_positive, parse_size, parse_threshold, parse_vec3,
+    parse_window,
 };
 use crate::stats;
 
@@ -199,7 +200,7 @@ pub struct RenderArgs {
     zoom: f32,
 
     /// Vertical field of view, degrees.
-    #[arg(long, default_value_t = 40.0, value_name = "DEG")]
+    #[arg(long, default_value_t = 40.0, value_parser = parse_fov, value_name = "DEG")]
     fov: f32,
 
     /// Orthographic instead of perspective projection.
@@ -512,7 +513,6 @@ pub fn run(args: RenderArgs) -> Result<()> {
     if args.distributed {
         return crate::distributed::run(args);
     }
-    check_arguments(&args)?;
     crate::output::check_output_of(&args.output, args.force, input_paths(&args))?;
     let setup = Setup::new(&args)?;
     crate::memory::check_frame(setup.camera.width(), setup.camera.height())?;
@@ -534,17 +534,6 @@ pub fn run(args: RenderArgs) -> Result<()> {
         )?
     };
     finish(&args, &setup, &frame, serde_json::Map::new())
-}
-
-/// Refuses flag values no render can use (before anything is opened).
-pub(crate) fn check_arguments(args: &RenderArgs) -> Result<()> {
-    if !(args.fov > 0.0 && args.fov < 180.0) {
-        bail!(
-            "--fov {} must lie strictly between 0 and 180 degrees",
-            args.fov
-        );
-    }
-    Ok(())
 }
 
 /// The parallel renderer's options from the flags; without `--threads`, the

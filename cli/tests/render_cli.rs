@@ -323,6 +323,12 @@ fn bad_inputs_fail_with_a_clear_message_and_no_output() {
         ),
         (&["render", "--fov", "190"], "--fov"),
     ];
+    // An impossible field of view is a wrong command line (exit 2), as any
+    // value a flag does not take.
+    for fov in ["0", "nan", "180"] {
+        let out = raycaster(&["render", "--fov", fov], dir.path());
+        assert_eq!(out.status.code(), Some(2), "--fov {fov}: {}", stderr(&out));
+    }
     for (args, needle) in cases {
         let out = raycaster(args, dir.path());
         assert!(!out.status.success(), "{args:?} must fail");
