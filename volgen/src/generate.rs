@@ -117,9 +117,6 @@ pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
     if format == Format::Thesis && sample_type != SampleType::U8 {
         bail!("--format thesis holds u8 samples only; use --format extended for --type u16");
     }
-    if let Some(warning) = output_name_warning(&a.output).filter(|_| !a.quiet) {
-        eprintln!("{warning}");
-    }
     let scene = kind.build(a.size, a.seed);
     let labels = (scene.has_labels() && !a.no_labels).then(|| {
         a.labels
@@ -141,6 +138,10 @@ pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
     // written (a missing or read-only folder, a device).
     for path in std::iter::once(&a.output).chain(labels.as_ref()) {
         check_output(path, a.force)?;
+    }
+    // (After the checks: a name that cannot be written is said alone.)
+    if let Some(warning) = output_name_warning(&a.output).filter(|_| !a.quiet) {
+        eprintln!("{warning}");
     }
     let header = Header::new(
         a.size,

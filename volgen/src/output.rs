@@ -8,6 +8,10 @@ use anyhow::{Context, bail};
 /// device or an unwritable folder (said first, and never "already exists" for
 /// a folder --force cannot replace), or an existing file without `force`.
 pub fn check_output(path: &Path, force: bool) -> anyhow::Result<()> {
+    // (`-` is no file name here: a volume is mapped and written in place.)
+    if path.as_os_str() == "-" {
+        bail!("-: volumes are written to files, not to standard output; name a .vol file");
+    }
     raycaster::files::temp_file_beside(path)
         .with_context(|| format!("{}: cannot write there", path.display()))?;
     if !force && path.exists() {

@@ -269,6 +269,27 @@ fn labels_never_take_the_thesis_header() {
     assert!(!d.join("x.vol").exists());
 }
 
+/// `-o -` is no file: refused, where it made a file named `-`; a folder as the
+/// output is said alone, without the warning about its name.
+#[test]
+fn standard_output_and_folders_are_refused_as_outputs_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let o = volgen(d, &["generate", "--size", "8", "-o", "-"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("not to standard output"),
+        "{}",
+        stderr(&o)
+    );
+    std::fs::create_dir(d.join("out")).unwrap();
+    let o = volgen(d, &["generate", "--size", "8", "-o", "out"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(stderr(&o).lines().count(), 1, "{}", stderr(&o));
+    assert!(!stderr(&o).contains("warning"), "{}", stderr(&o));
+    assert_eq!(files_in(d), ["out"]);
+}
+
 #[test]
 fn an_impossible_size_is_refused_up_front() {
     let dir = tempfile::tempdir().unwrap();
