@@ -921,10 +921,28 @@ fn camera(c: &CameraFile) -> Result<SessionCamera, SessionError> {
                     "a look-at camera (`position`) takes no `distance`, `azimuth_rad`, `elevation_rad` or `axes`",
                 ));
             }
+            let position = Vec3::from(finite_all("camera.position", position)?);
+            let up = Vec3::from(finite_all("camera.up", c.up.unwrap_or([0.0, 0.0, 1.0]))?);
+            // (Said by field, as `raycaster render` says its flags.)
+            let view = target - position;
+            if view == Vec3::ZERO {
+                return Err(invalid(
+                    "camera.position",
+                    format!("{position} is the target too: the camera looks nowhere"),
+                ));
+            }
+            if up == Vec3::ZERO || view.normalize().cross(up.normalize()).length() < 1e-6 {
+                return Err(invalid(
+                    "camera.up",
+                    format!(
+                        "{up} is zero or along the view direction (from {position} to {target})"
+                    ),
+                ));
+            }
             Ok(SessionCamera::LookAt {
-                position: Vec3::from(finite_all("camera.position", position)?),
+                position,
                 target,
-                up: Vec3::from(finite_all("camera.up", c.up.unwrap_or([0.0, 0.0, 1.0]))?),
+                up,
                 projection,
             })
         }
@@ -1630,6 +1648,36 @@ mod tests {
             out += &format!("[{table}]\n{line}\n");
         }
         Session::parse(&out, Path::new(""))
+    }
+
+    /// A look-at camera that looks nowhere, or up its own view, is said by
+    /// field (before: "view direction and up vector must be finite …").
+    #[test]
+    fn an_impossible_look_at_camera_is_refused_by_field() {
+        let mut s = sample();
+        s.camera = SessionCamera::LookAt {
+            position: Vec3::new(0.0, 0.0, 100.0),
+            target: Vec3::ZERO,
+            up: Vec3::Y,
+            projection: Projection::Perspective { vfov_deg: 40.0 },
+        };
+        let text = s.to_toml().unwrap();
+        assert!(round_trip(&s) == s);
+        for (from, to, field) in [
+            (
+                "position = [0.0, 0.0, 100.0]",
+                "position = [0.0, 0.0, 0.0]",
+                "camera.position",
+            ),
+            ("up = [0.0, 1.0, 0.0]", "up = [0.0, 0.0, -3.0]", "camera.up"),
+            ("up = [0.0, 1.0, 0.0]", "up = [0.0, 0.0, 0.0]", "camera.up"),
+        ] {
+            assert!(text.contains(from), "{from}: {text}");
+            match Session::parse(&text.replace(from, to), Path::new("")) {
+                Err(SessionError::Invalid { field: f, what }) => assert_eq!(f, field, "{what}"),
+                other => panic!("{to}: {other:?}"),
+            }
+        }
     }
 
     #[test]
