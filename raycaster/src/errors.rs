@@ -42,19 +42,28 @@ pub fn one_line(text: &str) -> String {
 
 /// Characters of a message line kept: parsers quote the line they failed on,
 /// which in a broken file can be megabytes long.
-const MAX_LINE_CHARS: usize = 300;
+const MAX_LINE_CHARS: usize = 600;
 
-/// `text` with each line longer than [`MAX_LINE_CHARS`] cut, saying how much
-/// was left out.
+/// Characters kept of the end of a line that is cut: where a message says
+/// what is wrong after what it quotes.
+const KEPT_END_CHARS: usize = 150;
+
+/// `text` with each line longer than [`MAX_LINE_CHARS`] cut in the middle,
+/// saying how much was left out: its start and its end stay.
 fn shorten_long_lines(text: &str) -> String {
     text.split('\n')
-        .map(|line| match line.char_indices().nth(MAX_LINE_CHARS) {
-            Some((end, _)) => format!(
-                "{}… ({} more characters)",
-                &line[..end],
-                line[end..].chars().count()
-            ),
-            None => line.to_string(),
+        .map(|line| {
+            let count = line.chars().count();
+            if count <= MAX_LINE_CHARS {
+                return line.to_string();
+            }
+            let head = MAX_LINE_CHARS - KEPT_END_CHARS;
+            let start: String = line.chars().take(head).collect();
+            let end: String = line.chars().skip(count - KEPT_END_CHARS).collect();
+            format!(
+                "{start}… ({} characters left out) …{end}",
+                count - head - KEPT_END_CHARS
+            )
         })
         .collect::<Vec<_>>()
         .join("\n")
@@ -79,10 +88,16 @@ mod tests {
         let long = format!("line 1: `{}` is not a key\nnext", "x".repeat(1_000_000));
         let e = std::io::Error::other(long);
         let text = error_text(&e);
-        assert!(text.len() < 400, "{}", text.len());
-        assert!(text.contains("… (999723 more characters)\nnext"), "{text}");
-        let short = std::io::Error::other("é".repeat(300));
-        assert_eq!(error_text(&short), "é".repeat(300));
+        assert!(text.len() < 700, "{}", text.len());
+        // The start and the reason at the end stay.
+        assert!(text.starts_with("line 1: `xxx"), "{text}");
+        assert!(
+            text.contains("… (999423 characters left out) …xxx"),
+            "{text}"
+        );
+        assert!(text.ends_with("xxx` is not a key\nnext"), "{text}");
+        let short = std::io::Error::other("é".repeat(600));
+        assert_eq!(error_text(&short), "é".repeat(600));
     }
 
     #[test]
