@@ -66,9 +66,10 @@ pub struct GenerateArgs {
     /// Sample order in the file.
     #[arg(long, value_enum, default_value_t = LayoutArg::Bricked)]
     layout: LayoutArg,
-    /// Brick side in voxels for --layout bricked (bricks overlap by one voxel).
-    #[arg(long, value_name = "N", default_value = "16", value_parser = parse_brick)]
-    brick: u8,
+    /// Brick side in voxels for --layout bricked (bricks overlap by one voxel)
+    /// [default: 16].
+    #[arg(long, value_name = "N", value_parser = parse_brick)]
+    brick: Option<u8>,
     /// Sample type.
     #[arg(long = "type", value_enum, default_value_t = SampleArg::U8)]
     sample_type: SampleArg,
@@ -109,8 +110,12 @@ fn default_labels_path(output: &Path) -> PathBuf {
 pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
     let kind = SceneKind::from(a.scene);
     let layout = match a.layout {
+        // (As `volgen convert` says it.)
+        LayoutArg::Linear if a.brick.is_some() => bail!("--brick applies to --layout bricked only"),
         LayoutArg::Linear => Layout::Linear,
-        LayoutArg::Bricked => Layout::Bricked { side: a.brick },
+        LayoutArg::Bricked => Layout::Bricked {
+            side: a.brick.unwrap_or(16),
+        },
     };
     let sample_type = SampleType::from(a.sample_type);
     let format = Format::from(a.format);

@@ -290,6 +290,33 @@ fn standard_output_and_folders_are_refused_as_outputs_alone() {
     assert_eq!(files_in(d), ["out"]);
 }
 
+/// `--brick` with `--layout linear` is refused by generate as by convert
+/// (generate ignored it).
+#[test]
+fn a_brick_side_for_a_linear_layout_is_refused_by_both_writers() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let o = volgen(d, &["generate", "--size", "8", "-o", "a.vol"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for args in [
+        &[
+            "generate", "--size", "8", "--layout", "linear", "--brick", "8", "-o", "x.vol",
+        ][..],
+        &[
+            "convert", "a.vol", "--layout", "linear", "--brick", "8", "-o", "x.vol",
+        ],
+    ] {
+        let o = volgen(d, args);
+        assert_eq!(o.status.code(), Some(1), "{args:?}");
+        assert!(
+            stderr(&o).contains("--brick applies to --layout bricked only"),
+            "{}",
+            stderr(&o)
+        );
+    }
+    assert_eq!(files_in(d), ["a.vol"]);
+}
+
 #[test]
 fn an_impossible_size_is_refused_up_front() {
     let dir = tempfile::tempdir().unwrap();
