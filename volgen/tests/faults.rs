@@ -451,7 +451,24 @@ fn a_corrupt_range_table_is_reported_by_convert() {
     assert!(o.status.success(), "{}", stderr(&o));
     let o = volgen(d, &["info", "a.vol", "--no-histogram"]);
     assert!(stderr(&o).contains("corrupt"), "{}", stderr(&o));
+    // A u8 file's table claiming a value no u8 sample holds is corrupt too
+    // (before: read, and `info` said "max 60000").
+    let mut bytes = std::fs::read(d.join("b.vol")).unwrap();
+    let table = bytes.windows(4).rposition(|w| w == b"RCRG").unwrap();
+    let first = table + TABLE_HEADER_LEN;
+    bytes[first + 2..first + 4].copy_from_slice(&60000u16.to_le_bytes());
+    std::fs::write(d.join("c.vol"), &bytes).unwrap();
+    let o = volgen(d, &["info", "c.vol", "--no-histogram"]);
+    assert!(
+        stderr(&o).contains("c.vol: the value-range table after the samples is corrupt"),
+        "{}",
+        stderr(&o)
+    );
 }
+
+/// Bytes of a range table before its entries (docs/format.md: magic, brick
+/// side, volume size, brick count).
+const TABLE_HEADER_LEN: usize = 4 + 4 + 12 + 8;
 
 #[test]
 fn negative_numbers_reach_the_value_checks() {
