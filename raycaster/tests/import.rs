@@ -725,6 +725,47 @@ fn broken_dicom_series_give_clear_errors() {
         err.contains("brain_003.dcm") && err.contains("Rescale Slope 1e300 is not a finite number"),
         "{err}"
     );
+    // A Rescale Slope of 0 (before: said in the .vol file's terms, "value
+    // units: scale 0 and offset 0").
+    let mut zero = good.clone();
+    zero[at + 8] = b'0';
+    std::fs::write(&slice, &zero).unwrap();
+    let err = import::open(d).unwrap_err().to_string();
+    assert!(
+        err.contains("brain_003.dcm") && err.contains("Rescale Slope 0 maps every stored value"),
+        "{err}"
+    );
+    // An Image Position that is no numbers, an Image Orientation whose
+    // directions are zero (before: "spacing NaN on axis 2", and "slices at
+    // the same position").
+    let with_value = |tag: [u8; 6], text: &str| {
+        let at = good.windows(6).position(|w| w == tag).unwrap() + 8;
+        let len = u16::from_le_bytes([good[at - 2], good[at - 1]]) as usize;
+        assert!(text.len() <= len, "{text}");
+        let mut bytes = good.clone();
+        bytes[at..at + len].fill(b' ');
+        bytes[at..at + text.len()].copy_from_slice(text.as_bytes());
+        bytes
+    };
+    for (tag, text, said) in [
+        (
+            [0x20, 0x00, 0x32, 0x00, b'D', b'S'],
+            "nan\\nan\\nan",
+            "Image Position (Patient) [NaN, NaN, NaN] is not three finite numbers",
+        ),
+        (
+            [0x20, 0x00, 0x37, 0x00, b'D', b'S'],
+            "0\\0\\0\\0\\0\\0",
+            "row and column directions are zero, not finite or parallel",
+        ),
+    ] {
+        std::fs::write(&slice, with_value(tag, text)).unwrap();
+        let err = import::open(d).unwrap_err().to_string();
+        assert!(
+            err.contains("brain_003.dcm") && err.contains(said),
+            "{text}: {err}"
+        );
+    }
     std::fs::write(&slice, &good).unwrap();
     // A truncated slice.
     truncate(&d.join("brain_007.dcm"), 1000);

@@ -172,6 +172,12 @@ fn read_slice(path: &Path) -> Result<Slice, ImportErrorKind> {
             ));
         }
     }
+    if slope == Some(0.0) {
+        return Err(header_error(
+            F,
+            "Rescale Slope 0 maps every stored value to the intercept: no image".to_string(),
+        ));
+    }
     let scaling = match (slope, inter) {
         (Some(s), i) if s != 1.0 || i.unwrap_or(0.0) != 0.0 => {
             Some((s as f32, i.unwrap_or(0.0) as f32))
@@ -198,6 +204,40 @@ fn read_slice(path: &Path) -> Result<Slice, ImportErrorKind> {
         Some("CT") => crate::volume::HOUNSFIELD.to_string(),
         _ => String::new(),
     };
+    let position: Option<[f64; 3]> =
+        floats(tags::IMAGE_POSITION_PATIENT, "Image Position (Patient)")?
+            .and_then(|v| v.try_into().ok());
+    if let Some(p) = position
+        && !p.iter().all(|v| v.is_finite())
+    {
+        return Err(header_error(
+            F,
+            format!("Image Position (Patient) {p:?} is not three finite numbers"),
+        ));
+    }
+    let orientation: Option<[f64; 6]> = floats(
+        tags::IMAGE_ORIENTATION_PATIENT,
+        "Image Orientation (Patient)",
+    )?
+    .and_then(|v| v.try_into().ok());
+    if let Some(o) = orientation {
+        let (r, c) = ([o[0], o[1], o[2]], [o[3], o[4], o[5]]);
+        let length = |v: [f64; 3]| dot(v, v).sqrt();
+        let normal = [
+            r[1] * c[2] - r[2] * c[1],
+            r[2] * c[0] - r[0] * c[2],
+            r[0] * c[1] - r[1] * c[0],
+        ];
+        // (A NaN fails the comparison too.)
+        if !(length(normal) > 1e-3 * length(r) * length(c)) {
+            return Err(header_error(
+                F,
+                format!(
+                    "Image Orientation (Patient) {o:?}: its row and column directions are zero, not finite or parallel"
+                ),
+            ));
+        }
+    }
     Ok(Slice {
         path: path.to_path_buf(),
         pixel_offset,
@@ -206,13 +246,8 @@ fn read_slice(path: &Path) -> Result<Slice, ImportErrorKind> {
         sample,
         endian,
         series,
-        position: floats(tags::IMAGE_POSITION_PATIENT, "Image Position (Patient)")?
-            .and_then(|v| v.try_into().ok()),
-        orientation: floats(
-            tags::IMAGE_ORIENTATION_PATIENT,
-            "Image Orientation (Patient)",
-        )?
-        .and_then(|v| v.try_into().ok()),
+        position,
+        orientation,
         instance: int(tags::INSTANCE_NUMBER, "Instance Number").ok(),
         pixel_spacing: floats(tags::PIXEL_SPACING, "Pixel Spacing")?
             .and_then(|v| v.try_into().ok()),
