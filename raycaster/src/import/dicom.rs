@@ -228,8 +228,8 @@ fn read_slice(path: &Path) -> Result<Slice, ImportErrorKind> {
             r[2] * c[0] - r[0] * c[2],
             r[0] * c[1] - r[1] * c[0],
         ];
-        // (A NaN fails the comparison too.)
-        if !(length(normal) > 1e-3 * length(r) * length(c)) {
+        let kept = length(normal) > 1e-3 * length(r) * length(c);
+        if !kept || !o.iter().all(|v| v.is_finite()) {
             return Err(header_error(
                 F,
                 format!(
