@@ -49,8 +49,9 @@ pub fn parse_domain(s: &str) -> Result<[f32; 2], String> {
     let separator = if s.contains(',') { ',' } else { ':' };
     let nums = s
         .split(separator)
-        .map(|p| p.trim().parse::<f32>().ok().filter(|v| v.is_finite()))
-        .collect::<Option<Vec<f32>>>();
+        // (A number past f32's range is said as too large, not as lo ≥ hi.)
+        .map(|p| parse_in_range(p).map(|v| v.filter(|v| v.is_finite())))
+        .collect::<Result<Option<Vec<f32>>, String>>()?;
     match nums.as_deref() {
         Some(&[lo, hi]) if lo < hi => Ok([lo, hi]),
         _ => Err(format!(
@@ -338,6 +339,12 @@ mod tests {
         assert!(parse_domain("5,5").is_err());
         // volgen's spelling too.
         assert_eq!(parse_domain("-1000:2000"), Ok([-1000.0, 2000.0]));
+        // Past f32: said as too large (not as lo ≥ hi, both taken as infinite).
+        assert!(
+            parse_domain("1e300,1e301")
+                .unwrap_err()
+                .contains("\"1e300\" is too large")
+        );
         assert_eq!(
             parse_window("-1000:2000").map(WindowArg::values),
             Ok([-1000.0, 2000.0])
