@@ -43,10 +43,7 @@ pub fn run(a: InfoArgs) -> anyhow::Result<()> {
     let voxels: u64 = h.dims.iter().map(|&d| u64::from(d)).product();
     println!("file        {}", a.file.display());
     println!("size        {} ({voxels} voxels)", describe_size(h.dims));
-    println!(
-        "spacing     {} x {} x {}",
-        h.spacing[0], h.spacing[1], h.spacing[2]
-    );
+    println!("spacing     {}", describe_spacing(h.spacing));
     println!("samples     {}", describe_layout(h));
     match h.format {
         Format::Thesis => println!("header      26 bytes (reference thesis format)"),
@@ -113,11 +110,9 @@ pub fn run(a: InfoArgs) -> anyhow::Result<()> {
             let level = volume.level(k);
             let [lo, hi] = level.ranges().overall();
             println!(
-                "  level {k}   {} spacing {} x {} x {}, {} bytes, values {} to {}",
+                "  level {k}   {} spacing {}, {} bytes, values {} to {}",
                 describe_size(level.dims()),
-                level.spacing()[0],
-                level.spacing()[1],
-                level.spacing()[2],
+                describe_spacing(level.spacing()),
                 level.data_bytes(),
                 value(lo),
                 value(hi)
@@ -171,7 +166,6 @@ pub fn run(a: InfoArgs) -> anyhow::Result<()> {
 fn run_foreign(a: &InfoArgs) -> anyhow::Result<()> {
     use raycaster::import;
     let imported = import::open(&a.file)?;
-    let [sx, sy, sz] = imported.spacing;
     println!("file        {}", a.file.display());
     println!("format      {}", imported.format.name());
     println!(
@@ -179,7 +173,7 @@ fn run_foreign(a: &InfoArgs) -> anyhow::Result<()> {
         describe_size(imported.dims),
         imported.voxels()
     );
-    println!("spacing     {sx} x {sy} x {sz}");
+    println!("spacing     {}", describe_spacing(imported.spacing));
     println!(
         "samples     {}, {} endian, {} data",
         crate::convert::raw_type_name(imported.sample),
@@ -288,4 +282,9 @@ fn run_foreign(a: &InfoArgs) -> anyhow::Result<()> {
         println!("  {label:>12} {c:>12} {}", "#".repeat(bar));
     }
     Ok(())
+}
+
+/// `0.5 x 0.5 x 2`; absurd sizes in exponent form (`1e-40`, not forty digits).
+fn describe_spacing(spacing: [f32; 3]) -> String {
+    spacing.map(raycaster::volume::number_text).join(" x ")
 }

@@ -317,6 +317,27 @@ fn a_brick_side_for_a_linear_layout_is_refused_by_both_writers() {
     assert_eq!(files_in(d), ["a.vol"]);
 }
 
+/// Extreme spacings are shown in exponent form (before: `0.000000000001 x 2
+/// x 1000000000000`).
+#[test]
+fn info_shows_extreme_spacings_in_exponent_form() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let args = [
+        "generate",
+        "--size",
+        "8",
+        "--spacing",
+        "1e-12,2,1e12",
+        "-o",
+        "a.vol",
+    ];
+    assert!(volgen(d, &args).status.success());
+    let o = volgen(d, &["info", "a.vol", "--no-histogram"]);
+    let out = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(out.contains("spacing     1e-12 x 2 x 1e12\n"), "{out}");
+}
+
 #[test]
 fn an_impossible_size_is_refused_up_front() {
     let dir = tempfile::tempdir().unwrap();

@@ -370,7 +370,7 @@ pub(crate) fn check_spacing_ratio(
     if hi / lo <= MAX_SPACING_RATIO {
         return Ok(());
     }
-    let [x, y, z] = spacing;
+    let [x, y, z] = spacing.map(crate::volume::number_text);
     Err(header_error(
         format,
         format!(
