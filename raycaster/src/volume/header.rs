@@ -541,7 +541,15 @@ impl Header {
                 code => return Err(HeaderError::UnknownContent(code)),
             };
             header.data_offset = u64_at(40);
-            // Version 5 has the blocks its data offset makes room for.
+            // Version 5 has the blocks its data offset makes room for: one of
+            // three offsets (any other is said as such, before a block is
+            // looked for where there is none).
+            if version == EXTENSION_VERSION
+                && ![EXTENDED_HEADER_LEN, UNITS_HEADER_LEN, ORIENTED_HEADER_LEN]
+                    .contains(&header.data_offset)
+            {
+                return Err(HeaderError::BadDataOffset(header.data_offset));
+            }
             let (has_units, has_orientation) = match version {
                 EXTENSION_VERSION => (
                     header.data_offset >= UNITS_HEADER_LEN,
@@ -739,6 +747,16 @@ mod tests {
         assert_eq!(
             Header::parse(&at_64, file_len),
             Err(HeaderError::BadDataOffset(64))
+        );
+        // A version-5 header's offset says which blocks it has: one that is
+        // none of the three is said as the offset (before: "the value block
+        // does not start with RCVU").
+        let mut v5 = bytes.clone();
+        v5[30..32].copy_from_slice(&EXTENSION_VERSION.to_le_bytes());
+        v5[40..48].copy_from_slice(&0xffff_ffff_ffff_ffc0u64.to_le_bytes());
+        assert_eq!(
+            Header::parse(&v5, file_len),
+            Err(HeaderError::BadDataOffset(0xffff_ffff_ffff_ffc0))
         );
         let mut bad_block = bytes.clone();
         bad_block[72..80].copy_from_slice(&f64::NAN.to_le_bytes());
