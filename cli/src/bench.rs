@@ -362,6 +362,12 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
             std::env::var_os("HOME").map(PathBuf::from),
         ),
     };
+    if cache_dir.exists() && !cache_dir.is_dir() {
+        bail!(
+            "--cache-dir {}: is not a folder (it names the folder generated volumes are kept in)",
+            cache_dir.display()
+        );
+    }
     std::fs::create_dir_all(&cache_dir)
         .with_context(|| format!("cannot create the cache folder {}", cache_dir.display()))?;
     let volume = first.open_volume(&cache_dir)?;

@@ -457,6 +457,15 @@ fn bench_names_what_it_reads_and_folders_named_vol_are_folders() {
         "{}",
         stderr(&o)
     );
+    // A file as the cache folder (before: "File exists (os error 17)").
+    std::fs::write(d.join("afile"), b"x").unwrap();
+    let o = raycaster(&["bench", "--quick", "--cache-dir", "afile"], d);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("--cache-dir afile: is not a folder"),
+        "{}",
+        stderr(&o)
+    );
     std::fs::create_dir(d.join("d.vol")).unwrap();
     for args in [
         &["render", "d.vol", "-o", "x.png"][..],
