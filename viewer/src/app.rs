@@ -1500,6 +1500,9 @@ impl Controller {
     }
 
     fn save_session(&self, path: &Path) {
+        if self.refuse_input_as_output(path) {
+            return;
+        }
         let Some(session) = self.session() else {
             return;
         };
@@ -1827,6 +1830,40 @@ impl Controller {
         self.write_screenshot(path);
     }
 
+    /// The files the view is read from: the volume (a foreign header's data
+    /// file too) and its labels. No save writes over one of them (as
+    /// `raycaster render` refuses an image onto its inputs).
+    fn input_files(&self) -> Vec<PathBuf> {
+        let st = self.state.borrow();
+        let mut files = Vec::new();
+        if let VolumeSource::File { path, .. } = &st.source {
+            files.push(path.clone());
+            files.extend(raycaster::import::data_files(path));
+        }
+        files.extend(st.labels_path.clone());
+        files
+    }
+
+    /// Says so and returns `true` when `path` is one of [`Self::input_files`].
+    fn refuse_input_as_output(&self, path: &Path) -> bool {
+        let Some(input) = self
+            .input_files()
+            .into_iter()
+            .find(|i| raycaster::files::same_file(i, path))
+        else {
+            return false;
+        };
+        self.show_message(
+            &format!(
+                "{}: the view is read from it ({}); name another file",
+                path.display(),
+                input.display()
+            ),
+            true,
+        );
+        true
+    }
+
     /// The *Save PNG* button: the typed path, which must be named; an existing
     /// file is replaced only when the button is pressed on it a second time.
     fn save_png_pressed(&self, path: &Path) {
@@ -1835,6 +1872,9 @@ impl Controller {
         }
         if let Some(problem) = raycaster::files::png_name_problem(path) {
             return self.show_message(&format!("{}: {problem}", path.display()), true);
+        }
+        if self.refuse_input_as_output(path) {
+            return;
         }
         let confirmed = {
             let mut st = self.state.borrow_mut();
@@ -1980,6 +2020,9 @@ impl Controller {
     /// Writes the scene on screen; without one, the plain view as a one-layer
     /// scene (which renders the same image).
     fn save_scene(&self, path: &Path) {
+        if self.refuse_input_as_output(path) {
+            return;
+        }
         let scene = {
             let st = self.state.borrow();
             st.scene.clone().unwrap_or_else(|| {

@@ -513,6 +513,26 @@ fn the_viewer_runs_headless() {
         k => format!("levels 0–{k} by depth"),
     };
     assert!(status.contains(&named), "{status}");
+    // No save writes over the volume on screen, pressed twice or not (as
+    // `raycaster render` refuses an image onto its inputs; before, a second
+    // press of Save PNG replaced the volume).
+    let volume_bytes = std::fs::read(&big).unwrap();
+    let as_png = dir.path().join("pyramid.png");
+    std::fs::rename(&big, &as_png).unwrap();
+    v.ui().invoke_open_file(as_png.display().to_string().into());
+    wait_until(&v, |v| v.volume_name() == as_png.display().to_string());
+    let target: slint::SharedString = as_png.display().to_string().into();
+    for _ in 0..2 {
+        v.ui().invoke_save_screenshot(target.clone());
+    }
+    v.ui().invoke_save_session(target.clone());
+    v.ui().invoke_save_scene(target);
+    let message = v.ui().get_message().to_string();
+    assert!(
+        message.contains("pyramid.png: the view is read from it") && v.ui().get_message_is_error(),
+        "{message}"
+    );
+    assert!(std::fs::read(&as_png).unwrap() == volume_bytes);
 
     // Started on a file that does not open, with a scene: the file's error is
     // said once, and stays in sight after the scene's message.
