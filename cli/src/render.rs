@@ -10,10 +10,10 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use raycaster::render::{
     Camera, ClipPlane, ClipRegion, CropBox, DepthBand, LevelBand, LevelChoice, Light,
-    MAX_CLIP_PLANES, Mat3, Membership, Mode, ModeParameters, Orbit, ParallelOptions, Projection,
-    RenderSettings, RenderVolume, Renderer, SabellaDepth, SabellaMapping, SabellaOutput,
-    SegmentScene, Shading, SimdLevel, TileSink, TransferFunction, Vec3, closest_preset,
-    patient_axes, render_sequential_levels,
+    LookAtProblem, MAX_CLIP_PLANES, Mat3, Membership, Mode, ModeParameters, Orbit, ParallelOptions,
+    Projection, RenderSettings, RenderVolume, Renderer, SabellaDepth, SabellaMapping,
+    SabellaOutput, SegmentScene, Shading, SimdLevel, TileSink, TransferFunction, Vec3,
+    closest_preset, patient_axes, render_sequential_levels,
 };
 use raycaster::session::{Session, SessionCamera};
 use raycaster::source::{self, VolumeSource};
@@ -1158,30 +1158,29 @@ fn camera_flags_problem(args: &RenderArgs, spec: &SessionCamera) -> Option<Strin
             ),
         });
     }
-    if view.length_squared() == 0.0 {
-        return Some(format!(
-            "--position {} and --target {} are the same point: the camera looks nowhere",
-            flag(position),
-            flag(target)
-        ));
-    }
-    if up.length_squared() == 0.0 || !up.is_finite() {
-        return Some(format!("--up {}: not a direction", flag(up)));
-    }
-    if view.normalize().cross(up.normalize()).length() < 1e-6 {
-        let other = if up.normalize().dot(raycaster::render::Vec3::Y).abs() > 0.9 {
-            "0,0,1"
-        } else {
-            "0,1,0"
-        };
-        return Some(format!(
-            "the camera looks along its up direction --up {} (from {} to {}): give another --up, e.g. --up {other}",
-            flag(up),
-            flag(position),
-            flag(target)
-        ));
-    }
-    None
+    Some(
+        match raycaster::render::look_at_problem(position, target, up)? {
+            LookAtProblem::SamePoint => format!(
+                "--position {} and --target {} are the same point: the camera looks nowhere",
+                flag(position),
+                flag(target)
+            ),
+            LookAtProblem::UpNotADirection => format!("--up {}: not a direction", flag(up)),
+            LookAtProblem::UpAlongView => {
+                let other = if up.normalize().dot(raycaster::render::Vec3::Y).abs() > 0.9 {
+                    "0,0,1"
+                } else {
+                    "0,1,0"
+                };
+                format!(
+                    "the camera looks along its up direction --up {} (from {} to {}): give another --up, e.g. --up {other}",
+                    flag(up),
+                    flag(position),
+                    flag(target)
+                )
+            }
+        },
+    )
 }
 
 fn camera_spec(

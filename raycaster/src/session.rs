@@ -51,9 +51,9 @@ use serde::Deserialize;
 
 use crate::render::{
     Camera, CameraError, ClipPlane, ClipRegion, ControlPoint, CropBox, ImportanceSource,
-    LevelChoice, Light, Membership, Mode, ModeParameters, Orbit, Projection, RenderSettings,
-    SabellaDepth, SabellaMapping, SabellaOutput, SceneError, SegmentScene, Shading, TransferError,
-    TransferFunction, check_domain, check_gradient_ramp,
+    LevelChoice, Light, LookAtProblem, Membership, Mode, ModeParameters, Orbit, Projection,
+    RenderSettings, SabellaDepth, SabellaMapping, SabellaOutput, SceneError, SegmentScene, Shading,
+    TransferError, TransferFunction, check_domain, check_gradient_ramp, look_at_problem,
 };
 use crate::source::VolumeSource;
 use crate::synth::SceneKind;
@@ -568,7 +568,8 @@ impl Session {
     /// Parses a session; relative paths are joined to `base`. Nothing is read
     /// from disk except transfer-function files an embedded scene names.
     pub fn parse(text: &str, base: &Path) -> Result<Session, SessionError> {
-        let file: SessionFile = match toml::from_str(crate::text::without_bom(text)) {
+        let text = crate::text::without_bom(text);
+        let file: SessionFile = match toml::from_str(text) {
             Ok(file) => file,
             Err(e) => {
                 // A missing table, or a version this raycaster does not read,
@@ -924,20 +925,22 @@ fn camera(c: &CameraFile) -> Result<SessionCamera, SessionError> {
             let position = Vec3::from(finite_all("camera.position", position)?);
             let up = Vec3::from(finite_all("camera.up", c.up.unwrap_or([0.0, 0.0, 1.0]))?);
             // (Said by field, as `raycaster render` says its flags.)
-            let view = target - position;
-            if view == Vec3::ZERO {
-                return Err(invalid(
-                    "camera.position",
-                    format!("{position} is the target too: the camera looks nowhere"),
-                ));
-            }
-            if up == Vec3::ZERO || view.normalize().cross(up.normalize()).length() < 1e-6 {
-                return Err(invalid(
-                    "camera.up",
-                    format!(
-                        "{up} is zero or along the view direction (from {position} to {target})"
-                    ),
-                ));
+            match look_at_problem(position, target, up) {
+                None => {}
+                Some(LookAtProblem::SamePoint) => {
+                    return Err(invalid(
+                        "camera.position",
+                        format!("{position} is the target too: the camera looks nowhere"),
+                    ));
+                }
+                Some(LookAtProblem::UpNotADirection | LookAtProblem::UpAlongView) => {
+                    return Err(invalid(
+                        "camera.up",
+                        format!(
+                            "{up} is zero or along the view direction (from {position} to {target})"
+                        ),
+                    ));
+                }
             }
             Ok(SessionCamera::LookAt {
                 position,

@@ -108,6 +108,32 @@ impl PixelRect {
     }
 }
 
+/// What makes a look-at view impossible, for callers that name their own
+/// fields or flags in the message ([`look_at_problem`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LookAtProblem {
+    /// The position is the target: the camera looks nowhere.
+    SamePoint,
+    /// The up vector is zero or not finite.
+    UpNotADirection,
+    /// The up vector lies along the view direction.
+    UpAlongView,
+}
+
+/// Why a camera at `position` looking at `target` with `up` has no view
+/// ([`Camera::look_at`] refuses it as [`CameraError::DegenerateBasis`]), or
+/// `None`. (A view too long to compute is the caller's to check first.)
+pub fn look_at_problem(position: Vec3, target: Vec3, up: Vec3) -> Option<LookAtProblem> {
+    let view = target - position;
+    if view.length_squared() == 0.0 {
+        return Some(LookAtProblem::SamePoint);
+    }
+    if up.length_squared() == 0.0 || !up.is_finite() {
+        return Some(LookAtProblem::UpNotADirection);
+    }
+    (view.normalize().cross(up.normalize()).length() < 1e-6).then_some(LookAtProblem::UpAlongView)
+}
+
 /// Why a camera cannot be built.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum CameraError {
@@ -599,6 +625,23 @@ mod tests {
             small += usize::from(rect.is_none_or(|r| r.area() < 64 * 48 / 2) && hit < 64 * 48 / 2);
         }
         assert!(small > 100, "only {small} of 200 boxes have tight rects");
+    }
+
+    #[test]
+    fn look_at_problems_are_the_bases_look_at_refuses() {
+        let p = Projection::Perspective { vfov_deg: 60.0 };
+        let at = Vec3::new(0.0, 0.0, 9.0);
+        for (target, up, problem) in [
+            (at, Vec3::Y, Some(LookAtProblem::SamePoint)),
+            (Vec3::ZERO, Vec3::ZERO, Some(LookAtProblem::UpNotADirection)),
+            (Vec3::ZERO, Vec3::NAN, Some(LookAtProblem::UpNotADirection)),
+            (Vec3::ZERO, -3.0 * Vec3::Z, Some(LookAtProblem::UpAlongView)),
+            (Vec3::ZERO, Vec3::Y, None),
+        ] {
+            assert_eq!(look_at_problem(at, target, up), problem, "{target} {up}");
+            let refused = Camera::look_at(at, target, up, p, 4, 4).is_err();
+            assert_eq!(refused, problem.is_some(), "{target} {up}");
+        }
     }
 
     #[test]

@@ -56,7 +56,7 @@ mod transfer;
 mod truncate;
 mod two_level;
 
-pub use camera::{Camera, CameraError, PixelRect, Projection};
+pub use camera::{Camera, CameraError, LookAtProblem, PixelRect, Projection, look_at_problem};
 pub use cells::{
     BrickCells, CELL_CACHE_BYTES, CellRanges, MAX_CELLS, TARGET_CELL_STEP, target_cell_step,
 };
