@@ -492,20 +492,20 @@ impl From<ModeArg> for Mode {
     }
 }
 
-/// The files the command reads (the image must be none of them): those the
-/// flags name (a `--tf` that is a file, not a preset), and a foreign FILE's
-/// detached data file.
+/// The files the command reads (the image must be none of them): FILE's
+/// ([`raycaster::import::volume_files`]: a foreign header's data file too)
+/// and those the other flags name (a `--tf` that is a file, not a preset).
 pub(crate) fn input_paths(args: &RenderArgs) -> Vec<PathBuf> {
-    let named = [&args.file, &args.session, &args.segments, &args.labels]
+    let volume = args
+        .file
+        .iter()
+        .flat_map(|f| raycaster::import::volume_files(f));
+    let named = [&args.session, &args.segments, &args.labels]
         .into_iter()
         .flatten()
         .cloned();
     let tf = args.tf.as_ref().map(PathBuf::from).filter(|p| p.is_file());
-    let data = args
-        .file
-        .iter()
-        .flat_map(|f| raycaster::import::data_files(f));
-    named.chain(tf).chain(data).collect()
+    volume.chain(named).chain(tf).collect()
 }
 
 /// Runs the render command.

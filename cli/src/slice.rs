@@ -66,8 +66,7 @@ enum AxisArg {
 
 /// Runs the slice command.
 pub fn run(args: SliceArgs) -> Result<()> {
-    let inputs =
-        std::iter::once(args.file.clone()).chain(raycaster::import::data_files(&args.file));
+    let inputs = raycaster::import::volume_files(&args.file);
     crate::output::check_output_of(&args.output, args.force, inputs)?;
     raycaster::files::guard_mapped_file(&args.file);
     let volume = if raycaster::import::detect(&args.file).is_some() {

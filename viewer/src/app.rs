@@ -1835,11 +1835,10 @@ impl Controller {
     /// `raycaster render` refuses an image onto its inputs).
     fn input_files(&self) -> Vec<PathBuf> {
         let st = self.state.borrow();
-        let mut files = Vec::new();
-        if let VolumeSource::File { path, .. } = &st.source {
-            files.push(path.clone());
-            files.extend(raycaster::import::data_files(path));
-        }
+        let mut files = match &st.source {
+            VolumeSource::File { path, .. } => raycaster::import::volume_files(path),
+            VolumeSource::BuiltIn { .. } => Vec::new(),
+        };
         files.extend(st.labels_path.clone());
         files
     }

@@ -380,18 +380,20 @@ pub(crate) fn check_spacing_ratio(
     ))
 }
 
-/// The files a foreign volume at `path` is read from beside itself (a NRRD,
-/// MetaImage or NIfTI header's detached data file), for commands that refuse
-/// to write over their inputs; nothing for a `.vol` file, a DICOM series or a
-/// file that does not parse (its error is said where it is opened).
-pub fn data_files(path: &Path) -> Vec<PathBuf> {
+/// The files a volume at `path` is read from, for commands that refuse to
+/// write over their inputs: `path` itself and, for a NRRD, MetaImage or NIfTI
+/// header, its detached data file. (A DICOM series' slices, or the data of a
+/// header that does not parse, are not looked for: its error is said where it
+/// is opened.)
+pub fn volume_files(path: &Path) -> Vec<PathBuf> {
     match detect(path) {
         Some(ImportFormat::Nrrd | ImportFormat::Nifti | ImportFormat::MetaImage) => {
-            open_unchecked(path)
-                .map(|imported| imported.files().skip(1).map(Path::to_path_buf).collect())
-                .unwrap_or_default()
+            if let Ok(imported) = open_unchecked(path) {
+                return imported.files().map(Path::to_path_buf).collect();
+            }
+            vec![path.to_path_buf()]
         }
-        _ => Vec::new(),
+        _ => vec![path.to_path_buf()],
     }
 }
 
