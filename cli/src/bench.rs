@@ -517,8 +517,8 @@ fn summarise(records: &[Record], quick: bool) {
     if let Some(best) = parallel.iter().min_by_key(|r| r.frame) {
         let threads = best.case.render_threads();
         eprintln!(
-            "fastest: {threads} thread{}, tile {}, brick {}, {}: {:.2} ms",
-            if threads == 1 { "" } else { "s" },
+            "fastest: {}, tile {}, brick {}, {}: {:.2} ms",
+            raycaster::text::counted(threads as u64, "thread"),
             best.case.tile,
             brick_text(best.case.brick),
             best.case.optimisations,

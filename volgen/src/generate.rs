@@ -9,6 +9,7 @@ use raycaster::generate::generate;
 use raycaster::io::WriteOptions;
 use raycaster::job::Job;
 use raycaster::synth::SceneKind;
+use raycaster::text::counted;
 use raycaster::volume::{
     Content, Format, Header, Layout, SampleType, pyramid_sidecar_path, pyramid_voxels,
     ranges_sidecar_path,
@@ -320,15 +321,7 @@ fn same_target(a: &Path, b: &Path) -> bool {
 pub fn describe_pyramid(levels: usize) -> String {
     match levels {
         0 => String::new(),
-        n => format!(", pyramid of {}", describe_levels(n)),
-    }
-}
-
-/// `1 level`, `3 levels`.
-pub fn describe_levels(n: usize) -> String {
-    match n {
-        1 => "1 level".to_string(),
-        n => format!("{n} levels"),
+        n => format!(", pyramid of {}", counted(n as u64, "level")),
     }
 }
 

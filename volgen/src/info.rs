@@ -7,8 +7,9 @@ use raycaster::io::Input;
 use raycaster::job::Job;
 use raycaster::volume::{Format, Layout, OpenOptions, ValueUnits, Volume};
 
-use crate::generate::{describe_layout, describe_levels, describe_size};
+use crate::generate::{describe_layout, describe_size};
 use crate::progress::{CANCEL, voxel_bar};
+use raycaster::text::counted;
 
 /// Show a volume file's header, layout, value histogram and brick statistics.
 ///
@@ -104,7 +105,7 @@ pub fn run(a: InfoArgs) -> anyhow::Result<()> {
                 raycaster::volume::pyramid_sidecar_path(&a.file).display()
             ),
         };
-        let levels = describe_levels(volume.level_count() - 1);
+        let levels = counted(volume.level_count() as u64 - 1, "level");
         println!("pyramid     {levels} beyond full resolution, {place}");
         for k in 1..volume.level_count() {
             let level = volume.level(k);
@@ -223,10 +224,12 @@ fn run_foreign(a: &InfoArgs) -> anyhow::Result<()> {
     let mut counts = [0u64; BINS];
     // Whole-number values (every type but f32, unscaled) get whole-number bins.
     let whole = imported.sample != raycaster::io::RawType::F32 && imported.scaling.is_none();
+    // (In f64: the span of f32 values can pass f32's range.)
+    let span = f64::from(hi) - f64::from(lo);
     let width = if whole {
-        (((f64::from(hi) - f64::from(lo)) + 1.0) / BINS as f64).ceil()
+        ((span + 1.0) / BINS as f64).ceil()
     } else {
-        (f64::from(hi) - f64::from(lo)) / BINS as f64
+        span / BINS as f64
     };
     input.for_each_slab(8 << 20, &to_value, &job, |slab| {
         for &v in slab {
@@ -255,7 +258,7 @@ fn run_foreign(a: &InfoArgs) -> anyhow::Result<()> {
     }
     let used = if whole {
         // (Bins past the largest value stay out.)
-        (((f64::from(hi) - f64::from(lo)) / width) as usize + 1).min(BINS)
+        ((span / width) as usize + 1).min(BINS)
     } else if width > 0.0 {
         BINS
     } else {
@@ -264,7 +267,7 @@ fn run_foreign(a: &InfoArgs) -> anyhow::Result<()> {
     };
     println!(
         "histogram   {} over min..max, bars on a log scale",
-        raycaster::text::counted(used as u64, "bin")
+        counted(used as u64, "bin")
     );
     let peak = counts.iter().copied().max().unwrap_or(1).max(1) as f64;
     // Six decimals, or more where bins are narrower (labels that differ).

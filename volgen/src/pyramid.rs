@@ -8,8 +8,9 @@ use raycaster::io::WriteOptions;
 use raycaster::job::Job;
 use raycaster::volume::{Volume, level_dims, pyramid_sidecar_path, pyramid_voxels};
 
-use crate::generate::{describe_levels, describe_size};
+use crate::generate::describe_size;
 use crate::progress::{CANCEL, voxel_bar};
+use raycaster::text::counted;
 
 /// Add a resolution pyramid to a .vol file, in a sidecar FILE.pyramid beside it.
 ///
@@ -55,7 +56,7 @@ pub fn run(a: PyramidArgs) -> anyhow::Result<()> {
     // --force would never be read.)
     if volume.level_count() > 1 && (embedded || !a.force) {
         if !a.quiet {
-            let levels = describe_levels(volume.level_count() - 1);
+            let levels = counted(volume.level_count() as u64 - 1, "level");
             let place = if embedded {
                 "in the file; nothing to do (`volgen convert` rewrites the file with a fresh one)"
                     .to_string()
@@ -87,7 +88,7 @@ pub fn run(a: PyramidArgs) -> anyhow::Result<()> {
         println!(
             "wrote {}: {}, {bytes} bytes in {:.2} s",
             sidecar.display(),
-            crate::generate::describe_levels(levels),
+            counted(levels as u64, "level"),
             start.elapsed().as_secs_f64()
         );
     }
