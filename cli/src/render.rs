@@ -11,9 +11,9 @@ use clap::{Args, ValueEnum};
 use raycaster::render::{
     Camera, ClipPlane, ClipRegion, CropBox, DepthBand, LevelBand, LevelChoice, Light,
     LookAtProblem, MAX_CLIP_PLANES, Mat3, Membership, Mode, ModeParameters, Orbit, ParallelOptions,
-    Projection, RenderSettings, RenderVolume, Renderer, SabellaDepth, SabellaMapping,
-    SabellaOutput, SegmentScene, Shading, SimdLevel, TileSink, TransferFunction, Vec3,
-    closest_preset, patient_axes, render_sequential_levels,
+    PixelProgress, Projection, RenderSettings, RenderVolume, Renderer, SabellaDepth,
+    SabellaMapping, SabellaOutput, SegmentScene, Shading, SimdLevel, TileSink, TransferFunction,
+    Vec3, closest_preset, patient_axes, render_sequential_noting,
 };
 use raycaster::session::{Session, SessionCamera};
 use raycaster::source::{self, VolumeSource};
@@ -523,7 +523,13 @@ pub fn run(args: RenderArgs) -> Result<()> {
         .map(|(volume, band)| (volume, band.depth))
         .collect();
     let frame = if args.sequential {
-        render_sequential_levels(&passes, &setup.camera, &setup.settings)?
+        let progress = PixelProgress::new();
+        with_progress_line(
+            "rendering",
+            progress_after(&args),
+            || progress.fraction(),
+            || render_sequential_noting(&passes, &setup.camera, &setup.settings, &progress),
+        )?
     } else {
         render_with_progress(
             &passes,
@@ -850,13 +856,11 @@ fn open_volume(source: &VolumeSource, args: &RenderArgs) -> Result<Volume> {
             };
             let job = raycaster::job::Job::silent().with_progress(&on_progress);
             let label = format!("reading {}", path.display());
-            let volume = with_progress_line(
-                &label,
-                imported.sample_bytes(),
-                progress_after(args),
-                &done,
-                || imported.to_volume_noting(limit, &job),
-            )?;
+            let total = imported.sample_bytes().max(1);
+            let share = || done.load(Ordering::Relaxed).min(total) as f64 / total as f64;
+            let volume = with_progress_line(&label, progress_after(args), share, || {
+                imported.to_volume_noting(limit, &job)
+            })?;
             let (volume, warning) = volume;
             if let Some(warning) = warning.filter(|_| !args.quiet) {
                 eprintln!("warning: {warning}");
@@ -1250,9 +1254,11 @@ fn progress_after(args: &RenderArgs) -> Option<Duration> {
 /// Frames longer than this show progress on a terminal.
 const PROGRESS_AFTER: Duration = Duration::from_secs(1);
 
-/// The frame being filled tile by tile, counting finished pixels.
+/// The frame being filled tile by tile, counting the finished pixels inside
+/// the rectangle the volume projects onto (tiles outside it finish at once).
 struct ProgressSink {
     frame: Mutex<raycaster::render::Frame>,
+    counted: Option<raycaster::render::PixelRect>,
     pixels_done: AtomicU64,
 }
 
@@ -1265,8 +1271,18 @@ impl TileSink for ProgressSink {
             frame.rgba[start..start + w].copy_from_slice(&rgba[row * w..(row + 1) * w]);
             frame.depth[start..start + w].copy_from_slice(&depth[row * w..(row + 1) * w]);
         }
-        let pixels = u64::from(rect.x1 - rect.x0) * u64::from(rect.y1 - rect.y0);
-        self.pixels_done.fetch_add(pixels, Ordering::Relaxed);
+        if let Some(counted) = self.counted {
+            let width = rect
+                .x1
+                .min(counted.x1)
+                .saturating_sub(rect.x0.max(counted.x0));
+            let height = rect
+                .y1
+                .min(counted.y1)
+                .saturating_sub(rect.y0.max(counted.y0));
+            self.pixels_done
+                .fetch_add(u64::from(width) * u64::from(height), Ordering::Relaxed);
+        }
     }
 }
 
@@ -1279,26 +1295,25 @@ fn render_with_progress(
     options: &ParallelOptions,
     show_after: Option<Duration>,
 ) -> Result<raycaster::render::Frame> {
+    // Tiles cover the pixels the volume projects onto (in a frame of several
+    // levels, the farthest level's tiles are counted: the nearer ones hand their
+    // pixels on unfinished).
+    let counted = passes.last().and_then(|(volume, _)| {
+        let (lo, hi) = volume.geometry().world_bounds();
+        camera.project_box(lo, hi)
+    });
     let sink = ProgressSink {
         frame: Mutex::new(raycaster::render::Frame::empty(
             camera.width(),
             camera.height(),
             settings.background,
         )),
+        counted,
         pixels_done: AtomicU64::new(0),
     };
-    // Tiles cover the pixels the volume projects onto (in a frame of several
-    // levels, the farthest level's tiles are counted: the nearer ones hand their
-    // pixels on unfinished).
-    let total = passes
-        .last()
-        .and_then(|(volume, _)| {
-            let (lo, hi) = volume.geometry().world_bounds();
-            camera.project_box(lo, hi)
-        })
-        .map_or(1, |r| u64::from(r.x1 - r.x0) * u64::from(r.y1 - r.y0))
-        .max(1);
-    let stats = with_progress_line("rendering", total, show_after, &sink.pixels_done, || {
+    let total = counted.map_or(1, |r| r.area()).max(1);
+    let share = || sink.pixels_done.load(Ordering::Relaxed).min(total) as f64 / total as f64;
+    let stats = with_progress_line("rendering", show_after, share, || {
         Renderer::per_frame()
             .render_levels_into(passes, camera, settings, options, &sink, &|| false)
     })?
@@ -1308,20 +1323,18 @@ fn render_with_progress(
     Ok(frame)
 }
 
-/// Runs `work`; with `show_after`, once it has run that long, shows on stderr how
-/// much of `total` the counter `done` says is finished (`rendering 42 % (3.1 s,
-/// about 4 s left)`), cleared at the end on a terminal.
+/// Runs `work`; with `show_after`, once it has run that long, shows on stderr the
+/// share of it `share` says is finished (`rendering 42 % (3.1 s, about 4 s
+/// left)`), cleared at the end on a terminal.
 fn with_progress_line<R: Send>(
     label: &str,
-    total: u64,
     show_after: Option<Duration>,
-    done: &AtomicU64,
+    share: impl Fn() -> f64 + Sync,
     work: impl FnOnce() -> R + Send,
 ) -> R {
     let Some(after) = show_after else {
         return work();
     };
-    let total = total.max(1);
     let finished = AtomicBool::new(false);
     let start = Instant::now();
     // Asked for from the start: say so before any work, however short.
@@ -1330,7 +1343,7 @@ fn with_progress_line<R: Send>(
         eprint!("\r{label}   0 % (0.0 s)   ");
     }
     std::thread::scope(|scope| {
-        let finished_ref = &finished;
+        let (finished_ref, share) = (&finished, &share);
         scope.spawn(move || {
             let mut shown = shown_at_start;
             while !finished_ref.load(Ordering::Relaxed) {
@@ -1339,7 +1352,7 @@ fn with_progress_line<R: Send>(
                 if elapsed < after || finished_ref.load(Ordering::Relaxed) {
                     continue;
                 }
-                let share = done.load(Ordering::Relaxed).min(total) as f64 / total as f64;
+                let share = share().clamp(0.0, 1.0);
                 let eta = if share > 0.01 {
                     let left = elapsed.as_secs_f64() * (1.0 - share) / share;
                     format!(", about {left:.0} s left")
@@ -1369,6 +1382,28 @@ fn with_progress_line<R: Send>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn progress_counts_only_the_pixels_the_volume_projects_onto() {
+        use raycaster::render::PixelRect;
+        let rect = |x0, y0, x1, y1| PixelRect { x0, y0, x1, y1 };
+        let sink = ProgressSink {
+            frame: Mutex::new(raycaster::render::Frame::empty(64, 64, [0.0; 3])),
+            counted: Some(rect(10, 20, 50, 40)),
+            pixels_done: AtomicU64::new(0),
+        };
+        let mut finish = |r: PixelRect| {
+            let n = r.area() as usize;
+            sink.tile_finished(r, &vec![[0.0; 4]; n], &vec![0.0; n]);
+            sink.pixels_done.load(Ordering::Relaxed)
+        };
+        // Background tiles (they finish first) count nothing.
+        assert_eq!(finish(rect(0, 0, 16, 16)), 0);
+        assert_eq!(finish(rect(48, 48, 64, 64)), 0);
+        // A tile across the corner counts its 6×12 pixels inside.
+        assert_eq!(finish(rect(0, 16, 16, 32)), 6 * 12);
+        assert_eq!(finish(rect(16, 16, 32, 32)), 6 * 12 + 16 * 12);
+    }
 
     #[test]
     fn a_brick_side_that_makes_millions_of_bricks_is_warned_of() {

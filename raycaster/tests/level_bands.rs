@@ -6,8 +6,8 @@
 mod render_support;
 
 use raycaster::render::{
-    Camera, LevelBand, LevelChoice, Mode, ParallelOptions, RenderSettings, RenderVolume, Renderer,
-    SimdLevel, render_sequential_levels,
+    Camera, LevelBand, LevelChoice, Mode, ParallelOptions, PixelProgress, RenderSettings,
+    RenderVolume, Renderer, SimdLevel, render_sequential_levels, render_sequential_noting,
 };
 use raycaster::synth::SceneKind;
 use raycaster::volume::{Access, Layout, SampleType, Volume};
@@ -157,9 +157,21 @@ fn levels_meet_without_cracks_and_far_levels_spare_full_resolution() {
         early_termination: None,
         ..RenderSettings::default()
     };
-    let mixed = render_sequential_levels(&banded, &camera, &settings).unwrap();
+    // The progress a command shows: every pixel of every level's pass (a frame
+    // of several levels carries every pixel on), all done at the end.
+    let progress = PixelProgress::new();
+    let mixed = render_sequential_noting(&banded, &camera, &settings, &progress).unwrap();
+    let pixels = u64::from(camera.width()) * u64::from(camera.height());
+    assert_eq!(progress.total(), 3 * pixels);
+    assert_eq!((progress.done(), progress.fraction()), (3 * pixels, 1.0));
     let full = RenderVolume::new(volume.level(0), None).unwrap();
-    let fine = render_sequential_levels(&[(&full, None)], &camera, &settings).unwrap();
+    let progress = PixelProgress::new();
+    let fine = render_sequential_noting(&[(&full, None)], &camera, &settings, &progress).unwrap();
+    // One level: the pixels its box projects onto, each ray's pixel among them.
+    let (lo, hi) = full.geometry().world_bounds();
+    let projected = camera.project_box(lo, hi).unwrap().area();
+    assert_eq!((progress.total(), progress.done()), (projected, projected));
+    assert!(fine.stats.counters.rays <= projected && fine.stats.counters.rays > projected / 4);
     assert_images_match("levels-haze", &mixed.to_image(), &fine.to_image(), 2);
     // Samples of level k stand for 2^k times the distance: far fewer of them,
     // and the far levels never visit level 0's far bricks.

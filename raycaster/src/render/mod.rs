@@ -35,6 +35,7 @@ mod parallel;
 mod partition;
 mod pixel;
 mod prepared;
+mod progress;
 mod ray;
 mod read_ahead;
 mod relay;
@@ -78,6 +79,7 @@ pub use parallel::{
 };
 pub use partition::{BrickBox, Partition};
 pub use prepared::{LARGE_LINEAR_BRICKS, RenderVolume, default_linear_brick_side};
+pub use progress::PixelProgress;
 pub use ray::Ray;
 pub use relay::{
     ChannelLink, Compositing, DistributedFrame, DistributedOptions, Link, LinkError, RankStats,
@@ -88,7 +90,7 @@ pub use sabella::{SabellaChannels, SabellaDepth, SabellaMapping, SabellaOutput, 
 pub use segments::{
     GlobalMode, ImportanceSource, LocalMode, Membership, ObjectStyle, SceneError, SegmentScene,
 };
-pub use sequential::{render_sequential, render_sequential_levels};
+pub use sequential::{render_sequential, render_sequential_levels, render_sequential_noting};
 pub use settings::{
     AUTO_XRAY_DEPTH, DEFAULT_ERT_THRESHOLD, Mode, ModeParameters, RenderSettings, auto_xray_gain,
     step_past_volume,

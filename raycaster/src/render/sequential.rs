@@ -25,6 +25,7 @@ use super::packet::{PacketItem, PacketWork};
 use super::parallel::{check_levels, continue_in_level, level_plans};
 use super::pixel::PixelState;
 use super::prepared::{FramePlan, RenderVolume};
+use super::progress::PixelProgress;
 use super::sampler::VolumeSampler;
 use super::settings::RenderSettings;
 use super::simd::SimdLevel;
@@ -51,9 +52,26 @@ pub fn render_sequential_levels(
     camera: &Camera,
     settings: &RenderSettings,
 ) -> Result<Frame, RenderError> {
+    render_sequential_noting(passes, camera, settings, &PixelProgress::new())
+}
+
+/// [`render_sequential_levels`], counting its finished pixels in `progress`
+/// (read it from another thread).
+pub fn render_sequential_noting(
+    passes: &[(&RenderVolume<'_>, Option<DepthBand>)],
+    camera: &Camera,
+    settings: &RenderSettings,
+    progress: &PixelProgress,
+) -> Result<Frame, RenderError> {
     let start = Instant::now();
     let nearest = check_levels(passes, settings)?;
     let plans = level_plans(passes, camera, settings)?;
+    progress.start(
+        passes
+            .iter()
+            .map(|(volume, _)| pass_rect(volume, camera, passes.len()).map_or(0, |r| r.area()))
+            .sum(),
+    );
     let mut frame = Frame::empty(camera.width(), camera.height(), settings.background);
     let record = plans[0].compositor.run(StateBytes);
     let full = PixelRect::rows(camera.width(), 0, camera.height());
@@ -81,6 +99,7 @@ pub fn render_sequential_levels(
                 frame: &mut frame,
                 states,
                 packets,
+                progress,
             }),
             VolumeData::U16(data) => plan.compositor.run(SequentialPass {
                 volume,
@@ -90,6 +109,7 @@ pub fn render_sequential_levels(
                 frame: &mut frame,
                 states,
                 packets,
+                progress,
             }),
         };
         bricks += volume.geometry().grid().block_count();
@@ -127,6 +147,8 @@ struct SequentialPass<'p, 'v, 'd, T: Sample> {
     /// Whether to march in the plan's packet kernel (a level named in the
     /// settings, not the scalar one).
     packets: bool,
+    /// Counts the finished rows' pixels.
+    progress: &'p PixelProgress,
 }
 
 impl<T: Sample> CompositorJob for SequentialPass<'_, '_, '_, T> {
@@ -141,18 +163,20 @@ impl<T: Sample> CompositorJob for SequentialPass<'_, '_, '_, T> {
             frame,
             mut states,
             packets,
+            progress,
         } = self;
         let geometry = volume.geometry();
         let sampler = VolumeSampler::new(*data);
         let mut counters = Counters::default();
         let (lo, hi) = geometry.world_bounds();
         let projected = camera.project_box(lo, hi);
-        // A level of a frame of several carries every pixel's state on, even
-        // where its own box does not project.
-        let rect = match (&states.incoming, &states.outgoing, projected) {
-            (None, None, None) => return counters,
-            (None, None, Some(rect)) => rect,
-            _ => PixelRect::rows(camera.width(), 0, camera.height()),
+        let levels = if states.incoming.is_some() || states.outgoing.is_some() {
+            2
+        } else {
+            1
+        };
+        let Some(rect) = pass_rect(volume, camera, levels) else {
+            return counters;
         };
         let inside = |x: u32, y: u32| {
             projected.is_some_and(|r| x >= r.x0 && x < r.x1 && y >= r.y0 && y < r.y1)
@@ -242,7 +266,20 @@ impl<T: Sample> CompositorJob for SequentialPass<'_, '_, '_, T> {
                     }
                 }
             }
+            progress.add(u64::from(rect.x1 - rect.x0));
         }
         counters
     }
+}
+
+/// The pixels a pass over `volume` marches in a frame of `levels` levels: those
+/// its box projects onto, or, in a frame of several levels (which carries every
+/// pixel's state on, even where a level's box does not project), all of them;
+/// `None` for none.
+fn pass_rect(volume: &RenderVolume<'_>, camera: &Camera, levels: usize) -> Option<PixelRect> {
+    if levels > 1 {
+        return Some(PixelRect::rows(camera.width(), 0, camera.height()));
+    }
+    let (lo, hi) = volume.geometry().world_bounds();
+    camera.project_box(lo, hi)
 }
