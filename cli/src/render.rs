@@ -1392,7 +1392,7 @@ mod tests {
             counted: Some(rect(10, 20, 50, 40)),
             pixels_done: AtomicU64::new(0),
         };
-        let mut finish = |r: PixelRect| {
+        let finish = |r: PixelRect| {
             let n = r.area() as usize;
             sink.tile_finished(r, &vec![[0.0; 4]; n], &vec![0.0; n]);
             sink.pixels_done.load(Ordering::Relaxed)
