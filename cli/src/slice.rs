@@ -15,7 +15,10 @@ use crate::args::{WindowArg, parse_window};
 /// the pages of that plane), linear or bricked, u8 or u16; NRRD, NIfTI-1,
 /// MetaImage files and DICOM series are converted in memory first. Columns run
 /// along x (along y for x slices), rows along y for z slices and along z
-/// otherwise, the highest coordinate at the top. The output is checked before
+/// otherwise, the highest coordinate at the top. Pixels are square: where the
+/// voxel spacing differs between the two axes (CT slices farther apart than
+/// their pixels), the coarser axis is stretched, interpolating between its
+/// voxels; `--voxels` writes one pixel per voxel. The output is checked before
 /// reading (a .png name, an existing folder; an existing file only with
 /// `--force`) and written atomically.
 #[derive(Args, Debug)]
@@ -47,15 +50,21 @@ pub struct SliceArgs {
     #[arg(long, value_parser = parse_window, allow_hyphen_values = true, value_name = "LO,HI|NAME")]
     window: Option<WindowArg>,
 
+    /// One pixel per voxel, whatever the spacing (by default the axis with the
+    /// larger spacing is stretched to square pixels).
+    #[arg(long)]
+    voxels: bool,
+
     /// Print nothing on success.
     #[arg(short, long)]
     quiet: bool,
 }
 
 const SLICE_HELP: &str = "Examples:
-  raycaster slice lung1.vol --axis z --index 60 -o axial.png
+  raycaster slice lung1.vol --axis z --index 24 -o axial.png
   raycaster slice lung1.vol --axis y --index 256 --window -1000,2000 -o coronal.png --force
-  raycaster slice lung1.vol --axis z --index 60 --window lung -o lung.png";
+  raycaster slice lung1.vol --axis z --index 24 --window lung -o lung.png
+  raycaster slice lung1.vol --axis y --index 256 --voxels -o coronal-voxels.png";
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
 enum AxisArg {
@@ -97,19 +106,34 @@ pub fn run(args: SliceArgs) -> Result<()> {
     let slice = Slice::extract(&volume, axis, args.index)
         .map_err(|e| anyhow::anyhow!("--index {}: {e}", args.index))?;
     let units = volume.value_units();
-    let image = slice
-        .to_image(args.window.map(|w| units.stored_range(w.values())))
-        .map_err(|e| anyhow::anyhow!("--window: {e}"))?;
+    let window = args.window.map(|w| units.stored_range(w.values()));
+    let spacing = volume.spacing();
+    let [u, v] = axis.in_plane();
+    let image = if args.voxels {
+        slice.to_image(window)
+    } else {
+        slice.to_square_image(window, [spacing[u], spacing[v]])
+    }
+    .map_err(|e| anyhow::anyhow!("--window: {e}"))?;
     image.save_png(&args.output)?;
     if !args.quiet {
         let [lo, hi] = slice
             .range()
             .map(|v| units.format(units.value(f64::from(v))));
+        // Say how the voxels became pixels where they are not one to one.
+        let stretched = if (image.width(), image.height()) == (slice.width, slice.height) {
+            String::new()
+        } else {
+            format!(
+                " from {}×{} voxels, stretched to square pixels",
+                slice.width, slice.height
+            )
+        };
         eprintln!(
-            "wrote {} ({}×{}, slice {} = {} of {}, values {lo} to {hi})",
+            "wrote {} ({}×{}{stretched}, slice {} = {} of {}, values {lo} to {hi})",
             args.output.display(),
-            slice.width,
-            slice.height,
+            image.width(),
+            image.height(),
             axis,
             args.index,
             args.file.display()

@@ -27,9 +27,20 @@ impl raycaster::synth::Scene for Formula {
 
 /// Writes `name`: 20 × 12 × 9 voxels of [`Formula`] in `layout`.
 fn write_volume(dir: &Path, name: &str, sample: SampleType, layout: Layout) {
+    write_spaced_volume(dir, name, sample, layout, [1.0; 3]);
+}
+
+/// [`write_volume`] with voxel spacing `spacing`.
+fn write_spaced_volume(
+    dir: &Path,
+    name: &str,
+    sample: SampleType,
+    layout: Layout,
+    spacing: [f32; 3],
+) {
     let header = Header::new(
         [20, 12, 9],
-        [1.0; 3],
+        spacing,
         layout,
         sample,
         Content::Scalar,
@@ -52,6 +63,43 @@ fn write_volume(dir: &Path, name: &str, sample: SampleType, layout: Layout) {
             754 % 256
         }
     );
+}
+
+#[test]
+fn slices_have_square_pixels_unless_voxels_are_asked_for() {
+    let dir = tempfile::tempdir().unwrap();
+    // Slices 3 mm apart, 0.5 × 1 mm pixels (CT-like).
+    write_spaced_volume(
+        dir.path(),
+        "ct.vol",
+        SampleType::U16,
+        Layout::Linear,
+        [0.5, 1.0, 3.0],
+    );
+    let slice = |extra: &[&str]| {
+        let mut args = vec!["slice", "ct.vol", "-o", "s.png", "--force"];
+        args.extend_from_slice(extra);
+        let out = raycaster(&args, dir.path());
+        assert!(out.status.success(), "{}", stderr(&out));
+        let image = RgbImage::load_png(&dir.path().join("s.png")).unwrap();
+        ((image.width(), image.height()), stderr(&out), image)
+    };
+    // y slice: columns x (0.5 mm), rows z (3 mm): 9 rows become 54.
+    let (size, said, image) = slice(&["--axis", "y", "--index", "5"]);
+    assert_eq!(size, (20, 54));
+    assert!(
+        said.contains("20×54 from 20×9 voxels, stretched to square pixels"),
+        "{said}"
+    );
+    // Top row z = 8 (white at x 19), bottom row z = 0, grey between.
+    let (top, bottom) = (image.pixel(19, 0)[0], image.pixel(19, 53)[0]);
+    assert!(top > bottom, "{top} {bottom}");
+    // z slice: rows y (1 mm) are stretched to the columns' 0.5 mm: 12 → 24.
+    assert_eq!(slice(&["--axis", "z", "--index", "4"]).0, (20, 24));
+    // --voxels: one pixel per voxel, and no word of stretching.
+    let (size, said, _) = slice(&["--axis", "y", "--index", "5", "--voxels"]);
+    assert_eq!(size, (20, 9));
+    assert!(!said.contains("stretched"), "{said}");
 }
 
 #[test]
