@@ -38,7 +38,7 @@ use crate::navigation::{AxisView, DragKind, Navigator};
 use crate::quality::{QualityPolicy, StepPreset};
 use crate::segments_panel::{self, LOCAL_MODES, ObjectRowData};
 use crate::shortcuts::Shortcut;
-use crate::slices::Crosshair;
+use crate::slices::{Crosshair, WheelSteps};
 use crate::ui::{App, ObjectRow};
 
 /// Quiet time after the last camera change before the full-quality frame.
@@ -154,6 +154,8 @@ struct State {
     crosshair: Crosshair,
     /// The pyramid level the slice views read.
     slice_level: usize,
+    /// Per slice view (x, y, z): its wheel deltas short of a step.
+    slice_wheel: [WheelSteps; 3],
     /// The recent files, newest first.
     recent: Vec<PathBuf>,
     /// Per slice view (x, y, z): the shown part of the slice, first column
@@ -291,6 +293,7 @@ impl Viewer {
                 cut_restored: None,
                 crosshair: Crosshair::centre(first.volume.dims()),
                 slice_level: 0,
+                slice_wheel: Default::default(),
                 recent: crate::recent::recent_file()
                     .map(|f| crate::recent::load(&f))
                     .unwrap_or_default(),
@@ -718,20 +721,17 @@ fn set_cut_values(ui: &App, v: &CutValues) {
     ui.set_plane_elevation(v.elevation);
 }
 
-/// What to say of a session saved at `saved` pixels shown on `canvas` (`None`:
-/// not laid out yet, as at start under a window system, whose fallback size
-/// is no size to compare with).
+/// What to say of a session saved at `saved` pixels shown on `canvas`: nothing
+/// where they agree, or before layout (`None`, as at start under a window
+/// system, whose fallback size is no size to compare with, and the session was
+/// often saved from a window of the same size).
 fn size_note(saved: [u32; 2], canvas: Option<(u32, u32)>) -> String {
     match canvas {
-        Some((w, h)) if [w, h] == saved => String::new(),
-        Some((w, h)) => format!(
+        Some((w, h)) if [w, h] != saved => format!(
             " (saved at {}×{}; the canvas is {w}×{h})",
             saved[0], saved[1]
         ),
-        None => format!(
-            " (saved at {}×{}; shown at the window's size)",
-            saved[0], saved[1]
-        ),
+        _ => String::new(),
     }
 }
 
@@ -1321,25 +1321,26 @@ impl Controller {
         self.update_slices();
     }
 
-    /// Steps the `axis` slice by one (level) voxel per wheel notch direction.
+    /// Steps the `axis` slice by one (level) voxel per wheel notch
+    /// ([`WheelSteps`]).
     fn scroll_slice(&self, axis: i32, delta: f32) {
         let Some(axis) = usize::try_from(axis).ok().and_then(|a| Axis::ALL.get(a)) else {
             return;
         };
-        if delta == 0.0 {
-            return;
-        }
         {
             let mut st = self.state.borrow_mut();
+            let steps = st.slice_wheel[axis.index()].steps(delta);
+            if steps == 0 {
+                return;
+            }
             let step = 1i64 << st.slice_level;
-            st.crosshair
-                .step(*axis, if delta > 0.0 { step } else { -step });
+            st.crosshair.step(*axis, steps * step);
         }
         self.update_slices();
     }
 
-    /// Saves the frame on screen as the first free `screenshot-N.png` beside the
-    /// *Save PNG* path (the S key).
+    /// Saves the frame on screen as the first free `NAME-N.png` for the *Save
+    /// PNG* path `NAME.png` ([`numbered_path`]; the S key).
     fn quick_screenshot(&self) {
         let Some(ui) = self.ui() else { return };
         let base = PathBuf::from(ui.get_screenshot_path().as_str());
@@ -1852,11 +1853,17 @@ impl Controller {
         else {
             return false;
         };
+        // (The input's own name only where the typed one is another way to
+        // write it, or another file of the volume: a header's data file.)
+        let which = if input == path {
+            String::new()
+        } else {
+            format!(" ({})", input.display())
+        };
         self.show_message(
             &format!(
-                "{}: the view is read from it ({}); name another file",
+                "{}: the view is read from it{which}; name another file",
                 path.display(),
-                input.display()
             ),
             true,
         );
@@ -2268,9 +2275,7 @@ mod tests {
             size_note([800, 600], Some((442, 265))),
             " (saved at 800×600; the canvas is 442×265)"
         );
-        // Before layout the fallback 640×480 is no canvas: not named.
-        let start = size_note([800, 600], None);
-        assert_eq!(start, " (saved at 800×600; shown at the window's size)");
-        assert!(!start.contains("640"));
+        // Before layout the fallback 640×480 is no canvas: nothing is said.
+        assert_eq!(size_note([800, 600], None), "");
     }
 }

@@ -8,7 +8,12 @@ use raycaster::render::Orbit;
 
 /// Radians of rotation per logical pixel of drag.
 const ROTATE_PER_PIXEL: f32 = 0.01;
-/// Zoom factor per wheel notch (120 units, one line on most mice).
+/// Wheel delta (Slint's logical pixels) of one notch of a mouse wheel: Slint
+/// makes winit's line deltas 60 pixels a line. (Under Xvfb an `xdotool click
+/// 4` arrives twice, as a button and as a scroll valuator: two notches.)
+pub(crate) const WHEEL_NOTCH: f32 = 60.0;
+
+/// Zoom factor per wheel notch.
 const ZOOM_PER_NOTCH: f32 = 1.15;
 /// The wheel zooms in at most this much from the framing of the volume (a
 /// voxel of a 128³ volume then spans hundreds of pixels)…
@@ -170,7 +175,7 @@ impl Navigator {
         }
         let home = self.home.distance;
         let d = self.orbit.distance;
-        let wanted = d * ZOOM_PER_NOTCH.powf(-delta / 120.0);
+        let wanted = d * ZOOM_PER_NOTCH.powf(-delta / WHEEL_NOTCH);
         // (A restored session may lie beyond the limits: the wheel brings it
         // back, never further out.)
         let limits = ((home / MAX_ZOOM_IN).min(d), (home * MAX_ZOOM_OUT).max(d));

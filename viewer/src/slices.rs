@@ -12,6 +12,8 @@ use raycaster::slice::{Axis, Slice, SliceError};
 use raycaster::volume::{ValueUnits, Volume};
 use raycaster::windows::NAMED_WINDOWS;
 
+use crate::navigation::WHEEL_NOTCH;
+
 /// The largest slice side read (larger volumes use a coarser pyramid level).
 pub(crate) const MAX_SLICE_EDGE: u32 = 512;
 
@@ -214,9 +216,49 @@ pub(crate) fn slice_image(
     Ok((RgbImage::new(cw, ch, cropped), [x0, y0]))
 }
 
+/// Turns a view's wheel deltas into whole slice steps ([`WHEEL_NOTCH`] each): a mouse's notch is one
+/// step, a touchpad's many small deltas add up to steps rather than each
+/// being one, and turning back starts afresh.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct WheelSteps {
+    rest: f32,
+}
+
+impl WheelSteps {
+    /// The whole steps `delta` completes (positive up), the rest kept.
+    pub(crate) fn steps(&mut self, delta: f32) -> i64 {
+        if !delta.is_finite() || delta == 0.0 {
+            return 0;
+        }
+        if self.rest != 0.0 && self.rest.signum() != delta.signum() {
+            self.rest = 0.0;
+        }
+        self.rest += delta;
+        let steps = (self.rest / WHEEL_NOTCH).trunc().clamp(-1e6, 1e6);
+        self.rest -= steps * WHEEL_NOTCH;
+        steps as i64
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn wheel_notches_are_steps_and_small_deltas_add_up() {
+        let mut wheel = WheelSteps::default();
+        assert_eq!(wheel.steps(60.0), 1);
+        assert_eq!(wheel.steps(-60.0), -1);
+        assert_eq!(wheel.steps(180.0), 3);
+        // A touchpad: 7 deltas of 20 are two steps, 20 left over.
+        let steps: i64 = (0..7).map(|_| wheel.steps(20.0)).sum();
+        assert_eq!(steps, 2);
+        // Turning back drops the rest: a notch down is one step down.
+        assert_eq!(wheel.steps(-60.0), -1);
+        assert_eq!(wheel.steps(-30.0), 0);
+        assert_eq!((wheel.steps(f32::NAN), wheel.steps(0.0)), (0, 0));
+        assert_eq!(wheel.steps(-30.0), -1);
+    }
 
     /// The gradient scene of `dims` voxels written to a linear u8 file in `dir`.
     fn gradient_file(dir: &std::path::Path, dims: [u32; 3]) -> Volume {

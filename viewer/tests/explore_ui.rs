@@ -323,7 +323,15 @@ fn the_viewer_cuts_slices_and_remembers_files() {
     // Clicks outside the fitted image do nothing; the wheel steps a slice.
     v.ui().invoke_slice_clicked(0, 1.0, 50.0, 300.0, 100.0);
     assert_eq!(v.crosshair(), [12, 11, 23]);
-    v.ui().invoke_slice_scrolled(2, 120.0);
+    v.ui().invoke_slice_scrolled(2, 60.0);
+    assert_eq!(v.crosshair(), [12, 11, 24]);
+    // A touchpad's small deltas add up to a step.
+    v.ui().invoke_slice_scrolled(2, -20.0);
+    v.ui().invoke_slice_scrolled(2, -20.0);
+    assert_eq!(v.crosshair(), [12, 11, 24]);
+    v.ui().invoke_slice_scrolled(2, -20.0);
+    assert_eq!(v.crosshair(), [12, 11, 23]);
+    v.ui().invoke_slice_scrolled(2, 60.0);
     assert_eq!(v.crosshair(), [12, 11, 24]);
     // A named window (lung, in the file's units) changes the grey levels.
     let lung = v

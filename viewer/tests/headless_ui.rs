@@ -529,9 +529,12 @@ fn the_viewer_runs_headless() {
     v.ui().invoke_save_scene(target);
     let message = v.ui().get_message().to_string();
     assert!(
-        message.contains("pyramid.png: the view is read from it") && v.ui().get_message_is_error(),
+        message.contains("pyramid.png: the view is read from it; name another file")
+            && v.ui().get_message_is_error(),
         "{message}"
     );
+    // The path once: the typed name is the volume's own.
+    assert_eq!(message.matches("pyramid.png").count(), 1, "{message}");
     assert!(std::fs::read(&as_png).unwrap() == volume_bytes);
 
     // Started on a file that does not open, with a scene: the file's error is

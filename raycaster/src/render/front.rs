@@ -93,19 +93,31 @@ pub struct FrameBuffer {
 }
 
 impl FrameBuffer {
-    /// This image scaled (nearest pixel) to `width × height`; black where there
-    /// was no image.
+    /// This image scaled (nearest pixel) to `width × height` as a camera of
+    /// the new size sees it: the field of view is vertical, so the picture is
+    /// scaled by the ratio of the heights about the centre, whatever the widths
+    /// (a window made narrower crops the sides, a wider one adds black ones);
+    /// black where there was no image.
     pub fn rescaled(&self, width: u32, height: u32) -> FrameBuffer {
         let n = width as usize * height as usize;
         let pixels = if self.width == 0 || self.height == 0 || self.pixels.is_empty() {
             vec![[0, 0, 0, 255]; n]
         } else {
+            // Source pixels per new pixel, both ways.
+            let scale = f64::from(self.height) / f64::from(height);
+            let (sw, sh) = (f64::from(self.width), f64::from(self.height));
             let mut out = Vec::with_capacity(n);
             for y in 0..height {
-                let sy = (u64::from(y) * u64::from(self.height) / u64::from(height)) as usize;
+                let sy = ((f64::from(y) + 0.5) * scale).clamp(0.0, sh - 1.0) as usize;
                 for x in 0..width {
-                    let sx = (u64::from(x) * u64::from(self.width) / u64::from(width)) as usize;
-                    out.push(self.pixels[sy * self.width as usize + sx]);
+                    // Centre to centre; within half a pixel of the old edge
+                    // (sizes rounded apart) the edge pixel.
+                    let sx = sw / 2.0 + (f64::from(x) + 0.5 - f64::from(width) / 2.0) * scale;
+                    out.push(if sx > -0.5 && sx < sw + 0.5 {
+                        self.pixels[sy * self.width as usize + sx.clamp(0.0, sw - 1.0) as usize]
+                    } else {
+                        [0, 0, 0, 255]
+                    });
                 }
             }
             out
@@ -453,11 +465,36 @@ mod tests {
         assert_eq!(big.pixels[3], [0, 255, 0, 255]);
         assert_eq!(big.pixels[5 * 4], [0, 0, 255, 255]);
         assert_eq!(big.pixels[23], [255, 255, 255, 255]);
-        let small = big.rescaled(1, 1);
-        assert_eq!(small.pixels, vec![[255, 0, 0, 255]]);
+        // One pixel: the picture's centre (the lower right of the four).
+        let small = fb.rescaled(1, 1);
+        assert_eq!(small.pixels, vec![[255, 255, 255, 255]]);
         assert_eq!(
             FrameBuffer::default().rescaled(3, 2).pixels,
             vec![[0, 0, 0, 255]; 6]
+        );
+    }
+
+    #[test]
+    fn a_window_of_another_shape_keeps_the_picture_where_the_camera_sees_it() {
+        // 4×2, columns 10, 20, 30, 40.
+        let fb = FrameBuffer {
+            width: 4,
+            height: 2,
+            pixels: (0..8).map(|i| [10 * (i % 4 + 1), 0, 0, 255]).collect(),
+            ..FrameBuffer::default()
+        };
+        let red = |b: &FrameBuffer| -> Vec<u8> { b.pixels.iter().map(|p| p[0]).collect() };
+        // Narrower, same height: the middle two columns, unstretched.
+        assert_eq!(red(&fb.rescaled(2, 2)), [20, 30, 20, 30]);
+        // Wider, same height: the picture in the middle, black at the sides.
+        assert_eq!(
+            red(&fb.rescaled(6, 2)),
+            [0, 10, 20, 30, 40, 0, 0, 10, 20, 30, 40, 0]
+        );
+        // Twice the size both ways: each pixel doubled.
+        assert_eq!(
+            red(&fb.rescaled(8, 4))[..8],
+            [10, 10, 20, 20, 30, 30, 40, 40]
         );
     }
 }
