@@ -118,7 +118,9 @@ impl From<SampleArg> for SampleType {
 /// Header format on the command line.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum FormatArg {
-    /// 64-byte header with sample type, labels and the embedded brick-range table.
+    /// The extended header (64 bytes, 128 or 256 with value units and an
+    /// orientation): sample type, labels, the embedded brick-range table and the
+    /// resolution pyramid.
     Extended,
     /// The thesis's 26-byte header, u8 only (brick ranges go to FILE.ranges).
     Thesis,

@@ -25,9 +25,10 @@ use crate::progress::{CANCEL, voxel_bar};
 /// Inputs: .vol; NRRD (.nrrd, .nhdr; raw or gzip); NIfTI-1 (.nii, .nii.gz, .hdr/.img);
 /// MetaImage (.mha, .mhd; raw or zlib); a folder (or .dcm file) of an uncompressed
 /// DICOM series; headerless raw with --raw. Foreign files
-/// keep their spacing and axis order (first axis fastest = x); orientation is not
-/// applied; what stored values mean (rescale slope and intercept, HU for CT) is
-/// kept in the output's header (docs/import.md).
+/// keep their spacing and axis order (first axis fastest = x; the samples are never
+/// resampled); their orientation in the patient and what stored values mean
+/// (rescale slope and intercept, HU for CT) are kept in the output's header, and
+/// the renderer and viewer use both (docs/import.md).
 ///
 /// Streams in bounded memory (slabs of whole x-planes; about 64 MiB at most plus one
 /// row of bricks), so inputs larger than RAM convert; compressed inputs larger than
