@@ -139,8 +139,10 @@ pub struct BenchCase {
     pub shading: bool,
     /// Pre-integrated DVR segments (`--preintegrate`).
     pub preintegrated: bool,
-    /// Transfer-function preset.
-    pub transfer: &'static str,
+    /// Transfer-function preset; `None`: the preset and domain `raycaster
+    /// render` fits to the data by default ([`raycaster::windows::fit`]: `shapes`
+    /// for u8 volumes, a CT window for CT), chosen by [`BenchCase::prepare`].
+    pub transfer: Option<&'static str>,
     /// Image size in pixels.
     pub image: [u32; 2],
     /// The parallel renderer's kernel (`None`: the automatic choice).
@@ -163,7 +165,7 @@ impl Default for BenchCase {
             mode: Mode::Dvr,
             shading: true,
             preintegrated: false,
-            transfer: "shapes",
+            transfer: Some("shapes"),
             image: [256, 256],
             simd: None,
         }
@@ -193,10 +195,10 @@ impl BenchCase {
             (true, true) => "-preintegrated",
             (false, true) => "-unshaded-preintegrated",
         };
-        let transfer = if self.transfer == "shapes" {
-            String::new()
-        } else {
-            format!("-tf-{}", self.transfer)
+        let transfer = match self.transfer {
+            Some("shapes") => String::new(),
+            Some(preset) => format!("-tf-{preset}"),
+            None => "-tf-fitted".to_string(),
         };
         format!(
             "{}/{}/{renderer}/{}-step{}-{}{shading}{transfer}-{}x{}",
@@ -232,7 +234,8 @@ impl BenchCase {
         self.threads.unwrap_or(1)
     }
 
-    /// The render settings of the case.
+    /// The render settings of the case (with `transfer` `None`, the `shapes`
+    /// preset: [`BenchCase::prepare`] fits it to the volume).
     pub fn settings(&self) -> Result<RenderSettings> {
         if !(self.step > 0.0 && self.step.is_finite()) {
             bail!("step must be a positive number, not {}", self.step);
@@ -245,7 +248,7 @@ impl BenchCase {
             empty_space_skipping: self.optimisations.ess(),
             shading: if self.shading { defaults.shading } else { None },
             preintegrated: self.preintegrated,
-            transfer: TransferFunction::preset(self.transfer)?,
+            transfer: TransferFunction::preset(self.transfer.unwrap_or("shapes"))?,
             simd: self.simd,
             ..defaults
         })
@@ -286,9 +289,18 @@ impl BenchCase {
     /// As [`BenchCase::prepare`], with an already prepared volume (to share one
     /// between cases of the same brick side).
     pub fn prepare_with<'v>(&self, volume: RenderVolume<'v>) -> Result<PreparedCase<'v>> {
+        let mut settings = self.settings()?;
+        if self.transfer.is_none() {
+            let fit = raycaster::windows::fit(volume.volume());
+            settings.transfer = TransferFunction::preset(fit.preset)?;
+            // (As render: a preset's own domain, else the fitted one.)
+            if settings.transfer.domain.is_none() {
+                settings.transfer.domain = fit.domain;
+            }
+        }
         Ok(PreparedCase {
             camera: self.view.camera(volume.volume(), self.image)?,
-            settings: self.settings()?,
+            settings,
             options: self.parallel_options()?,
             volume,
         })

@@ -266,7 +266,7 @@ mod tests {
             mode: Mode::Mip,
             shading: false,
             preintegrated: false,
-            transfer: "opaque",
+            transfer: Some("opaque"),
             image: [70, 50],
             simd: None,
         };
@@ -333,7 +333,7 @@ mod tests {
         );
         assert!(
             BenchCase {
-                transfer: "no-such-preset",
+                transfer: Some("no-such-preset"),
                 ..BenchCase::default()
             }
             .settings()

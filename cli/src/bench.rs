@@ -27,7 +27,10 @@ use crate::render::ModeArg;
 /// `--volume-size` voxels, written once to `--cache-dir` and reused) for every
 /// combination of `--threads`, `--tiles`, `--bricks` and `--optimisations`, each
 /// `--frames` times (after `--warm-up` untimed frames), and reports the fastest
-/// frame, the median and the spread (slowest − fastest).
+/// frame, the median and the spread (slowest − fastest). Frames sample the
+/// volume's full resolution (`raycaster render --level 0`) with the transfer
+/// function render fits to the data unless `--tf` names one, so `raycaster
+/// render FILE --level 0` with the same settings marches the same samples.
 /// Bricks are logical bricks over linear storage (any size, no conversion); a
 /// bricked volume is rendered by its own bricks or sub-bricks that divide them.
 #[derive(Args, Debug)]
@@ -94,9 +97,12 @@ pub struct BenchArgs {
     #[arg(long, value_enum, default_value_t = ModeArg::Dvr)]
     mode: ModeArg,
 
-    /// Transfer-function preset.
-    #[arg(long = "tf", default_value = "shapes", value_parser = parse_preset, value_name = "PRESET")]
-    transfer: &'static str,
+    /// Transfer-function preset. Default: the built-in volume's `shapes`; for a
+    /// FILE, the preset and domain `raycaster render` fits to its data (`shapes`
+    /// for u8, ct-bone over -1000..2000 HU for CT), so that both time the same
+    /// frame.
+    #[arg(long = "tf", value_parser = parse_preset, value_name = "PRESET")]
+    transfer: Option<&'static str>,
 
     /// Timed frames per configuration (the fastest is reported).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..), value_name = "N")]
@@ -283,7 +289,8 @@ fn cases(args: &BenchArgs) -> Vec<BenchCase> {
         view: args.view,
         step: args.step,
         mode: args.mode.into(),
-        transfer: args.transfer,
+        // The built-in volume's preset, or what render fits to a file.
+        transfer: args.transfer.or(args.file.is_none().then_some("shapes")),
         image: args.image,
         simd: args.simd.0,
         preintegrated: args.preintegrate,

@@ -736,6 +736,100 @@ fn bench_preintegrates_the_frame_render_does() {
     );
 }
 
+/// `raycaster bench FILE` times the frame `raycaster render FILE --level 0`
+/// renders: the transfer function render fits to a u16 file (not the `shapes`
+/// preset over the whole u16 range), the same samples.
+#[test]
+fn bench_of_a_file_fits_the_transfer_function_as_render_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let common = [
+        "--image",
+        "40x40",
+        "--threads",
+        "1",
+        "--tiles",
+        "16",
+        "--bricks",
+        "8",
+        "--step",
+        "1",
+        "--frames",
+        "1",
+        "--warm-up",
+        "0",
+    ];
+    // A u16 volume: the bench's own, cached.
+    let mut args = vec![
+        "bench",
+        "--volume-size",
+        "32",
+        "--sample-type",
+        "u16",
+        "--cache-dir",
+        "cache",
+    ];
+    args.extend(common);
+    let o = raycaster(&args, d);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let volume = std::fs::read_dir(d.join("cache"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.extension().is_some_and(|e| e == "vol"))
+        .expect("the bench's volume");
+    let file = volume.to_str().unwrap();
+    let bench_samples = |tf: Option<&str>| {
+        let mut args = vec!["bench", file, "--csv", "b.csv", "--force"];
+        args.extend(common);
+        args.extend(tf.map(|t| ["--tf", t]).into_iter().flatten());
+        let o = raycaster(&args, d);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let text = std::fs::read_to_string(d.join("b.csv")).unwrap();
+        let mut lines = text.lines().map(|l| l.split(',').collect::<Vec<_>>());
+        let header = lines.next().unwrap();
+        let row = lines.next().unwrap();
+        row[header.iter().position(|h| *h == "samples").unwrap()]
+            .parse::<u64>()
+            .unwrap()
+    };
+    let o = raycaster(
+        &[
+            "render",
+            file,
+            "--size",
+            "40x40",
+            "--threads",
+            "1",
+            "--tile",
+            "16",
+            "--brick",
+            "8",
+            "--step",
+            "1",
+            "--level",
+            "0",
+            "--stats-json",
+            "-o",
+            "r.png",
+            "--force",
+        ],
+        d,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let json = String::from_utf8_lossy(&o.stdout).into_owned();
+    let at = json.find("\"samples\":").expect("samples") + "\"samples\":".len();
+    let rendered: u64 = json[at..]
+        .chars()
+        .take_while(char::is_ascii_digit)
+        .collect::<String>()
+        .parse()
+        .unwrap();
+    let fitted = bench_samples(None);
+    assert_eq!(fitted, rendered);
+    // (The `shapes` preset over the whole u16 range marches other samples.)
+    assert_ne!(bench_samples(Some("shapes")), fitted);
+}
+
 #[test]
 fn a_domain_outside_the_data_warns() {
     let dir = tempfile::tempdir().unwrap();
