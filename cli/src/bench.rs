@@ -593,7 +593,7 @@ const HEADER: [&str; COLUMNS] = [
 ];
 
 /// One aligned table row: the CSV columns with median and spread beside the
-/// fastest frame.
+/// fastest frame (a tile of 0, the CSV's "no tiles", shown as `-`).
 fn table_row(fields: &[String; COLUMNS]) -> String {
     const ORDER: [usize; COLUMNS] = [0, 1, 2, 3, 4, 5, 12, 13, 6, 7, 8, 9, 10, 11, 14];
     const WIDTHS: [usize; COLUMNS] = [10, 7, 5, 5, 13, 10, 10, 10, 12, 22, 0, 0, 0, 0, 0];
@@ -602,7 +602,10 @@ fn table_row(fields: &[String; COLUMNS]) -> String {
         .zip(WIDTHS)
         .enumerate()
         .map(|(i, (&column, w))| {
-            let f = &fields[column];
+            let f = match fields[column].as_str() {
+                "0" if column == 2 => "-",
+                f => f,
+            };
             if i == 0 || w == 0 {
                 format!("{f:<w$}")
             } else {

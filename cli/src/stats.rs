@@ -15,7 +15,7 @@ pub fn table(s: &FrameStats) -> String {
          samples taken    {} ({:.1} per ray; {:.1} % in SIMD lanes)\n\
          skipped (empty)  {} samples ({:.1} %){}\n\
          terminated early {} rays ({:.1} %)\n\
-         tasks            {} (tile × brick), {} skipped as occluded\n\
+         tasks            {} marched (tile × brick), {} more skipped: their pixels had finished\n\
          bricks           {} ({} transparent under the transfer function)\n\
          threads          {}\n\
          time             {:.3} s ({:.1} M samples/s, {:.1} M samples/s/thread)\n",

@@ -2141,7 +2141,7 @@ pub fn status_line(
     let rays = c.rays.max(1) as f64;
     format!(
         "{}{}×{} in {ms:.0} ms · {} · step {}{} · {:.1} MB read from disk by the viewer · {:.1} M samples/s · {:.2} M samples ({:.1}/ray, {:.0} % in SIMD lanes) · \
-         {:.0} % skipped empty · {:.0} % rays ended early · {} ({} occluded) · {} \
+         {:.0} % skipped empty · {:.0} % rays ended early · {} (+{} skipped, pixels finished) · {} \
          ({} transparent) · {}",
         if interactive { "interactive " } else { "" },
         s.width,
@@ -2243,7 +2243,7 @@ mod tests {
         );
         assert!(empty.contains("(0.0/ray, 0 % in SIMD lanes)"), "{empty}");
         assert!(
-            empty.contains("· 0 tasks (0 occluded) · 0 bricks"),
+            empty.contains("· 0 tasks (+0 skipped, pixels finished) · 0 bricks"),
             "{empty}"
         );
         // One of a kind is said in the singular.
@@ -2251,7 +2251,7 @@ mod tests {
         (one.bricks, one.threads, one.counters.tasks) = (1, 1, 1);
         let line = status_line(&one, false, sampling, 0);
         assert!(
-            line.contains("· 1 task (0 occluded) · 1 brick (0 transparent) · 1 thread"),
+            line.contains("· 1 task (+0 skipped, pixels finished) · 1 brick (0 transparent) · 1 thread"),
             "{line}"
         );
     }

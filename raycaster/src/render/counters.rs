@@ -18,7 +18,9 @@ pub struct Counters {
     /// (ray, brick) visits skipped as empty.
     pub brick_visits_skipped: u64,
     /// (tile, brick) tasks not sent because every pixel the brick covers in the
-    /// tile had terminated (global early ray termination; parallel renderer).
+    /// tile had finished: its ray terminated early (global early ray
+    /// termination; most of them), hit, or took its last sample before the
+    /// brick (parallel renderer; so some are skipped without ERT too).
     pub tasks_skipped_occluded: u64,
     /// (tile, brick) tasks rendered (parallel renderer).
     pub tasks: u64,
