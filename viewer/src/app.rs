@@ -2251,7 +2251,9 @@ mod tests {
         (one.bricks, one.threads, one.counters.tasks) = (1, 1, 1);
         let line = status_line(&one, false, sampling, 0);
         assert!(
-            line.contains("· 1 task (+0 skipped, pixels finished) · 1 brick (0 transparent) · 1 thread"),
+            line.contains(
+                "· 1 task (+0 skipped, pixels finished) · 1 brick (0 transparent) · 1 thread"
+            ),
             "{line}"
         );
     }

@@ -4,6 +4,20 @@ use clap::ValueEnum;
 use raycaster::io::{Endian, RawOrder, RawType};
 use raycaster::volume::{Format, MAX_AXIS, MAX_SPACING, MIN_SPACING, SampleType};
 
+/// Flags that do not go together (`--brick` with `--layout linear`): a wrong
+/// command line, exit status 2 like clap's own errors.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct CommandLineError(pub String);
+
+/// Returns a [`CommandLineError`] saying `message`.
+macro_rules! wrong_command_line {
+    ($($arg:tt)*) => {
+        return Err($crate::args::CommandLineError(format!($($arg)*)).into())
+    };
+}
+pub(crate) use wrong_command_line;
+
 /// `N` (a cube) or `XxYxZ`.
 pub fn parse_dims(s: &str) -> Result<[u32; 3], String> {
     let parts: Vec<&str> = s.split(['x', 'X']).collect();

@@ -4,7 +4,6 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::bail;
 use clap::Args;
 use raycaster::convert::{ConvertOptions, ValueMap, convert};
 use raycaster::import::{self, Imported};
@@ -14,7 +13,7 @@ use raycaster::volume::{Format, Layout, SampleType, pyramid_voxels};
 
 use crate::args::{
     EndianArg, FormatArg, LayoutArg, RawOrderArg, RawTypeArg, SampleArg, parse_brick, parse_dims,
-    parse_spacing, parse_window,
+    parse_spacing, parse_window, wrong_command_line,
 };
 use crate::generate::{describe_layout, describe_pyramid, describe_size};
 use crate::output::{check_output, output_name_warning};
@@ -180,7 +179,9 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
     }
     let input_layout = input.header().map(|h| h.layout);
     let layout = match (a.layout, a.brick) {
-        (Some(LayoutArg::Linear), Some(_)) => bail!("--brick applies to --layout bricked only"),
+        (Some(LayoutArg::Linear), Some(_)) => {
+            wrong_command_line!("--brick applies to --layout bricked only")
+        }
         (Some(LayoutArg::Linear), None) => Layout::Linear,
         (Some(LayoutArg::Bricked), side) | (None, side @ Some(_)) => Layout::Bricked {
             side: side
@@ -205,7 +206,13 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
     } else {
         pyramid_voxels(input.dims())
     };
-    let bar = voxel_bar(voxels + extra, "convert", a.quiet);
+    // (The count includes the pyramid's voxels: say so.)
+    let what = if extra > 0 {
+        "convert + pyramid"
+    } else {
+        "convert"
+    };
+    let bar = voxel_bar(voxels + extra, what, a.quiet);
     let on_progress = |n| bar.inc(n);
     let job = Job::silent()
         .with_progress(&on_progress)

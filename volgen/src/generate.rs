@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::{Context, bail};
+use anyhow::Context;
 use clap::{Args, ValueEnum};
 use raycaster::generate::generate;
 use raycaster::io::WriteOptions;
@@ -15,7 +15,9 @@ use raycaster::volume::{
     ranges_sidecar_path,
 };
 
-use crate::args::{FormatArg, LayoutArg, SampleArg, parse_brick, parse_dims, parse_spacing};
+use crate::args::{
+    FormatArg, LayoutArg, SampleArg, parse_brick, parse_dims, parse_spacing, wrong_command_line,
+};
 use crate::output::{check_output, output_name_warning};
 use crate::progress::{CANCEL, voxel_bar};
 
@@ -112,7 +114,9 @@ pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
     let kind = SceneKind::from(a.scene);
     let layout = match a.layout {
         // (As `volgen convert` says it.)
-        LayoutArg::Linear if a.brick.is_some() => bail!("--brick applies to --layout bricked only"),
+        LayoutArg::Linear if a.brick.is_some() => {
+            wrong_command_line!("--brick applies to --layout bricked only")
+        }
         LayoutArg::Linear => Layout::Linear,
         LayoutArg::Bricked => Layout::Bricked {
             side: a.brick.unwrap_or(16),
@@ -121,7 +125,9 @@ pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
     let sample_type = SampleType::from(a.sample_type);
     let format = Format::from(a.format);
     if format == Format::Thesis && sample_type != SampleType::U8 {
-        bail!("--format thesis holds u8 samples only; use --format extended for --type u16");
+        wrong_command_line!(
+            "--format thesis holds u8 samples only; use --format extended for --type u16"
+        );
     }
     let scene = kind.build(a.size, a.seed);
     let labels = (scene.has_labels() && !a.no_labels).then(|| {
@@ -130,10 +136,10 @@ pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
             .unwrap_or_else(|| default_labels_path(&a.output))
     });
     if a.labels.is_some() && !scene.has_labels() {
-        bail!("scene `{}` has no label volume; drop --labels", kind.name());
+        wrong_command_line!("scene `{}` has no label volume; drop --labels", kind.name());
     }
     if labels.as_deref().is_some_and(|l| same_target(l, &a.output)) {
-        bail!("--labels must differ from --output");
+        wrong_command_line!("--labels must differ from --output");
     }
     let options = WriteOptions {
         overwrite: a.force,
@@ -190,7 +196,13 @@ pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
         } else {
             pyramid_voxels(header.dims)
         };
-        let bar = voxel_bar(voxels + extra, what, a.quiet);
+        // (The count includes the pyramid's voxels: say so.)
+        let what = if extra > 0 {
+            format!("{what} + pyramid")
+        } else {
+            what.to_string()
+        };
+        let bar = voxel_bar(voxels + extra, &what, a.quiet);
         let on_progress = |n| bar.inc(n);
         let job = Job::silent()
             .with_progress(&on_progress)

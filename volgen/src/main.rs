@@ -65,7 +65,14 @@ fn main() {
         // Stopped by a signal: 130, as a shell reports an interrupted command,
         // so that scripts tell an interruption from a failure.
         let interrupted = progress::CANCEL.load(std::sync::atomic::Ordering::Relaxed);
-        std::process::exit(if interrupted { 130 } else { 1 });
+        let status = if interrupted {
+            130
+        } else if e.downcast_ref::<args::CommandLineError>().is_some() {
+            2
+        } else {
+            1
+        };
+        std::process::exit(status);
     }
 }
 

@@ -307,13 +307,21 @@ fn a_brick_side_for_a_linear_layout_is_refused_by_both_writers() {
         ],
     ] {
         let o = volgen(d, args);
-        assert_eq!(o.status.code(), Some(1), "{args:?}");
+        // Flags that do not go together: a wrong command line.
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
         assert!(
             stderr(&o).contains("--brick applies to --layout bricked only"),
             "{}",
             stderr(&o)
         );
     }
+    let o = volgen(
+        d,
+        &[
+            "generate", "--size", "8", "--type", "u16", "--format", "thesis", "-o", "x.vol",
+        ],
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert_eq!(files_in(d), ["a.vol"]);
 }
 
