@@ -620,11 +620,23 @@ impl Setup {
                 (volume, session)
             }
         };
-        Setup::from_session(volume, session, read_before)
+        // How the user names another label volume: a flag, or the session's field.
+        let labels_advice = if args.session.is_some() {
+            "a session's `volume.labels` names another"
+        } else {
+            "--labels FILE names another"
+        };
+        Setup::from_session(volume, session, read_before, labels_advice)
     }
 
-    /// The frame a session describes, its volume opened.
-    fn from_session(volume: Volume, session: Session, read_before: u64) -> Result<Setup> {
+    /// The frame a session describes, its volume opened; `labels_advice` says
+    /// how to name another label volume where the scene's does not open.
+    fn from_session(
+        volume: Volume,
+        session: Session,
+        read_before: u64,
+        labels_advice: &str,
+    ) -> Result<Setup> {
         if volume.content() == Content::Labels {
             bail!(
                 "{}: is a label volume (object ids, not values); render the data volume and give this file with --labels (and a --segments SCENE.toml)",
@@ -642,9 +654,11 @@ impl Setup {
                     Some(built_in_labels(*kind, *size, *seed)?)
                 }
                 (Membership::Labels(path), VolumeSource::File { .. }) => {
-                    Some(open_labels(path).context(
-                        "the scene's label volume (its `labels =`, read beside the scene file; --labels FILE, or a session's `volume.labels`, names another)",
-                    )?)
+                    Some(open_labels(path).with_context(|| {
+                        format!(
+                            "the scene's label volume (its `labels =`, read beside the scene file; {labels_advice})"
+                        )
+                    })?)
                 }
                 (Membership::Layers(_), _) => None,
             },

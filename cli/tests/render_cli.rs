@@ -581,7 +581,7 @@ fn bad_segment_scenes_fail_with_a_clear_message_and_no_output() {
         // A file's scene names its label volume: said to be the scene's.
         (
             &["data.vol", "--segments", "labels.toml"],
-            "the scene's label volume (its `labels =`, read beside the scene file",
+            "the scene's label volume (its `labels =`, read beside the scene file; --labels FILE names another)",
         ),
     ];
     for (extra, needle) in cases {
