@@ -131,7 +131,7 @@ impl Histogram {
         let bins = self.over_data(16);
         let [lo, hi] = self.value_range();
         s += &format!(
-            "            {} over the values present, {} to {} (of {} to {})\n",
+            "            {} over the values present, {} to {} (of {} to {}), bars on a log scale\n",
             crate::text::counted(bins.len() as u64, "bin"),
             stored(lo),
             stored(hi),

@@ -201,15 +201,21 @@ impl Orientation {
             .axes
             .iter()
             .any(|a| largest(a) < 1f64.to_radians().cos());
-        // `+ 0.0` turns −0 (a RAS origin of 0 negated into LPS) into 0.
-        let [x, y, z] = self.origin.map(|c| c + 0.0);
+        // Micrometres at most, without trailing zeros (`-777.5`, `-146`), and no
+        // −0 (a RAS origin of 0 negated into LPS).
+        let [x, y, z] = self.origin.map(|c| {
+            let text = format!("{c:.6}");
+            match text.trim_end_matches('0').trim_end_matches('.') {
+                "-0" => "0".to_string(),
+                short => short.to_string(),
+            }
+        });
         format!(
-            "{code} ({}){}{}, voxel 0,0,0 at {x:.6}, {y:.6}, {z:.6} mm LPS",
+            "{code} ({}){}{}, voxel 0,0,0 at {x}, {y}, {z} mm LPS",
             axes.join(", "),
             if oblique { ", oblique" } else { "" },
             if self.is_mirrored() { ", mirrored" } else { "" },
         )
-        .replace(".000000", "")
     }
 
     /// The orientation block's bytes (see `docs/format.md`).
@@ -271,6 +277,23 @@ mod tests {
         // P, R, I: a mirror image of L, P, S.
         assert!(o.is_mirrored());
         assert_eq!(Orientation::decode(&o.encode()).unwrap(), o);
+    }
+
+    #[test]
+    fn the_origin_is_described_without_trailing_zeros() {
+        let lps = |origin| Orientation {
+            axes: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            origin,
+        };
+        assert_eq!(
+            lps([-146.0, -325.0, -777.5]).describe(),
+            "LPS (x left, y posterior, z superior), voxel 0,0,0 at -146, -325, -777.5 mm LPS"
+        );
+        assert!(
+            lps([-0.0, -1e-9, -78.3063])
+                .describe()
+                .ends_with("at 0, 0, -78.3063 mm LPS")
+        );
     }
 
     #[test]
