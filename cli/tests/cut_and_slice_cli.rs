@@ -96,6 +96,14 @@ fn slices_have_square_pixels_unless_voxels_are_asked_for() {
     assert!(top > bottom, "{top} {bottom}");
     // z slice: rows y (1 mm) are stretched to the columns' 0.5 mm: 12 → 24.
     assert_eq!(slice(&["--axis", "z", "--index", "4"]).0, (20, 24));
+    // A named CT window on values without HU units: warned of, rendered.
+    let (_, said, _) = slice(&["--axis", "z", "--index", "4", "--window", "lung"]);
+    assert!(
+        said.contains("warning: --window lung: a CT window in Hounsfield units"),
+        "{said}"
+    );
+    let (_, said, _) = slice(&["--axis", "z", "--index", "4", "--window", "0,500"]);
+    assert!(!said.contains("warning"), "{said}");
     // --voxels: one pixel per voxel, and no word of stretching.
     let (size, said, _) = slice(&["--axis", "y", "--index", "5", "--voxels"]);
     assert_eq!(size, (20, 9));

@@ -495,7 +495,7 @@ fn bench_generates_the_volume_kind_asked_for() {
     // Bricks of side 9 (step 8) are cut by sides whose step divides 8.
     assert!(
         stderr(&bad).contains(
-            "brick side 4 does not divide the file's bricks of side 9 (the sub-brick step side−1 must divide 9−1): sides that do are 2, 3, 5, 9"
+            "brick side 4 does not tile the file's bricks of side 9: bricks share a voxel with their neighbours, so a sub-brick of side s advances s−1 voxels, and s−1 must divide 8; sides that tile them are 2, 3, 5, 9"
         ),
         "{}",
         stderr(&bad)

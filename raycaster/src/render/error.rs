@@ -19,7 +19,8 @@ pub enum RenderError {
     BrickSide(u32),
     /// A logical brick that does not tile the file's bricks.
     #[error(
-        "brick side {side} does not divide the file's bricks of side {file_side} (the sub-brick step side−1 must divide {file_side}−1): sides that do are {}",
+        "brick side {side} does not tile the file's bricks of side {file_side}: bricks share a voxel with their neighbours, so a sub-brick of side s advances s−1 voxels, and s−1 must divide {}; sides that tile them are {}",
+        file_side.saturating_sub(1),
         sub_brick_sides(*file_side)
     )]
     SubBrick {
