@@ -891,7 +891,17 @@ fn open_volume(source: &VolumeSource, args: &RenderArgs) -> Result<Volume> {
                 access,
                 ..OpenOptions::default()
             };
-            let volume = Volume::open_with(path, options)?;
+            let volume = Volume::open_with(path, options).map_err(|e| {
+                // A session or scene given as the volume: say which flag takes it.
+                if raycaster::files::is_toml_name(path) {
+                    anyhow::anyhow!(
+                        "{}: is a TOML file, not a volume: --session FILE renders a saved session, --segments FILE a two-level scene",
+                        path.display()
+                    )
+                } else {
+                    e.into()
+                }
+            })?;
             if let Some(warning) = volume.unused_tail_warning().filter(|_| !args.quiet) {
                 eprintln!("{warning}");
             }

@@ -191,6 +191,13 @@ pub fn remove_partial_outputs() {
     }
 }
 
+/// Whether `path` is named like a TOML file (`.toml`, any case): a session or
+/// a two-level scene, which front ends name when one is given as a volume.
+pub fn is_toml_name(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("toml"))
+}
+
 /// Why `path` cannot name a PNG image we write, if it cannot: its name is
 /// only `.png`, or it does not end in `.png` (any case). The CLI's `-o` and
 /// the viewer's *Save PNG* share the rule: PNG data under another extension

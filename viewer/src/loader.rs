@@ -71,7 +71,17 @@ pub fn open_source(source: &VolumeSource) -> Result<LoadedVolume> {
 /// how, which preset suits it) is the library's [`raycaster::source`], shared with
 /// the `raycaster` command.
 pub fn open_file(path: &Path) -> Result<LoadedVolume> {
-    open_source(&file_source(path))
+    open_source(&file_source(path)).map_err(|e| {
+        // A session or scene typed where a volume belongs: say what opens it.
+        if raycaster::files::is_toml_name(path) {
+            anyhow::anyhow!(
+                "{}: is a TOML file, not a volume: Open session opens a saved session, and a two-level scene loads in the Segments panel",
+                path.display()
+            )
+        } else {
+            e
+        }
+    })
 }
 
 /// The source of a file the viewer opens (mapped).

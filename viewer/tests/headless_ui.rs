@@ -220,11 +220,17 @@ fn the_viewer_runs_headless() {
     // 4. A bad file shows an error and keeps the old volume.
     let dir = tempfile::tempdir().unwrap();
     let name = v.volume_name();
-    for bad in [dir.path().join("missing.vol"), {
-        let junk = dir.path().join("junk.vol");
-        std::fs::write(&junk, b"this is not a volume").unwrap();
-        junk
-    }] {
+    let session = dir.path().join("view.toml");
+    std::fs::write(&session, "version = 1\n").unwrap();
+    for bad in [
+        dir.path().join("missing.vol"),
+        {
+            let junk = dir.path().join("junk.vol");
+            std::fs::write(&junk, b"this is not a volume").unwrap();
+            junk
+        },
+        session.clone(),
+    ] {
         v.ui().set_file_path(bad.display().to_string().into());
         element(&v, "App::open-button").invoke_accessible_default_action();
         let start = Instant::now();
@@ -237,6 +243,12 @@ fn the_viewer_runs_headless() {
         let file = bad.file_name().unwrap().to_string_lossy().into_owned();
         assert!(message.contains(&file), "{message}");
         assert!(message.contains("previous volume stays"), "{message}");
+        // A session typed where a volume belongs: what opens it is named.
+        assert_eq!(
+            bad == session,
+            message.contains("is a TOML file, not a volume: Open session opens a saved session"),
+            "{message}"
+        );
         assert_eq!(v.volume_name(), name, "the old volume stays");
         v.ui().invoke_reset_view();
         wait_for_frame(&v);
