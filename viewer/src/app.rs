@@ -994,10 +994,14 @@ impl Controller {
             .then(|| install.loaded.volume.volume.unused_tail_warning())
             .flatten();
         let dropped_screenshot;
+        // A two-level scene of the old volume that the new one does not keep.
+        let mut dropped_scene = false;
         {
             let mut st = self.state.borrow_mut();
             st.busy = false;
             if install.new_volume {
+                dropped_scene =
+                    st.scene.is_some() && install.scene.is_none() && install.session.is_none();
                 let v = &install.loaded.volume;
                 if let Some(source) = install.source {
                     st.source = source;
@@ -1056,6 +1060,9 @@ impl Controller {
         }
         if let Some(warning) = tail_warning {
             message = format!("{message} — {warning}");
+        }
+        if dropped_scene {
+            message += " — the two-level scene was cleared: it described the previous volume (Segments, Load reads it again)";
         }
         if let Some(session) = install.session {
             message += &self.restore(*session);

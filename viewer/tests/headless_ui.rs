@@ -347,6 +347,13 @@ fn the_viewer_runs_headless() {
     v.ui().invoke_open_file(nifti.display().to_string().into());
     wait_until(&v, |v| v.ui().get_volume_info().contains("6×5×4"));
     assert!(!v.ui().get_message_is_error(), "{:?}", v.ui().get_message());
+    // The segment scene loaded above described the old volume: cleared, and said.
+    assert_eq!(v.ui().get_objects().row_count(), 0);
+    let message = v.ui().get_message().to_string();
+    assert!(
+        message.contains("the two-level scene was cleared: it described the previous volume"),
+        "{message}"
+    );
 
     // Bytes after a file's last block: it opens, and the message says so as
     // `raycaster render` does.
