@@ -480,6 +480,13 @@ fn init_models(ui: &App) {
         ))
     };
     ui.set_presets(strings(PRESETS.iter().map(|(n, _)| *n).collect()));
+    ui.set_tf_presets(strings(
+        PRESETS
+            .iter()
+            .map(|(n, _)| *n)
+            .chain([CUSTOM_PRESET])
+            .collect(),
+    ));
     ui.set_modes(strings(Mode::ALL.iter().map(|m| m.name()).collect()));
     ui.set_local_modes(strings(LOCAL_MODES.to_vec()));
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
@@ -611,12 +618,14 @@ fn connect(ui: &App, c: &Rc<Controller>) {
         let changed = c.state.borrow_mut().editor.press(x, y, w, h, right);
         c.redraw_tf();
         if changed {
+            c.show_custom_preset();
             c.request_frame(true);
         }
     });
     on!(on_tf_moved, |c, x, y| {
         let (w, h) = c.tf_size();
         if c.state.borrow_mut().editor.drag_to(x, y, w, h) {
+            c.show_custom_preset();
             c.redraw_tf();
             c.request_frame(true);
         }
@@ -628,6 +637,7 @@ fn connect(ui: &App, c: &Rc<Controller>) {
     on!(on_tf_color, |c, color| {
         let rgb = [color.red(), color.green(), color.blue()].map(|v| f32::from(v) / 255.0);
         if c.state.borrow_mut().editor.set_color(rgb) {
+            c.show_custom_preset();
             c.redraw_tf();
             c.request_frame(false);
         }
@@ -720,6 +730,10 @@ fn set_cut_values(ui: &App, v: &CutValues) {
     ui.set_plane_azimuth(v.azimuth);
     ui.set_plane_elevation(v.elevation);
 }
+
+/// The transfer-function picker's entry after the presets: a curve that is none
+/// of them (edited, or from a session).
+const CUSTOM_PRESET: &str = "custom";
 
 /// What to say of a session saved at `saved` pixels shown on `canvas`: nothing
 /// where they agree, or before layout (`None`, as at start under a window
@@ -1029,7 +1043,7 @@ impl Controller {
                         PRESETS
                             .iter()
                             .position(|(n, _)| *n == v.preset)
-                            .map_or(-1, |i| i as i32),
+                            .map_or(PRESETS.len() as i32, |i| i as i32),
                     );
                 }
             }
@@ -1434,7 +1448,7 @@ impl Controller {
         let preset = PRESETS.iter().position(|(name, _)| {
             TransferFunction::preset(name).is_ok_and(|p| p.points() == settings.transfer.points())
         });
-        ui.set_preset_index(preset.map_or(-1, |i| i as i32));
+        ui.set_preset_index(preset.map_or(PRESETS.len() as i32, |i| i as i32));
         size_note(session.size, laid_out_canvas(&ui)) + &notes
     }
 
@@ -1797,6 +1811,7 @@ impl Controller {
     }
 
     fn select_preset(&self, index: i32) {
+        // (`custom`, past the presets, keeps the curve.)
         let Some((name, _)) = PRESETS.get(index.max(0) as usize) else {
             return;
         };
@@ -1808,6 +1823,13 @@ impl Controller {
         }
         self.redraw_tf();
         self.request_frame(false);
+    }
+
+    /// Shows `custom` in the transfer-function picker: the curve was edited.
+    fn show_custom_preset(&self) {
+        if let Some(ui) = self.ui() {
+            ui.set_preset_index(PRESETS.len() as i32);
+        }
     }
 
     /// Saves the frame on screen to `path`, or, while a frame is still

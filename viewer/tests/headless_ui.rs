@@ -216,6 +216,19 @@ fn the_viewer_runs_headless() {
     tf.mock_single_click(PointerEventButton::Left);
     wait_for_frame(&v);
     assert_ne!(frame(&v).2, gray, "the new control point changes the image");
+    // The picker no longer names the preset: the curve is custom.
+    {
+        use slint::Model;
+        let index = v.ui().get_preset_index();
+        let entries = v.ui().get_tf_presets();
+        assert_eq!(index as usize, raycaster::render::PRESETS.len());
+        assert_eq!(entries.row_data(index as usize).unwrap(), "custom");
+        // Picking `custom` keeps the curve.
+        let edited = frame(&v).2;
+        v.ui().invoke_preset_selected(index);
+        wait_for_frame(&v);
+        assert_eq!(frame(&v).2, edited);
+    }
 
     // 4. A bad file shows an error and keeps the old volume.
     let dir = tempfile::tempdir().unwrap();
