@@ -336,6 +336,9 @@ impl Viewer {
         }));
         if let Some(error) = &error {
             controller.show_message(error, true);
+            // Said on the terminal the viewer was started from too (once; the
+            // window keeps it in sight).
+            eprintln!("viewer: {error}");
         }
         match &source {
             Source::File(path) => ui.set_file_path(path.display().to_string().into()),
