@@ -6,7 +6,7 @@ mod support;
 
 use support::{raycaster, stderr};
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
@@ -647,6 +647,36 @@ fn an_interrupted_bench_leaves_no_partial_volume_in_its_cache() {
     }
 }
 
+/// The volume file `raycaster bench` generated into `DIR/cache`.
+fn cached_bench_volume(dir: &Path) -> PathBuf {
+    std::fs::read_dir(dir.join("cache"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.extension().is_some_and(|e| e == "vol"))
+        .expect("the bench's volume")
+}
+
+/// Column `name` of the first row of the bench CSV at `path`.
+fn first_csv_row_column(path: &Path, name: &str) -> String {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines().map(|l| l.split(',').collect::<Vec<_>>());
+    let header = lines.next().unwrap();
+    let row = lines.next().unwrap();
+    row[header.iter().position(|h| *h == name).unwrap()].to_string()
+}
+
+/// The `samples` of `--stats-json` output.
+fn stats_json_samples(out: &std::process::Output) -> u64 {
+    let json = String::from_utf8_lossy(&out.stdout).into_owned();
+    let at = json.find("\"samples\":").expect("samples") + "\"samples\":".len();
+    json[at..]
+        .chars()
+        .take_while(char::is_ascii_digit)
+        .collect::<String>()
+        .parse()
+        .unwrap()
+}
+
 /// `raycaster bench --preintegrate` times the frame `raycaster render
 /// --preintegrate` renders: the same samples for the same volume, image, step,
 /// bricks and tiles, pre-integrated or not, and the CSV says which.
@@ -682,20 +712,12 @@ fn bench_preintegrates_the_frame_render_does() {
         }
         let o = raycaster(&args, d);
         assert!(o.status.success(), "{}", stderr(&o));
-        let text = std::fs::read_to_string(d.join(csv)).unwrap();
-        let mut lines = text.lines().map(|l| l.split(',').collect::<Vec<_>>());
-        let header = lines.next().unwrap();
-        let row = lines.next().unwrap();
-        let column = |name: &str| row[header.iter().position(|h| *h == name).unwrap()];
-        assert_eq!(column("preintegrated"), pre.to_string(), "{text}");
+        let column = |name| first_csv_row_column(&d.join(csv), name);
+        assert_eq!(column("preintegrated"), pre.to_string());
         column("samples").parse::<u64>().unwrap()
     };
     let (bench_pre, bench_plain) = (samples_of(true), samples_of(false));
-    let volume = std::fs::read_dir(d.join("cache"))
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .find(|p| p.extension().is_some_and(|e| e == "vol"))
-        .expect("the bench's volume");
+    let volume = cached_bench_volume(d);
     let rendered = |pre: bool| {
         let mut args = vec![
             "render",
@@ -720,13 +742,7 @@ fn bench_preintegrates_the_frame_render_does() {
         }
         let o = raycaster(&args, d);
         assert!(o.status.success(), "{}", stderr(&o));
-        let json = String::from_utf8_lossy(&o.stdout).into_owned();
-        let at = json.find("\"samples\":").expect("samples") + "\"samples\":".len();
-        let digits: String = json[at..]
-            .chars()
-            .take_while(char::is_ascii_digit)
-            .collect();
-        digits.parse::<u64>().unwrap()
+        stats_json_samples(&o)
     };
     assert_eq!(bench_pre, rendered(true));
     assert_eq!(bench_plain, rendered(false));
@@ -772,11 +788,7 @@ fn bench_of_a_file_fits_the_transfer_function_as_render_does() {
     args.extend(common);
     let o = raycaster(&args, d);
     assert!(o.status.success(), "{}", stderr(&o));
-    let volume = std::fs::read_dir(d.join("cache"))
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .find(|p| p.extension().is_some_and(|e| e == "vol"))
-        .expect("the bench's volume");
+    let volume = cached_bench_volume(d);
     let file = volume.to_str().unwrap();
     let bench_samples = |tf: Option<&str>| {
         let mut args = vec!["bench", file, "--csv", "b.csv", "--force"];
@@ -784,11 +796,7 @@ fn bench_of_a_file_fits_the_transfer_function_as_render_does() {
         args.extend(tf.map(|t| ["--tf", t]).into_iter().flatten());
         let o = raycaster(&args, d);
         assert!(o.status.success(), "{}", stderr(&o));
-        let text = std::fs::read_to_string(d.join("b.csv")).unwrap();
-        let mut lines = text.lines().map(|l| l.split(',').collect::<Vec<_>>());
-        let header = lines.next().unwrap();
-        let row = lines.next().unwrap();
-        row[header.iter().position(|h| *h == "samples").unwrap()]
+        first_csv_row_column(&d.join("b.csv"), "samples")
             .parse::<u64>()
             .unwrap()
     };
@@ -816,14 +824,7 @@ fn bench_of_a_file_fits_the_transfer_function_as_render_does() {
         d,
     );
     assert!(o.status.success(), "{}", stderr(&o));
-    let json = String::from_utf8_lossy(&o.stdout).into_owned();
-    let at = json.find("\"samples\":").expect("samples") + "\"samples\":".len();
-    let rendered: u64 = json[at..]
-        .chars()
-        .take_while(char::is_ascii_digit)
-        .collect::<String>()
-        .parse()
-        .unwrap();
+    let rendered = stats_json_samples(&o);
     let fitted = bench_samples(None);
     assert_eq!(fitted, rendered);
     // (The `shapes` preset over the whole u16 range marches other samples.)
