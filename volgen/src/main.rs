@@ -61,18 +61,16 @@ fn main() {
         Command::Pyramid(a) => pyramid::run(a),
     };
     if let Err(e) = result {
-        eprintln!("error: {}", raycaster::errors::error_text(e.as_ref()));
         // Stopped by a signal: 130, as a shell reports an interrupted command,
-        // so that scripts tell an interruption from a failure.
-        let interrupted = progress::CANCEL.load(std::sync::atomic::Ordering::Relaxed);
-        let status = if interrupted {
-            130
-        } else if e.downcast_ref::<args::CommandLineError>().is_some() {
-            2
-        } else {
-            1
-        };
-        std::process::exit(status);
+        // so that scripts tell an interruption from a failure; said as
+        // `raycaster` says it (the job's own error is only its cancellation).
+        if progress::CANCEL.load(std::sync::atomic::Ordering::Relaxed) {
+            eprintln!("interrupted; no partial output was left");
+            std::process::exit(130);
+        }
+        eprintln!("error: {}", raycaster::errors::error_text(e.as_ref()));
+        let wrong_command_line = e.downcast_ref::<args::CommandLineError>().is_some();
+        std::process::exit(if wrong_command_line { 2 } else { 1 });
     }
 }
 

@@ -88,7 +88,11 @@ fn sigterm_and_sighup_cancel_like_ctrl_c_and_leave_no_partial_file() {
             "signal {signal}: {}",
             stderr(&o)
         );
-        assert!(stderr(&o).contains("cancelled"), "{}", stderr(&o));
+        assert!(
+            stderr(&o).contains("interrupted; no partial output was left"),
+            "{}",
+            stderr(&o)
+        );
         assert_eq!(stderr(&o).lines().count(), 1, "{}", stderr(&o));
         assert!(
             files_in(dir.path()).is_empty(),
@@ -157,7 +161,7 @@ fn an_interrupted_run_with_labels_keeps_the_files_it_would_replace() {
     let e = stderr(&o);
     assert_eq!(o.status.code(), Some(130), "{e}");
     assert!(
-        e.contains("s.labels.vol: cancelled") && !e.contains(".partial"),
+        e.contains("interrupted; no partial output was left") && !e.contains(".partial"),
         "{e}"
     );
     assert!(String::from_utf8_lossy(&o.stdout).is_empty(), "no 'wrote'");
@@ -556,7 +560,7 @@ fn sigterm_while_converting_a_compressed_scan_cancels_cleanly() {
     let o = wait_at_most(child, Duration::from_secs(30));
     let e = stderr(&o);
     assert_eq!(o.status.code(), Some(130), "{e}");
-    assert!(e.contains("cancelled"), "{e}");
+    assert!(e.contains("interrupted; no partial output was left"), "{e}");
     assert!(!e.contains("corrupt"), "{e}");
     assert_eq!(files_in(d), ["s.nrrd"]);
 }
