@@ -2135,7 +2135,9 @@ fn to_ui_row(r: &ObjectRowData) -> ObjectRow {
         preset_index: r.preset_index.map_or(-1, |i| i as i32),
         param: r.param,
         param_label: r.param_label.as_str().into(),
+        param_min: r.param_min,
         param_max: r.param_max,
+        param_log: r.param_log,
     }
 }
 
@@ -2148,7 +2150,9 @@ fn from_ui_row(r: &ObjectRow) -> ObjectRowData {
         preset_index: usize::try_from(r.preset_index).ok(),
         param: r.param,
         param_label: r.param_label.to_string(),
+        param_min: r.param_min,
         param_max: r.param_max,
+        param_log: r.param_log,
     }
 }
 

@@ -32,8 +32,12 @@ pub struct ObjectRowData {
     pub param: f32,
     /// Its label (empty: the mode has none).
     pub param_label: String,
+    /// The slider's lower end.
+    pub param_min: f32,
     /// The slider's upper end.
     pub param_max: f32,
+    /// The slider moves on a log scale of the parameter.
+    pub param_log: bool,
 }
 
 /// The row of `object`.
@@ -42,7 +46,13 @@ pub fn row_of(object: &ObjectStyle) -> ObjectRowData {
         .iter()
         .position(|&m| m == object.mode.name())
         .unwrap_or(0);
-    let (param, param_label, param_max) = parameter(object.mode);
+    let Parameter {
+        value: param,
+        label: param_label,
+        min: param_min,
+        max: param_max,
+        log: param_log,
+    } = parameter(object.mode);
     let preset_index = PRESETS.iter().position(|(name, _)| {
         TransferFunction::preset(name).is_ok_and(|p| p.points() == object.transfer.points())
     });
@@ -54,23 +64,50 @@ pub fn row_of(object: &ObjectStyle) -> ObjectRowData {
         preset_index,
         param,
         param_label: param_label.to_owned(),
+        param_min,
         param_max,
+        param_log,
     }
 }
 
-/// The main parameter of a mode: value, label, slider maximum.
-fn parameter(mode: LocalMode) -> (f32, &'static str, f32) {
+/// The main parameter of a mode and its slider.
+struct Parameter {
+    value: f32,
+    /// Empty: the mode has none.
+    label: &'static str,
+    min: f32,
+    max: f32,
+    /// The slider moves on a log scale (a gain whose useful values span
+    /// orders of magnitude: 0.06 by default, up to a few).
+    log: bool,
+}
+
+/// The main parameter of `mode`.
+fn parameter(mode: LocalMode) -> Parameter {
+    let linear = |value, label, max| Parameter {
+        value,
+        label,
+        min: 0.0,
+        max,
+        log: false,
+    };
     match mode {
-        LocalMode::XRay { gain } => (gain, "gain", 2.0),
-        LocalMode::FirstHit { iso } => (iso, "iso", 1.0),
-        LocalMode::ContextPreserving { kt, .. } => (kt, "κt", 6.0),
+        LocalMode::XRay { gain } => Parameter {
+            value: gain,
+            label: "gain",
+            min: 0.002,
+            max: 5.0,
+            log: true,
+        },
+        LocalMode::FirstHit { iso } => linear(iso, "iso", 1.0),
+        LocalMode::ContextPreserving { kt, .. } => linear(kt, "κt", 6.0),
         LocalMode::Importance {
             source:
                 ImportanceSource::Constant(w)
                 | ImportanceSource::Intensity(w)
                 | ImportanceSource::Gradient(w),
-        } => (w, "weight", 5.0),
-        _ => (0.0, "", 1.0),
+        } => linear(w, "weight", 5.0),
+        _ => linear(0.0, "", 1.0),
     }
 }
 
@@ -174,5 +211,11 @@ mod tests {
             TransferFunction::preset("shells").unwrap().points()
         );
         assert_eq!(o.transfer.domain, Some([10.0, 900.0]));
+        // The gain's slider is logarithmic over the gains scenes use (0.06 to
+        // a few); the other parameters' sliders are linear from 0.
+        let gain = row_of(&o);
+        assert!(gain.param_log && gain.param_min <= 0.06 && gain.param_max >= 2.0);
+        let context = row_of(&object());
+        assert!(!context.param_log && context.param_min == 0.0);
     }
 }
