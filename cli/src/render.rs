@@ -961,6 +961,17 @@ fn settings(args: &RenderArgs, volume: &Volume) -> Result<RenderSettings> {
         TransferFunction::preset(&tf_name).context("--tf")?
     };
     let units = volume.value_units();
+    // A file's own `domain` is in stored values: say so where it misses the
+    // data (a CT user writing HU in it gets an empty picture).
+    if names_a_file
+        && args.domain.is_none()
+        && !args.quiet
+        && let Some(warning) = transfer
+            .domain
+            .and_then(|d| file_domain_warning(&tf_name, d, volume))
+    {
+        eprintln!("{warning}");
+    }
     if let Some(domain) = args.domain {
         let warning = domain_warning(domain, volume);
         if let Some(warning) = warning.filter(|_| !args.quiet) {
@@ -1134,6 +1145,25 @@ fn domain_warning(domain: WindowArg, volume: &Volume) -> Option<String> {
     let [a, b, lo, hi] = [a, b, lo, hi].map(|v| units.format(f64::from(v)));
     Some(format!(
         "warning: --domain {a} to {b} lies outside the data's values {lo} to {hi}; the image will be empty or flat{hint}"
+    ))
+}
+
+/// The warning for a transfer-function file `name` whose `domain` (stored
+/// values) lies outside the data's stored values.
+fn file_domain_warning(name: &str, [a, b]: [f32; 2], volume: &Volume) -> Option<String> {
+    let [lo, hi] = volume.ranges().overall().map(f32::from);
+    if b >= lo && a <= hi {
+        return None;
+    }
+    let units = volume.value_units();
+    let hint = if units.is_identity() {
+        String::new()
+    } else {
+        let [ulo, uhi] = [lo, hi].map(|v| units.format(units.value(f64::from(v))));
+        format!(" (in the file's units the data span {ulo} to {uhi}: --domain LO,HI takes those)")
+    };
+    Some(format!(
+        "warning: {name}: `domain {a} {b}` is in stored sample values and lies outside the data's, {lo} to {hi}; the image will be empty or flat{hint}"
     ))
 }
 

@@ -183,6 +183,29 @@ fn values_outside_the_data_or_the_domain_are_said_in_hounsfield_units() {
     let out = raycaster(&["render", "ct.vol", "--domain", "lungs", "-o", "x.png"], d);
     assert!(!out.status.success());
     assert!(stderr(&out).contains("soft-tissue"), "{}", stderr(&out));
+    // A transfer-function file's `domain` is in stored values: HU written
+    // there miss the data, said with the data's span in HU and the flag that
+    // takes HU.
+    let tf = |name: &str, domain: &str| {
+        std::fs::write(
+            d.join(name),
+            format!("domain {domain}\npoint 0 0 0 0 0\npoint 1 1 1 1 1\n"),
+        )
+        .unwrap();
+        let out = raycaster(
+            &["render", "ct.vol", "--tf", name, "-o", "t.png", "--force"],
+            d,
+        );
+        assert!(out.status.success(), "{}", stderr(&out));
+        stderr(&out)
+    };
+    let text = tf("hu.tf", "-1000 2000");
+    assert!(
+        text.contains("hu.tf: `domain -1000 2000` is in stored sample values and lies outside the data's, 31768 to 33768")
+            && text.contains("in the file's units the data span -1000 HU to 1000 HU: --domain LO,HI takes those"),
+        "{text}"
+    );
+    assert!(!tf("stored.tf", "31768 33768").contains("warning"));
 }
 
 #[test]
