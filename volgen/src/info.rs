@@ -81,8 +81,14 @@ pub fn run(a: InfoArgs) -> anyhow::Result<()> {
         Layout::Linear => format!("logical {bricks} for empty-space skipping"),
         Layout::Bricked { .. } => bricks.to_string(),
     };
+    // Stored bricks repeat their neighbours' boundary voxels (the file's size
+    // beyond the voxel count).
+    let overlap = match h.layout {
+        Layout::Bricked { .. } => ", neighbours sharing one voxel layer",
+        Layout::Linear => "",
+    };
     println!(
-        "bricks      {nx}x{ny}x{nz} = {count} {kind} of side {}",
+        "bricks      {nx}x{ny}x{nz} = {count} {kind} of side {}{overlap}",
         grid.side()
     );
     let all = ranges.as_slice();
