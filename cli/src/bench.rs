@@ -45,7 +45,7 @@ pub struct BenchArgs {
     file: Option<PathBuf>,
 
     /// Size of the generated volume (voxels per axis).
-    #[arg(long, default_value_t = 256, value_name = "N",
+    #[arg(long, visible_alias = "scene-size", default_value_t = 256, value_name = "N",
           value_parser = clap::value_parser!(u32).range(2..=i64::from(raycaster::volume::MAX_AXIS)))]
     volume_size: u32,
 
@@ -67,7 +67,7 @@ pub struct BenchArgs {
     cache_dir: Option<PathBuf>,
 
     /// Image size.
-    #[arg(long, default_value = "512x512", value_parser = parse_size, value_name = "WxH")]
+    #[arg(long, visible_alias = "size", default_value = "512x512", value_parser = parse_size, value_name = "WxH")]
     image: [u32; 2],
 
     /// Render-thread counts to try [default: 1, the powers of two below the
@@ -76,13 +76,13 @@ pub struct BenchArgs {
     threads: Vec<usize>,
 
     /// Tile sizes to try (pixels) [default: 8,16,32].
-    #[arg(long, value_delimiter = ',', default_values_t = [8, 16, 32], hide_default_value = true, value_parser = clap::value_parser!(u32).range(1..=4096), value_name = "PX,..")]
+    #[arg(long, visible_alias = "tile", value_delimiter = ',', default_values_t = [8, 16, 32], hide_default_value = true, value_parser = clap::value_parser!(u32).range(1..=4096), value_name = "PX,..")]
     tiles: Vec<u32>,
 
     /// Brick sides to try [default: 8,16,32; on a bricked volume those of them
     /// that tile its bricks (side−1 divides the volume's side−1), else its own
     /// side].
-    #[arg(long, value_delimiter = ',', value_parser = clap::value_parser!(u32).range(2..=1024), value_name = "N,..")]
+    #[arg(long, visible_alias = "brick", value_delimiter = ',', value_parser = clap::value_parser!(u32).range(2..=1024), value_name = "N,..")]
     bricks: Vec<u32>,
 
     /// Optimisation settings to try: none, ert, ess, both.

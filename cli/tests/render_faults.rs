@@ -752,6 +752,46 @@ fn bench_preintegrates_the_frame_render_does() {
     );
 }
 
+/// bench takes render's names of the same things (`--size`, `--tile`,
+/// `--brick`, `--scene-size`) as aliases.
+#[test]
+fn bench_takes_render_flag_names_as_aliases() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let run = |names: [&str; 4], csv: &str| {
+        let [size, tile, brick, scene] = names;
+        let args = [
+            "bench",
+            scene,
+            "32",
+            size,
+            "40x40",
+            tile,
+            "16",
+            brick,
+            "8",
+            "--threads",
+            "1",
+            "--frames",
+            "1",
+            "--warm-up",
+            "0",
+            "--cache-dir",
+            "cache",
+            "--csv",
+            csv,
+        ];
+        let o = raycaster(&args, d);
+        assert!(o.status.success(), "{}", stderr(&o));
+        ["image", "tile", "brick", "volume", "samples"]
+            .map(|c| first_csv_row_column(&d.join(csv), c))
+    };
+    let canonical = run(["--image", "--tiles", "--bricks", "--volume-size"], "a.csv");
+    let aliases = run(["--size", "--tile", "--brick", "--scene-size"], "b.csv");
+    assert_eq!(canonical, aliases);
+    assert_eq!(canonical[..3], ["40x40", "16", "8"]);
+}
+
 /// `raycaster bench FILE` times the frame `raycaster render FILE --level 0`
 /// renders: the transfer function render fits to a u16 file (not the `shapes`
 /// preset over the whole u16 range), the same samples.
