@@ -870,8 +870,8 @@ fn open_volume(source: &VolumeSource, args: &RenderArgs) -> Result<Volume> {
             };
             let job = raycaster::job::Job::silent().with_progress(&on_progress);
             let label = format!("reading {}", path.display());
-            let total = imported.sample_bytes().max(1);
-            let share = || done.load(Ordering::Relaxed).min(total) as f64 / total as f64;
+            let total = imported.sample_bytes();
+            let share = || share_done(&done, total);
             let volume = with_progress_line(&label, progress_after(args), share, || {
                 imported.to_volume_noting(limit, &job)
             })?;
@@ -1365,8 +1365,8 @@ fn render_with_progress(
         counted,
         pixels_done: AtomicU64::new(0),
     };
-    let total = counted.map_or(1, |r| r.area()).max(1);
-    let share = || sink.pixels_done.load(Ordering::Relaxed).min(total) as f64 / total as f64;
+    let total = counted.map_or(1, |r| r.area());
+    let share = || share_done(&sink.pixels_done, total);
     let stats = with_progress_line("rendering", show_after, share, || {
         Renderer::per_frame()
             .render_levels_into(passes, camera, settings, options, &sink, &|| false)
@@ -1375,6 +1375,11 @@ fn render_with_progress(
     let mut frame = sink.frame.into_inner().unwrap_or_else(|e| e.into_inner());
     frame.stats = stats;
     Ok(frame)
+}
+
+/// The share of `total` the counter `done` has reached, in `[0, 1]`.
+fn share_done(done: &AtomicU64, total: u64) -> f64 {
+    done.load(Ordering::Relaxed).min(total) as f64 / total.max(1) as f64
 }
 
 /// Runs `work`; with `show_after`, once it has run that long, shows on stderr the
