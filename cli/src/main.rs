@@ -70,6 +70,14 @@ fn stop_cleanly_on_signals() {
     // (Only fails when a handler is already set: none is.)
     let _ = ctrlc::set_handler(|| {
         raycaster::files::remove_partial_outputs();
+        // Not glued to the end of a progress line.
+        if render::PROGRESS_LINE_OPEN.load(std::sync::atomic::Ordering::Relaxed) {
+            if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+                eprint!("\r{:70}\r", "");
+            } else {
+                eprintln!();
+            }
+        }
         eprintln!("interrupted; no partial output was left");
         std::process::exit(130);
     });

@@ -1308,12 +1308,12 @@ fn progress_after(args: &RenderArgs) -> Option<Duration> {
 /// Frames longer than this show progress on a terminal.
 const PROGRESS_AFTER: Duration = Duration::from_secs(1);
 
-/// The frame being filled tile by tile, counting the finished pixels inside
-/// the rectangle the volume projects onto (tiles outside it finish at once).
+/// The frame being filled tile by tile, and the share of it done (as the
+/// renderer counts it: scheduled tasks, level by level).
 struct ProgressSink {
     frame: Mutex<raycaster::render::Frame>,
-    counted: Option<raycaster::render::PixelRect>,
-    pixels_done: AtomicU64,
+    /// The share, as `f64` bits.
+    share: AtomicU64,
 }
 
 impl TileSink for ProgressSink {
@@ -1325,18 +1325,11 @@ impl TileSink for ProgressSink {
             frame.rgba[start..start + w].copy_from_slice(&rgba[row * w..(row + 1) * w]);
             frame.depth[start..start + w].copy_from_slice(&depth[row * w..(row + 1) * w]);
         }
-        if let Some(counted) = self.counted {
-            let width = rect
-                .x1
-                .min(counted.x1)
-                .saturating_sub(rect.x0.max(counted.x0));
-            let height = rect
-                .y1
-                .min(counted.y1)
-                .saturating_sub(rect.y0.max(counted.y0));
-            self.pixels_done
-                .fetch_add(u64::from(width) * u64::from(height), Ordering::Relaxed);
-        }
+    }
+
+    fn progress(&self, share: f64) {
+        // (Compositing threads report in any order: keep the largest.)
+        self.share.fetch_max(share.to_bits(), Ordering::Relaxed);
     }
 }
 
@@ -1349,24 +1342,15 @@ fn render_with_progress(
     options: &ParallelOptions,
     show_after: Option<Duration>,
 ) -> Result<raycaster::render::Frame> {
-    // Tiles cover the pixels the volume projects onto (in a frame of several
-    // levels, the farthest level's tiles are counted: the nearer ones hand their
-    // pixels on unfinished).
-    let counted = passes.last().and_then(|(volume, _)| {
-        let (lo, hi) = volume.geometry().world_bounds();
-        camera.project_box(lo, hi)
-    });
     let sink = ProgressSink {
         frame: Mutex::new(raycaster::render::Frame::empty(
             camera.width(),
             camera.height(),
             settings.background,
         )),
-        counted,
-        pixels_done: AtomicU64::new(0),
+        share: AtomicU64::new(0f64.to_bits()),
     };
-    let total = counted.map_or(1, |r| r.area());
-    let share = || share_done(&sink.pixels_done, total);
+    let share = || f64::from_bits(sink.share.load(Ordering::Relaxed));
     let stats = with_progress_line("rendering", show_after, share, || {
         Renderer::per_frame()
             .render_levels_into(passes, camera, settings, options, &sink, &|| false)
@@ -1382,6 +1366,10 @@ fn share_done(done: &AtomicU64, total: u64) -> f64 {
     done.load(Ordering::Relaxed).min(total) as f64 / total.max(1) as f64
 }
 
+/// A progress line is on stderr, unfinished: a message printed now (an
+/// interruption) goes on a line of its own.
+pub(crate) static PROGRESS_LINE_OPEN: AtomicBool = AtomicBool::new(false);
+
 /// Runs `work`; with `show_after`, once it has run that long, shows on stderr the
 /// share of it `share` says is finished (`rendering 42 % (3.1 s, about 4 s
 /// left)`), cleared at the end on a terminal.
@@ -1396,41 +1384,50 @@ fn with_progress_line<R: Send>(
     };
     let finished = AtomicBool::new(false);
     let start = Instant::now();
+    let line = |share: f64, eta: &str| {
+        eprint!(
+            "\r{label} {:>3.0} % ({:.1} s{eta})   ",
+            100.0 * share.clamp(0.0, 1.0),
+            start.elapsed().as_secs_f64()
+        );
+        PROGRESS_LINE_OPEN.store(true, Ordering::Relaxed);
+    };
     // Asked for from the start: say so before any work, however short.
     let shown_at_start = after.is_zero();
     if shown_at_start {
-        eprint!("\r{label}   0 % (0.0 s)   ");
+        line(0.0, "");
     }
     std::thread::scope(|scope| {
-        let (finished_ref, share) = (&finished, &share);
+        let (finished_ref, share, line) = (&finished, &share, &line);
         scope.spawn(move || {
             let mut shown = shown_at_start;
             while !finished_ref.load(Ordering::Relaxed) {
                 std::thread::sleep(Duration::from_millis(100));
-                let elapsed = start.elapsed();
-                if elapsed < after || finished_ref.load(Ordering::Relaxed) {
+                let elapsed = start.elapsed().as_secs_f64();
+                if elapsed < after.as_secs_f64() || finished_ref.load(Ordering::Relaxed) {
                     continue;
                 }
                 let share = share().clamp(0.0, 1.0);
                 let eta = if share > 0.01 {
-                    let left = elapsed.as_secs_f64() * (1.0 - share) / share;
-                    format!(", about {left:.0} s left")
+                    match elapsed * (1.0 - share) / share {
+                        left if left < 1.0 => ", under a second left".to_string(),
+                        left => format!(", about {left:.0} s left"),
+                    }
                 } else {
                     String::new()
                 };
-                eprint!(
-                    "\r{label} {:>3.0} % ({:.1} s{eta})   ",
-                    100.0 * share,
-                    elapsed.as_secs_f64()
-                );
+                line(share, &eta);
                 shown = true;
             }
             if shown && std::io::stderr().is_terminal() {
                 // Clear the progress line.
                 eprint!("\r{:70}\r", "");
             } else if shown {
+                // A log keeps the last state, on a line of its own.
+                line(share(), "");
                 eprintln!();
             }
+            PROGRESS_LINE_OPEN.store(false, Ordering::Relaxed);
         });
         let result = work();
         finished.store(true, Ordering::Relaxed);
@@ -1441,28 +1438,6 @@ fn with_progress_line<R: Send>(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn progress_counts_only_the_pixels_the_volume_projects_onto() {
-        use raycaster::render::PixelRect;
-        let rect = |x0, y0, x1, y1| PixelRect { x0, y0, x1, y1 };
-        let sink = ProgressSink {
-            frame: Mutex::new(raycaster::render::Frame::empty(64, 64, [0.0; 3])),
-            counted: Some(rect(10, 20, 50, 40)),
-            pixels_done: AtomicU64::new(0),
-        };
-        let finish = |r: PixelRect| {
-            let n = r.area() as usize;
-            sink.tile_finished(r, &vec![[0.0; 4]; n], &vec![0.0; n]);
-            sink.pixels_done.load(Ordering::Relaxed)
-        };
-        // Background tiles (they finish first) count nothing.
-        assert_eq!(finish(rect(0, 0, 16, 16)), 0);
-        assert_eq!(finish(rect(48, 48, 64, 64)), 0);
-        // A tile across the corner counts its 6×12 pixels inside.
-        assert_eq!(finish(rect(0, 16, 16, 32)), 6 * 12);
-        assert_eq!(finish(rect(16, 16, 32, 32)), 6 * 12 + 16 * 12);
-    }
 
     #[test]
     fn a_brick_side_that_makes_millions_of_bricks_is_warned_of() {

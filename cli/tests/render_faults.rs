@@ -412,6 +412,19 @@ fn long_frames_show_progress() {
     assert!(o.status.success(), "{}", stderr(&o));
     let e = stderr(&o);
     assert!(e.contains("rendering") && e.contains(" %"), "{e}");
+    // A log (not a terminal) ends on the finished state, on a line of its own;
+    // the same for the sequential renderer.
+    for e in [e, {
+        let o = raycaster(
+            &[&slow[..], &["--progress", "--sequential", "-o", "s.png"]].concat(),
+            d,
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+        stderr(&o)
+    }] {
+        let last = e.lines().last().unwrap_or("").rsplit('\r').next().unwrap();
+        assert!(last.starts_with("rendering 100 % ("), "{e:?}");
+    }
     // Quiet without --progress when stderr is not a terminal.
     let o = raycaster(&[&slow[..], &["-o", "b.png"]].concat(), d);
     assert!(o.status.success(), "{}", stderr(&o));

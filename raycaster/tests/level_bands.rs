@@ -6,8 +6,9 @@
 mod render_support;
 
 use raycaster::render::{
-    Camera, LevelBand, LevelChoice, Mode, ParallelOptions, PixelProgress, RenderSettings,
-    RenderVolume, Renderer, SimdLevel, render_sequential_levels, render_sequential_noting,
+    Camera, LevelBand, LevelChoice, Mode, ParallelOptions, PixelProgress, PixelRect,
+    RenderSettings, RenderVolume, Renderer, SimdLevel, TileSink, render_sequential_levels,
+    render_sequential_noting,
 };
 use raycaster::synth::SceneKind;
 use raycaster::volume::{Access, Layout, SampleType, Volume};
@@ -172,6 +173,40 @@ fn levels_meet_without_cracks_and_far_levels_spare_full_resolution() {
     let projected = camera.project_box(lo, hi).unwrap().area();
     assert_eq!((progress.total(), progress.done()), (projected, projected));
     assert!(fine.stats.counters.rays <= projected && fine.stats.counters.rays > projected / 4);
+    // The parallel renderer's progress: level by level (each a third of the
+    // frame), reaching the whole frame at the end.
+    struct Shares(std::sync::Mutex<Vec<f64>>);
+    impl TileSink for Shares {
+        fn tile_finished(&self, _: PixelRect, _: &[[f32; 4]], _: &[f32]) {}
+        fn progress(&self, share: f64) {
+            self.0.lock().unwrap().push(share);
+        }
+    }
+    let shares = Shares(std::sync::Mutex::new(Vec::new()));
+    let options = ParallelOptions {
+        render_threads: 2,
+        compositing_threads: 1,
+        tile_size: 16,
+    };
+    Renderer::new()
+        .render_levels_into(&banded, &camera, &settings, &options, &shares, &|| false)
+        .unwrap()
+        .unwrap();
+    let shares = shares.0.into_inner().unwrap();
+    let in_third = |k: f64| {
+        shares
+            .iter()
+            .any(|&s| s > k / 3.0 + 1e-9 && s < (k + 1.0) / 3.0 - 1e-9)
+    };
+    assert!(
+        in_third(0.0) && in_third(1.0) && in_third(2.0),
+        "{shares:?}"
+    );
+    assert!(
+        shares.windows(2).all(|w| w[0] <= w[1]),
+        "one compositor: in order"
+    );
+    assert_eq!(shares.last(), Some(&1.0));
     assert_images_match("levels-haze", &mixed.to_image(), &fine.to_image(), 2);
     // Samples of level k stand for 2^k times the distance: far fewer of them,
     // and the far levels never visit level 0's far bricks.

@@ -13,7 +13,7 @@ use std::time::Instant;
 
 use super::camera::{Camera, PixelRect};
 use super::error::RenderError;
-use super::parallel::{FrameJob, ParallelOptions, render_tiles};
+use super::parallel::{FrameJob, LevelPass, ParallelOptions, render_tiles};
 use super::partition::Partition;
 use super::prepared::{FramePlan, RenderVolume};
 use super::relay::{BandPixels, BandSink, Link, RankStats, link_error};
@@ -84,6 +84,7 @@ impl DirectSend<'_> {
                         outgoing: None,
                         read_ahead: true,
                         continues: false,
+                        pass: LevelPass::ONLY,
                     },
                     self.options,
                 )

@@ -12,6 +12,7 @@
 //! most one task per tile is in flight, so each tile sees its bricks in order.
 
 use std::num::NonZeroUsize;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 use crossbeam_channel::{Receiver, Sender};
@@ -69,6 +70,12 @@ pub trait TileSink: Sync {
     /// Tile `rect` is final: premultiplied RGBA and first-hit depth per pixel, row
     /// by row.
     fn tile_finished(&self, rect: PixelRect, rgba: &[[f32; 4]], depth: &[f32]);
+
+    /// The share of the frame done, in `[0, 1]`, each time a tile ends: its
+    /// scheduled (tile, brick) tasks over all of them, level by level in a
+    /// frame of several (whose nearer levels hand their tiles on without
+    /// [`Self::tile_finished`]). For progress displays; ignored by default.
+    fn progress(&self, _share: f64) {}
 }
 
 /// Renders one frame with the object-parallel renderer into a [`Frame`], on
@@ -138,6 +145,7 @@ pub(crate) fn render_frame(
             outgoing: None,
             read_ahead: true,
             continues: false,
+            pass: LevelPass::ONLY,
         },
         options,
     );
@@ -201,6 +209,10 @@ pub(crate) fn render_levels_frame(
                 outgoing: outgoing.as_ref(),
                 read_ahead: true,
                 continues: true,
+                pass: LevelPass {
+                    index: i,
+                    count: passes.len(),
+                },
             },
             options,
         );
@@ -331,6 +343,27 @@ pub(crate) struct FrameJob<'f> {
     /// The incoming states come from another level of the frame
     /// ([`continue_in_level`]).
     pub continues: bool,
+    /// Which of the frame's level passes this is (for its progress).
+    pub pass: LevelPass,
+}
+
+/// A job's place among the level passes of its frame: pass `index` of `count`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct LevelPass {
+    pub index: usize,
+    pub count: usize,
+}
+
+impl LevelPass {
+    /// The one pass of a frame of one level.
+    pub const ONLY: LevelPass = LevelPass { index: 0, count: 1 };
+}
+
+/// A job's tasks ended so far (a tile's whole queue when it ends) of all its
+/// tiles' queues.
+struct TaskProgress {
+    total: u64,
+    done: AtomicU64,
 }
 
 /// A frame's threads with the frame's compositor (chosen once per frame).
@@ -364,6 +397,15 @@ impl FrameJob<'_> {
             .map(|_| crossbeam_channel::unbounded())
             .unzip();
         let (total_tx, total_rx) = crossbeam_channel::unbounded::<Option<Counters>>();
+        let progress = TaskProgress {
+            total: self
+                .tiles
+                .clone()
+                .map(|t| self.schedule.tiles[t].bricks.len() as u64)
+                .sum(),
+            done: AtomicU64::new(0),
+        };
+        let progress = &progress;
         let mut jobs: Vec<FrameJobFn<'_>> = Vec::new();
         if self.read_ahead {
             jobs.push(Box::new(|| self.read_ahead()));
@@ -380,7 +422,14 @@ impl FrameJob<'_> {
             let task_tx = task_tx.clone();
             let total_tx = total_tx.clone();
             jobs.push(Box::new(move || {
-                let counters = self.composite(c, k as u32, compositors as u32, &task_tx, &results);
+                let counters = self.composite(
+                    c,
+                    k as u32,
+                    compositors as u32,
+                    &task_tx,
+                    &results,
+                    progress,
+                );
                 let _ = total_tx.send(counters);
             }));
         }
@@ -510,6 +559,7 @@ impl FrameJob<'_> {
         n: u32,
         tasks: &Sender<Task<C::State>>,
         results: &Receiver<Tile<C::State>>,
+        progress: &TaskProgress,
     ) -> Option<Counters> {
         let mut counters = Counters::default();
         let mut in_flight = 0usize;
@@ -532,7 +582,7 @@ impl FrameJob<'_> {
                         .expect("render threads outlive the compositors");
                 }
                 NextTask::Done(tile) => {
-                    self.finish(c, &tile);
+                    self.finish(c, &tile, progress);
                     counters += tile.counters;
                 }
             }
@@ -546,7 +596,7 @@ impl FrameJob<'_> {
                 continue;
             }
             // Not cancelled when the render thread gave it back: its queue is done.
-            self.finish(c, &tile);
+            self.finish(c, &tile, progress);
             counters += tile.counters;
         }
         (!cancelled).then_some(counters)
@@ -578,14 +628,24 @@ impl FrameJob<'_> {
     }
 
     /// Resolves a finished tile's pixels and hands them to the sink, or hands
-    /// on its states unresolved.
-    fn finish<C: Compositor>(&self, c: &C, tile: &Tile<C::State>) {
+    /// on its states unresolved; then tells the sink how far the frame is.
+    fn finish<C: Compositor>(&self, c: &C, tile: &Tile<C::State>, progress: &TaskProgress) {
         if let Some(outgoing) = self.outgoing {
             outgoing.lock().write(tile.rect, &tile.states);
-            return;
+        } else {
+            let rgba: Vec<[f32; 4]> = tile.states.iter().map(|s| c.resolve(&s.acc)).collect();
+            let depth: Vec<f32> = tile.states.iter().map(|s| c.depth(&s.acc)).collect();
+            self.sink.tile_finished(tile.rect, &rgba, &depth);
         }
-        let rgba: Vec<[f32; 4]> = tile.states.iter().map(|s| c.resolve(&s.acc)).collect();
-        let depth: Vec<f32> = tile.states.iter().map(|s| c.depth(&s.acc)).collect();
-        self.sink.tile_finished(tile.rect, &rgba, &depth);
+        let queue = self.schedule.tiles[tile.index as usize].bricks.len() as u64;
+        let done = progress.done.fetch_add(queue, Ordering::Relaxed) + queue;
+        let pass_share = if progress.total == 0 {
+            1.0
+        } else {
+            done.min(progress.total) as f64 / progress.total as f64
+        };
+        let LevelPass { index, count } = self.pass;
+        self.sink
+            .progress((index as f64 + pass_share) / count.max(1) as f64);
     }
 }

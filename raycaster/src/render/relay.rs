@@ -30,7 +30,7 @@ use super::error::RenderError;
 use super::frame::Frame;
 use super::level::DepthBand;
 use super::parallel::{
-    FrameJob, ParallelOptions, TileSink, check_levels, level_plans, render_tiles,
+    FrameJob, LevelPass, ParallelOptions, TileSink, check_levels, level_plans, render_tiles,
 };
 use super::partition::{BrickBox, Partition};
 use super::prepared::{FramePlan, RenderVolume};
@@ -278,6 +278,7 @@ pub fn render_distributed_levels(
                     outgoing: outgoing.as_ref(),
                     read_ahead: std::mem::take(&mut read_ahead[level]),
                     continues: position > 0 && chain[position - 1].0 != level,
+                    pass: LevelPass::ONLY,
                 },
                 &options.parallel,
             )
