@@ -8,8 +8,8 @@ use std::str::FromStr;
 use anyhow::{Context, Result, bail};
 use raycaster::render::{
     Camera, DEFAULT_ERT_THRESHOLD, DEFAULT_TILE_SIZE, Frame, Mode, Orbit, ParallelOptions,
-    RenderSettings, RenderVolume, Renderer, SimdLevel, TransferFunction, Vec3, render_parallel,
-    render_sequential,
+    RenderSettings, RenderVolume, Renderer, SimdLevel, TransferFunction, patient_axes,
+    render_parallel, render_sequential,
 };
 use raycaster::volume::{Access, Layout, SampleType, Volume};
 
@@ -98,13 +98,16 @@ impl View {
 
     /// The camera of this view of `volume` for an image of `image` pixels.
     pub fn camera(self, volume: &Volume, image: [u32; 2]) -> Result<Camera> {
-        let hi = Vec3::from(volume.dims().map(|d| (d - 1) as f32)) * Vec3::from(volume.spacing());
-        let mut orbit = Orbit::default_view(Vec3::ZERO, hi);
+        let (lo, hi) = raycaster::source::world_box(volume);
+        let mut orbit = Orbit::default_view(lo, hi);
         match self {
             View::Default => {}
-            View::Front => orbit = Orbit::framing(Vec3::ZERO, hi, 0.0, 0.0, Some(40.0)),
+            View::Front => orbit = Orbit::framing(lo, hi, 0.0, 0.0, Some(40.0)),
             View::Close => orbit.zoom(2.0),
         }
+        // In the patient's directions where the file gives them, as
+        // `raycaster render` turns its views.
+        let orbit = orbit.with_axes(patient_axes(volume.orientation()));
         Ok(orbit.camera(image[0], image[1])?)
     }
 }
@@ -289,14 +292,16 @@ impl BenchCase {
     /// As [`BenchCase::prepare`], with an already prepared volume (to share one
     /// between cases of the same brick side).
     pub fn prepare_with<'v>(&self, volume: RenderVolume<'v>) -> Result<PreparedCase<'v>> {
+        // As render: the preset that fits the data unless one is named, over
+        // the preset's own domain, else the one fitted to the data (a CT
+        // window, a u16 file's percentiles).
         let mut settings = self.settings()?;
+        let fit = raycaster::windows::fit(volume.volume());
         if self.transfer.is_none() {
-            let fit = raycaster::windows::fit(volume.volume());
             settings.transfer = TransferFunction::preset(fit.preset)?;
-            // (As render: a preset's own domain, else the fitted one.)
-            if settings.transfer.domain.is_none() {
-                settings.transfer.domain = fit.domain;
-            }
+        }
+        if settings.transfer.domain.is_none() {
+            settings.transfer.domain = fit.domain;
         }
         Ok(PreparedCase {
             camera: self.view.camera(volume.volume(), self.image)?,

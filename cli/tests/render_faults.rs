@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-use raycaster::volume::{Content, Format, Header, Layout, SampleType};
+use raycaster::volume::{Content, Format, Header, Layout, Orientation, PatientSpace, SampleType};
 
 const SMALL: [&str; 4] = ["--scene-size", "16", "--size", "24"];
 
@@ -807,9 +807,10 @@ fn bench_takes_render_flag_names_as_aliases() {
 
 /// `raycaster bench FILE` times the frame `raycaster render FILE --level 0`
 /// renders: the transfer function render fits to a u16 file (not the `shapes`
-/// preset over the whole u16 range), the same samples.
+/// preset over the whole u16 range), a named preset over the data's fitted
+/// domain, and the view turned to the patient's directions of an oriented file.
 #[test]
-fn bench_of_a_file_fits_the_transfer_function_as_render_does() {
+fn bench_of_a_file_times_the_frame_render_renders() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let common = [
@@ -841,10 +842,35 @@ fn bench_of_a_file_fits_the_transfer_function_as_render_does() {
     args.extend(common);
     let o = raycaster(&args, d);
     assert!(o.status.success(), "{}", stderr(&o));
-    let volume = cached_bench_volume(d);
-    let file = volume.to_str().unwrap();
-    let bench_samples = |tf: Option<&str>| {
-        let mut args = vec!["bench", file, "--csv", "b.csv", "--force"];
+    let u16_file = cached_bench_volume(d);
+    // An oriented volume (RAS, NIfTI's usual space: the view turns).
+    let oriented = d.join("ras.vol");
+    let (orientation, _) = Orientation::from_steps(
+        PatientSpace::Ras,
+        [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        [0.0; 3],
+    )
+    .unwrap();
+    let header = Header::new(
+        [32; 3],
+        [1.0; 3],
+        Layout::Bricked { side: 15 },
+        SampleType::U8,
+        Content::Scalar,
+        Format::Extended,
+    )
+    .with_orientation(Some(orientation));
+    let scene = raycaster::synth::SceneKind::Shapes.build([32; 3], 1);
+    raycaster::generate::generate(
+        scene.as_ref(),
+        &header,
+        &oriented,
+        &Default::default(),
+        &raycaster::job::Job::silent(),
+    )
+    .unwrap();
+    let bench_samples = |file: &Path, tf: Option<&str>| {
+        let mut args = vec!["bench", file.to_str().unwrap(), "--csv", "b.csv", "--force"];
         args.extend(common);
         args.extend(tf.map(|t| ["--tf", t]).into_iter().flatten());
         let o = raycaster(&args, d);
@@ -853,10 +879,10 @@ fn bench_of_a_file_fits_the_transfer_function_as_render_does() {
             .parse::<u64>()
             .unwrap()
     };
-    let o = raycaster(
-        &[
+    let rendered = |file: &Path, extra: &[&str]| {
+        let mut args = vec![
             "render",
-            file,
+            file.to_str().unwrap(),
             "--size",
             "40x40",
             "--threads",
@@ -873,15 +899,21 @@ fn bench_of_a_file_fits_the_transfer_function_as_render_does() {
             "-o",
             "r.png",
             "--force",
-        ],
-        d,
-    );
-    assert!(o.status.success(), "{}", stderr(&o));
-    let rendered = stats_json_samples(&o);
-    let fitted = bench_samples(None);
-    assert_eq!(fitted, rendered);
-    // (The `shapes` preset over the whole u16 range marches other samples.)
-    assert_ne!(bench_samples(Some("shapes")), fitted);
+        ];
+        args.extend(extra);
+        let o = raycaster(&args, d);
+        assert!(o.status.success(), "{}", stderr(&o));
+        stats_json_samples(&o)
+    };
+    let fitted = bench_samples(&u16_file, None);
+    assert_eq!(fitted, rendered(&u16_file, &[]));
+    let shapes = bench_samples(&u16_file, Some("shapes"));
+    assert_eq!(shapes, rendered(&u16_file, &["--tf", "shapes"]));
+    assert_ne!(shapes, fitted);
+    let turned = bench_samples(&oriented, None);
+    assert_eq!(turned, rendered(&oriented, &[]));
+    // (Rendered about the voxel axes, the same file takes other samples.)
+    assert_ne!(turned, rendered(&oriented, &["--volume-axes"]));
 }
 
 #[test]
