@@ -893,7 +893,7 @@ fn open_volume(source: &VolumeSource, args: &RenderArgs) -> Result<Volume> {
             };
             let volume = Volume::open_with(path, options).map_err(|e| {
                 // A session or scene given as the volume: say which flag takes it.
-                if raycaster::files::is_toml_name(path) {
+                if raycaster::files::is_toml_name(path) && path.is_file() {
                     anyhow::anyhow!(
                         "{}: is a TOML file, not a volume: --session FILE renders a saved session, --segments FILE a two-level scene",
                         path.display()

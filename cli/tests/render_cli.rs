@@ -568,12 +568,14 @@ fn bad_segment_scenes_fail_with_a_clear_message_and_no_output() {
         1,
         raycaster::volume::Format::Extended,
     );
-    let cases: [(&[&str], &str); 8] = [
+    let cases: [(&[&str], &str); 9] = [
         // A scene given as the volume: the flag that takes it is named.
         (
             &["labels.toml"],
             "labels.toml: is a TOML file, not a volume: --session FILE renders a saved session, --segments FILE a two-level scene",
         ),
+        // (One that does not exist is said not to.)
+        (&["missing.toml"], "missing.toml: No such file"),
         (&["--segments", "typo.toml"], "mdoe"),
         (&["--segments", "mode.toml"], "glow"),
         (&["--segments", "both.toml"], "either"),

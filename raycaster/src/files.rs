@@ -192,7 +192,8 @@ pub fn remove_partial_outputs() {
 }
 
 /// Whether `path` is named like a TOML file (`.toml`, any case): a session or
-/// a two-level scene, which front ends name when one is given as a volume.
+/// a two-level scene, which front ends name when one that exists is given as a
+/// volume.
 pub fn is_toml_name(path: &Path) -> bool {
     path.extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("toml"))

@@ -73,7 +73,7 @@ pub fn open_source(source: &VolumeSource) -> Result<LoadedVolume> {
 pub fn open_file(path: &Path) -> Result<LoadedVolume> {
     open_source(&file_source(path)).map_err(|e| {
         // A session or scene typed where a volume belongs: say what opens it.
-        if raycaster::files::is_toml_name(path) {
+        if raycaster::files::is_toml_name(path) && path.is_file() {
             anyhow::anyhow!(
                 "{}: is a TOML file, not a volume: Open session opens a saved session, and a two-level scene loads in the Segments panel",
                 path.display()
