@@ -1061,7 +1061,14 @@ impl Controller {
             st.ended = None;
             st.shown = (0, 0);
             st.cameras.clear();
+            // A dragged window belonged to the old volume: the picker goes
+            // back to the fitted one (a named window stays: it is in HU).
             st.custom_window = None;
+            if let Some(ui) = self.ui()
+                && ui.get_slice_window_index() as usize + 1 == crate::slices::window_names().len()
+            {
+                ui.set_slice_window_index(0);
+            }
             st.last_stats = None;
             st.first_frame = true;
             // A screenshot of the old view waits for no frame of the new volume.

@@ -410,10 +410,16 @@ fn the_viewer_cuts_slices_and_remembers_files() {
             file_a.display().to_string()
         ]
     );
+    // A dragged window belongs to its volume: another volume opens fitted.
+    v.ui().invoke_slice_window_dragged(2, 0.0, 0.0, true);
+    v.ui().invoke_slice_window_dragged(2, 0.0, 0.2, false);
+    let custom = v.ui().get_slice_windows().row_count() as i32 - 1;
+    assert_eq!(v.ui().get_slice_window_index(), custom);
     v.ui().invoke_open_file(file_b.display().to_string().into());
     wait_until(&v, "file b", |v| {
         v.volume_name() == file_b.display().to_string()
     });
+    assert_eq!(v.ui().get_slice_window_index(), 0, "fitted");
     assert_eq!(
         v.recent_files(),
         [file_b.clone(), session_path.clone(), file_a.clone()]
