@@ -51,11 +51,8 @@ pub fn check_file(output: &Path, force: bool) -> Result<()> {
     if output.is_dir() {
         bail!("{}: is a directory; name a file", output.display());
     }
-    if output.exists() && !force {
-        bail!(
-            "{}: already exists (pass --force to replace it)",
-            output.display()
-        );
+    if !force && let Some(problem) = raycaster::files::existing_output(output) {
+        bail!("{}: {problem}", output.display());
     }
     // Creating (and dropping) the temporary file the output will be written to
     // checks that the folder exists and is writable and that the output is not

@@ -106,14 +106,15 @@ pub fn run(args: SliceArgs) -> Result<()> {
     let slice = Slice::extract(&volume, axis, args.index)
         .map_err(|e| anyhow::anyhow!("--index {}: {e}", args.index))?;
     let units = volume.value_units();
-    // A named window is in HU: on data that is not CT it windows numbers
-    // that mean something else.
+    // A named window is in HU: on stored samples without value units (not a
+    // CT scan) it windows numbers that mean something else.
     if let Some(WindowArg::Named(named)) = args.window
+        && units.is_identity()
         && !raycaster::windows::looks_like_ct(&volume)
         && !args.quiet
     {
         eprintln!(
-            "warning: --window {}: a CT window in Hounsfield units, and {} does not hold CT values (no HU units); --window LO,HI gives a range in its own values",
+            "warning: --window {}: a CT window in Hounsfield units, and {} holds stored samples without value units; --window LO,HI gives a range in its own values",
             named.name,
             args.file.display()
         );

@@ -99,7 +99,7 @@ fn slices_have_square_pixels_unless_voxels_are_asked_for() {
     // A named CT window on values without HU units: warned of, rendered.
     let (_, said, _) = slice(&["--axis", "z", "--index", "4", "--window", "lung"]);
     assert!(
-        said.contains("warning: --window lung: a CT window in Hounsfield units"),
+        said.contains("warning: --window lung: a CT window in Hounsfield units, and ct.vol holds stored samples without value units"),
         "{said}"
     );
     let (_, said, _) = slice(&["--axis", "z", "--index", "4", "--window", "0,500"]);

@@ -21,6 +21,27 @@ fn render(dir: &Path, extra: &[&str]) -> Output {
     raycaster(&args, dir)
 }
 
+/// An output that is a link to a missing file is refused without `--force`
+/// before any work (the render used to replace the link silently), and
+/// replaced with it.
+#[test]
+fn a_dangling_link_as_the_output_needs_force() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::os::unix::fs::symlink(d.join("nowhere.png"), d.join("out.png")).unwrap();
+    let o = render(d, &["-o", "out.png"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("out.png: is a symbolic link to a missing file (pass --force"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(d.join("out.png").symlink_metadata().unwrap().is_symlink());
+    let o = render(d, &["-o", "out.png", "--force"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(raycaster::render::RgbImage::load_png(&d.join("out.png")).is_ok());
+}
+
 /// Writes a `.vol` of `dims` u8 samples (`value(i)`) with `spacing` and `content`.
 fn write_vol(path: &Path, dims: [u32; 3], spacing: [f32; 3], content: Content) {
     let h = Header::new(

@@ -191,6 +191,19 @@ pub fn remove_partial_outputs() {
     }
 }
 
+/// Why writing `path` without `--force` would replace something: an existing
+/// file, or a symbolic link, even one to a missing file (`Path::exists` follows
+/// links and says no; the write would then fail after the work, or replace the
+/// link); `None` when nothing is there.
+pub fn existing_output(path: &Path) -> Option<&'static str> {
+    let meta = std::fs::symlink_metadata(path).ok()?;
+    Some(if meta.file_type().is_symlink() && !path.exists() {
+        "is a symbolic link to a missing file (pass --force to replace the link)"
+    } else {
+        "already exists (pass --force to replace it)"
+    })
+}
+
 /// Whether `path` is named like a TOML file (`.toml`, any case): a session or
 /// a two-level scene, which front ends name when one that exists is given as a
 /// volume.
@@ -347,6 +360,28 @@ pub fn human_bytes(n: u64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_link_to_a_missing_file_is_an_existing_output() {
+        let dir = tempfile::tempdir().unwrap();
+        let (file, dangling, free) = (
+            dir.path().join("a.png"),
+            dir.path().join("b.png"),
+            dir.path().join("c.png"),
+        );
+        std::fs::write(&file, b"x").unwrap();
+        std::os::unix::fs::symlink(dir.path().join("missing.png"), &dangling).unwrap();
+        assert_eq!(
+            existing_output(&file),
+            Some("already exists (pass --force to replace it)")
+        );
+        assert!(
+            existing_output(&dangling)
+                .unwrap()
+                .contains("link to a missing file")
+        );
+        assert_eq!(existing_output(&free), None);
+    }
 
     #[test]
     fn png_names_end_in_png_and_have_a_stem() {

@@ -786,7 +786,7 @@ fn numbered_path(path: &Path) -> PathBuf {
     let dir = path.parent().unwrap_or(Path::new(""));
     (1u32..)
         .map(|n| dir.join(format!("{stem}-{n}.png")))
-        .find(|p| !p.exists())
+        .find(|p| raycaster::files::existing_output(p).is_none())
         .unwrap_or_else(|| path.to_path_buf())
 }
 
@@ -1924,7 +1924,8 @@ impl Controller {
         let confirmed = {
             let mut st = self.state.borrow_mut();
             let again = st.overwrite_armed.take().is_some_and(|p| p == path);
-            if path.is_file() && !again {
+            // (A link to a missing file counts: the save would replace it.)
+            if raycaster::files::existing_output(path).is_some() && !again {
                 st.overwrite_armed = Some(path.to_path_buf());
                 false
             } else {

@@ -14,11 +14,8 @@ pub fn check_output(path: &Path, force: bool) -> anyhow::Result<()> {
     }
     raycaster::files::temp_file_beside(path)
         .with_context(|| format!("{}: cannot write there", path.display()))?;
-    if !force && path.exists() {
-        bail!(
-            "{}: already exists (pass --force to replace it)",
-            path.display()
-        );
+    if !force && let Some(problem) = raycaster::files::existing_output(path) {
+        bail!("{}: {problem}", path.display());
     }
     Ok(())
 }
