@@ -77,6 +77,28 @@ impl WindowArg {
             WindowArg::Named(w) => w.range(),
         }
     }
+
+    /// A warning for a named (HU) window given as `flag` on `volume`, named
+    /// `name`, whose values are stored samples without value units (not a CT
+    /// scan): it windows numbers that mean something else.
+    pub fn named_on_plain_data(
+        self,
+        flag: &str,
+        volume: &raycaster::volume::Volume,
+        name: &str,
+    ) -> Option<String> {
+        let WindowArg::Named(named) = self else {
+            return None;
+        };
+        (volume.value_units().is_identity() && !raycaster::windows::looks_like_ct(volume)).then(
+            || {
+                format!(
+                    "warning: {flag} {}: a CT window in Hounsfield units, and {name} holds stored samples without value units; {flag} LO,HI gives a range in its own values",
+                    named.name
+                )
+            },
+        )
+    }
 }
 
 /// `lo,hi` or `lo:hi` (values in the file's units), or the name of a CT

@@ -106,18 +106,12 @@ pub fn run(args: SliceArgs) -> Result<()> {
     let slice = Slice::extract(&volume, axis, args.index)
         .map_err(|e| anyhow::anyhow!("--index {}: {e}", args.index))?;
     let units = volume.value_units();
-    // A named window is in HU: on stored samples without value units (not a
-    // CT scan) it windows numbers that mean something else.
-    if let Some(WindowArg::Named(named)) = args.window
-        && units.is_identity()
-        && !raycaster::windows::looks_like_ct(&volume)
-        && !args.quiet
+    if let Some(warning) = args
+        .window
+        .and_then(|w| w.named_on_plain_data("--window", &volume, &args.file.display().to_string()))
+        .filter(|_| !args.quiet)
     {
-        eprintln!(
-            "warning: --window {}: a CT window in Hounsfield units, and {} holds stored samples without value units; --window LO,HI gives a range in its own values",
-            named.name,
-            args.file.display()
-        );
+        eprintln!("{warning}");
     }
     let window = args.window.map(|w| units.stored_range(w.values()));
     let spacing = volume.spacing();
@@ -133,20 +127,41 @@ pub fn run(args: SliceArgs) -> Result<()> {
         let [lo, hi] = slice
             .range()
             .map(|v| units.format(units.value(f64::from(v))));
-        // Say how the voxels became pixels where they are not one to one.
-        let stretched = if (image.width(), image.height()) == (slice.width, slice.height) {
-            String::new()
+        // Say how the voxels became pixels where they are not one to one, and
+        // where the pixels are not square (--voxels, or the stretch's limit).
+        let (w, h) = (image.width(), image.height());
+        let pixel = |side: u32, voxels: u32, axis: usize| {
+            f64::from(spacing[axis]) * f64::from(voxels) / f64::from(side)
+        };
+        let aspect = pixel(w, slice.width, u) / pixel(h, slice.height, v);
+        let shape = if (aspect - 1.0).abs() <= 0.01 {
+            "square pixels".to_string()
+        } else if aspect > 1.0 {
+            format!("pixels {aspect:.3}× as wide as high")
         } else {
-            format!(
+            format!("pixels {:.3}× as high as wide", 1.0 / aspect)
+        };
+        let stretched = match ((w, h) == (slice.width, slice.height), args.voxels) {
+            (true, _) if shape == "square pixels" => String::new(),
+            (true, true) => format!(", {shape}"),
+            (true, false) => format!(
+                ", {shape}: the stretch stops at {} pixels a side",
+                raycaster::slice::MAX_SQUARE_SIDE
+            ),
+            (false, _) if shape == "square pixels" => format!(
                 " from {}×{} voxels, stretched to square pixels",
                 slice.width, slice.height
-            )
+            ),
+            (false, _) => format!(
+                " from {}×{} voxels, stretched to {} pixels a side: {shape}",
+                slice.width,
+                slice.height,
+                raycaster::slice::MAX_SQUARE_SIDE
+            ),
         };
         eprintln!(
-            "wrote {} ({}×{}{stretched}, slice {} = {} of {}, values {lo} to {hi})",
+            "wrote {} ({w}×{h}{stretched}, slice {} = {} of {}, values {lo} to {hi})",
             args.output.display(),
-            image.width(),
-            image.height(),
             axis,
             args.index,
             args.file.display()

@@ -15,7 +15,7 @@ pub fn table(s: &FrameStats) -> String {
          samples taken    {} ({:.1} per ray; {:.1} % in SIMD lanes)\n\
          skipped (empty)  {} samples ({:.1} %){}\n\
          terminated early {} rays ({:.1} %)\n\
-         tasks            {} marched (tile × brick), {} more skipped: their pixels had finished\n\
+         tasks            {}\n\
          bricks           {} ({} transparent under the transfer function)\n\
          threads          {}\n\
          time             {:.3} s ({:.1} M samples/s, {:.1} M samples/s/thread)\n",
@@ -36,8 +36,15 @@ pub fn table(s: &FrameStats) -> String {
         },
         c.rays_terminated,
         pct(c.rays_terminated, c.rays),
-        c.tasks,
-        c.tasks_skipped_occluded,
+        // (The sequential renderer marches ray by ray: no tasks to count.)
+        if c.tasks + c.tasks_skipped_occluded == 0 {
+            "none (rays marched one by one)".to_string()
+        } else {
+            format!(
+                "{} marched (tile × brick), {} more skipped: their pixels had finished",
+                c.tasks, c.tasks_skipped_occluded
+            )
+        },
         s.bricks,
         s.bricks_transparent,
         s.threads,

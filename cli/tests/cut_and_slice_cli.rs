@@ -108,6 +108,10 @@ fn slices_have_square_pixels_unless_voxels_are_asked_for() {
     let (size, said, _) = slice(&["--axis", "y", "--index", "5", "--voxels"]);
     assert_eq!(size, (20, 9));
     assert!(!said.contains("stretched"), "{said}");
+    assert!(
+        said.contains("20×9, pixels 6.000× as high as wide"),
+        "{said}"
+    );
 }
 
 #[test]

@@ -206,6 +206,21 @@ fn values_outside_the_data_or_the_domain_are_said_in_hounsfield_units() {
         "{text}"
     );
     assert!(!tf("stored.tf", "31768 33768").contains("warning"));
+    // A named (HU) window on stored samples without units is warned of, as
+    // `slice --window` does; on the CT file it is not.
+    let named = |file: Option<&str>, name: &str| {
+        let mut args = vec!["render", "--domain", name, "-o", "n.png", "--force"];
+        args.extend(file);
+        let out = raycaster(&args, d);
+        assert!(out.status.success(), "{}", stderr(&out));
+        stderr(&out)
+    };
+    assert!(
+        named(None, "bone").contains(
+            "warning: --domain bone: a CT window in Hounsfield units, and the built-in shapes scene holds stored samples without value units"
+        )
+    );
+    assert!(!named(Some("ct.vol"), "lung").contains("warning"));
 }
 
 #[test]

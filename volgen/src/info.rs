@@ -43,7 +43,11 @@ pub fn run(a: InfoArgs) -> anyhow::Result<()> {
     let file_bytes = std::fs::metadata(&a.file)?.len();
     let voxels: u64 = h.dims.iter().map(|&d| u64::from(d)).product();
     println!("file        {}", a.file.display());
-    println!("size        {} ({voxels} voxels)", describe_size(h.dims));
+    println!(
+        "size        {} ({})",
+        describe_size(h.dims),
+        counted(voxels, "voxel")
+    );
     println!("spacing     {}", describe_spacing(h.spacing));
     println!("samples     {}", describe_layout(h));
     match h.format {
@@ -76,21 +80,18 @@ pub fn run(a: InfoArgs) -> anyhow::Result<()> {
     let grid = ranges.grid();
     let [nx, ny, nz] = grid.counts();
     let count = grid.block_count();
-    let bricks = if count == 1 { "brick" } else { "bricks" };
-    let kind = match h.layout {
-        Layout::Linear => format!("logical {bricks} for empty-space skipping"),
-        Layout::Bricked { .. } => bricks.to_string(),
-    };
+    let bricks = counted(count, "brick");
+    let side = grid.side();
     // Stored bricks repeat their neighbours' boundary voxels (the file's size
-    // beyond the voxel count).
-    let overlap = match h.layout {
-        Layout::Bricked { .. } => ", neighbours sharing one voxel layer",
-        Layout::Linear => "",
-    };
-    println!(
-        "bricks      {nx}x{ny}x{nz} = {count} {kind} of side {}{overlap}",
-        grid.side()
-    );
+    // beyond the voxel count); a linear file's are logical.
+    match h.layout {
+        Layout::Linear => println!(
+            "bricks      {nx}x{ny}x{nz} = {bricks} of side {side}, logical, for empty-space skipping"
+        ),
+        Layout::Bricked { .. } => println!(
+            "bricks      {nx}x{ny}x{nz} = {bricks} of side {side}, neighbours sharing one voxel layer"
+        ),
+    }
     let all = ranges.as_slice();
     let [lo, hi] = ranges.overall();
     let zero = all.iter().filter(|r| r[1] == 0).count();
@@ -176,9 +177,9 @@ fn run_foreign(a: &InfoArgs) -> anyhow::Result<()> {
     println!("file        {}", a.file.display());
     println!("format      {}", imported.format.name());
     println!(
-        "size        {} ({} voxels)",
+        "size        {} ({})",
         describe_size(imported.dims),
-        imported.voxels()
+        counted(imported.voxels(), "voxel")
     );
     println!("spacing     {}", describe_spacing(imported.spacing));
     println!(
