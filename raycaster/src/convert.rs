@@ -189,7 +189,7 @@ pub fn convert(
     }
     if sample_type == SampleType::U16 && options.format == Format::Thesis {
         return Err(spec_error(
-            "the thesis format holds u8 samples only; use the extended format for u16",
+            "the thesis format holds u8 samples only; use the extended format for u16, or convert to u8 (a value window maps the values onto 0..255)",
         ));
     }
     let spacing = options.spacing.or(input.spacing()).unwrap_or([1.0; 3]);

@@ -193,6 +193,16 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
         },
         (None, None) => input_layout.unwrap_or(Layout::Bricked { side: 16 }),
     };
+    // (As generate says it; an input whose own type is u16 is said by the
+    // conversion, with the file's name.)
+    if a.format == FormatArg::Thesis
+        && a.sample_type
+            .is_some_and(|t| SampleType::from(t) != SampleType::U8)
+    {
+        wrong_command_line!(
+            "--format thesis holds u8 samples only; use --format extended for --type u16"
+        );
+    }
     let options = ConvertOptions {
         layout,
         sample_type: a.sample_type.map(SampleType::from),

@@ -319,13 +319,18 @@ fn a_brick_side_for_a_linear_layout_is_refused_by_both_writers() {
             stderr(&o)
         );
     }
-    let o = volgen(
-        d,
+    for args in [
         &[
             "generate", "--size", "8", "--type", "u16", "--format", "thesis", "-o", "x.vol",
+        ][..],
+        &[
+            "convert", "a.vol", "--type", "u16", "--format", "thesis", "-o", "x.vol",
         ],
-    );
-    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    ] {
+        let o = volgen(d, args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains("--format thesis holds u8 samples only"));
+    }
     assert_eq!(files_in(d), ["a.vol"]);
 }
 
