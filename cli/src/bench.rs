@@ -130,7 +130,8 @@ pub struct BenchArgs {
     #[arg(long, default_value = "auto", value_parser = crate::render::parse_simd, value_name = "LEVEL")]
     simd: crate::render::SimdChoice,
 
-    /// Small and fast: at most a 96³ volume, 128×128 image, one frame (for CI).
+    /// Small and fast: at most a 96³ volume and a 128×128 image (smaller ones
+    /// asked for stay), one frame (for CI).
     #[arg(long)]
     quick: bool,
 
@@ -327,8 +328,9 @@ fn cases(args: &BenchArgs) -> Vec<BenchCase> {
 /// Runs the bench command.
 pub fn run(mut args: BenchArgs) -> Result<()> {
     if args.quick {
+        // Limits: a smaller volume or image asked for stays.
         args.volume_size = args.volume_size.min(96);
-        args.image = [128, 128];
+        args.image = args.image.map(|side| side.min(128));
         args.frames = 1;
     }
     // The outputs are checked before the sweep, not after it.

@@ -826,6 +826,36 @@ fn bench_takes_render_flag_names_as_aliases() {
     assert_eq!(canonical[..3], ["40x40", "16", "8"]);
 }
 
+/// `--quick` limits the volume and the image; smaller ones asked for stay
+/// (it used to set 128×128 whatever `--size` said).
+#[test]
+fn bench_quick_keeps_a_smaller_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for (size, expected) in [("64x48", "64x48"), ("700x100", "128x100")] {
+        let args = [
+            "bench",
+            "--quick",
+            "--size",
+            size,
+            "--threads",
+            "1",
+            "--tiles",
+            "16",
+            "--bricks",
+            "16",
+            "--cache-dir",
+            "cache",
+            "--csv",
+            "q.csv",
+            "--force",
+        ];
+        let o = raycaster(&args, d);
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert_eq!(first_csv_row_column(&d.join("q.csv"), "image"), expected);
+    }
+}
+
 /// `raycaster bench FILE` times the frame `raycaster render FILE --level 0`
 /// renders: the transfer function render fits to a u16 file (not the `shapes`
 /// preset over the whole u16 range), a named preset over the data's fitted
