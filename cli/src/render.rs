@@ -973,7 +973,8 @@ fn settings(args: &RenderArgs, volume: &Volume) -> Result<RenderSettings> {
         eprintln!("{warning}");
     }
     if let Some(domain) = args.domain {
-        let named = domain.named_on_plain_data("--domain", volume, &volume_name(args));
+        let name = volume.path().display().to_string();
+        let named = domain.named_on_plain_data("--domain", volume, &name);
         let warning = domain_warning(domain, volume).or(named);
         if let Some(warning) = warning.filter(|_| !args.quiet) {
             eprintln!("{warning}");
@@ -1123,14 +1124,6 @@ fn brick_count_warning(dims: [u32; 3], side: u32) -> Option<String> {
             count as f64 / 1e6
         )
     })
-}
-
-/// How messages name the volume of `args`: its file, or the built-in scene.
-fn volume_name(args: &RenderArgs) -> String {
-    match &args.file {
-        Some(file) => file.display().to_string(),
-        None => format!("the built-in {} scene", args.scene.kind().name()),
-    }
 }
 
 /// A warning when `--domain` misses the data's values entirely (the image would

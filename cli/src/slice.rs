@@ -134,25 +134,25 @@ pub fn run(args: SliceArgs) -> Result<()> {
             f64::from(spacing[axis]) * f64::from(voxels) / f64::from(side)
         };
         let aspect = pixel(w, slice.width, u) / pixel(h, slice.height, v);
-        let shape = if (aspect - 1.0).abs() <= 0.01 {
-            "square pixels".to_string()
-        } else if aspect > 1.0 {
+        let square = (aspect - 1.0).abs() <= 0.01;
+        let shape = if aspect > 1.0 {
             format!("pixels {aspect:.3}× as wide as high")
         } else {
             format!("pixels {:.3}× as high as wide", 1.0 / aspect)
         };
-        let stretched = match ((w, h) == (slice.width, slice.height), args.voxels) {
-            (true, _) if shape == "square pixels" => String::new(),
-            (true, true) => format!(", {shape}"),
-            (true, false) => format!(
+        let unstretched = (w, h) == (slice.width, slice.height);
+        let stretched = match (unstretched, square, args.voxels) {
+            (true, true, _) => String::new(),
+            (true, false, true) => format!(", {shape}"),
+            (true, false, false) => format!(
                 ", {shape}: the stretch stops at {} pixels a side",
                 raycaster::slice::MAX_SQUARE_SIDE
             ),
-            (false, _) if shape == "square pixels" => format!(
+            (false, true, _) => format!(
                 " from {}×{} voxels, stretched to square pixels",
                 slice.width, slice.height
             ),
-            (false, _) => format!(
+            (false, false, _) => format!(
                 " from {}×{} voxels, stretched to {} pixels a side: {shape}",
                 slice.width,
                 slice.height,

@@ -217,7 +217,7 @@ fn values_outside_the_data_or_the_domain_are_said_in_hounsfield_units() {
     };
     assert!(
         named(None, "bone").contains(
-            "warning: --domain bone: a CT window in Hounsfield units, and the built-in shapes scene holds stored samples without value units"
+            "warning: --domain bone: a CT window in Hounsfield units, and built-in shapes scene 128³ holds stored samples without value units"
         )
     );
     assert!(!named(Some("ct.vol"), "lung").contains("warning"));
