@@ -26,6 +26,7 @@ const GROUP: usize = 8;
 
 /// The largest sample count whose indices the lanes handle exactly: every
 /// index up to it is an `f32` and fits an `i32`.
+#[cfg(any(target_arch = "x86_64", test))]
 const MAX_LANE_SAMPLES: u32 = 1 << 24;
 
 /// A tile's rays as ownership reads them, one array per field, pixel by pixel
@@ -68,6 +69,7 @@ impl RayLanes {
     }
 
     /// Pixels (without the padding).
+    #[cfg(target_arch = "x86_64")]
     fn len(&self) -> usize {
         self.samples.len().saturating_sub(GROUP - 1)
     }
@@ -78,7 +80,8 @@ pub(crate) struct BrickOwnership<'g> {
     geometry: &'g VolumeGeometry,
     brick: [u32; 3],
     /// The brick's constants, where the questions are answered in lanes (AVX2
-    /// present).
+    /// present: never off x86-64).
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     lanes: Option<LaneFaces>,
 }
 

@@ -260,6 +260,7 @@ impl SamplePositions {
 
     /// The ray's first position, its step and the box's far corner, for kernels
     /// that compute [`Self::at`] in lanes of their own.
+    #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     pub(crate) fn parts(&self) -> ([f32; 3], [f32; 3], [f32; 3]) {
         (

@@ -155,4 +155,17 @@ mod tests {
         assert!(available().contains(&SimdLevel::widest()));
         assert!(SimdLevel::automatic().is_available());
     }
+
+    /// The kernel tests compare every available level against the scalar
+    /// kernel: on aarch64 (`.ci/aarch64`, under qemu) that must include NEON.
+    #[test]
+    fn each_architecture_lists_its_simd_level() {
+        if cfg!(target_arch = "aarch64") {
+            assert_eq!(available(), &[SimdLevel::Scalar, SimdLevel::Neon]);
+        } else if cfg!(target_arch = "x86_64") {
+            assert!(!SimdLevel::Neon.is_available());
+        } else {
+            assert_eq!(available(), &[SimdLevel::Scalar]);
+        }
+    }
 }

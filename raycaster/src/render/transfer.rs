@@ -602,6 +602,7 @@ impl TransferTable {
 
     /// Which entries' step-corrected opacity (`entries()[i][3]`) is above 0:
     /// bit `i % 32` of word `i / 32`.
+    #[cfg(any(target_arch = "x86_64", test))]
     #[inline]
     pub(crate) fn visible_bits(&self) -> &[u32; TABLE_SIZE / 32] {
         &self.visible_bits
@@ -609,6 +610,7 @@ impl TransferTable {
 
     /// The offset and scale [`Self::index`] maps a raw value with:
     /// `(v − offset)·scale + 0.5`, clamped and truncated.
+    #[cfg(target_arch = "x86_64")]
     #[inline]
     pub(crate) fn index_map(&self) -> (f32, f32) {
         (self.offset, self.scale)
