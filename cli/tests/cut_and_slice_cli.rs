@@ -3,7 +3,7 @@
 
 mod support;
 
-use support::{raycaster, stderr};
+use support::{raycaster, stderr, write_scene};
 
 use std::path::Path;
 
@@ -347,4 +347,49 @@ fn sabella_mode_colours_by_depth_or_centroid() {
     );
     assert_eq!(out.status.code(), Some(2));
     assert!(stderr(&out).contains("--sabella-depth"));
+}
+
+/// A crop box is given in full-resolution voxels whatever level renders it:
+/// one in the far half of the volume (beyond a coarse level's voxel count)
+/// renders at every pyramid level. (It was refused as lying outside the
+/// volume at levels whose voxel count it exceeded, which is also how the
+/// viewer's first, coarse frame of a cut session failed.)
+#[test]
+fn a_crop_box_renders_at_every_pyramid_level() {
+    let dir = tempfile::tempdir().unwrap();
+    write_scene(
+        &dir.path().join("shapes.vol"),
+        raycaster::synth::SceneKind::Shapes,
+        128,
+        7,
+        raycaster::volume::Format::Extended,
+    );
+    // (128³: one pyramid level, 64³; the box starts at y = 70.)
+    for level in ["0", "1", "auto"] {
+        let out = raycaster(
+            &[
+                "render",
+                "shapes.vol",
+                "--crop",
+                "0,70,0,127,127,127",
+                "--level",
+                level,
+                "--size",
+                "64x64",
+                "--stats-json",
+                "-o",
+                "c.png",
+                "--force",
+            ],
+            dir.path(),
+        );
+        assert!(out.status.success(), "--level {level}: {}", stderr(&out));
+        let stats = String::from_utf8_lossy(&out.stdout).to_string();
+        if level != "auto" {
+            assert!(stats.contains(&format!("\"level\":{level},")), "{stats}");
+        }
+        let image = RgbImage::load_png(&dir.path().join("c.png")).unwrap();
+        let lit = image.data().chunks(3).filter(|p| p != &[0, 0, 0]).count();
+        assert!(lit > 100, "--level {level}: {lit} lit pixels");
+    }
 }

@@ -98,20 +98,32 @@ impl ClipRegion {
         Ok(())
     }
 
-    /// Refuses a crop box that lies outside a volume of `dims` voxels along an
-    /// axis (its picture would be empty; `raycaster render --crop` refuses it
-    /// the same way, by the flag's name).
-    pub fn check_overlaps(&self, dims: [u32; 3]) -> Result<(), RenderError> {
+    /// Refuses a crop box that lies outside the volume along an axis (its
+    /// picture would be empty; `raycaster render --crop` refuses it the same
+    /// way, by the flag's name). The box is in full-resolution voxels, as
+    /// [`RenderSettings::clip`](super::RenderSettings::clip) holds it; `dims`
+    /// are those of the level rendered, whose voxels span `scale` (`2^k`)
+    /// full-resolution ones ([`Self::at_level`]).
+    pub fn check_overlaps(&self, dims: [u32; 3], scale: f32) -> Result<(), RenderError> {
         let Some(CropBox { lo, hi }) = self.crop else {
+            return Ok(());
+        };
+        let Some(CropBox {
+            lo: level_lo,
+            hi: level_hi,
+        }) = self.at_level(scale).crop
+        else {
             return Ok(());
         };
         for (a, name) in ["x", "y", "z"].into_iter().enumerate() {
             let last = dims[a].saturating_sub(1) as f32;
             // (Half a voxel of slack: a coarser level's voxels reach that far
             // past the full-resolution volume's, in its coordinates.)
-            if hi[a] < -0.5 || lo[a] > last + 0.5 {
+            if level_hi[a] < -0.5 || level_lo[a] > last + 0.5 {
+                // The level's extent in full-resolution voxels.
+                let full = (last + 1.0) * scale - 1.0;
                 return Err(RenderError::Clip(format!(
-                    "crop box {lo} – {hi} lies outside the volume along {name} (0..{last} voxels)"
+                    "crop box {lo} – {hi} lies outside the volume along {name} (0..{full} voxels)"
                 )));
             }
         }
@@ -312,7 +324,7 @@ mod tests {
             planes: Vec::new(),
         };
         let e = boxed([0.0, 40.0, 0.0], [9.0, 50.0, 9.0])
-            .check_overlaps([32; 3])
+            .check_overlaps([32; 3], 1.0)
             .unwrap_err()
             .to_string();
         assert!(
@@ -321,18 +333,37 @@ mod tests {
         );
         assert!(
             boxed([0.0, 20.0, 0.0], [9.0, 50.0, 9.0])
-                .check_overlaps([32; 3])
+                .check_overlaps([32; 3], 1.0)
                 .is_ok()
         );
         assert!(
             boxed([0.0, 31.4, 0.0], [9.0, 50.0, 9.0])
-                .check_overlaps([32; 3])
+                .check_overlaps([32; 3], 1.0)
                 .is_ok()
         );
         assert!(
             boxed([-9.0, 0.0, 0.0], [-1.0, 9.0, 9.0])
-                .check_overlaps([32; 3])
+                .check_overlaps([32; 3], 1.0)
                 .is_err()
+        );
+        // The box is in full-resolution voxels whatever level is rendered: a
+        // box in the far half of a 512-voxel axis overlaps pyramid level 3
+        // (64 voxels of 8), and one past the volume's end does not.
+        let far = boxed([0.0, 229.95, 0.0], [511.0, 511.0, 47.0]);
+        assert!(far.check_overlaps([64, 64, 6], 8.0).is_ok());
+        assert!(far.check_overlaps([512, 512, 48], 1.0).is_ok());
+        assert!(
+            boxed([0.0, 511.0, 0.0], [9.0, 511.0, 9.0])
+                .check_overlaps([64, 64, 6], 8.0)
+                .is_ok()
+        );
+        let e = boxed([0.0, 530.0, 0.0], [9.0, 600.0, 9.0])
+            .check_overlaps([64, 64, 6], 8.0)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("lies outside the volume along y (0..511 voxels)"),
+            "{e}"
         );
         let zero = ClipRegion {
             crop: None,

@@ -245,7 +245,9 @@ impl FramePlan {
             return Err(RenderError::IsoValue(settings.iso_value));
         }
         settings.clip.validate()?;
-        settings.clip.check_overlaps(volume.volume().dims())?;
+        settings
+            .clip
+            .check_overlaps(volume.volume().dims(), volume.volume().level_scale())?;
         let simd = match settings.simd {
             None => SimdLevel::automatic(),
             Some(level) if level.is_available() => level,
