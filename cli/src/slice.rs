@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use clap::{Args, ValueEnum};
-use raycaster::slice::{Axis, Slice};
+use raycaster::slice::{Axis, PlaneLayout, Slice};
 use raycaster::volume::{Access, OpenOptions, Volume};
 
 use crate::args::{WindowArg, parse_window};
@@ -13,9 +13,14 @@ use crate::args::{WindowArg, parse_window};
 ///
 /// The slice is read through the volume's samples (a mapped .vol file reads only
 /// the pages of that plane), linear or bricked, u8 or u16; NRRD, NIfTI-1,
-/// MetaImage files and DICOM series are converted in memory first. Columns run
-/// along x (along y for x slices), rows along y for z slices and along z
-/// otherwise, the highest coordinate at the top. Pixels are square: where the
+/// MetaImage files and DICOM series are converted in memory first. A volume
+/// placed in the patient (a medical file's orientation) is shown as
+/// radiologists read it: axial slices seen from the feet (the patient's right
+/// on the left, anterior at the top), coronal ones from the front, sagittal
+/// ones from the patient's left (anterior on the left), superior at the top.
+/// Other volumes, and `--volume-axes`, keep voxel order: columns along x
+/// (along y for x slices), rows along y for z slices and along z otherwise,
+/// the highest coordinate at the top. Pixels are square: where the
 /// voxel spacing differs between the two axes (CT slices farther apart than
 /// their pixels), the coarser axis is stretched, interpolating between its
 /// voxels; `--voxels` writes one pixel per voxel. The output is checked before
@@ -54,6 +59,12 @@ pub struct SliceArgs {
     /// larger spacing is stretched to square pixels).
     #[arg(long)]
     voxels: bool,
+
+    /// Keep voxel order on a volume placed in the patient, instead of showing
+    /// the slice as radiologists read it (axial from the feet, coronal from the
+    /// front, sagittal from the patient's left).
+    #[arg(long)]
+    volume_axes: bool,
 
     /// Print nothing on success.
     #[arg(short, long)]
@@ -103,7 +114,12 @@ pub fn run(args: SliceArgs) -> Result<()> {
         AxisArg::Y => Axis::Y,
         AxisArg::Z => Axis::Z,
     };
-    let slice = Slice::extract(&volume, axis, args.index)
+    let (layout, plane) = if args.volume_axes {
+        (PlaneLayout::voxel_order(axis), None)
+    } else {
+        PlaneLayout::patient(axis, volume.orientation())
+    };
+    let slice = Slice::extract_laid_out(&volume, axis, args.index, layout)
         .map_err(|e| anyhow::anyhow!("--index {}: {e}", args.index))?;
     let units = volume.value_units();
     if let Some(warning) = args
@@ -115,7 +131,7 @@ pub fn run(args: SliceArgs) -> Result<()> {
     }
     let window = args.window.map(|w| units.stored_range(w.values()));
     let spacing = volume.spacing();
-    let [u, v] = axis.in_plane();
+    let (u, v) = (layout.columns, layout.rows);
     let image = if args.voxels {
         slice.to_image(window)
     } else {
@@ -159,8 +175,20 @@ pub fn run(args: SliceArgs) -> Result<()> {
                 raycaster::slice::MAX_SQUARE_SIDE
             ),
         };
+        // The anatomical plane, and where the patient lies in the picture, for
+        // a volume placed in the patient.
+        let (plane, seen) = match (plane, volume.orientation()) {
+            (Some(plane), Some(orientation)) => {
+                let [left, top] = layout.left_and_top(orientation);
+                (
+                    format!("{} ", plane.name()),
+                    format!(", {left} on the left, {top} at the top"),
+                )
+            }
+            _ => (String::new(), String::new()),
+        };
         eprintln!(
-            "wrote {} ({w}×{h}{stretched}, slice {} = {} of {}, values {lo} to {hi})",
+            "wrote {} ({w}×{h}{stretched}, {plane}slice {} = {} of {}{seen}, values {lo} to {hi})",
             args.output.display(),
             axis,
             args.index,

@@ -349,6 +349,79 @@ fn sabella_mode_colours_by_depth_or_centroid() {
     assert!(stderr(&out).contains("--sabella-depth"));
 }
 
+/// Writes `name`: a NRRD of 20 × 12 × 9 u16 voxels, `100·i + 10·j + k` at
+/// index (i, j, k), placed in RAS space with unit axes (x grows to the
+/// patient's right, y anterior, z superior).
+fn write_ras_nrrd(dir: &Path, name: &str) {
+    let mut bytes = b"NRRD0004\ntype: unsigned short\ndimension: 3\nsizes: 20 12 9\n\
+space: right-anterior-superior\nspace directions: (1,0,0) (0,1,0) (0,0,1)\n\
+space origin: (0,0,0)\nendian: little\nencoding: raw\n\n"
+        .to_vec();
+    for k in 0..9u16 {
+        for j in 0..12u16 {
+            for i in 0..20u16 {
+                bytes.extend_from_slice(&(100 * i + 10 * j + k).to_le_bytes());
+            }
+        }
+    }
+    std::fs::write(dir.join(name), bytes).unwrap();
+}
+
+#[test]
+fn slices_of_a_volume_in_the_patient_read_as_radiologists_read_them() {
+    let dir = tempfile::tempdir().unwrap();
+    write_ras_nrrd(dir.path(), "ras.nrrd");
+    let slice = |axis: &str, index: &str, extra: &[&str]| {
+        let mut args = vec![
+            "slice", "ras.nrrd", "--axis", axis, "--index", index, "-o", "s.png", "--force",
+        ];
+        args.extend_from_slice(extra);
+        let out = raycaster(&args, dir.path());
+        assert!(out.status.success(), "{}", stderr(&out));
+        let image = RgbImage::load_png(&dir.path().join("s.png")).unwrap();
+        (image, stderr(&out))
+    };
+    // RAS axes: voxel order shows the patient's right on the right in axial
+    // and coronal slices and anterior on the right in sagittal ones; as read,
+    // each of them is mirrored left to right (rows: anterior and superior
+    // already grow upwards).
+    for (axis, index, said) in [
+        (
+            "z",
+            "4",
+            "axial slice z = 4 of ras.nrrd, R on the left, A at the top",
+        ),
+        (
+            "y",
+            "5",
+            "coronal slice y = 5 of ras.nrrd, R on the left, S at the top",
+        ),
+        (
+            "x",
+            "7",
+            "sagittal slice x = 7 of ras.nrrd, A on the left, S at the top",
+        ),
+    ] {
+        let (plain, plain_said) = slice(axis, index, &["--volume-axes"]);
+        let (read, read_said) = slice(axis, index, &[]);
+        assert!(read_said.contains(said), "{read_said}");
+        assert!(!plain_said.contains(" on the left"), "{plain_said}");
+        let (w, h) = (plain.width(), plain.height());
+        assert_eq!((read.width(), read.height()), (w, h), "{axis}");
+        // The slice is not symmetric, so the mirror is seen.
+        assert_ne!(read, plain, "{axis}");
+        for row in 0..h {
+            for col in 0..w {
+                assert_eq!(
+                    read.pixel(col, row),
+                    plain.pixel(w - 1 - col, row),
+                    "{axis}"
+                );
+            }
+        }
+    }
+}
+
 /// A crop box is given in full-resolution voxels whatever level renders it:
 /// one in the far half of the volume (beyond a coarse level's voxel count)
 /// renders at every pyramid level. (It was refused as lying outside the

@@ -8,7 +8,7 @@
 
 use glam::Vec3;
 use raycaster::render::Camera;
-use raycaster::slice::Axis;
+use raycaster::slice::{Axis, PlaneLayout};
 use raycaster::volume::{Orientation, Volume};
 
 use crate::slices::AXIS_COLOURS;
@@ -80,21 +80,15 @@ pub(crate) fn view_labels(camera: &Camera, orientation: Option<&Orientation>) ->
     }
 }
 
-/// The edge labels of a slice view perpendicular to `axis`: its columns grow
-/// to the right along the first in-plane axis, its rows upwards along the second
+/// The edge labels of a slice view laid out by `layout`
 /// ([`raycaster::slice::Slice`]).
-pub(crate) fn slice_labels(axis: Axis, orientation: Option<&Orientation>) -> EdgeLabels {
-    let [u, v] = axis.in_plane();
-    let unit = |a: usize| {
-        let mut d = Vec3::ZERO;
-        d[a] = 1.0;
-        d
-    };
+pub(crate) fn slice_labels(layout: &PlaneLayout, orientation: Option<&Orientation>) -> EdgeLabels {
+    let [right, up] = layout.right_and_up().map(Vec3::from);
     EdgeLabels {
-        left: direction_label(-unit(u), orientation),
-        right: direction_label(unit(u), orientation),
-        top: direction_label(unit(v), orientation),
-        bottom: direction_label(-unit(v), orientation),
+        left: direction_label(-right, orientation),
+        right: direction_label(right, orientation),
+        top: direction_label(up, orientation),
+        bottom: direction_label(-up, orientation),
     }
 }
 
@@ -289,11 +283,17 @@ mod tests {
     #[test]
     fn slice_views_are_labelled_by_their_columns_and_rows() {
         let o = rai();
-        // Axial: columns x (R), rows y (A) growing upwards.
-        let axial = slice_labels(Axis::Z, Some(&o));
+        // Axial in voxel order: columns x (R), rows y (A) growing upwards.
+        let plain = PlaneLayout::voxel_order(Axis::Z);
+        let axial = slice_labels(&plain, Some(&o));
         assert_eq!((axial.right.as_str(), axial.left.as_str()), ("R", "L"));
         assert_eq!((axial.top.as_str(), axial.bottom.as_str()), ("A", "P"));
-        let sagittal = slice_labels(Axis::X, None);
+        // As radiologists read it: the patient's right on the left.
+        let read = PlaneLayout::patient(Axis::Z, Some(&o)).0;
+        let axial = slice_labels(&read, Some(&o));
+        assert_eq!((axial.left.as_str(), axial.right.as_str()), ("R", "L"));
+        assert_eq!((axial.top.as_str(), axial.bottom.as_str()), ("A", "P"));
+        let sagittal = slice_labels(&PlaneLayout::voxel_order(Axis::X), None);
         assert_eq!(
             (sagittal.right.as_str(), sagittal.top.as_str()),
             ("+y", "+z")

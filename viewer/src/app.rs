@@ -1230,12 +1230,13 @@ impl Controller {
                 window,
                 zoom,
             );
-            let labels = crate::annotations::slice_labels(axis, orientation);
+            let layout = crate::slices::slice_layout(volume, axis);
+            let labels = crate::annotations::slice_labels(&layout, orientation);
             edges.extend([labels.left, labels.right, labels.top, labels.bottom]);
             let image = match image {
                 Ok((image, at)) => {
                     frames[axis.index()] = [at[0], at[1], image.width(), image.height()];
-                    let [u, v] = axis.in_plane();
+                    let (u, v) = (layout.columns, layout.rows);
                     aspects[axis.index()] =
                         (image.width() as f32 * spacing[u]) / (image.height() as f32 * spacing[v]);
                     image
@@ -1274,6 +1275,13 @@ impl Controller {
         let edges: Vec<SharedString> = edges.into_iter().map(Into::into).collect();
         ui.set_slice_edges(ModelRc::new(VecModel::from(edges)));
         ui.set_slice_aspects(ModelRc::new(VecModel::from(aspects.to_vec())));
+        let names = crate::slices::view_names(volume);
+        let shown = ui.get_slice_labels();
+        if !slint::Model::iter(&shown).eq(names.iter().map(SharedString::from)) {
+            ui.set_slice_labels(ModelRc::new(VecModel::from(
+                names.map(SharedString::from).to_vec(),
+            )));
+        }
         drop(st);
         let mut st = self.state.borrow_mut();
         st.slice_frames = frames;
@@ -1300,12 +1308,12 @@ impl Controller {
             let Some(current) = &st.current else { return };
             let level = current.volume.volume.level(st.slice_level);
             let dims = level.dims();
-            let [_, v] = axis.in_plane();
+            let layout = crate::slices::slice_layout(&current.volume.volume, *axis);
+            let (u, v) = (layout.columns, layout.rows);
             // The part of the slice shown (zoomed about the crosshair).
             let [x0, y0, fw, fh] = st.slice_frames[axis.index()];
             let (iw, ih) = (fw as f32, fh as f32);
             let spacing = current.volume.volume.spacing();
-            let [u, _] = axis.in_plane();
             let aspect = (iw * spacing[u]) / (ih * spacing[v]);
             // The image's size on screen, as app.slint lays it out.
             let shown_w = w.min(h * aspect);
@@ -1319,10 +1327,9 @@ impl Controller {
                 return;
             }
             st.crosshair.click(
-                *axis,
-                col + x0 as f32,
-                row + y0 as f32,
-                dims[v],
+                &layout,
+                [col + x0 as f32, row + y0 as f32],
+                [dims[u], dims[v]],
                 1 << st.slice_level,
             );
         }

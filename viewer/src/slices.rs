@@ -8,7 +8,7 @@
 
 use raycaster::render::RgbImage;
 use raycaster::session::SliceWindow;
-use raycaster::slice::{Axis, Slice, SliceError};
+use raycaster::slice::{Axis, PlaneLayout, Slice, SliceError};
 use raycaster::volume::{ValueUnits, Volume};
 use raycaster::windows::NAMED_WINDOWS;
 
@@ -25,8 +25,20 @@ const LINE_SPAN: u32 = 128;
 /// y green, z blue.
 pub(crate) const AXIS_COLOURS: [[u8; 3]; 3] = [[230, 70, 70], [70, 200, 90], [80, 140, 255]];
 
-/// The slice views' names, by axis (x, y, z).
+/// The slice views' names, by axis (x, y, z), for a volume not placed in the
+/// patient.
 pub(crate) const VIEW_NAMES: [&str; 3] = ["sagittal (x)", "coronal (y)", "axial (z)"];
+
+/// The slice views' names for `volume`: the anatomical plane each axis's slices
+/// lie in for a volume placed in the patient, [`VIEW_NAMES`] otherwise.
+pub(crate) fn view_names(volume: &Volume) -> [String; 3] {
+    Axis::ALL.map(
+        |axis| match PlaneLayout::patient(axis, volume.orientation()).1 {
+            Some(plane) => format!("{} ({axis})", plane.name()),
+            None => VIEW_NAMES[axis.index()].to_string(),
+        },
+    )
+}
 
 /// The last window choice: the window set by right-dragging on a slice.
 pub(crate) const CUSTOM_WINDOW: &str = "custom (right-drag a slice)";
@@ -139,18 +151,24 @@ impl Crosshair {
         self.voxel[a] = (i64::from(self.voxel[a]) + steps).clamp(0, last) as u32;
     }
 
-    /// Moves to the point clicked in the image of the `axis` slice, at image
-    /// pixel `(col, row)` of an image of `height` rows read from a level whose
-    /// voxels span `scale` full-resolution voxels; the slice's own index stays.
-    pub(crate) fn click(&mut self, axis: Axis, col: f32, row: f32, height: u32, scale: u32) {
-        let [u, v] = axis.in_plane();
-        let to_voxel = |i: f32, last: u32| -> u32 {
-            let i = i.floor().max(0.0) as u32;
-            (i * scale + scale / 2).min(last)
-        };
-        let flipped = (height as f32 - 1.0 - row.floor()).max(0.0);
-        self.voxel[u] = to_voxel(col, self.dims[u].saturating_sub(1));
-        self.voxel[v] = to_voxel(flipped, self.dims[v].saturating_sub(1));
+    /// Moves to the point clicked in the image of a slice laid out by
+    /// `layout`, at image pixel `(col, row)` of an image of `size` (columns,
+    /// rows) read from a level whose voxels span `scale` full-resolution
+    /// voxels; the slice's own index stays.
+    pub(crate) fn click(
+        &mut self,
+        layout: &PlaneLayout,
+        [col, row]: [f32; 2],
+        [width, height]: [u32; 2],
+        scale: u32,
+    ) {
+        let pixel = |i: f32| i.floor().max(0.0) as u32;
+        let to_voxel = |i: u32, last: u32| -> u32 { (i * scale + scale / 2).min(last) };
+        let (u, v) = (layout.columns, layout.rows);
+        let along_u = layout.column(pixel(col).min(width.saturating_sub(1)), width);
+        let along_v = layout.row(pixel(row).min(height.saturating_sub(1)), height);
+        self.voxel[u] = to_voxel(along_u, self.dims[u].saturating_sub(1));
+        self.voxel[v] = to_voxel(along_v, self.dims[v].saturating_sub(1));
     }
 }
 
@@ -165,8 +183,16 @@ pub(crate) fn zoom_span(len: u32, centre: u32, zoom: f32) -> (u32, u32) {
     (start, count)
 }
 
+/// How the slice views lay out a slice of `volume` perpendicular to `axis`:
+/// as radiologists read it for a volume placed in the patient
+/// ([`PlaneLayout::patient`]), voxel order otherwise.
+pub(crate) fn slice_layout(volume: &Volume, axis: Axis) -> PlaneLayout {
+    PlaneLayout::patient(axis, volume.orientation()).0
+}
+
 /// The slice of `volume` (level `level` of it) perpendicular to `axis` through
-/// the crosshair, windowed by `window` (stored values), with the crosshair's two
+/// the crosshair, laid out by [`slice_layout`], windowed by `window` (stored
+/// values), with the crosshair's two
 /// other slices drawn as lines in their axes' colours, zoomed by `zoom` (≥ 1)
 /// about the crosshair. Returns the image and where its top-left pixel lies in
 /// the whole slice (column, row).
@@ -181,13 +207,14 @@ pub(crate) fn slice_image(
     let data = volume.level(level);
     let scale = 1u32 << level;
     let at = |a: usize| (crosshair.voxel[a] / scale).min(data.dims()[a].saturating_sub(1));
-    let slice = Slice::extract(data, axis, at(axis.index()))?;
+    let layout = slice_layout(volume, axis);
+    let slice = Slice::extract_laid_out(data, axis, at(axis.index()), layout)?;
     let image = slice.to_image(Some(window))?;
     let (w, h) = (image.width(), image.height());
     let mut rgb = image.data().to_vec();
-    let [u, v] = axis.in_plane();
-    let col = at(u);
-    let row = h - 1 - at(v).min(h - 1);
+    let (u, v) = (layout.columns, layout.rows);
+    let col = layout.column(at(u).min(w - 1), w);
+    let row = layout.row(at(v).min(h - 1), h);
     // Lines stay visible when the view shows the image smaller than it is: a
     // line is one pixel per LINE_SPAN pixels of the image's side thick.
     let thick = |len: u32| len.div_ceil(LINE_SPAN).max(1);
@@ -287,12 +314,26 @@ mod tests {
     fn clicks_move_the_other_axes() {
         let mut c = Crosshair::centre([100, 80, 60]);
         assert_eq!(c.voxel, [49, 39, 29]);
-        // An axial (z) slice: columns x, rows y from the top.
-        c.click(Axis::Z, 10.0, 0.0, 80, 1);
+        // An axial (z) slice in voxel order: columns x, rows y from the top.
+        c.click(
+            &PlaneLayout::voxel_order(Axis::Z),
+            [10.0, 0.0],
+            [100, 80],
+            1,
+        );
         assert_eq!(c.voxel, [10, 79, 29]);
         // A coronal slice of level 1 (voxels of 2): columns x, rows z.
-        c.click(Axis::Y, 5.0, 29.0, 30, 2);
+        c.click(&PlaneLayout::voxel_order(Axis::Y), [5.0, 29.0], [50, 30], 2);
         assert_eq!(c.voxel, [11, 79, 1]);
+        // Columns mirrored (x growing to the left), rows from the top down.
+        let mirrored = PlaneLayout {
+            columns: 0,
+            grows_right: false,
+            rows: 1,
+            grows_up: false,
+        };
+        c.click(&mirrored, [10.0, 0.0], [100, 80], 1);
+        assert_eq!(c.voxel, [89, 0, 1]);
         c.step(Axis::Z, -5);
         assert_eq!(c.voxel[2], 0);
         c.step(Axis::X, 1000);
@@ -362,6 +403,87 @@ mod tests {
         assert_eq!(at, [4, 4]);
         let i = ((4 * 10 + 5) * 3) as usize;
         assert_eq!(zoomed.data()[i..i + 3], AXIS_COLOURS[1]);
+    }
+
+    /// A NRRD volume of `dims` u16 voxels placed in RAS space (x grows to the
+    /// patient's right, y anterior, z superior), opened as the viewer opens it.
+    fn ras_volume(dir: &std::path::Path, dims: [u32; 3]) -> Volume {
+        let mut bytes = format!(
+            "NRRD0004\ntype: unsigned short\ndimension: 3\nsizes: {} {} {}\n\
+             space: right-anterior-superior\nspace directions: (1,0,0) (0,1,0) (0,0,1)\n\
+             space origin: (0,0,0)\nendian: little\nencoding: raw\n\n",
+            dims[0], dims[1], dims[2]
+        )
+        .into_bytes();
+        for i in 0..dims.iter().product::<u32>() {
+            bytes.extend_from_slice(&((i * 7 % 1000) as u16).to_le_bytes());
+        }
+        let path = dir.join("ras.nrrd");
+        std::fs::write(&path, bytes).unwrap();
+        raycaster::import::open(&path)
+            .unwrap()
+            .to_volume_noting(
+                raycaster::import::DEFAULT_IN_MEMORY_LIMIT,
+                &raycaster::job::Job::silent(),
+            )
+            .unwrap()
+            .0
+    }
+
+    /// A volume placed in RAS space shows each slice mirrored left to right
+    /// against voxel order (the patient's right on the left; anterior on the
+    /// left in sagittal slices), the crosshair's lines where its voxel lies in
+    /// that picture, and a click on their crossing keeps the crosshair.
+    #[test]
+    fn oriented_slices_read_as_radiologists_and_clicks_land_where_lines_are() {
+        let dir = tempfile::tempdir().unwrap();
+        let dims = [20, 12, 9];
+        let volume = ras_volume(dir.path(), dims);
+        assert!(volume.orientation().is_some());
+        assert_eq!(view_names(&volume)[2], "axial (z)");
+        let c = Crosshair::at([3, 4, 5], dims);
+        for axis in Axis::ALL {
+            let layout = slice_layout(&volume, axis);
+            assert_eq!([layout.columns, layout.rows], axis.in_plane(), "{axis}");
+            assert!(!layout.grows_right && layout.grows_up, "{axis}");
+            let (image, _) = slice_image(&volume, 0, axis, &c, [0.0, 1000.0], 1.0).unwrap();
+            let (w, h) = (image.width(), image.height());
+            let (u, v) = (layout.columns, layout.rows);
+            // Mirrored columns: voxel coordinate c along u is column w − 1 − c.
+            let (col, row) = (w - 1 - c.voxel[u], h - 1 - c.voxel[v]);
+            let px = |x: u32, y: u32| {
+                let i = ((y * w + x) * 3) as usize;
+                [image.data()[i], image.data()[i + 1], image.data()[i + 2]]
+            };
+            let away = if row == 0 { h - 1 } else { 0 };
+            assert_eq!(
+                px(col, away),
+                AXIS_COLOURS[u],
+                "{axis}: the line along the columns"
+            );
+            assert_eq!(
+                px(0, row),
+                AXIS_COLOURS[v],
+                "{axis}: the line along the rows"
+            );
+            let mut clicked = Crosshair::centre(dims);
+            clicked.voxel[axis.index()] = c.voxel[axis.index()];
+            clicked.click(&layout, [col as f32 + 0.5, row as f32 + 0.5], [w, h], 1);
+            assert_eq!(clicked.voxel, c.voxel, "{axis}");
+        }
+        // The axial slice as voxel order would show it, mirrored.
+        let plain = Slice::extract(&volume, Axis::Z, 5).unwrap();
+        let read =
+            Slice::extract_laid_out(&volume, Axis::Z, 5, slice_layout(&volume, Axis::Z)).unwrap();
+        for row in 0..12 {
+            for col in 0..20 {
+                assert_eq!(
+                    read.values[(row * 20 + col) as usize],
+                    plain.values[(row * 20 + 19 - col) as usize]
+                );
+            }
+        }
+        assert_ne!(read.values, plain.values);
     }
 
     #[test]
