@@ -41,6 +41,17 @@ fn main() {
     stop_cleanly_on_signals();
     raycaster::files::guard_mapped_reads();
     let cli = Cli::parse();
+    if let Command::Render(args) = &cli.command
+        && let Some(conflict) = args.conflict()
+    {
+        use clap::CommandFactory;
+        let mut cli = Cli::command();
+        cli.build();
+        let render = cli.find_subcommand_mut("render").expect("a render command");
+        render
+            .error(clap::error::ErrorKind::ArgumentConflict, conflict)
+            .exit();
+    }
     let result = match cli.command {
         Command::Render(a) => render::run(*a),
         Command::Bench(a) => bench::run(*a),

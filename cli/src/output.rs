@@ -44,20 +44,12 @@ pub fn check_output_of<I: AsRef<Path>>(
     check_output(output, force)
 }
 
-/// Refuses, before any work, an output file that could not be written: a
-/// directory, a missing or unwritable folder, a device or named pipe, or an
-/// existing file without `--force`.
+/// Refuses, before any work, an output file that could not be written
+/// ([`raycaster::files::output_problem`]: a directory, a missing or unwritable
+/// folder, a device or named pipe, or an existing file without `--force`).
 pub fn check_file(output: &Path, force: bool) -> Result<()> {
-    if output.is_dir() {
-        bail!("{}: is a directory; name a file", output.display());
-    }
-    if !force && let Some(problem) = raycaster::files::existing_output(output) {
+    if let Some(problem) = raycaster::files::output_problem(output, force) {
         bail!("{}: {problem}", output.display());
     }
-    // Creating (and dropping) the temporary file the output will be written to
-    // checks that the folder exists and is writable and that the output is not
-    // a device or a pipe, before a long render.
-    raycaster::files::temp_file_beside(output)
-        .map_err(|e| anyhow::anyhow!("{}: cannot write there: {e}", output.display()))?;
     Ok(())
 }

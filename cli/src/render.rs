@@ -793,6 +793,20 @@ fn flags_source(args: &RenderArgs) -> VolumeSource {
     }
 }
 
+impl RenderArgs {
+    /// Flags that do not go together in a way clap cannot see (they depend on
+    /// a value): a command-line error (exit status 2), as a session refuses
+    /// the same.
+    pub(crate) fn conflict(&self) -> Option<String> {
+        match self.level {
+            LevelChoice::Fixed(k) if self.lod_bias != 0.0 => Some(format!(
+                "--lod-bias shifts the automatic level only; it takes --level auto, not --level {k}"
+            )),
+            _ => None,
+        }
+    }
+}
+
 /// What to say of a fixed `level` past `volume`'s coarsest (it renders the
 /// coarsest).
 fn level_warning(level: LevelChoice, volume: &Volume) -> Option<String> {

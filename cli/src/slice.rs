@@ -150,7 +150,10 @@ pub fn run(args: SliceArgs) -> Result<()> {
             f64::from(spacing[axis]) * f64::from(voxels) / f64::from(side)
         };
         let aspect = pixel(w, slice.width, u) / pixel(h, slice.height, v);
-        let square = (aspect - 1.0).abs() <= 0.01;
+        // Stretched pixels are square but for rounding to whole pixels, unless
+        // the stretch stopped at its limit.
+        let capped = w.max(h) >= raycaster::slice::MAX_SQUARE_SIDE;
+        let square = (aspect - 1.0).abs() <= 0.01 || !(args.voxels || capped);
         let shape = if aspect > 1.0 {
             format!("pixels {aspect:.3}× as wide as high")
         } else {

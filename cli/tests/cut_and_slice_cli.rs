@@ -112,6 +112,36 @@ fn slices_have_square_pixels_unless_voxels_are_asked_for() {
         said.contains("20×9, pixels 6.000× as high as wide"),
         "{said}"
     );
+    // Rounding to whole pixels (9 rows of 2.75 become 25, not 24.75) is no
+    // limit of the stretch.
+    write_spaced_volume(
+        dir.path(),
+        "round.vol",
+        SampleType::U8,
+        Layout::Linear,
+        [1.0, 1.0, 2.75],
+    );
+    let out = raycaster(
+        &[
+            "slice",
+            "round.vol",
+            "--axis",
+            "y",
+            "--index",
+            "5",
+            "-o",
+            "r.png",
+            "--force",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let said = stderr(&out);
+    assert!(
+        said.contains("20×25 from 20×9 voxels, stretched to square pixels,"),
+        "{said}"
+    );
+    assert!(!said.contains("8192"), "{said}");
 }
 
 #[test]

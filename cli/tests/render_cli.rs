@@ -329,6 +329,37 @@ fn bad_inputs_fail_with_a_clear_message_and_no_output() {
         let out = raycaster(&["render", "--fov", fov], dir.path());
         assert_eq!(out.status.code(), Some(2), "--fov {fov}: {}", stderr(&out));
     }
+    // --lod-bias with a fixed level: refused as a session refuses it (it was
+    // ignored), said once; with the automatic level it is taken.
+    let out = raycaster(
+        &["render", "--level", "2", "--lod-bias", "1", "-o", "lod.png"],
+        dir.path(),
+    );
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert_eq!(
+        stderr(&out)
+            .matches(
+                "--lod-bias shifts the automatic level only; it takes --level auto, not --level 2"
+            )
+            .count(),
+        1,
+        "{}",
+        stderr(&out)
+    );
+    assert!(!dir.path().join("lod.png").exists());
+    let out = raycaster(
+        &[
+            "render",
+            "--lod-bias",
+            "1",
+            "--size",
+            "32x32",
+            "-o",
+            "lod.png",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
     for (args, needle) in cases {
         let out = raycaster(args, dir.path());
         assert!(!out.status.success(), "{args:?} must fail");

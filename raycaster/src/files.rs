@@ -204,6 +204,27 @@ pub fn existing_output(path: &Path) -> Option<&'static str> {
     })
 }
 
+/// Why `path` cannot take an output a command is about to write, if it
+/// cannot, in this order: it is a folder; no file can be created there (a
+/// missing or read-only folder, a device or a pipe: found by creating and
+/// dropping the temporary file the output will be written to,
+/// [`temp_file_beside`]), which `--force` would not mend; or something is
+/// there already, unless `force` ([`existing_output`]). Front ends ask before
+/// any work, so a long render or generation is never lost to its output; the
+/// reason follows the path in their messages.
+pub fn output_problem(path: &Path, force: bool) -> Option<String> {
+    if path.is_dir() {
+        return Some("is a directory; name a file".to_string());
+    }
+    if let Err(e) = temp_file_beside(path) {
+        return Some(format!("cannot write there: {e}"));
+    }
+    (!force)
+        .then(|| existing_output(path))
+        .flatten()
+        .map(str::to_string)
+}
+
 /// Whether `path` is named like a TOML file (`.toml`, any case): a session or
 /// a two-level scene, which front ends name when one that exists is given as a
 /// volume.
@@ -381,6 +402,40 @@ mod tests {
                 .contains("link to a missing file")
         );
         assert_eq!(existing_output(&free), None);
+    }
+
+    /// What both command-line tools say of an output before any work, in
+    /// order: a folder, an unwritable place (whatever `force` says), an
+    /// existing file or link unless forced.
+    #[test]
+    fn outputs_are_checked_folder_place_then_existence() {
+        let dir = tempfile::tempdir().unwrap();
+        let (file, folder, free) = (
+            dir.path().join("a.vol"),
+            dir.path().join("d.vol"),
+            dir.path().join("c.vol"),
+        );
+        std::fs::write(&file, b"x").unwrap();
+        std::fs::create_dir(&folder).unwrap();
+        for force in [false, true] {
+            assert_eq!(
+                output_problem(&folder, force).as_deref(),
+                Some("is a directory; name a file")
+            );
+            let nowhere = output_problem(&dir.path().join("missing/x.vol"), force).unwrap();
+            assert!(nowhere.starts_with("cannot write there: "), "{nowhere}");
+            assert_eq!(output_problem(&free, force), None);
+        }
+        assert!(
+            output_problem(&file, false)
+                .unwrap()
+                .contains("already exists")
+        );
+        assert_eq!(output_problem(&file, true), None);
+        assert!(!dir.path().read_dir().unwrap().any(|e| {
+            let name = e.unwrap().file_name();
+            !["a.vol", "d.vol"].contains(&name.to_str().unwrap())
+        }));
     }
 
     #[test]

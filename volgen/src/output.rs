@@ -2,19 +2,17 @@
 
 use std::path::Path;
 
-use anyhow::{Context, bail};
+use anyhow::bail;
 
-/// Refuses, before any work, an output that cannot be written: a folder, a
-/// device or an unwritable folder (said first, and never "already exists" for
-/// a folder --force cannot replace), or an existing file without `force`.
+/// Refuses, before any work, an output that cannot be written
+/// ([`raycaster::files::output_problem`]: a folder, a device or an unwritable
+/// folder, an existing file without `force`), and `-`.
 pub fn check_output(path: &Path, force: bool) -> anyhow::Result<()> {
     // (`-` is no file name here: a volume is mapped and written in place.)
     if path.as_os_str() == "-" {
         bail!("-: volumes are written to files, not to standard output; name a .vol file");
     }
-    raycaster::files::temp_file_beside(path)
-        .with_context(|| format!("{}: cannot write there", path.display()))?;
-    if !force && let Some(problem) = raycaster::files::existing_output(path) {
+    if let Some(problem) = raycaster::files::output_problem(path, force) {
         bail!("{}: {problem}", path.display());
     }
     Ok(())
