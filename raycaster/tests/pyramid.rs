@@ -236,7 +236,7 @@ fn a_render_at_level_k_equals_the_render_of_a_separately_reduced_volume() {
         let bytes: Vec<u8> = reference.iter().map(|&v| v as u8).collect();
         let separate = Volume::from_samples("separate", &h, &bytes)
             .unwrap()
-            .placed_as_level(k as u32);
+            .placed_as_level(k as u32, volume.dims());
         assert_eq!(separate.origin(), volume.level(k).origin());
         let expected = RenderVolume::new(&separate, Some(16)).unwrap();
         let actual = RenderVolume::new(volume.level(k), Some(16)).unwrap();
@@ -376,6 +376,82 @@ fn files_without_a_pyramid_still_open_and_render() {
     // The sidecar also stores the cells of every level, level 0's included.
     for k in 0..3 {
         assert!(volume.level(k).stored_cells().is_some(), "level {k}");
+    }
+}
+
+/// Every level samples the full-resolution volume's box, up to its faces: a
+/// coarse level's voxel centres lie up to half a coarse voxel inside it (1.5
+/// voxels at level 2), and its samples there read the edge voxels. So a cut
+/// that keeps the first two voxel layers at a face shows at every level, where
+/// it used to show nothing at level 2, and the whole volume covers the
+/// same pixels at every level, sequential and parallel alike.
+#[test]
+fn every_level_samples_the_volume_box_up_to_its_faces() {
+    let dir = TempDir::new().unwrap();
+    let header = u8_header(Layout::Bricked { side: 16 }, Format::Extended);
+    let values = vec![255u16; DIMS.iter().product::<u32>() as usize];
+    let path = dir.path().join("solid.vol");
+    write(&path, &header, &values, &small_slabs(), &Job::silent()).unwrap();
+    let volume = Volume::open(&path).unwrap();
+    assert!(volume.level_count() >= 3, "{} levels", volume.level_count());
+    let camera = default_camera(&volume, 96);
+    let mut settings = raycaster::render::RenderSettings {
+        transfer: scene_preset(raycaster::synth::SceneKind::Shapes),
+        ..Default::default()
+    };
+    settings.transfer.domain = Some([0.0, 255.0]);
+    let lit_box = |image: &raycaster::render::RgbImage| {
+        let (mut lo, mut hi, mut lit) = ([u32::MAX; 2], [0u32; 2], 0);
+        for y in 0..image.height() {
+            for x in 0..image.width() {
+                if image.pixel(x, y) != [0, 0, 0] {
+                    lit += 1;
+                    lo = [lo[0].min(x), lo[1].min(y)];
+                    hi = [hi[0].max(x), hi[1].max(y)];
+                }
+            }
+        }
+        (lit, lo, hi)
+    };
+    let last = DIMS.map(|d| (d - 1) as f32);
+    let slab = raycaster::render::ClipRegion {
+        crop: Some(raycaster::render::CropBox {
+            lo: glam::Vec3::ZERO,
+            hi: glam::Vec3::new(last[0], last[1], 1.0),
+        }),
+        planes: Vec::new(),
+    };
+    let mut whole_at_0 = None;
+    for k in 0..volume.level_count() {
+        let level = RenderVolume::new(volume.level(k), None).unwrap();
+        let whole = render_sequential(&level, &camera, &settings).unwrap();
+        let (lit, lo, hi) = lit_box(&whole.to_image());
+        let (_, lo0, hi0) = *whole_at_0.get_or_insert((lit, lo, hi));
+        for a in 0..2 {
+            assert!(
+                lo[a].abs_diff(lo0[a]) <= 1 && hi[a].abs_diff(hi0[a]) <= 1,
+                "level {k}: lit box {lo:?}–{hi:?}, level 0 {lo0:?}–{hi0:?}"
+            );
+        }
+        let cut_settings = raycaster::render::RenderSettings {
+            clip: slab.clone(),
+            ..settings.clone()
+        };
+        let cut = render_sequential(&level, &camera, &cut_settings).unwrap();
+        let (lit, _, _) = lit_box(&cut.to_image());
+        assert!(
+            lit > 50,
+            "level {k}: the slab at the face shows {lit} pixels"
+        );
+        let parallel =
+            render_parallel(&level, &camera, &cut_settings, &ParallelOptions::default()).unwrap();
+        assert_images_match(
+            &format!("face-slab-level{k}"),
+            &parallel.to_image(),
+            &cut.to_image(),
+            1,
+        );
+        assert_eq!(parallel.stats.counters.samples, cut.stats.counters.samples);
     }
 }
 

@@ -57,6 +57,9 @@ pub struct VolumeGeometry {
     origin: Vec3,
     spacing: Vec3,
     last: Vec3,
+    /// The box rays sample, in voxel coordinates (`[0, last]` unless a pyramid
+    /// level's is set: [`Self::sampling`]).
+    sampled: (Vec3, Vec3),
     step: f32,
 }
 
@@ -70,13 +73,25 @@ impl VolumeGeometry {
     /// Like [`Self::new`] with voxel `(0, 0, 0)` at world position `origin` (pyramid
     /// levels sit half a coarse voxel inside level 0's box).
     pub fn placed(grid: BlockGrid, spacing: [f32; 3], origin: [f32; 3]) -> Self {
+        let last = Vec3::from(grid.dims().map(|d| (d - 1) as f32));
         VolumeGeometry {
             grid,
             origin: Vec3::from(origin),
             spacing: Vec3::from(spacing),
-            last: Vec3::from(grid.dims().map(|d| (d - 1) as f32)),
+            last,
+            sampled: (Vec3::ZERO, last),
             step: grid.step() as f32,
         }
+    }
+
+    /// The same geometry with rays sampling the box `[lo, hi]` (voxel
+    /// coordinates) instead of `[0, dims − 1]`: a pyramid level samples the
+    /// full-resolution volume's box ([`crate::volume::Volume::sampled_box`]),
+    /// which reaches up to half a coarse voxel past its own voxel centres. Reads
+    /// there clamp to the edge voxels, and the edge bricks own those samples.
+    pub fn sampling(mut self, [lo, hi]: [[f32; 3]; 2]) -> Self {
+        self.sampled = (Vec3::from(lo), Vec3::from(hi));
+        self
     }
 
     /// The brick grid.
@@ -104,9 +119,13 @@ impl VolumeGeometry {
         self.origin
     }
 
-    /// The volume's world box.
+    /// The world box rays sample: the volume's ([`Self::sampling`]).
     pub fn world_bounds(&self) -> (Vec3, Vec3) {
-        (self.origin, self.origin + self.last * self.spacing)
+        let (lo, hi) = self.sampled;
+        (
+            self.origin + lo * self.spacing,
+            self.origin + hi * self.spacing,
+        )
     }
 
     /// The most samples one ray can take through the volume at `step` (in units of
@@ -119,10 +138,24 @@ impl VolumeGeometry {
         (diagonal / dt).ceil() + 1.0
     }
 
-    /// The cells brick `b` owns, in voxel coordinates.
+    /// The positions whose samples brick `b` takes, in voxel coordinates: the
+    /// cells it owns, grown to the sampled box at the volume's faces
+    /// ([`Self::sampling`]; samples there read the edge voxels).
     pub fn brick_voxel_box(&self, b: [u32; 3]) -> (Vec3, Vec3) {
         let lo = Vec3::from(b.map(|c| c as f32)) * self.step;
-        (lo, (lo + Vec3::splat(self.step)).min(self.last))
+        let mut hi = (lo + Vec3::splat(self.step)).min(self.last).to_array();
+        let mut lo = lo.to_array();
+        let counts = self.grid.counts();
+        let (first, last) = (self.sampled.0.to_array(), self.sampled.1.to_array());
+        for a in 0..3 {
+            if b[a] == 0 {
+                lo[a] = first[a];
+            }
+            if b[a] + 1 == counts[a] {
+                hi[a] = last[a];
+            }
+        }
+        (Vec3::from(lo), Vec3::from(hi))
     }
 
     /// The cells brick `b` owns, in world coordinates.

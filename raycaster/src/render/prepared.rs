@@ -81,7 +81,8 @@ impl<'a> RenderVolume<'a> {
         };
         Ok(RenderVolume {
             volume,
-            geometry: VolumeGeometry::placed(grid, volume.spacing(), volume.origin()),
+            geometry: VolumeGeometry::placed(grid, volume.spacing(), volume.origin())
+                .sampling(volume.sampled_box()),
             ranges: volume.ranges(),
             cells: CellRanges::stored_or_lazy(&grid, volume.stored_cells()),
             labels: None,

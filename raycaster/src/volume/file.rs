@@ -60,6 +60,9 @@ pub struct Volume {
     levels: Vec<Volume>,
     /// Which pyramid level this is (0: the full-resolution volume).
     level: u32,
+    /// The full-resolution volume's voxels per axis (this volume's own for
+    /// level 0): the box every level samples ([`Volume::sampled_box`]).
+    full_dims: [u32; 3],
     /// Bytes after the file's last block (samples, range table, pyramid) that
     /// no part of the format accounts for: where they start and how many.
     unused_tail: Option<(u64, u64)>,
@@ -154,6 +157,7 @@ impl Volume {
         let content_end = content_end(&header).at(path)?;
         Ok(Volume {
             path: path.to_path_buf(),
+            full_dims: header.dims,
             header,
             storage,
             ranges,
@@ -207,6 +211,7 @@ impl Volume {
         let ranges = compute_ranges(&header, typed_data(&header, bytes).at(&path)?);
         Ok(Volume {
             path,
+            full_dims: header.dims,
             header,
             storage,
             ranges,
@@ -295,11 +300,30 @@ impl Volume {
     }
 
     /// Marks this volume as level `k` of a pyramid whose level 0 had `2^-k` times
-    /// its spacing: it is then placed and composited as [`Self::level`] `k` of such
-    /// a file would be (used to compare a pyramid with a separately reduced volume).
-    pub fn placed_as_level(mut self, k: u32) -> Volume {
+    /// its spacing and `full_dims` voxels: it is then placed, sampled and
+    /// composited as [`Self::level`] `k` of such a file would be (used to compare
+    /// a pyramid with a separately reduced volume).
+    pub fn placed_as_level(mut self, k: u32, full_dims: [u32; 3]) -> Volume {
         self.level = k;
+        self.full_dims = full_dims;
         self
+    }
+
+    /// The box rays sample, in this volume's voxel coordinates (lower and
+    /// upper corner): the full-resolution volume's, from the centre of its
+    /// first voxel to that of its last, whatever the level. Level 0 samples
+    /// `[0, dims − 1]`; a coarser level's voxel centres lie up to half a coarse
+    /// voxel inside that box, and its samples there read the edge voxels (reads
+    /// clamp to `[0, dims − 1]`), so every level shows the volume, and a cut,
+    /// at the same place and size.
+    pub fn sampled_box(&self) -> [[f32; 3]; 2] {
+        let scale = self.level_scale();
+        let first = -(scale - 1.0) / 2.0 / scale;
+        [
+            [first; 3],
+            self.full_dims
+                .map(|d| (d.saturating_sub(1) as f32 - (scale - 1.0) / 2.0) / scale),
+        ]
     }
 
     /// World position of voxel `(0, 0, 0)`: the origin for level 0; the centre of
@@ -602,6 +626,7 @@ fn read_levels(
                 cells,
                 levels: Vec::new(),
                 level: k as u32,
+                full_dims: base.dims,
                 unused_tail: None,
             })
         })
