@@ -679,7 +679,8 @@ fn connect(ui: &App, c: &Rc<Controller>) {
         .click_slice(axis, x, y, w, h));
     on!(on_slice_scrolled, |c, axis, delta| c
         .scroll_slice(axis, delta));
-    on!(on_slice_window_selected, |c, _index| c.update_slices());
+    on!(on_slice_window_selected, |c, index| c
+        .window_selected(index));
     on!(on_slice_zoom_changed, |c| c.update_slices());
     on!(on_slice_window_dragged, |c, _axis, dx, dy, start| c
         .drag_slice_window(dx, dy, start));
@@ -1523,6 +1524,21 @@ impl Controller {
             session.labels = None;
         }
         Some(session)
+    }
+
+    /// A choice in the slice window picker: the slices again, and a note when a
+    /// CT window meets values without units ([`crate::slices::named_window_note`]).
+    fn window_selected(&self, index: i32) {
+        self.update_slices();
+        let note = {
+            let st = self.state.borrow();
+            st.current.as_ref().and_then(|current| {
+                crate::slices::named_window_note(index.max(0) as usize, &current.volume.volume)
+            })
+        };
+        if let Some(note) = note {
+            self.show_message(&note, false);
+        }
     }
 
     /// The slice views as a session holds them.

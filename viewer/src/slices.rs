@@ -102,6 +102,24 @@ pub(crate) fn window(index: usize, fitted: [f32; 2], units: &ValueUnits) -> [f32
     }
 }
 
+/// What to say when window choice `index` is a named CT window (in Hounsfield
+/// units) and `volume` holds stored samples without value units that do not
+/// look like CT: the window then applies to the stored values as they are
+/// (`raycaster slice --window` warns the same way). `None` otherwise.
+pub(crate) fn named_window_note(index: usize, volume: &Volume) -> Option<String> {
+    let named = index.checked_sub(1).and_then(|i| NAMED_WINDOWS.get(i))?;
+    let plain = volume.value_units().is_identity() && !raycaster::windows::looks_like_ct(volume);
+    plain.then(|| {
+        let [lo, hi] = named.range();
+        format!(
+            "the {} window is a CT window in Hounsfield units, and this volume holds values \
+             without units: it shows stored values {lo} to {hi} (right-drag a slice for a \
+             window of its own)",
+            named.name
+        )
+    })
+}
+
 /// A window as people read it, in the file's units: `-1350 HU .. 150 HU`.
 pub(crate) fn describe_window([lo, hi]: [f32; 2], units: &ValueUnits) -> String {
     format!(
@@ -215,23 +233,25 @@ pub(crate) fn slice_image(
     let (u, v) = (layout.columns, layout.rows);
     let col = layout.column(at(u).min(w - 1), w);
     let row = layout.row(at(v).min(h - 1), h);
-    // Lines stay visible when the view shows the image smaller than it is: a
-    // line is one pixel per LINE_SPAN pixels of the image's side thick.
+    // The part shown, zoomed about the crosshair.
+    let (x0, cw) = zoom_span(w, col.min(w - 1), zoom);
+    let (y0, ch) = zoom_span(h, row, zoom);
+    // Lines stay visible when the view shows the part smaller than it is, and
+    // thin when zoomed in: a line is one pixel per LINE_SPAN pixels of the
+    // shown part's side thick.
     let thick = |len: u32| len.div_ceil(LINE_SPAN).max(1);
-    for x in col.min(w - 1)..(col.min(w - 1) + thick(w)).min(w) {
+    for x in col.min(w - 1)..(col.min(w - 1) + thick(cw)).min(w) {
         for y in 0..h {
             let i = ((y * w + x) * 3) as usize;
             rgb[i..i + 3].copy_from_slice(&AXIS_COLOURS[u]);
         }
     }
-    for y in row..(row + thick(h)).min(h) {
+    for y in row..(row + thick(ch)).min(h) {
         for x in 0..w {
             let i = ((y * w + x) * 3) as usize;
             rgb[i..i + 3].copy_from_slice(&AXIS_COLOURS[v]);
         }
     }
-    let (x0, cw) = zoom_span(w, col.min(w - 1), zoom);
-    let (y0, ch) = zoom_span(h, row, zoom);
     if (cw, ch) == (w, h) {
         return Ok((RgbImage::new(w, h, rgb), [0, 0]));
     }
@@ -350,6 +370,41 @@ mod tests {
         assert_eq!(describe_window(w, &hu), "-1350 HU .. 150 HU");
         assert_eq!(window_names().len(), NAMED_WINDOWS.len() + 2);
         assert_eq!(window_names().last().unwrap(), CUSTOM_WINDOW);
+    }
+
+    #[test]
+    fn ct_windows_on_values_without_units_are_said_to_apply_to_stored_values() {
+        let dir = tempfile::tempdir().unwrap();
+        let volume = gradient_file(dir.path(), [8, 8, 8]);
+        let lung = NAMED_WINDOWS.iter().position(|w| w.name == "lung").unwrap() + 1;
+        let note = named_window_note(lung, &volume).unwrap();
+        assert!(
+            note.starts_with("the lung window is a CT window in Hounsfield units"),
+            "{note}"
+        );
+        assert!(note.contains("stored values -1350 to 150"), "{note}");
+        // The fitted window and the custom one say nothing.
+        assert_eq!(named_window_note(0, &volume), None);
+        assert_eq!(named_window_note(window_names().len() - 1, &volume), None);
+        // CT values (signed 16-bit, kept with their offset) take it as meant.
+        let mut bytes = b"NRRD0004\ntype: short\ndimension: 3\nsizes: 4 4 4\n\
+endian: little\nencoding: raw\n\n"
+            .to_vec();
+        for i in 0..64i16 {
+            bytes.extend_from_slice(&(i * 40 - 1024).to_le_bytes());
+        }
+        let path = dir.path().join("ct.nrrd");
+        std::fs::write(&path, bytes).unwrap();
+        let ct = raycaster::import::open(&path)
+            .unwrap()
+            .to_volume_noting(
+                raycaster::import::DEFAULT_IN_MEMORY_LIMIT,
+                &raycaster::job::Job::silent(),
+            )
+            .unwrap()
+            .0;
+        assert!(!ct.value_units().is_identity());
+        assert_eq!(named_window_note(lung, &ct), None);
     }
 
     #[test]
@@ -506,6 +561,21 @@ mod tests {
             assert_eq!(px(10, y), AXIS_COLOURS[1], "row {y}");
         }
         assert_ne!(px(10, 153), AXIS_COLOURS[1]);
+        // Zoomed 8×: 75 × 38 pixels shown, and lines one pixel thick (not the
+        // whole slice's 5 and 3, which the view would blow up eightfold).
+        let (zoomed, at) = slice_image(&volume, 0, Axis::Z, &c, [0.0, 255.0], 8.0).unwrap();
+        let (zw, zh) = (zoomed.width(), zoomed.height());
+        assert_eq!((zw, zh), (75, 38));
+        let zpx = |x: u32, y: u32| {
+            let i = ((y * zw + x) * 3) as usize;
+            [zoomed.data()[i], zoomed.data()[i + 1], zoomed.data()[i + 2]]
+        };
+        let (col, row) = (299 - at[0], 150 - at[1]);
+        let away = if row > 2 { 0 } else { zh - 1 };
+        assert_eq!(zpx(col, away), AXIS_COLOURS[0]);
+        assert_ne!(zpx(col + 1, away), AXIS_COLOURS[0]);
+        assert_eq!(zpx(0, row), AXIS_COLOURS[1]);
+        assert_ne!(zpx(0, row + 1), AXIS_COLOURS[1]);
     }
 
     #[test]

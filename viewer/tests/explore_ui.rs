@@ -12,6 +12,7 @@ use std::time::{Duration, Instant};
 mod support;
 use support::{element, generate_file, wait_for_frame};
 
+use i_slint_backend_testing::ElementHandle;
 use raycaster::render::{CropBox, Vec3};
 use raycaster::session::Session;
 use raycaster::slice::{Axis, Slice};
@@ -102,6 +103,26 @@ fn the_viewer_cuts_slices_and_remembers_files() {
     );
     let cropped = frame(&v);
     assert_ne!(cropped, whole, "the crop changes the picture");
+    // Each row's label says the voxels kept, as the crop box has them.
+    let labels: Vec<String> = ElementHandle::find_by_element_id(v.ui(), "CropRow::label")
+        .map(|e| e.accessible_label().unwrap_or_default().to_string())
+        .collect();
+    assert_eq!(labels[0], "x 0 .. 24 of 0 .. 47 voxels", "{labels:?}");
+    // Both z sliders at the top keep the last voxel's slab, 46 .. 47, and
+    // say so (the label said 47 .. 47).
+    v.ui().set_crop_z0(1.0);
+    v.ui().invoke_cut_changed(false);
+    settle(&v);
+    let z = ElementHandle::find_by_element_id(v.ui(), "CropRow::label")
+        .nth(2)
+        .and_then(|e| e.accessible_label())
+        .unwrap_or_default();
+    assert_eq!(z, "z 46 .. 47 of 0 .. 47 voxels");
+    assert_eq!(crop_of(&v).map(|c| (c.lo.z, c.hi.z)), Some((46.0, 47.0)));
+    v.ui().set_crop_z0(0.0);
+    v.ui().invoke_cut_changed(false);
+    settle(&v);
+    assert_eq!(frame(&v), cropped, "the z sliders back: the same picture");
 
     // The clipping plane: enabled, moved and turned with its sliders.
     v.ui().set_plane_enabled(true);
