@@ -121,11 +121,21 @@ pub(crate) fn named_window_note(index: usize, volume: &Volume) -> Option<String>
 }
 
 /// A window as people read it, in the file's units: `-1350 HU .. 150 HU`.
+/// A window dragged by hand reads to a thousandth of its width or finer
+/// (`-1163 .. 1340`, not `-1162.8672 .. 1340.0078`).
 pub(crate) fn describe_window([lo, hi]: [f32; 2], units: &ValueUnits) -> String {
+    let (lo, hi) = (units.value(f64::from(lo)), units.value(f64::from(hi)));
+    let span = (hi - lo).abs();
+    let unit = if span.is_finite() && span > 0.0 {
+        10f64.powf(span.log10().floor() - 3.0)
+    } else {
+        1.0
+    };
+    let rounded = |v: f64| (v / unit).round() * unit;
     format!(
         "{} .. {}",
-        units.format(units.value(f64::from(lo))),
-        units.format(units.value(f64::from(hi)))
+        units.format(rounded(lo)),
+        units.format(rounded(hi))
     )
 }
 
@@ -368,6 +378,16 @@ mod tests {
         let w = window(lung + 1, [1.0, 2.0], &hu);
         assert_eq!(w, [32768.0 - 1350.0, 32768.0 + 150.0]);
         assert_eq!(describe_window(w, &hu), "-1350 HU .. 150 HU");
+        // A window dragged by hand: to a thousandth of its width.
+        assert_eq!(
+            describe_window([31605.133, 34108.008], &hu),
+            "-1163 HU .. 1340 HU"
+        );
+        let plain = ValueUnits::new(1.0, 0.0, "").unwrap();
+        assert_eq!(
+            describe_window([0.12341, 0.62347], &plain),
+            "0.1234 .. 0.6235"
+        );
         assert_eq!(window_names().len(), NAMED_WINDOWS.len() + 2);
         assert_eq!(window_names().last().unwrap(), CUSTOM_WINDOW);
     }
