@@ -5,7 +5,7 @@
 //! *owns* the cells `[b·step, (b+1)·step]` per axis (the last one up to `dims − 1`):
 //! every sample position belongs to exactly one brick, found by [`Self::owner`].
 
-use glam::{Vec3, Vec3A};
+use glam::{UVec3, Vec3, Vec3A};
 
 use super::camera::Camera;
 use super::error::RenderError;
@@ -60,6 +60,8 @@ pub struct VolumeGeometry {
     /// The box rays sample, in voxel coordinates (`[0, last]` unless a pyramid
     /// level's is set: [`Self::sampling`]).
     sampled: (Vec3, Vec3),
+    /// That box in world coordinates ([`Self::world_bounds`], asked per ray).
+    world: (Vec3, Vec3),
     step: f32,
 }
 
@@ -80,8 +82,10 @@ impl VolumeGeometry {
             spacing: Vec3::from(spacing),
             last,
             sampled: (Vec3::ZERO, last),
+            world: (Vec3::ZERO, Vec3::ZERO),
             step: grid.step() as f32,
         }
+        .sampling([[0.0; 3], last.to_array()])
     }
 
     /// The same geometry with rays sampling the box `[lo, hi]` (voxel
@@ -91,6 +95,10 @@ impl VolumeGeometry {
     /// there clamp to the edge voxels, and the edge bricks own those samples.
     pub fn sampling(mut self, [lo, hi]: [[f32; 3]; 2]) -> Self {
         self.sampled = (Vec3::from(lo), Vec3::from(hi));
+        self.world = (
+            self.origin + self.sampled.0 * self.spacing,
+            self.origin + self.sampled.1 * self.spacing,
+        );
         self
     }
 
@@ -121,11 +129,7 @@ impl VolumeGeometry {
 
     /// The world box rays sample: the volume's ([`Self::sampling`]).
     pub fn world_bounds(&self) -> (Vec3, Vec3) {
-        let (lo, hi) = self.sampled;
-        (
-            self.origin + lo * self.spacing,
-            self.origin + hi * self.spacing,
-        )
+        self.world
     }
 
     /// The most samples one ray can take through the volume at `step` (in units of
@@ -143,19 +147,13 @@ impl VolumeGeometry {
     /// ([`Self::sampling`]; samples there read the edge voxels).
     pub fn brick_voxel_box(&self, b: [u32; 3]) -> (Vec3, Vec3) {
         let lo = Vec3::from(b.map(|c| c as f32)) * self.step;
-        let mut hi = (lo + Vec3::splat(self.step)).min(self.last).to_array();
-        let mut lo = lo.to_array();
-        let counts = self.grid.counts();
-        let (first, last) = (self.sampled.0.to_array(), self.sampled.1.to_array());
-        for a in 0..3 {
-            if b[a] == 0 {
-                lo[a] = first[a];
-            }
-            if b[a] + 1 == counts[a] {
-                hi[a] = last[a];
-            }
-        }
-        (Vec3::from(lo), Vec3::from(hi))
+        let hi = (lo + Vec3::splat(self.step)).min(self.last);
+        let b = UVec3::from(b);
+        let last_brick = UVec3::from(self.grid.counts()) - UVec3::ONE;
+        (
+            Vec3::select(b.cmpeq(UVec3::ZERO), self.sampled.0, lo),
+            Vec3::select(b.cmpeq(last_brick), self.sampled.1, hi),
+        )
     }
 
     /// The cells brick `b` owns, in world coordinates.
