@@ -595,7 +595,11 @@ impl Setup {
                 session.settings.simd = args.simd.0;
                 let volume = open_volume(&session.source, args)
                     .with_context(|| format!("{}: the session's `volume`", path.display()))?;
-                if let Err(e) = session.settings.clip.check_overlaps(volume.dims(), 1.0) {
+                if let Err(e) = session
+                    .settings
+                    .clip
+                    .check_overlaps(volume.sampled_box(), 1.0)
+                {
                     bail!("{}: `crop`: {e}", path.display());
                 }
                 if let (Some(warning), LevelChoice::Fixed(k)) =

@@ -100,31 +100,27 @@ impl ClipRegion {
 
     /// Refuses a crop box that lies outside the volume along an axis (its
     /// picture would be empty; `raycaster render --crop` refuses it the same
-    /// way, by the flag's name). The box is in full-resolution voxels, as
-    /// [`RenderSettings::clip`](super::RenderSettings::clip) holds it; `dims`
-    /// are those of the level rendered, whose voxels span `scale` (`2^k`)
+    /// way, by the flag's name). (A clipping plane with the whole volume on its
+    /// cut side is kept: the viewer's plane slider reaches past the volume, and
+    /// the frame is background.) The region is in full-resolution
+    /// voxels, as [`RenderSettings::clip`](super::RenderSettings::clip) holds
+    /// it; `sampled` is the box the level rendered samples, in its voxels
+    /// ([`crate::volume::Volume::sampled_box`]), which span `scale` (`2^k`)
     /// full-resolution ones ([`Self::at_level`]).
-    pub fn check_overlaps(&self, dims: [u32; 3], scale: f32) -> Result<(), RenderError> {
-        let Some(CropBox { lo, hi }) = self.crop else {
-            return Ok(());
-        };
-        let Some(CropBox {
-            lo: level_lo,
-            hi: level_hi,
-        }) = self.at_level(scale).crop
-        else {
-            return Ok(());
-        };
-        for (a, name) in ["x", "y", "z"].into_iter().enumerate() {
-            let last = dims[a].saturating_sub(1) as f32;
-            // (Half a voxel of slack: a coarser level's voxels reach that far
-            // past the full-resolution volume's, in its coordinates.)
-            if level_hi[a] < -0.5 || level_lo[a] > last + 0.5 {
-                // The level's extent in full-resolution voxels.
-                let full = (last + 1.0) * scale - 1.0;
-                return Err(RenderError::Clip(format!(
-                    "crop box {lo} – {hi} lies outside the volume along {name} (0..{full} voxels)"
-                )));
+    pub fn check_overlaps(&self, sampled: [[f32; 3]; 2], scale: f32) -> Result<(), RenderError> {
+        let level = self.at_level(scale);
+        let [first, last] = sampled.map(Vec3::from);
+        // The sampled box's upper corner in full-resolution voxels.
+        let full = last * scale + (scale - 1.0) / 2.0;
+        if let (Some(CropBox { lo, hi }), Some(at_level)) = (self.crop, level.crop) {
+            for (a, name) in ["x", "y", "z"].into_iter().enumerate() {
+                // (Half a voxel of slack, in the level's voxels.)
+                if at_level.hi[a] < first[a] - 0.5 || at_level.lo[a] > last[a] + 0.5 {
+                    return Err(RenderError::Clip(format!(
+                        "crop box {lo} – {hi} lies outside the volume along {name} (0..{} voxels)",
+                        full[a]
+                    )));
+                }
             }
         }
         Ok(())
@@ -324,7 +320,7 @@ mod tests {
             planes: Vec::new(),
         };
         let e = boxed([0.0, 40.0, 0.0], [9.0, 50.0, 9.0])
-            .check_overlaps([32; 3], 1.0)
+            .check_overlaps([[0.0; 3], [31.0; 3]], 1.0)
             .unwrap_err()
             .to_string();
         assert!(
@@ -333,32 +329,38 @@ mod tests {
         );
         assert!(
             boxed([0.0, 20.0, 0.0], [9.0, 50.0, 9.0])
-                .check_overlaps([32; 3], 1.0)
+                .check_overlaps([[0.0; 3], [31.0; 3]], 1.0)
                 .is_ok()
         );
         assert!(
             boxed([0.0, 31.4, 0.0], [9.0, 50.0, 9.0])
-                .check_overlaps([32; 3], 1.0)
+                .check_overlaps([[0.0; 3], [31.0; 3]], 1.0)
                 .is_ok()
         );
         assert!(
             boxed([-9.0, 0.0, 0.0], [-1.0, 9.0, 9.0])
-                .check_overlaps([32; 3], 1.0)
+                .check_overlaps([[0.0; 3], [31.0; 3]], 1.0)
                 .is_err()
         );
         // The box is in full-resolution voxels whatever level is rendered: a
         // box in the far half of a 512-voxel axis overlaps pyramid level 3
         // (64 voxels of 8), and one past the volume's end does not.
+        // lung1 (512 × 512 × 48) at level 3: 64 × 64 × 6 voxels of 8, sampled
+        // from the full-resolution box's faces.
+        const LUNG_LEVEL_3: [[f32; 3]; 2] = [[-0.4375; 3], [63.4375, 63.4375, 5.4375]];
         let far = boxed([0.0, 229.95, 0.0], [511.0, 511.0, 47.0]);
-        assert!(far.check_overlaps([64, 64, 6], 8.0).is_ok());
-        assert!(far.check_overlaps([512, 512, 48], 1.0).is_ok());
+        assert!(far.check_overlaps(LUNG_LEVEL_3, 8.0).is_ok());
+        assert!(
+            far.check_overlaps([[0.0; 3], [511.0, 511.0, 47.0]], 1.0)
+                .is_ok()
+        );
         assert!(
             boxed([0.0, 511.0, 0.0], [9.0, 511.0, 9.0])
-                .check_overlaps([64, 64, 6], 8.0)
+                .check_overlaps(LUNG_LEVEL_3, 8.0)
                 .is_ok()
         );
         let e = boxed([0.0, 530.0, 0.0], [9.0, 600.0, 9.0])
-            .check_overlaps([64, 64, 6], 8.0)
+            .check_overlaps(LUNG_LEVEL_3, 8.0)
             .unwrap_err()
             .to_string();
         assert!(

@@ -248,7 +248,7 @@ impl FramePlan {
         settings.clip.validate()?;
         settings
             .clip
-            .check_overlaps(volume.volume().dims(), volume.volume().level_scale())?;
+            .check_overlaps(volume.volume().sampled_box(), volume.volume().level_scale())?;
         let simd = match settings.simd {
             None => SimdLevel::automatic(),
             Some(level) if level.is_available() => level,
