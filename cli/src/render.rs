@@ -624,6 +624,19 @@ impl Setup {
                 (volume, session)
             }
         };
+        if let Some(plane) = session
+            .settings
+            .clip
+            .plane_keeping_nothing(volume.sampled_box())
+            && !args.quiet
+        {
+            eprintln!(
+                "warning: the clipping plane through {} with normal {} keeps nothing of {}: the picture is background (a plane keeps the side its normal points into)",
+                plane.point,
+                plane.normal,
+                volume.path().display()
+            );
+        }
         // How the user names another label volume: a flag, or the session's field.
         let labels_advice = if args.session.is_some() {
             "a session's `volume.labels` names another"

@@ -496,3 +496,38 @@ fn a_crop_box_renders_at_every_pyramid_level() {
         assert!(lit > 100, "--level {level}: {lit} lit pixels");
     }
 }
+
+/// A clipping plane with the whole volume on its cut side renders background,
+/// and says so once; a plane through the volume says nothing.
+#[test]
+fn a_plane_that_keeps_nothing_is_warned_of() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |clip: &str| {
+        let out = raycaster(
+            &[
+                "render",
+                "--scene-size",
+                "32",
+                "--size",
+                "24x24",
+                "--clip",
+                clip,
+                "-o",
+                "p.png",
+                "--force",
+            ],
+            dir.path(),
+        );
+        assert!(out.status.success(), "{}", stderr(&out));
+        stderr(&out)
+    };
+    let said = run("40,0,0,1,0,0");
+    assert_eq!(
+        said.matches("warning: the clipping plane through [40, 0, 0] with normal [1, 0, 0] keeps nothing of built-in shapes scene 32³: the picture is background").count(),
+        1,
+        "{said}"
+    );
+    let image = RgbImage::load_png(&dir.path().join("p.png")).unwrap();
+    assert!(image.data().iter().all(|&c| c == 0));
+    assert!(!run("16,0,0,1,0,0").contains("warning"));
+}

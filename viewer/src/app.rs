@@ -1191,11 +1191,28 @@ impl Controller {
     /// Describes the clipping plane under its sliders.
     fn show_cut(&self) {
         let Some(ui) = self.ui() else { return };
-        let region = Self::clip(&ui, &self.state.borrow());
+        let st = self.state.borrow();
+        let region = Self::clip(&ui, &st);
+        let keeps_nothing = st.current.as_ref().is_some_and(|c| {
+            region
+                .plane_keeping_nothing(c.volume.volume.sampled_box())
+                .is_some()
+        });
+        drop(st);
         let text = match region.planes.first() {
             Some(p) => format!(
-                "plane through ({:.0}, {:.0}, {:.0}), normal ({:.2}, {:.2}, {:.2}) (voxels)",
-                p.point.x, p.point.y, p.point.z, p.normal.x, p.normal.y, p.normal.z
+                "plane through ({:.0}, {:.0}, {:.0}), normal ({:.2}, {:.2}, {:.2}) (voxels){}",
+                p.point.x,
+                p.point.y,
+                p.point.z,
+                p.normal.x,
+                p.normal.y,
+                p.normal.z,
+                if keeps_nothing {
+                    ": it keeps nothing of the volume (it keeps the side its normal points into)"
+                } else {
+                    ""
+                }
             ),
             None => "no clipping plane".into(),
         };

@@ -141,6 +141,22 @@ fn the_viewer_cuts_slices_and_remembers_files() {
     let half = Vec3::splat(47.0).length() / 2.0;
     assert!((along + 0.1 * half).abs() < 1e-3, "offset {along}");
     assert!(v.ui().get_plane_info().contains("normal"));
+    assert!(!v.ui().get_plane_info().contains("keeps nothing"));
+    // Moved past the volume, the plane keeps nothing, and says so.
+    v.ui().set_plane_offset(1.0);
+    v.ui().invoke_cut_changed(false);
+    settle(&v);
+    assert!(
+        v.ui()
+            .get_plane_info()
+            .contains("it keeps nothing of the volume"),
+        "{}",
+        v.ui().get_plane_info()
+    );
+    v.ui().set_plane_offset(-0.1);
+    v.ui().invoke_cut_changed(false);
+    settle(&v);
+    assert!(!v.ui().get_plane_info().contains("keeps nothing"));
     let cut = frame(&v);
     assert_ne!(cut, cropped, "the plane cuts more away");
 

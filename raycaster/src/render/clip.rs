@@ -201,12 +201,27 @@ impl ClipRegion {
         {
             return true;
         }
-        self.planes.iter().any(|p| {
-            let n = p.normal.normalize_or_zero();
-            // The box corner farthest along the normal.
-            let corner = Vec3::select(n.cmpge(Vec3::ZERO), hi, lo);
-            (corner - p.point).dot(n) < -CUT_MARGIN
-        })
+        self.planes.iter().any(|p| p.cuts_away(lo, hi))
+    }
+
+    /// The first of the region's planes that keeps nothing of the box the
+    /// volume samples (`sampled`, full-resolution voxels:
+    /// [`crate::volume::Volume::sampled_box`]), which then renders background:
+    /// what front ends warn of.
+    pub fn plane_keeping_nothing(&self, sampled: [[f32; 3]; 2]) -> Option<ClipPlane> {
+        let [lo, hi] = sampled.map(Vec3::from);
+        self.planes.iter().copied().find(|p| p.cuts_away(lo, hi))
+    }
+}
+
+impl ClipPlane {
+    /// Whether the voxel box `[lo, hi]` lies wholly on the plane's cut side,
+    /// by more than a rounding margin.
+    fn cuts_away(&self, lo: Vec3, hi: Vec3) -> bool {
+        let n = self.normal.normalize_or_zero();
+        // The box corner farthest along the normal.
+        let corner = Vec3::select(n.cmpge(Vec3::ZERO), hi, lo);
+        (corner - self.point).dot(n) < -CUT_MARGIN
     }
 }
 
@@ -367,6 +382,31 @@ mod tests {
             e.contains("lies outside the volume along y (0..511 voxels)"),
             "{e}"
         );
+        // A plane with the whole volume on its cut side keeps nothing (kept:
+        // the frame is background), one facing the other way everything.
+        let planes = |x: f32, nx: f32| ClipRegion {
+            crop: None,
+            planes: vec![
+                ClipPlane {
+                    point: Vec3::splat(16.0),
+                    normal: Vec3::Y,
+                },
+                ClipPlane {
+                    point: Vec3::new(x, 0.0, 0.0),
+                    normal: Vec3::new(nx, 0.0, 0.0),
+                },
+            ],
+        };
+        let cube = [[0.0; 3], [31.0; 3]];
+        assert_eq!(
+            planes(40.0, 1.0)
+                .plane_keeping_nothing(cube)
+                .map(|p| p.point.x),
+            Some(40.0)
+        );
+        assert!(planes(40.0, 1.0).check_overlaps(cube, 1.0).is_ok());
+        assert_eq!(planes(40.0, -1.0).plane_keeping_nothing(cube), None);
+        assert_eq!(planes(30.5, 1.0).plane_keeping_nothing(cube), None);
         let zero = ClipRegion {
             crop: None,
             planes: vec![ClipPlane {
