@@ -90,14 +90,12 @@ impl WindowArg {
         let WindowArg::Named(named) = self else {
             return None;
         };
-        (volume.value_units().is_identity() && !raycaster::windows::looks_like_ct(volume)).then(
-            || {
-                format!(
-                    "warning: {flag} {}: a CT window in Hounsfield units, and {name} holds stored samples without value units; {flag} LO,HI gives a range in its own values",
-                    named.name
-                )
-            },
-        )
+        raycaster::windows::ct_window_misreads(volume).then(|| {
+            format!(
+                "warning: {flag} {}: a CT window in Hounsfield units, and {name} holds stored samples without value units; {flag} LO,HI gives a range in its own values",
+                named.name
+            )
+        })
     }
 }
 

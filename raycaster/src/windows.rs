@@ -146,6 +146,14 @@ pub fn looks_like_ct(volume: &Volume) -> bool {
     from_i16 && units.value(f64::from(lo)) <= -900.0 && units.value(f64::from(hi)) >= 0.0
 }
 
+/// Whether a named CT window (in Hounsfield units) would window `volume`'s
+/// numbers as something they are not: stored samples without value units
+/// that do not look like CT ([`looks_like_ct`]). Front ends warn of it; the
+/// window then applies to the stored values as they are.
+pub fn ct_window_misreads(volume: &Volume) -> bool {
+    volume.value_units().is_identity() && !looks_like_ct(volume)
+}
+
 /// The 0.5th..99.5th percentile of stored values, from the coarsest pyramid level
 /// or a strided sample of a small volume; `None` when neither is cheap or the
 /// values are flat.

@@ -108,8 +108,7 @@ pub(crate) fn window(index: usize, fitted: [f32; 2], units: &ValueUnits) -> [f32
 /// (`raycaster slice --window` warns the same way). `None` otherwise.
 pub(crate) fn named_window_note(index: usize, volume: &Volume) -> Option<String> {
     let named = index.checked_sub(1).and_then(|i| NAMED_WINDOWS.get(i))?;
-    let plain = volume.value_units().is_identity() && !raycaster::windows::looks_like_ct(volume);
-    plain.then(|| {
+    raycaster::windows::ct_window_misreads(volume).then(|| {
         let [lo, hi] = named.range();
         format!(
             "the {} window is a CT window in Hounsfield units, and this volume holds values \

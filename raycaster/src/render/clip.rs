@@ -12,6 +12,7 @@ use glam::Vec3;
 
 use super::error::RenderError;
 use super::ray::Ray;
+use crate::volume::{full_resolution_coordinate, level_coordinate};
 
 /// The most clipping planes a [`ClipRegion`] takes.
 pub const MAX_CLIP_PLANES: usize = 6;
@@ -111,7 +112,7 @@ impl ClipRegion {
         let level = self.at_level(scale);
         let [first, last] = sampled.map(Vec3::from);
         // The sampled box's upper corner in full-resolution voxels.
-        let full = last * scale + (scale - 1.0) / 2.0;
+        let full = sampled[1].map(|c| full_resolution_coordinate(c, scale));
         if let (Some(CropBox { lo, hi }), Some(at_level)) = (self.crop, level.crop) {
             for (a, name) in ["x", "y", "z"].into_iter().enumerate() {
                 // (Half a voxel of slack, in the level's voxels.)
@@ -133,7 +134,7 @@ impl ClipRegion {
         if scale == 1.0 {
             return self.clone();
         }
-        let map = |p: Vec3| (p - (scale - 1.0) / 2.0) / scale;
+        let map = |p: Vec3| Vec3::from(p.to_array().map(|c| level_coordinate(c, scale)));
         ClipRegion {
             crop: self.crop.map(|c| CropBox {
                 lo: map(c.lo),

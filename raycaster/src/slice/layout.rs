@@ -88,15 +88,10 @@ impl PlaneLayout {
             return plain;
         };
         // Each voxel axis's nearest patient axis, and whether it grows along it.
-        let nearest = orientation.axes.map(|d| {
-            let (patient, value) = d
-                .iter()
-                .copied()
-                .enumerate()
-                .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
-                .expect("three components");
-            (patient, value > 0.0)
-        });
+        let [Some(x), Some(y), Some(z)] = orientation.axes.map(Orientation::nearest_axis) else {
+            return plain;
+        };
+        let nearest = [x, y, z];
         let plane = match nearest[axis.index()].0 {
             0 => AnatomicalPlane::Sagittal,
             1 => AnatomicalPlane::Coronal,

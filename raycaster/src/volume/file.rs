@@ -68,6 +68,19 @@ pub struct Volume {
     unused_tail: Option<(u64, u64)>,
 }
 
+/// Where full-resolution voxel coordinate `p` lies among the voxels of a
+/// pyramid level whose voxels span `scale` (`2^k`) full-resolution ones: level
+/// voxel 0 is centred on the first `scale` of them, at `(scale − 1)/2`.
+pub fn level_coordinate(p: f32, scale: f32) -> f32 {
+    (p - (scale - 1.0) / 2.0) / scale
+}
+
+/// The inverse of [`level_coordinate`]: level voxel coordinate `q` in
+/// full-resolution voxels.
+pub fn full_resolution_coordinate(q: f32, scale: f32) -> f32 {
+    q * scale + (scale - 1.0) / 2.0
+}
+
 /// Reads and validates the header of the volume file `path` (without mapping it).
 pub fn read_header(path: &Path) -> Result<(Header, File, u64), VolumeError> {
     // Regular files only: a named pipe would block the read below forever.
@@ -318,11 +331,10 @@ impl Volume {
     /// at the same place and size.
     pub fn sampled_box(&self) -> [[f32; 3]; 2] {
         let scale = self.level_scale();
-        let first = -(scale - 1.0) / 2.0 / scale;
         [
-            [first; 3],
+            [level_coordinate(0.0, scale); 3],
             self.full_dims
-                .map(|d| (d.saturating_sub(1) as f32 - (scale - 1.0) / 2.0) / scale),
+                .map(|d| level_coordinate(d.saturating_sub(1) as f32, scale)),
         ]
     }
 

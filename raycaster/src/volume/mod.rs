@@ -26,8 +26,8 @@ pub use cells::{
 pub use error::{VolumeError, VolumeErrorKind};
 pub(crate) use file::content_end;
 pub use file::{
-    OpenOptions, Volume, VolumeData, has_vol_extension, ranges_sidecar_path, read_header,
-    unused_tail_warning, write_pyramid_sidecar,
+    OpenOptions, Volume, VolumeData, full_resolution_coordinate, has_vol_extension,
+    level_coordinate, ranges_sidecar_path, read_header, unused_tail_warning, write_pyramid_sidecar,
 };
 pub use grid::BlockGrid;
 pub use header::{

@@ -161,12 +161,20 @@ impl Orientation {
     /// The patient direction letter (`L`, `R`, `P`, `A`, `S`, `I`) closest to the
     /// LPS direction `v`; `None` for a zero vector.
     pub fn letter(v: [f64; 3]) -> Option<char> {
+        let (axis, along) = Orientation::nearest_axis(v)?;
+        Some(TOWARDS[axis][usize::from(!along)])
+    }
+
+    /// The patient axis (LPS: 0 L, 1 P, 2 S) nearest the LPS direction `v`,
+    /// and whether `v` points along it (else against it); `None` for a zero
+    /// vector.
+    pub fn nearest_axis(v: [f64; 3]) -> Option<(usize, bool)> {
         let (axis, value) = v
             .iter()
             .copied()
             .enumerate()
             .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))?;
-        (value != 0.0).then(|| TOWARDS[axis][usize::from(value < 0.0)])
+        (value != 0.0).then_some((axis, value > 0.0))
     }
 
     /// The three letters naming where each voxel axis grows, e.g. `LPS` or `RAI`.
