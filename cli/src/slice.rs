@@ -119,6 +119,15 @@ pub fn run(args: SliceArgs) -> Result<()> {
     } else {
         PlaneLayout::patient(axis, volume.orientation())
     };
+    if plane.is_none() && !args.volume_axes && !args.quiet && volume.orientation().is_some() {
+        // Two of the voxel axes are nearest the same patient axis (an oblique
+        // volume at about 45°): there is no reading to show it in.
+        eprintln!(
+            "note: {}'s voxel axes lie about 45° from the patient's, so this slice has no \
+             anatomical reading: it keeps voxel order, as with --volume-axes",
+            args.file.display()
+        );
+    }
     let slice = Slice::extract_laid_out(&volume, axis, args.index, layout)
         .map_err(|e| anyhow::anyhow!("--index {}: {e}", args.index))?;
     let units = volume.value_units();
@@ -190,8 +199,17 @@ pub fn run(args: SliceArgs) -> Result<()> {
             }
             _ => (String::new(), String::new()),
         };
+        // The values shown black and white: the window asked for, else the
+        // slice's own range.
+        let shown = match args.window {
+            Some(window) => {
+                let [black, white] = window.values().map(|v| units.format(f64::from(v)));
+                format!("black at {black}, white at {white}; the slice's values {lo} to {hi}")
+            }
+            None => format!("values {lo} (black) to {hi} (white)"),
+        };
         eprintln!(
-            "wrote {} ({w}×{h}{stretched}, {plane}slice {} = {} of {}{seen}, values {lo} to {hi})",
+            "wrote {} ({w}×{h}{stretched}, {plane}slice {} = {} of {}{seen}, {shown})",
             args.output.display(),
             axis,
             args.index,

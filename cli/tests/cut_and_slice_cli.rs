@@ -383,10 +383,17 @@ fn sabella_mode_colours_by_depth_or_centroid() {
 /// index (i, j, k), placed in RAS space with unit axes (x grows to the
 /// patient's right, y anterior, z superior).
 fn write_ras_nrrd(dir: &Path, name: &str) {
-    let mut bytes = b"NRRD0004\ntype: unsigned short\ndimension: 3\nsizes: 20 12 9\n\
-space: right-anterior-superior\nspace directions: (1,0,0) (0,1,0) (0,0,1)\n\
+    write_nrrd_with_axes(dir, name, "(1,0,0) (0,1,0) (0,0,1)");
+}
+
+/// [`write_ras_nrrd`] with the voxel axes' RAS directions `directions`.
+fn write_nrrd_with_axes(dir: &Path, name: &str, directions: &str) {
+    let mut bytes = format!(
+        "NRRD0004\ntype: unsigned short\ndimension: 3\nsizes: 20 12 9\n\
+space: right-anterior-superior\nspace directions: {directions}\n\
 space origin: (0,0,0)\nendian: little\nencoding: raw\n\n"
-        .to_vec();
+    )
+    .into_bytes();
     for k in 0..9u16 {
         for j in 0..12u16 {
             for i in 0..20u16 {
@@ -395,6 +402,48 @@ space origin: (0,0,0)\nendian: little\nencoding: raw\n\n"
         }
     }
     std::fs::write(dir.join(name), bytes).unwrap();
+}
+
+/// A volume turned 45° about the patient's z has no axial reading: the slice
+/// keeps voxel order and says so (it did so without a word).
+#[test]
+fn a_slice_with_no_anatomical_reading_says_it_keeps_voxel_order() {
+    let dir = tempfile::tempdir().unwrap();
+    write_nrrd_with_axes(
+        dir.path(),
+        "turned.nrrd",
+        "(0.7071068,0.7071068,0) (-0.7071068,0.7071068,0) (0,0,1)",
+    );
+    let slice = |extra: &[&str]| {
+        let mut args = vec![
+            "slice",
+            "turned.nrrd",
+            "--axis",
+            "z",
+            "--index",
+            "4",
+            "-o",
+            "s.png",
+            "--force",
+        ];
+        args.extend_from_slice(extra);
+        let out = raycaster(&args, dir.path());
+        assert!(out.status.success(), "{}", stderr(&out));
+        let image = RgbImage::load_png(&dir.path().join("s.png")).unwrap();
+        (image, stderr(&out))
+    };
+    let (read, said) = slice(&[]);
+    assert!(
+        said.contains("voxel axes lie about 45° from the patient's")
+            && said.contains("keeps voxel order"),
+        "{said}"
+    );
+    assert!(!said.contains("axial"), "{said}");
+    let (plain, plain_said) = slice(&["--volume-axes"]);
+    assert_eq!(read, plain);
+    assert!(!plain_said.contains("45°"), "{plain_said}");
+    let (_, quiet_said) = slice(&["--quiet"]);
+    assert!(quiet_said.is_empty(), "{quiet_said}");
 }
 
 #[test]

@@ -247,7 +247,22 @@ fn slice_windows_are_in_hounsfield_units_or_named() {
         d,
     );
     assert!(
-        stderr(&out).contains("values -1000 HU to 1000 HU"),
+        stderr(&out).contains("values -1000 HU (black) to 1000 HU (white)"),
+        "{}",
+        stderr(&out)
+    );
+    // With a window, the message names the window it used (it gave the slice's
+    // range alone), and still the slice's values.
+    let out = raycaster(
+        &[
+            "slice", "ct.vol", "--axis", "z", "--index", "20", "--window", "lung", "-o", "t.png",
+            "--force",
+        ],
+        d,
+    );
+    assert!(
+        stderr(&out)
+            .contains("black at -1350 HU, white at 150 HU; the slice's values -1000 HU to 1000 HU"),
         "{}",
         stderr(&out)
     );

@@ -774,7 +774,20 @@ fn broken_dicom_series_give_clear_errors() {
     // An empty folder.
     let empty = tempfile::tempdir().unwrap();
     let err = import::open(empty.path()).unwrap_err().to_string();
-    assert!(err.contains("no DICOM files"), "{err}");
+    assert!(
+        err.contains("a folder opens as a DICOM series, and it holds no files")
+            && !err.contains("header"),
+        "{err}"
+    );
+    // A folder of other files (it was an "invalid DICOM header").
+    std::fs::write(empty.path().join("notes.txt"), "not a slice").unwrap();
+    std::fs::write(empty.path().join("scan.raw"), [0u8; 300]).unwrap();
+    let err = import::open(empty.path()).unwrap_err().to_string();
+    assert!(
+        err.contains("none of its 2 files is DICOM (none has the DICM marker)")
+            && !err.contains("header"),
+        "{err}"
+    );
 }
 
 /// The value a sample of `v` stands for, in the file's units.

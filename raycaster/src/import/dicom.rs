@@ -325,17 +325,19 @@ fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
 pub fn open(path: &Path) -> Result<Imported, ImportError> {
     let dir = series_dir(path);
     let at_dir = |k: ImportErrorKind| ImportError::new(&dir, k);
-    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+    let plain: Vec<PathBuf> = std::fs::read_dir(&dir)
         .map_err(|e| at_dir(e.into()))?
         .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.is_file() && has_dicm_marker(p))
+        .filter(|p| p.is_file())
+        .collect();
+    let mut files: Vec<PathBuf> = plain
+        .iter()
+        .filter(|p| has_dicm_marker(p))
+        .cloned()
         .collect();
     files.sort();
     if files.is_empty() {
-        return Err(at_dir(header_error(
-            F,
-            "the folder holds no DICOM files (none has the DICM marker)",
-        )));
+        return Err(at_dir(ImportErrorKind::NoDicomFiles { files: plain.len() }));
     }
     let mut slices = Vec::with_capacity(files.len());
     for f in &files {

@@ -172,6 +172,12 @@ pub enum ImportErrorKind {
         "not a known volume format (expected .vol, .nrrd, .nhdr, .nii, .nii.gz, .hdr, .mha, .mhd, or a DICOM folder or .dcm file)"
     )]
     UnknownFormat,
+    /// A folder (opened as a DICOM series) holds no DICOM file.
+    #[error("{}", no_dicom_files_message(*files))]
+    NoDicomFiles {
+        /// The plain files it holds (none with the DICM marker).
+        files: usize,
+    },
     /// The volume is too large to be built in memory.
     #[error(
         "{samples} bytes of samples exceed the {limit}-byte limit for opening foreign files in memory; \
@@ -190,6 +196,16 @@ pub enum ImportErrorKind {
     /// Reading samples or building the volume failed.
     #[error("{0}")]
     Volume(#[from] VolumeError),
+}
+
+/// [`ImportErrorKind::NoDicomFiles`]'s text.
+fn no_dicom_files_message(files: usize) -> String {
+    let held = match files {
+        0 => "it holds no files".to_string(),
+        1 => "its one file is not DICOM (it has no DICM marker)".to_string(),
+        n => format!("none of its {n} files is DICOM (none has the DICM marker)"),
+    };
+    format!("a folder opens as a DICOM series, and {held}")
 }
 
 impl std::fmt::Display for ImportError {

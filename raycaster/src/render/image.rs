@@ -74,8 +74,18 @@ impl RgbImage {
         [self.data[i], self.data[i + 1], self.data[i + 2]]
     }
 
+    /// Whether every pixel is grey (its three channels equal).
+    pub fn is_grey(&self) -> bool {
+        self.data
+            .chunks_exact(3)
+            .all(|p| p[0] == p[1] && p[1] == p[2])
+    }
+
     /// Writes the image as PNG to `path`, atomically (a temporary file beside it
-    /// and a rename), so a failed write never leaves a partial file.
+    /// and a rename), so a failed write never leaves a partial file. An image
+    /// whose pixels are all grey ([`Self::is_grey`]: slices, grey transfer
+    /// functions) is written as an 8-bit greyscale PNG, a third of the pixel
+    /// data, which reads back as the same RGB.
     pub fn save_png(&self, path: &Path) -> Result<(), ImageError> {
         let io = |source| ImageError::Io {
             path: path.to_path_buf(),
@@ -89,13 +99,23 @@ impl RgbImage {
         {
             let mut encoder =
                 png::Encoder::new(BufWriter::new(tmp.as_file()), self.width, self.height);
-            encoder.set_color(png::ColorType::Rgb);
+            let grey = self.is_grey();
+            encoder.set_color(if grey {
+                png::ColorType::Grayscale
+            } else {
+                png::ColorType::Rgb
+            });
             encoder.set_depth(png::BitDepth::Eight);
             // fdeflate: several times faster than the default level for
             // rendered frames (smooth backgrounds), files a little larger.
             encoder.set_compression(png::Compression::Fast);
             let mut writer = encoder.write_header().map_err(png_err)?;
-            writer.write_image_data(&self.data).map_err(png_err)?;
+            if grey {
+                let levels: Vec<u8> = self.data.iter().step_by(3).copied().collect();
+                writer.write_image_data(&levels).map_err(png_err)?;
+            } else {
+                writer.write_image_data(&self.data).map_err(png_err)?;
+            }
             writer.finish().map_err(png_err)?;
         }
         tmp.persist(path).map_err(|e| io(e.error))?;
@@ -230,6 +250,31 @@ mod tests {
         assert_eq!(img.diff(&other).data[4], 24);
         assert!(RgbImage::load_png(&dir.path().join("none.png")).is_err());
         assert!(img.save_png(&dir.path().join("no/dir/a.png")).is_err());
+    }
+
+    /// A grey image is written as a greyscale PNG (it was 8-bit RGB) and reads
+    /// back as the same pixels; one coloured pixel keeps the file RGB.
+    #[test]
+    fn a_grey_image_is_written_as_a_greyscale_png() {
+        let dir = tempfile::tempdir().unwrap();
+        let colour_type = |path: &Path| {
+            let decoder = png::Decoder::new(BufReader::new(std::fs::File::open(path).unwrap()));
+            decoder.read_info().unwrap().info().color_type
+        };
+        let grey = RgbImage::new(4, 3, (0..12u8).flat_map(|v| [v * 20; 3]).collect());
+        assert!(grey.is_grey());
+        let path = dir.path().join("grey.png");
+        grey.save_png(&path).unwrap();
+        assert_eq!(colour_type(&path), png::ColorType::Grayscale);
+        assert_eq!(RgbImage::load_png(&path).unwrap(), grey);
+
+        let mut tinted = grey.clone();
+        tinted.data[7] += 1;
+        assert!(!tinted.is_grey());
+        let path = dir.path().join("tinted.png");
+        tinted.save_png(&path).unwrap();
+        assert_eq!(colour_type(&path), png::ColorType::Rgb);
+        assert_eq!(RgbImage::load_png(&path).unwrap(), tinted);
     }
 
     /// Grey, 16-bit, palette and 1-bit PNGs (what other tools write) read as
