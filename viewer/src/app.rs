@@ -1378,19 +1378,30 @@ impl Controller {
     }
 
     /// Steps the `axis` slice by one (level) voxel per wheel notch
-    /// ([`WheelSteps`]).
+    /// ([`WheelSteps`]): a wheel turned away from the user (a positive delta,
+    /// as the canvas zooms in) moves the slice away from the viewer, into the
+    /// screen, in every view ([`PlaneLayout::index_grows_toward_viewer`]);
+    /// it went by voxel index, into the screen in some views and out of it in
+    /// others.
+    ///
+    /// [`PlaneLayout::index_grows_toward_viewer`]: raycaster::slice::PlaneLayout::index_grows_toward_viewer
     fn scroll_slice(&self, axis: i32, delta: f32) {
         let Some(axis) = usize::try_from(axis).ok().and_then(|a| Axis::ALL.get(a)) else {
             return;
         };
         {
             let mut st = self.state.borrow_mut();
+            let Some(current) = &st.current else { return };
+            let volume = &current.volume.volume;
+            let toward = crate::slices::slice_layout(volume, *axis)
+                .index_grows_toward_viewer(*axis, volume.orientation());
             let steps = st.slice_wheel[axis.index()].steps(delta);
             if steps == 0 {
                 return;
             }
             let step = 1i64 << st.slice_level;
-            st.crosshair.step(*axis, steps * step);
+            let away = if toward { -1 } else { 1 };
+            st.crosshair.step(*axis, away * steps * step);
         }
         self.update_slices();
     }

@@ -545,6 +545,13 @@ endian: little\nencoding: raw\n\n"
             clicked.click(&layout, [col as f32 + 0.5, row as f32 + 0.5], [w, h], 1);
             assert_eq!(clicked.voxel, c.voxel, "{axis}");
         }
+        // The wheel's way into the screen (RAS): up z toward the head in the
+        // axial view (seen from the feet), down y toward the back in the
+        // coronal one, up x toward the right in the sagittal one.
+        let toward = Axis::ALL.map(|axis| {
+            slice_layout(&volume, axis).index_grows_toward_viewer(axis, volume.orientation())
+        });
+        assert_eq!(toward, [false, true, false]);
         // The axial slice as voxel order would show it, mirrored.
         let plain = Slice::extract(&volume, Axis::Z, 5).unwrap();
         let read =

@@ -357,18 +357,29 @@ fn the_viewer_cuts_slices_and_remembers_files() {
         old.values,
         Slice::extract(&volume, Axis::X, 12).unwrap().values
     );
-    // Clicks outside the fitted image do nothing; the wheel steps a slice.
+    // Clicks outside the fitted image do nothing; the wheel steps a slice,
+    // turned away from the user into the screen: down z in the axial view (x
+    // right, y up: +z comes out), so the touchpad's steps below go up it.
     v.ui().invoke_slice_clicked(0, 1.0, 50.0, 300.0, 100.0);
     assert_eq!(v.crosshair(), [12, 11, 23]);
     v.ui().invoke_slice_scrolled(2, 60.0);
-    assert_eq!(v.crosshair(), [12, 11, 24]);
+    assert_eq!(v.crosshair(), [12, 11, 22]);
     // A touchpad's small deltas add up to a step.
     v.ui().invoke_slice_scrolled(2, -20.0);
     v.ui().invoke_slice_scrolled(2, -20.0);
-    assert_eq!(v.crosshair(), [12, 11, 24]);
+    assert_eq!(v.crosshair(), [12, 11, 22]);
     v.ui().invoke_slice_scrolled(2, -20.0);
     assert_eq!(v.crosshair(), [12, 11, 23]);
-    v.ui().invoke_slice_scrolled(2, 60.0);
+    // Into the screen in every view: down x in the sagittal view (y right, z
+    // up), up y in the coronal one (x right, z up: +y goes in). The wheel went
+    // up every index before, out of the screen in two views of three.
+    v.ui().invoke_slice_scrolled(0, 60.0);
+    assert_eq!(v.crosshair(), [11, 11, 23]);
+    v.ui().invoke_slice_scrolled(1, 60.0);
+    assert_eq!(v.crosshair(), [11, 12, 23]);
+    v.ui().invoke_slice_scrolled(0, -60.0);
+    v.ui().invoke_slice_scrolled(1, -60.0);
+    v.ui().invoke_slice_scrolled(2, -60.0);
     assert_eq!(v.crosshair(), [12, 11, 24]);
     // A named window (lung, in the file's units) changes the grey levels.
     let lung = v

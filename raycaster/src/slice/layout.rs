@@ -147,6 +147,23 @@ impl PlaneLayout {
         ]
     }
 
+    /// Whether the slice perpendicular to `axis`, laid out so, comes toward
+    /// the viewer as its index grows (else it goes away, into the screen).
+    /// Toward the viewer is the image's right crossed with its up, in the
+    /// patient for a volume placed by `orientation` (axial slices are seen
+    /// from the feet, so toward the viewer is inferior), in volume space
+    /// otherwise.
+    pub fn index_grows_toward_viewer(&self, axis: Axis, orientation: Option<&Orientation>) -> bool {
+        let physical = |d: [f32; 3]| match orientation {
+            Some(o) => glam::DVec3::from(o.to_patient(glam::Vec3::from(d))),
+            None => glam::Vec3::from(d).as_dvec3(),
+        };
+        let [right, up] = self.right_and_up().map(physical);
+        let mut along = [0.0; 3];
+        along[axis.index()] = 1.0;
+        right.cross(up).dot(physical(along)) > 0.0
+    }
+
     /// The letters (`L`, `R`, `P`, `A`, `S`, `I`) of the patient directions
     /// nearest the image's left and its top, for a volume placed by
     /// `orientation`.
@@ -227,6 +244,36 @@ mod tests {
                 .unwrap()
                 .0;
             assert_eq!(axial.left_and_top(o), ['R', 'A'], "{name}");
+            // Toward the viewer: inferior in axial slices (seen from the
+            // feet), anterior in coronal ones, left in sagittal ones; LPS.
+            for axis in Axis::ALL {
+                let (layout, plane) = PlaneLayout::patient(axis, Some(o));
+                let toward: [f64; 3] = match plane.unwrap() {
+                    AnatomicalPlane::Axial => [0.0, 0.0, -1.0],
+                    AnatomicalPlane::Coronal => [0.0, -1.0, 0.0],
+                    AnatomicalPlane::Sagittal => [1.0, 0.0, 0.0],
+                };
+                let mut along = [0.0f32; 3];
+                along[axis.index()] = 1.0;
+                let grows = o.to_patient(glam::Vec3::from(along));
+                let dot: f64 = grows.iter().zip(toward).map(|(a, b)| a * b).sum();
+                assert_eq!(
+                    layout.index_grows_toward_viewer(axis, Some(o)),
+                    dot > 0.0,
+                    "{name} {axis}"
+                );
+                // Voxel order turns the same way in the patient.
+                let plain = PlaneLayout::voxel_order(axis);
+                let [r, u] = plain
+                    .right_and_up()
+                    .map(|d| o.to_patient(glam::Vec3::from(d)));
+                let out = glam::DVec3::from(r).cross(glam::DVec3::from(u));
+                assert_eq!(
+                    plain.index_grows_toward_viewer(axis, Some(o)),
+                    out.dot(glam::DVec3::from(grows)) > 0.0,
+                    "{name} {axis} voxel order"
+                );
+            }
             planes.sort_by_key(|p| p.name());
             assert_eq!(
                 planes,
@@ -245,6 +292,13 @@ mod tests {
         for axis in Axis::ALL {
             let (layout, plane) = PlaneLayout::patient(axis, None);
             assert_eq!((layout, plane), (PlaneLayout::voxel_order(axis), None));
+            // x slices show y to the right and z up (+x comes out of the
+            // screen), y slices x and z (+y goes in), z slices x and y.
+            assert_eq!(
+                layout.index_grows_toward_viewer(axis, None),
+                axis != Axis::Y,
+                "{axis}"
+            );
             assert_eq!([layout.columns, layout.rows], axis.in_plane());
             // Columns as they come, rows from the top down.
             assert_eq!(layout.column(2, 10), 2);
