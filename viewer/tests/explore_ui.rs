@@ -55,6 +55,51 @@ fn frame(v: &Viewer) -> Vec<u8> {
     pixels(&v.ui().get_frame()).2
 }
 
+/// The centred crosshair's lines run through the slice views' side letters
+/// (centred on the edges): each letter sits on a plate that hides the line
+/// under it, where the line showed between the glyphs' strokes.
+fn edge_letters_stay_readable_over_the_crosshair(v: &Viewer) {
+    let shot = v.ui().window().take_snapshot().expect("the window draws");
+    let width = shot.width() as usize;
+    // The lines' red, green and blue (the slices are grey, the letters
+    // yellow: red over green over blue, blended with their dark plate).
+    let line = |x: usize, y: usize| {
+        let p = &shot.as_bytes()[(y * width + x) * 4..][..3];
+        let [r, g, b] = [p[0], p[1], p[2]].map(i32::from);
+        g > r + 40 || b > r + 40 || (r > g + 100 && (g - b).abs() < 30)
+    };
+    let mut crossed = 0;
+    for label in ElementHandle::find_by_element_type_name(v.ui(), "EdgeLabel") {
+        let (at, size) = (label.absolute_position(), label.size());
+        if size.width < 1.0 || at.x < 0.0 {
+            continue;
+        }
+        let (x0, y0) = (at.x.round() as usize, at.y.round() as usize);
+        let (x1, y1) = (x0 + size.width as usize, y0 + size.height as usize);
+        let rows = y0..y1.min(shot.height() as usize);
+        let under: usize = rows
+            .clone()
+            .map(|y| (x0..x1.min(width)).filter(|&x| line(x, y)).count())
+            .sum();
+        assert_eq!(
+            under, 0,
+            "crosshair pixels show through the letter at {at:?}"
+        );
+        // Beside it, the line the letter sits on.
+        let beside = [x0.saturating_sub(3), x1 + 2];
+        if rows
+            .clone()
+            .any(|y| beside.iter().any(|&x| x < width && line(x, y)))
+        {
+            crossed += 1;
+        }
+    }
+    assert!(
+        crossed >= 2,
+        "{crossed} letters lie on the crosshair's lines"
+    );
+}
+
 /// Presses and releases a key with the given text.
 fn key(v: &Viewer, text: &str) {
     let window = v.ui().window();
@@ -301,6 +346,7 @@ fn the_viewer_cuts_slices_and_remembers_files() {
     let before = [v.ui().get_slice_x(), v.ui().get_slice_y()].map(|i| pixels(&i));
     let axial = pixels(&v.ui().get_slice_z());
     assert_eq!((axial.0, axial.1), (48, 48));
+    edge_letters_stay_readable_over_the_crosshair(&v);
     // A click on the axial (z) slice, fitted into a 100×100 area: x 12, y 47 − 36.
     v.ui().invoke_slice_clicked(2, 26.0, 76.0, 100.0, 100.0);
     assert_eq!(v.crosshair(), [12, 11, 23], "x and y move, z stays");
