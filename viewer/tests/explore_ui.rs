@@ -55,6 +55,32 @@ fn frame(v: &Viewer) -> Vec<u8> {
     pixels(&v.ui().get_frame()).2
 }
 
+/// The scale bar is a fraction of the frame's width as shown: a frame of
+/// another aspect than the canvas (a session's first frame) is fitted into it,
+/// narrower, and the bar with it (it measured the canvas: "100 mm" over 200).
+fn scale_bar_measures_the_frame_shown(v: &Viewer) {
+    let ui = v.ui();
+    let canvas = element(v, "App::canvas").size();
+    let (frame, fraction) = (ui.get_frame(), ui.get_scale_fraction());
+    let bar = || element(v, "App::scale-bar").size().width;
+    let shown = frame.size();
+    let fitted = canvas
+        .width
+        .min(canvas.height * shown.width as f32 / shown.height as f32);
+    assert!((bar() - fitted * fraction).abs() < 1.0, "{} px", bar());
+    // A frame twice as wide as high, in a canvas less wide than that: as wide
+    // as the canvas. One as high as wide: as wide as the canvas is high.
+    assert!(canvas.width < 2.0 * canvas.height && canvas.width > canvas.height);
+    for (w, h, width) in [(200, 100, canvas.width), (100, 100, canvas.height)] {
+        let buffer = slint::SharedPixelBuffer::<slint::Rgba8Pixel>::new(w, h);
+        ui.set_frame(slint::Image::from_rgba8(buffer));
+        ui.set_scale_fraction(0.25);
+        assert!((bar() - 0.25 * width).abs() < 1.0, "{w}×{h}: {} px", bar());
+    }
+    ui.set_frame(frame);
+    ui.set_scale_fraction(fraction);
+}
+
 /// The centred crosshair's lines run through the slice views' side letters
 /// (centred on the edges): each letter sits on a plate that hides the line
 /// under it, where the line showed between the glyphs' strokes.
@@ -261,6 +287,7 @@ fn the_viewer_cuts_slices_and_remembers_files() {
         ui.get_scale_label()
     );
     assert!(ui.get_scale_fraction() > 0.05 && ui.get_scale_fraction() <= 0.25);
+    scale_bar_measures_the_frame_shown(&v);
     // The crosshair's slice planes outlined over the picture, and gone again.
     let plain = frame(&v);
     element(&v, "App::planes-box").invoke_accessible_default_action();
