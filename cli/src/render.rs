@@ -272,7 +272,7 @@ pub struct RenderArgs {
     ram: bool,
 
     /// Resolution level of the file's pyramid to sample: `auto` (the coarsest
-    /// whose voxels project to at most a pixel; a deep perspective view samples
+    /// whose voxels project to at most a pixel along every axis; a deep perspective view samples
     /// each band of depths at its own level, finer near the camera) or a level
     /// number (0 = full resolution, 1 = half on every axis, ...). Files without
     /// a pyramid (`volgen pyramid FILE` adds one) always render level 0.

@@ -10,7 +10,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use raycaster::io::{WriteOptions, write_volume};
 use raycaster::job::Job;
 use raycaster::render::{
-    LevelChoice, ParallelOptions, RenderVolume, render_parallel, render_sequential,
+    LevelChoice, ParallelOptions, RenderVolume, Vec3, render_parallel, render_sequential,
 };
 use raycaster::volume::{
     CellShape, Content, Format, Header, Layout, SampleType, Volume, VolumeErrorKind,
@@ -625,6 +625,47 @@ fn the_automatic_level_follows_the_projected_voxel_size() {
     assert_eq!("auto".parse::<LevelChoice>(), Ok(LevelChoice::default()));
     assert_eq!("1".parse::<LevelChoice>(), Ok(LevelChoice::Fixed(1)));
     assert!("coarse".parse::<LevelChoice>().is_err());
+}
+
+/// On a volume whose voxels are 8 times longer along z (a CT's slices), the
+/// automatic level keeps its voxels at most a pixel along z too: the level
+/// measured by the finest spacing was three levels coarser, 64-voxel-long
+/// voxels in a small frame (a chest CT lost its ribs).
+#[test]
+fn the_automatic_level_keeps_the_coarsest_axis_within_a_pixel() {
+    let dir = TempDir::new().unwrap();
+    let mut header = u8_header(Layout::Bricked { side: 16 }, Format::Extended);
+    header.spacing = [1.0, 1.0, 8.0];
+    let path = dir.path().join("slices.vol");
+    write(
+        &path,
+        &header,
+        &pattern(DIMS, 255, false),
+        &small_slabs(),
+        &Job::silent(),
+    )
+    .unwrap();
+    let volume = Volume::open(&path).unwrap();
+    let coarsest = volume.level_count() - 1;
+    assert!(coarsest >= 2);
+    let hi = Vec3::from(volume.dims().map(|d| (d - 1) as f32)) * Vec3::from(volume.spacing());
+    let mut finer_than_before = 0;
+    for px in [400, 200, 100, 50, 20, 8] {
+        let camera = default_camera(&volume, px);
+        let footprint = camera.pixel_footprint(camera.position().clamp(Vec3::ZERO, hi));
+        let level = LevelChoice::default().resolve(&volume, &camera);
+        // Its z voxels project to at most a pixel; the next level's would not.
+        let z_voxel = 8.0 * (1u32 << level) as f32;
+        assert!(z_voxel <= footprint || level == 0, "{px} px: level {level}");
+        assert!(
+            level == coarsest || 2.0 * z_voxel > footprint,
+            "{px} px: level {level}"
+        );
+        // Measured by x and y, the level was floor(log2 footprint).
+        let by_finest = (footprint.log2().floor().max(0.0) as usize).min(coarsest);
+        finer_than_before += usize::from(level < by_finest);
+    }
+    assert!(finer_than_before >= 2, "{finer_than_before}");
 }
 
 /// The cell ranges of every brick of `shape`'s grid over `values` (a volume of the
