@@ -29,6 +29,6 @@ for s in context npr importance; do
 done
 render $work/gradient.vol --tf rainbow -o $out/gradient-dvr.png
 for s in bands first-hit context; do
-  render $work/gradient.vol --tf rainbow --segments volumes/scenes/gradient-$s.toml -o $out/gradient-$s.png
+  render $work/gradient.vol --segments volumes/scenes/gradient-$s.toml -o $out/gradient-$s.png
 done
 echo "gallery written to $out"

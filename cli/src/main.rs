@@ -40,11 +40,13 @@ fn main() {
     restore_sigpipe();
     stop_cleanly_on_signals();
     raycaster::files::guard_mapped_reads();
-    let cli = Cli::parse();
+    use clap::{CommandFactory, FromArgMatches};
+    let matches = Cli::command().get_matches();
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     if let Command::Render(args) = &cli.command
-        && let Some(conflict) = args.conflict()
+        && let Some(given) = matches.subcommand_matches("render")
+        && let Some(conflict) = args.conflict(given)
     {
-        use clap::CommandFactory;
         let mut cli = Cli::command();
         cli.build();
         let render = cli.find_subcommand_mut("render").expect("a render command");

@@ -69,15 +69,15 @@ pub struct RenderArgs {
     size: Option<[u32; 2]>,
 
     /// Built-in scene rendered when no FILE is given.
-    #[arg(long, value_enum, default_value_t = SceneArg::Shapes)]
+    #[arg(long, value_enum, default_value_t = SceneArg::Shapes, conflicts_with = "file")]
     scene: SceneArg,
 
     /// Size of the built-in scene in voxels per axis.
-    #[arg(long, default_value_t = raycaster::synth::DEFAULT_SCENE_SIZE, value_parser = clap::value_parser!(u32).range(2..=1024), value_name = "N")]
+    #[arg(long, default_value_t = raycaster::synth::DEFAULT_SCENE_SIZE, value_parser = clap::value_parser!(u32).range(2..=1024), value_name = "N", conflicts_with = "file")]
     scene_size: u32,
 
     /// Seed of the built-in scene.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, conflicts_with = "file")]
     seed: u64,
 
     /// Transfer function: a preset name or a transfer-function file. Default:
@@ -102,14 +102,15 @@ pub struct RenderArgs {
 
     /// Iso-value of first-hit mode: a value in the file's units (HU for CT:
     /// `--iso 300` for bone) or a percentage of the transfer function's domain
-    /// (`--iso 45%`).
+    /// (`--iso 45%`). Refused with other modes, which do not use it.
     #[arg(long, default_value = "50%", value_parser = parse_iso, allow_hyphen_values = true, value_name = "V|P%")]
     iso: IsoArg,
 
     /// Sabella mode: which depth sets the saturation — `peak` (where the ray
     /// meets its largest value) or `centroid` (the value-weighted mean depth).
     /// Hue comes from the peak value (blue low, red high), value from the
-    /// intensity accumulated with the transfer function's opacities.
+    /// intensity accumulated with the transfer function's opacities. Refused
+    /// with other modes.
     #[arg(long, value_enum, default_value_t = SabellaDepthArg::Peak, value_name = "DEPTH")]
     sabella_depth: SabellaDepthArg,
 
@@ -129,7 +130,8 @@ pub struct RenderArgs {
 
     /// Gain of xray mode: opacity 1 − exp(−gain·Σ normalised value × step).
     /// Default: 8 ÷ the volume's diagonal in voxels (0.036 for 128³), so that
-    /// the densest rays reach about 86 % at every volume size.
+    /// the densest rays reach about 86 % at every volume size. Refused with
+    /// other modes.
     #[arg(long, value_parser = parse_positive, value_name = "G")]
     xray_gain: Option<f32>,
 
@@ -292,7 +294,9 @@ pub struct RenderArgs {
 
     /// Two-level rendering of a segmented volume: a scene description (TOML) of
     /// value layers or a label volume, with each object's transfer function and
-    /// local mode (see volumes/scenes/).
+    /// local mode (see volumes/scenes/). The scene sets the modes and transfer
+    /// functions: --mode, --tf, --iso, --xray-gain and --sabella-depth are
+    /// refused with it; --domain sets the values its layers span.
     #[arg(long, value_name = "SCENE.toml")]
     segments: Option<PathBuf>,
 
@@ -814,13 +818,53 @@ impl RenderArgs {
     /// Flags that do not go together in a way clap cannot see (they depend on
     /// a value): a command-line error (exit status 2), as a session refuses
     /// the same.
-    pub(crate) fn conflict(&self) -> Option<String> {
-        match self.level {
-            LevelChoice::Fixed(k) if self.lod_bias != 0.0 => Some(format!(
+    ///
+    /// `given` are the render command's matches: a flag given on the command
+    /// line that the frame would not use is refused, not ignored (a mode's
+    /// parameter with another mode; what a two-level scene's file sets).
+    pub(crate) fn conflict(&self, given: &clap::ArgMatches) -> Option<String> {
+        if let LevelChoice::Fixed(k) = self.level
+            && self.lod_bias != 0.0
+        {
+            return Some(format!(
                 "--lod-bias shifts the automatic level only; it takes --level auto, not --level {k}"
-            )),
-            _ => None,
+            ));
         }
+        let on_line =
+            |id: &str| given.value_source(id) == Some(clap::parser::ValueSource::CommandLine);
+        if self.segments.is_some() {
+            let set_by_scene = [
+                ("mode", "--mode", "its global and local modes"),
+                ("tf", "--tf", "each object's transfer function"),
+                ("iso", "--iso", "each first-hit object's iso-value"),
+                ("xray_gain", "--xray-gain", "each x-ray object's gain"),
+                ("sabella_depth", "--sabella-depth", "its modes"),
+            ];
+            if let Some((_, flag, what)) = set_by_scene.iter().find(|(id, ..)| on_line(id)) {
+                return Some(format!(
+                    "{flag} is not used with --segments: the scene file sets {what} (--domain \
+                     sets the values its layers and objects without a domain span)"
+                ));
+            }
+            return None;
+        }
+        let mode = Mode::from(self.mode).name();
+        let parameters = [
+            ("iso", "--iso", ModeArg::FirstHit, "first-hit"),
+            ("xray_gain", "--xray-gain", ModeArg::Xray, "xray"),
+            (
+                "sabella_depth",
+                "--sabella-depth",
+                ModeArg::Sabella,
+                "sabella",
+            ),
+        ];
+        parameters
+            .iter()
+            .find(|(id, _, of, _)| on_line(id) && self.mode != *of)
+            .map(|(_, flag, _, of)| {
+                format!("{flag} is a parameter of --mode {of}; a {mode} frame does not use it")
+            })
     }
 }
 

@@ -623,16 +623,15 @@ fn bad_segment_scenes_fail_with_a_clear_message_and_no_output() {
         ),
     ];
     for (extra, needle) in cases {
+        // (The built-in scene's size only where no file is named.)
+        let scene: &[&str] = if extra[0].starts_with("--") {
+            &["--scene-size", "32"]
+        } else {
+            &[]
+        };
         let args = [
-            &[
-                "render",
-                "-o",
-                "out.png",
-                "--scene-size",
-                "32",
-                "--size",
-                "32",
-            ][..],
+            &["render", "-o", "out.png", "--size", "32"][..],
+            scene,
             extra,
         ]
         .concat();
@@ -645,6 +644,77 @@ fn bad_segment_scenes_fail_with_a_clear_message_and_no_output() {
             !dir.path().join("out.png").exists(),
             "{extra:?} left an image"
         );
+    }
+}
+
+/// A flag the frame would not use is refused (exit 2, said once), where it
+/// was ignored without a word: a mode's parameter with another mode, what a
+/// two-level scene's file sets, the built-in scene's flags with a file.
+#[test]
+fn flags_the_frame_would_not_use_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../volumes/scenes/gradient-bands.toml");
+    let scene = scene.to_str().unwrap();
+    write_scene(
+        &dir.path().join("data.vol"),
+        raycaster::synth::SceneKind::Shapes,
+        24,
+        1,
+        raycaster::volume::Format::Extended,
+    );
+    let refused: [(&[&str], &str); 7] = [
+        (
+            &["--iso", "10%"],
+            "--iso is a parameter of --mode first-hit; a dvr frame does not use it",
+        ),
+        (
+            &["--mode", "mip", "--xray-gain", "3"],
+            "--xray-gain is a parameter of --mode xray; a mip frame does not use it",
+        ),
+        (
+            &["--sabella-depth", "centroid", "--mode", "average"],
+            "--sabella-depth is a parameter of --mode sabella",
+        ),
+        (
+            &["--segments", scene, "--mode", "mip"],
+            "--mode is not used with --segments: the scene file sets its global and local modes",
+        ),
+        (
+            &["--segments", scene, "--tf", "rainbow"],
+            "--tf is not used with --segments",
+        ),
+        (
+            &["--segments", scene, "--mode", "first-hit", "--iso", "10%"],
+            "--mode is not used with --segments",
+        ),
+        (&["data.vol", "--seed", "3"], "cannot be used with"),
+    ];
+    for (extra, said) in refused {
+        let args = [&["render", "-o", "out.png", "--size", "16"][..], extra].concat();
+        let out = raycaster(&args, dir.path());
+        assert_eq!(out.status.code(), Some(2), "{extra:?}");
+        let err = stderr(&out);
+        assert!(err.contains(said), "{extra:?}: {err}");
+        assert_eq!(err.matches("error:").count(), 1, "{err}");
+        assert!(!dir.path().join("out.png").exists());
+    }
+    // Each with its own mode, and the defaults, are taken.
+    for extra in [
+        &["--mode", "first-hit", "--iso", "10%"][..],
+        &["--mode", "xray", "--xray-gain", "3"],
+        &["--mode", "sabella", "--sabella-depth", "centroid"],
+        &["--segments", scene],
+        &["data.vol", "--mode", "mip"],
+    ] {
+        let args = [
+            &[
+                "render", "-o", "out.png", "--size", "16", "--force", "--quiet",
+            ][..],
+            extra,
+        ]
+        .concat();
+        let out = raycaster(&args, dir.path());
+        assert!(out.status.success(), "{extra:?}: {}", stderr(&out));
     }
 }
 
