@@ -6,6 +6,7 @@
 mod args;
 mod bench;
 mod compare;
+mod dark_average;
 mod distributed;
 mod memory;
 mod output;

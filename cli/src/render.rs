@@ -450,7 +450,8 @@ pub(crate) enum ModeArg {
     /// Average intensity projection: the mean value along the ray, classified.
     /// The means of a mostly empty volume are low, and so the image dark: a
     /// transfer function or domain over the means' range (render's
-    /// `--domain 0,60` for `shapes`) brightens it.
+    /// `--domain 0,60` for `shapes`) brightens it; render warns of a dark
+    /// average picture and names the domain that spans the means.
     Average,
     /// First hit of the iso-value, refined between samples, shaded.
     FirstHit,
@@ -543,6 +544,20 @@ pub fn run(args: RenderArgs) -> Result<()> {
             progress_after(&args),
         )?
     };
+    // A dark average frame on the default domain: say which domain shows it.
+    if setup.settings.mode == Mode::Average
+        && args.domain.is_none()
+        && args.tf.is_none()
+        && args.session.is_none()
+        && !args.quiet
+    {
+        let image = frame.to_image();
+        if let Some(warning) =
+            crate::dark_average::warning(&setup.volume, &setup.settings, &setup.camera, &image)?
+        {
+            eprintln!("{warning}");
+        }
+    }
     finish(&args, &setup, &frame, serde_json::Map::new())
 }
 

@@ -718,6 +718,45 @@ fn flags_the_frame_would_not_use_are_refused() {
     }
 }
 
+/// An average frame of a mostly empty volume is dark (its rays' means lie
+/// low in the domain): render says so once and names a domain spanning the
+/// means, which brightens it; with a domain given, nothing is said.
+#[test]
+fn a_dark_average_frame_names_the_domain_that_shows_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let render = |extra: &[&str]| {
+        let args = [
+            &[
+                "render", "--mode", "average", "--size", "64", "-o", "a.png", "--force",
+            ][..],
+            extra,
+        ]
+        .concat();
+        let out = raycaster(&args, dir.path());
+        assert!(out.status.success(), "{}", stderr(&out));
+        let image = RgbImage::load_png(&dir.path().join("a.png")).unwrap();
+        let brightest = image.data().iter().copied().max().unwrap();
+        (stderr(&out), brightest)
+    };
+    let (said, dark) = render(&[]);
+    assert_eq!(said.matches("warning:").count(), 1, "{said}");
+    let suggested = said
+        .split("--domain ")
+        .nth(1)
+        .and_then(|rest| rest.split(' ').next())
+        .unwrap_or_else(|| panic!("{said}"))
+        .to_string();
+    assert!(
+        said.contains("--mode average: the picture is dark"),
+        "{said}"
+    );
+    let (said, bright) = render(&["--domain", &suggested]);
+    assert!(!said.contains("warning"), "{suggested}: {said}");
+    assert!(bright > dark.saturating_mul(2), "{dark} → {bright}");
+    let (said, _) = render(&["--quiet"]);
+    assert!(said.is_empty(), "{said}");
+}
+
 #[test]
 fn renders_a_nifti_file_directly() {
     let dir = tempfile::tempdir().unwrap();
