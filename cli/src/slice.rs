@@ -139,6 +139,21 @@ pub fn run(args: SliceArgs) -> Result<()> {
         eprintln!("{warning}");
     }
     let window = args.window.map(|w| units.stored_range(w.values()));
+    // A window beside all of the slice's values shows one grey: say so.
+    if let (Some(arg), Some([lo, hi])) = (args.window, window)
+        && !args.quiet
+    {
+        let [min, max] = slice.range().map(f32::from);
+        if hi < min || lo > max {
+            let [a, b] = arg.values().map(|v| units.format(f64::from(v)));
+            let [c, d] = [min, max].map(|v| units.format(units.value(f64::from(v))));
+            let shade = if hi < min { "white" } else { "black" };
+            eprintln!(
+                "warning: --window {a} to {b} lies outside this slice's values, {c} to {d}: \
+                 the slice is all {shade}"
+            );
+        }
+    }
     let spacing = volume.spacing();
     let (u, v) = (layout.columns, layout.rows);
     let image = if args.voxels {

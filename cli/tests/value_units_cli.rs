@@ -266,4 +266,23 @@ fn slice_windows_are_in_hounsfield_units_or_named() {
         "{}",
         stderr(&out)
     );
+    assert!(!stderr(&out).contains("warning"), "{}", stderr(&out));
+    // A window beside every value of the slice is said (the picture was one
+    // grey without a word).
+    for (window, shade) in [("5000,6000", "black"), ("-3000,-2000", "white")] {
+        let out = raycaster(
+            &[
+                "slice", "ct.vol", "--axis", "z", "--index", "20", "--window", window, "-o",
+                "t.png", "--force",
+            ],
+            d,
+        );
+        assert!(out.status.success());
+        let said = stderr(&out);
+        assert!(
+            said.contains("lies outside this slice's values, -1000 HU to 1000 HU")
+                && said.contains(&format!("the slice is all {shade}")),
+            "{said}"
+        );
+    }
 }
