@@ -195,6 +195,16 @@ pub fn parse_finite(s: &str) -> Result<f32, String> {
         .ok_or_else(|| format!("{s:?} must be a finite number"))
 }
 
+/// A camera elevation in degrees, −90 to 90 (beyond, the orbit would stop at
+/// the pole without a word).
+pub fn parse_elevation(s: &str) -> Result<f32, String> {
+    parse_in_range(s)?
+        .filter(|v| (-90.0..=90.0).contains(v))
+        .ok_or_else(|| {
+            format!("{s:?} must lie between -90 (from below) and 90 (from above) degrees")
+        })
+}
+
 /// A vertical field of view in degrees: strictly between 0 and 180.
 pub fn parse_fov(s: &str) -> Result<f32, String> {
     parse_in_range(s)?

@@ -22,8 +22,8 @@ use raycaster::volume::{Access, Content, OpenOptions, SampleType, Volume};
 
 use crate::args::{
     ClipArg, Coord, IsoArg, WindowArg, parse_clip, parse_color, parse_crop, parse_direction,
-    parse_finite, parse_fov, parse_iso, parse_positive, parse_size, parse_threshold, parse_vec3,
-    parse_window,
+    parse_elevation, parse_finite, parse_fov, parse_iso, parse_positive, parse_size,
+    parse_threshold, parse_vec3, parse_window,
 };
 use crate::stats;
 
@@ -183,12 +183,13 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = -60.0, allow_negative_numbers = true, value_parser = parse_finite, value_name = "DEG")]
     azimuth: f32,
 
-    /// Camera elevation above the volume's middle, degrees.
+    /// Camera elevation above the volume's middle, degrees, −90 (from below)
+    /// to 90 (from above).
     #[arg(
         long,
         default_value_t = 25.0,
         allow_negative_numbers = true,
-        value_parser = parse_finite,
+        value_parser = parse_elevation,
         value_name = "DEG"
     )]
     elevation: f32,
@@ -1275,6 +1276,29 @@ fn camera(
         match camera_flags_problem(args, &spec) {
             Some(problem) => bail!("{problem}"),
             None => return Err(anyhow::Error::new(e).context("invalid camera")),
+        }
+    }
+    if let SessionCamera::LookAt {
+        position,
+        target,
+        up,
+        ..
+    } = spec
+        && !args.quiet
+    {
+        // Within a degree of the view, the picture's roll follows the small
+        // difference (the camera's up is the part of --up across the view).
+        let angle = (target - position).angle_between(up).to_degrees();
+        if angle.min(180.0 - angle) < 1.0 {
+            let flag = |v: Vec3| v.to_array().map(|c| c.to_string()).join(",");
+            eprintln!(
+                "warning: --up {} lies {:.2}° from the view direction (from {} to {}): the \
+                 picture's roll follows that small difference; give an --up across the view",
+                flag(up),
+                angle.min(180.0 - angle),
+                flag(position),
+                flag(target)
+            );
         }
     }
     Ok(spec)

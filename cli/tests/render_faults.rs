@@ -204,6 +204,59 @@ fn near_miss_presets_get_a_suggestion_and_a_missing_file_is_not_a_preset() {
     assert!(!d.join("render.png").exists());
 }
 
+/// An elevation past a pole is refused (it was clamped to the pole without a
+/// word), and an --up within a degree of the view direction is warned of
+/// (the picture's roll then follows the small difference).
+#[test]
+fn camera_flags_past_their_sense_are_said() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for elevation in ["91", "-90.5", "1000"] {
+        let o = render(d, &["--elevation", elevation]);
+        assert_eq!(o.status.code(), Some(2), "{elevation}");
+        assert!(
+            stderr(&o).contains("must lie between -90"),
+            "{}",
+            stderr(&o)
+        );
+    }
+    let o = render(d, &["--elevation", "-90", "-o", "pole.png"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = render(
+        d,
+        &[
+            "--position",
+            "1000,0,1",
+            "--target",
+            "0,0,0",
+            "--up",
+            "1,0,0",
+            "-o",
+            "up.png",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let said = stderr(&o);
+    assert!(
+        said.contains("warning: --up 1,0,0 lies 0.06° from the view direction"),
+        "{said}"
+    );
+    let o = render(
+        d,
+        &[
+            "--position",
+            "1000,0,1",
+            "--target",
+            "0,0,0",
+            "--up",
+            "0,0,1",
+            "-o",
+            "up2.png",
+        ],
+    );
+    assert!(!stderr(&o).contains("warning"), "{}", stderr(&o));
+}
+
 #[test]
 fn negative_numbers_are_values() {
     let dir = tempfile::tempdir().unwrap();
