@@ -40,8 +40,13 @@ pub fn run(args: CompareArgs) -> Result<()> {
         crate::output::check_output(path, args.force)?;
     }
     // (The image errors name the file.)
-    let load = |p: &PathBuf| RgbImage::load_png(p).context("cannot read the image");
-    let (a, b) = (load(&args.image)?, load(&args.reference)?);
+    let load = |p: &PathBuf, what: &str| {
+        RgbImage::load_png(p).with_context(|| format!("cannot read the {what}"))
+    };
+    let (a, b) = (
+        load(&args.image, "image")?,
+        load(&args.reference, "reference")?,
+    );
     let (Some(max), Some(psnr)) = (a.max_difference(&b), a.psnr(&b)) else {
         bail!(
             "the images differ in size: {}×{} and {}×{}",
@@ -67,6 +72,14 @@ pub fn run(args: CompareArgs) -> Result<()> {
     } else {
         println!("max difference {max}/255");
         println!("PSNR           {psnr:.2} dB");
+    }
+    if let Some(path) = args.diff.as_ref().filter(|_| !args.json) {
+        eprintln!(
+            "wrote {} (the differences ×8, {}×{})",
+            path.display(),
+            a.width(),
+            a.height()
+        );
     }
     Ok(())
 }

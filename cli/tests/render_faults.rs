@@ -1145,6 +1145,20 @@ fn compare_keeps_its_inputs_and_outputs_refuse_pipes_and_devices() {
     assert_eq!(std::fs::read(d.join("b.png")).unwrap(), b);
     let o = raycaster(&["compare", "a.png", "b.png", "--diff", "d.png"], d);
     assert!(o.status.success(), "{}", stderr(&o));
+    // The difference image is said (it was written without a word).
+    assert!(
+        stderr(&o).contains("wrote d.png (the differences ×8, 16×16)"),
+        "{}",
+        stderr(&o)
+    );
+    // An unreadable second argument is named the reference (it was "the image").
+    std::fs::write(d.join("text.png"), "not a picture").unwrap();
+    let o = raycaster(&["compare", "a.png", "text.png"], d);
+    assert!(
+        stderr(&o).contains("cannot read the reference: text.png"),
+        "{}",
+        stderr(&o)
+    );
     let o = raycaster(&["compare", "a.png", "b.png", "--diff", "d.png"], d);
     assert!(
         stderr(&o).contains("d.png: already exists (pass --force"),
