@@ -577,7 +577,7 @@ impl Session {
                 if e.message().starts_with("missing field") {
                     check_outline(text)?;
                 }
-                return Err(SessionError::Syntax(e.to_string()));
+                return Err(SessionError::Syntax(crate::text::toml_error(text, &e)));
             }
         };
         check_version(file.version.map(i64::from))?;

@@ -16,9 +16,66 @@ pub fn without_bom(text: &str) -> &str {
     text.strip_prefix('\u{feff}').unwrap_or(text)
 }
 
+/// A TOML parse error of `text` in one line, ``line L, column C (`the line`):
+/// what`` (the parser's own text quotes the line under a caret, over four
+/// lines; the line is kept, its key is often what the message leaves out).
+pub fn toml_error(text: &str, error: &toml::de::Error) -> String {
+    /// Characters of the quoted line kept.
+    const QUOTED: usize = 60;
+    let message = error.message().trim().replace('\n', " ");
+    let Some(span) = error.span() else {
+        return message;
+    };
+    let start = span.start.min(text.len());
+    let start = (0..=start)
+        .rev()
+        .find(|&i| text.is_char_boundary(i))
+        .unwrap_or(0);
+    let before = &text[..start];
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().unwrap_or("").chars().count() + 1;
+    let quoted = text.lines().nth(line - 1).unwrap_or("").trim();
+    let quoted = if quoted.chars().count() > QUOTED {
+        format!("{}…", quoted.chars().take(QUOTED).collect::<String>())
+    } else {
+        quoted.to_string()
+    };
+    if quoted.is_empty() {
+        format!("line {line}, column {column}: {message}")
+    } else {
+        format!("line {line}, column {column} (`{quoted}`): {message}")
+    }
+}
+
 #[cfg(test)]
 mod tests {
-    use super::{counted, without_bom};
+    use super::{counted, toml_error, without_bom};
+
+    #[test]
+    fn toml_errors_are_one_line_with_their_place() {
+        #[derive(serde::Deserialize, Debug)]
+        #[serde(deny_unknown_fields)]
+        #[allow(dead_code)]
+        struct File {
+            version: u32,
+        }
+        let text = "version = 1\n# a comment\n  bogus = 3\n";
+        let error = toml::from_str::<File>(text).unwrap_err();
+        assert!(error.to_string().lines().count() > 1);
+        let said = toml_error(text, &error);
+        assert!(
+            said.starts_with("line 3, column 3 (`bogus = 3`): unknown field `bogus`"),
+            "{said}"
+        );
+        assert_eq!(said.lines().count(), 1);
+        // The key, which the parser's message leaves out, is in the line.
+        let text = "version = \"one\"";
+        let said = toml_error(text, &toml::from_str::<File>(text).unwrap_err());
+        assert!(
+            said.starts_with("line 1, column 11 (`version = \"one\"`): invalid type"),
+            "{said}"
+        );
+    }
 
     #[test]
     fn a_byte_order_mark_is_dropped_and_only_it() {

@@ -398,7 +398,8 @@ fn the_viewer_runs_headless() {
     let message = v.ui().get_message().to_string();
     assert!(
         !message.contains('\n')
-            && message.contains("TOML parse error at line 3")
+            && message
+                .contains("session: line 3, column 8 (`file = 5`): invalid type: integer `5`")
             && message.contains("invalid type: integer `5`"),
         "{message}"
     );

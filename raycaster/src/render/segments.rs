@@ -308,8 +308,9 @@ impl SegmentScene {
     ///
     /// The whole format is described in `docs/segments.md`.
     pub fn parse(text: &str, base: &Path) -> Result<SegmentScene, SceneError> {
-        let file: SceneFile = toml::from_str(crate::text::without_bom(text))
-            .map_err(|e| SceneError::Syntax(e.to_string()))?;
+        let text = crate::text::without_bom(text);
+        let file: SceneFile = toml::from_str(text)
+            .map_err(|e| SceneError::Syntax(crate::text::toml_error(text, &e)))?;
         let membership = match (file.labels, file.layers) {
             (Some(labels), None) => {
                 if labels.as_os_str().is_empty() {
