@@ -41,7 +41,8 @@ Examples:
   raycaster bench --volume-size 800 --threads 1 --sequential --optimisations none,ert,ess,both
   raycaster bench volumes/data/lung1.vol --ram --tiles 16 --bricks 16 --image 700x700 --step 0.2")]
 pub struct BenchArgs {
-    /// Volume to render (default: a generated `shapes` volume).
+    /// Volume to render, a .vol file (default: a generated `shapes` volume;
+    /// other formats: convert them first, `volgen convert FILE -o FILE.vol`).
     file: Option<PathBuf>,
 
     /// Size of the generated volume (voxels per axis).

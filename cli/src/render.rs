@@ -993,8 +993,10 @@ fn open_volume(source: &VolumeSource, args: &RenderArgs) -> Result<Volume> {
                     e.into()
                 }
             })?;
-            if let Some(warning) = volume.unused_tail_warning().filter(|_| !args.quiet) {
-                eprintln!("{warning}");
+            if !args.quiet {
+                for warning in volume.open_warnings() {
+                    eprintln!("{warning}");
+                }
             }
             Ok(volume)
         }

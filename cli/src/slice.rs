@@ -104,8 +104,10 @@ pub fn run(args: SliceArgs) -> Result<()> {
             ..OpenOptions::default()
         };
         let volume = Volume::open_with(&args.file, options)?;
-        if let Some(warning) = volume.unused_tail_warning().filter(|_| !args.quiet) {
-            eprintln!("{warning}");
+        if !args.quiet {
+            for warning in volume.open_warnings() {
+                eprintln!("{warning}");
+            }
         }
         volume
     };

@@ -536,6 +536,23 @@ fn a_corrupt_embedded_pyramid_is_refused_and_a_stale_sidecar_ignored() {
     let path = dir.path().join("t.vol");
     write(&path, &thesis, &values, &small_slabs(), &Job::silent()).unwrap();
     assert_eq!(Volume::open(&path).unwrap().level_count(), 3);
+    assert!(Volume::open(&path).unwrap().open_warnings().is_empty());
+    // A fresh sidecar cut short opens without a pyramid, said (it was ignored
+    // without a word); written again, it is read.
+    let sidecar = pyramid_sidecar_path(&path);
+    let whole = std::fs::read(&sidecar).unwrap();
+    std::fs::write(&sidecar, &whole[..100]).unwrap();
+    let cut = Volume::open(&path).unwrap();
+    assert_eq!(cut.level_count(), 1);
+    let warnings = cut.open_warnings();
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(
+        warnings[0].contains("t.vol.pyramid: ignored (the resolution pyramid is corrupt")
+            && warnings[0].contains("`volgen pyramid "),
+        "{warnings:?}"
+    );
+    write_pyramid_sidecar(&path, &small_slabs(), &Job::silent()).unwrap();
+    assert_eq!(Volume::open(&path).unwrap().level_count(), 3);
     // The file changes: its sidecar no longer describes it and is ignored.
     let mut f = std::fs::OpenOptions::new()
         .append(true)

@@ -1006,11 +1006,13 @@ impl Controller {
                 return;
             }
         };
-        // Bytes after the file's last block: said as `raycaster render` says it.
-        let tail_warning = install
-            .new_volume
-            .then(|| install.loaded.volume.volume.unused_tail_warning())
-            .flatten();
+        // Bytes after the file's last block, a damaged pyramid sidecar: said as
+        // `raycaster render` says them.
+        let open_warnings = if install.new_volume {
+            install.loaded.volume.volume.open_warnings()
+        } else {
+            Vec::new()
+        };
         let dropped_screenshot;
         // A two-level scene of the old volume that the new one does not keep.
         let mut dropped_scene = false;
@@ -1083,7 +1085,7 @@ impl Controller {
                 path.display()
             );
         }
-        if let Some(warning) = tail_warning {
+        for warning in open_warnings {
             message = format!("{message} — {warning}");
         }
         if dropped_scene {

@@ -66,6 +66,9 @@ pub struct Volume {
     /// Bytes after the file's last block (samples, range table, pyramid) that
     /// no part of the format accounts for: where they start and how many.
     unused_tail: Option<(u64, u64)>,
+    /// Why the `FILE.pyramid` sidecar, fresh for this file, was ignored (it is
+    /// damaged): the volume opens without a pyramid.
+    ignored_pyramid: Option<String>,
 }
 
 /// Where full-resolution voxel coordinate `p` lies among the voxels of a
@@ -178,6 +181,7 @@ impl Volume {
             levels: pyramid.levels,
             level: 0,
             unused_tail: (len > content_end).then(|| (content_end, len - content_end)),
+            ignored_pyramid: pyramid.ignored,
         })
     }
 
@@ -232,6 +236,7 @@ impl Volume {
             levels: Vec::new(),
             level: 0,
             unused_tail: None,
+            ignored_pyramid: None,
         })
     }
 
@@ -282,6 +287,23 @@ impl Volume {
     /// them; they may be the sign of a damaged copy or of two files joined.
     pub fn unused_tail(&self) -> Option<(u64, u64)> {
         self.unused_tail
+    }
+
+    /// What opening the file found that the user should know of, one warning
+    /// each: bytes past its last block ([`Self::unused_tail_warning`]), a
+    /// damaged pyramid sidecar that was ignored.
+    pub fn open_warnings(&self) -> Vec<String> {
+        let sidecar = self.ignored_pyramid.as_ref().map(|why| {
+            format!(
+                "warning: {}: ignored ({why}); the volume has no pyramid until `volgen pyramid {}` writes it again",
+                pyramid_sidecar_path(&self.path).display(),
+                self.path.display()
+            )
+        });
+        self.unused_tail_warning()
+            .into_iter()
+            .chain(sidecar)
+            .collect()
     }
 
     /// A warning naming [`Self::unused_tail`], if there is one.
@@ -557,12 +579,15 @@ fn load_ranges(
 struct PyramidBlock {
     levels: Vec<Volume>,
     level0_cells: Option<CellTable>,
+    /// Why a damaged sidecar was ignored.
+    ignored: Option<String>,
 }
 
 /// The pyramid of an opened file: embedded (extended header version 2 or
 /// later), else from a fresh `FILE.pyramid`
 /// sidecar, else none. A corrupt embedded pyramid is an error; a stale or
-/// unreadable sidecar is ignored.
+/// unreadable sidecar is ignored, and a fresh one that is damaged too, with
+/// the reason ([`PyramidBlock::ignored`]).
 fn load_pyramid(
     path: &Path,
     header: &Header,
@@ -593,6 +618,7 @@ fn load_pyramid(
     if !fresh || !side.metadata().is_ok_and(|m| m.is_file()) {
         return none();
     }
+    // A fresh sidecar that does not read is damaged: opened without it, said.
     Ok(read_levels(
         path,
         header,
@@ -602,7 +628,10 @@ fn load_pyramid(
         access,
         None,
     )
-    .unwrap_or_default())
+    .unwrap_or_else(|e| PyramidBlock {
+        ignored: Some(e.kind.to_string()),
+        ..PyramidBlock::default()
+    }))
 }
 
 /// The pyramid block at `start` of `file`; `cells`: whether the block must
@@ -640,12 +669,14 @@ fn read_levels(
                 level: k as u32,
                 full_dims: base.dims,
                 unused_tail: None,
+                ignored_pyramid: None,
             })
         })
         .collect::<Result<_, VolumeError>>()?;
     Ok(PyramidBlock {
         levels,
         level0_cells,
+        ignored: None,
     })
 }
 
