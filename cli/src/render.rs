@@ -545,6 +545,21 @@ pub fn run(args: RenderArgs) -> Result<()> {
             progress_after(&args),
         )?
     };
+    // Planes (and a crop box) that together keep nothing in view, where no
+    // single plane does (that one is said before rendering).
+    let clip = &setup.settings.clip;
+    if frame.stats.counters.rays == 0
+        && !clip.is_empty()
+        && clip
+            .plane_keeping_nothing(setup.volume.sampled_box())
+            .is_none()
+        && !args.quiet
+    {
+        eprintln!(
+            "warning: the crop box and clipping planes together keep nothing of {} in view: the picture is background (each plane keeps the side its normal points into)",
+            setup.volume.path().display()
+        );
+    }
     // A dark average frame on the default domain: say which domain shows it.
     if setup.settings.mode == Mode::Average
         && args.domain.is_none()

@@ -579,4 +579,34 @@ fn a_plane_that_keeps_nothing_is_warned_of() {
     let image = RgbImage::load_png(&dir.path().join("p.png")).unwrap();
     assert!(image.data().iter().all(|&c| c == 0));
     assert!(!run("16,0,0,1,0,0").contains("warning"));
+    // Two planes facing apart, each keeping half: together nothing, said once
+    // (it rendered background without a word); overlapping halves are not.
+    let two = |a: &str, b: &str| {
+        let out = raycaster(
+            &[
+                "render",
+                "--scene-size",
+                "32",
+                "--size",
+                "24x24",
+                "--clip",
+                a,
+                "--clip",
+                b,
+                "-o",
+                "p.png",
+                "--force",
+            ],
+            dir.path(),
+        );
+        assert!(out.status.success(), "{}", stderr(&out));
+        stderr(&out)
+    };
+    let said = two("16,0,0,1,0,0", "12,0,0,-1,0,0");
+    assert_eq!(
+        said.matches("warning: the crop box and clipping planes together keep nothing of built-in shapes scene 32³ in view").count(),
+        1,
+        "{said}"
+    );
+    assert!(!two("12,0,0,1,0,0", "16,0,0,-1,0,0").contains("warning"));
 }
