@@ -195,6 +195,42 @@ pub fn parse_finite(s: &str) -> Result<f32, String> {
         .ok_or_else(|| format!("{s:?} must be a finite number"))
 }
 
+/// A whole number `min` or more, said in words when it is not (clap's own
+/// message for `-1` reads "-1 is not in 0..=4294967295").
+fn parse_whole<T: std::str::FromStr + Into<u64> + Copy>(s: &str, min: u64) -> Result<T, String> {
+    let at_least = if min == 0 {
+        "0 or more".to_string()
+    } else {
+        format!("{min} or more")
+    };
+    match s.trim().parse::<T>() {
+        Ok(v) if v.into() >= min => Ok(v),
+        Ok(_) => Err(format!("{s:?} must be a whole number, {at_least}")),
+        Err(_) if s.trim().parse::<i128>().is_ok_and(|v| v < min as i128) => {
+            Err(format!("{s:?} must be a whole number, {at_least}"))
+        }
+        Err(_) if s.trim().parse::<i128>().is_ok() => {
+            Err(format!("{s:?} is too large for a whole number here"))
+        }
+        Err(_) => Err(format!("{s:?} must be a whole number, {at_least}")),
+    }
+}
+
+/// A whole number 0 or more that fits 32 bits (an index).
+pub fn parse_index(s: &str) -> Result<u32, String> {
+    parse_whole(s, 0)
+}
+
+/// A whole number 1 or more that fits 32 bits (a count).
+pub fn parse_count(s: &str) -> Result<u32, String> {
+    parse_whole(s, 1)
+}
+
+/// A whole number 0 or more that fits 64 bits (a seed).
+pub fn parse_seed(s: &str) -> Result<u64, String> {
+    parse_whole(s, 0)
+}
+
 /// A camera elevation in degrees, −90 to 90 (beyond, the orbit would stop at
 /// the pole without a word).
 pub fn parse_elevation(s: &str) -> Result<f32, String> {
@@ -307,6 +343,34 @@ pub fn parse_clip(s: &str) -> Result<ClipArg, String> {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn whole_numbers_are_refused_in_words() {
+        use super::{parse_count, parse_index, parse_seed};
+        assert_eq!(parse_index("0"), Ok(0));
+        assert_eq!(parse_count(" 7 "), Ok(7));
+        assert_eq!(parse_seed("18446744073709551615"), Ok(u64::MAX));
+        assert_eq!(
+            parse_index("-1"),
+            Err("\"-1\" must be a whole number, 0 or more".into())
+        );
+        assert_eq!(
+            parse_count("0"),
+            Err("\"0\" must be a whole number, 1 or more".into())
+        );
+        assert_eq!(
+            parse_seed("-1"),
+            Err("\"-1\" must be a whole number, 0 or more".into())
+        );
+        assert_eq!(
+            parse_index("5000000000"),
+            Err("\"5000000000\" is too large for a whole number here".into())
+        );
+        assert_eq!(
+            parse_count("two"),
+            Err("\"two\" must be a whole number, 1 or more".into())
+        );
+    }
+
     use super::*;
 
     #[test]

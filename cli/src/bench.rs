@@ -106,11 +106,11 @@ pub struct BenchArgs {
     transfer: Option<&'static str>,
 
     /// Timed frames per configuration (the fastest is reported).
-    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..), value_name = "N")]
+    #[arg(long, default_value_t = 3, value_parser = crate::args::parse_count, value_name = "N")]
     frames: u32,
 
     /// Untimed frames before the timed ones (page cache, allocations).
-    #[arg(long, default_value_t = 1, value_name = "N")]
+    #[arg(long, default_value_t = 1, value_parser = crate::args::parse_index, value_name = "N")]
     warm_up: u32,
 
     /// Sample step in voxels.

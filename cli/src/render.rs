@@ -77,7 +77,7 @@ pub struct RenderArgs {
     scene_size: u32,
 
     /// Seed of the built-in scene.
-    #[arg(long, default_value_t = 1, conflicts_with = "file")]
+    #[arg(long, default_value_t = 1, conflicts_with = "file", value_parser = crate::args::parse_seed)]
     seed: u64,
 
     /// Transfer function: a preset name or a transfer-function file. Default:

@@ -7,7 +7,7 @@ use clap::{Args, ValueEnum};
 use raycaster::slice::{Axis, PlaneLayout, Slice};
 use raycaster::volume::{Access, OpenOptions, Volume};
 
-use crate::args::{WindowArg, parse_window};
+use crate::args::{WindowArg, parse_index, parse_window};
 
 /// Write one slice of a volume as a greyscale PNG.
 ///
@@ -37,7 +37,7 @@ pub struct SliceArgs {
     axis: AxisArg,
 
     /// The slice's index along the axis, 0 to size − 1.
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", value_parser = parse_index)]
     index: u32,
 
     /// Output PNG (the name must end in .png).
