@@ -9,22 +9,30 @@ use anyhow::{Result, bail};
 /// 16384² (17.5 GB), with a margin.
 const FRAME_BYTES_PER_PIXEL: u64 = 72;
 
-/// Refuses a `width × height` frame that would take more memory than the
-/// machine has available (`MemAvailable` of `/proc/meminfo`; no check where
-/// that is unknown).
+/// Refuses a `width × height` frame that would take more memory than this
+/// process can have: the least of what the machine has available
+/// (`MemAvailable` of `/proc/meminfo`), what the process's address-space limit
+/// leaves (`ulimit -v`) and what its control group's limit leaves
+/// (`memory.max`); no check where none is known.
 pub fn check_frame(width: u32, height: u32) -> Result<()> {
-    let Some(available) = available_bytes() else {
+    let limits = [
+        available_bytes().map(|b| (b, "")),
+        address_space_left().map(|b| (b, " under the process's address-space limit (ulimit -v)")),
+        cgroup_left().map(|b| (b, " under the control group's memory limit")),
+    ];
+    let Some((available, whose)) = limits.into_iter().flatten().min_by_key(|(b, _)| *b) else {
         return Ok(());
     };
-    frame_fits(width, height, available)
+    frame_fits(width, height, available, whose)
 }
 
-/// [`check_frame`] against `available` bytes.
-fn frame_fits(width: u32, height: u32, available: u64) -> Result<()> {
+/// [`check_frame`] against `available` bytes (`whose`: which limit leaves
+/// them, said after the number).
+fn frame_fits(width: u32, height: u32, available: u64, whose: &str) -> Result<()> {
     let needed = u64::from(width) * u64::from(height) * FRAME_BYTES_PER_PIXEL;
     if needed > available {
         bail!(
-            "a {width}×{height} frame needs about {:.1} GB of memory and {:.1} GB are available; render a smaller --size",
+            "a {width}×{height} frame needs about {:.1} GB of memory and {:.1} GB are available{whose}; render a smaller --size",
             needed as f64 / 1e9,
             available as f64 / 1e9
         );
@@ -32,12 +40,46 @@ fn frame_fits(width: u32, height: u32, available: u64) -> Result<()> {
     Ok(())
 }
 
+/// What the soft address-space limit (`/proc/self/limits`) leaves beyond the
+/// process's present size (`VmSize`); `None` when unlimited or unknown.
+fn address_space_left() -> Option<u64> {
+    let limits = std::fs::read_to_string("/proc/self/limits").ok()?;
+    let line = limits
+        .lines()
+        .find(|l| l.starts_with("Max address space"))?;
+    let soft: u64 = line
+        .trim_start_matches("Max address space")
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()?;
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    Some(soft.saturating_sub(kib_field(&status, "VmSize:")?))
+}
+
+/// What the memory limit of the process's (version 2) control group leaves
+/// beyond its present use; `None` when unlimited or unknown.
+fn cgroup_left() -> Option<u64> {
+    let groups = std::fs::read_to_string("/proc/self/cgroup").ok()?;
+    let path = groups.lines().find_map(|l| l.strip_prefix("0::"))?;
+    let dir = std::path::Path::new("/sys/fs/cgroup").join(path.trim_start_matches('/'));
+    let read = |name: &str| std::fs::read_to_string(dir.join(name)).ok();
+    let max: u64 = read("memory.max")?.trim().parse().ok()?;
+    let current: u64 = read("memory.current")?.trim().parse().ok()?;
+    Some(max.saturating_sub(current))
+}
+
+/// The number of kibibytes (in bytes) on the line of `text` starting `key`.
+fn kib_field(text: &str, key: &str) -> Option<u64> {
+    let line = text.lines().find(|l| l.starts_with(key))?;
+    let kib: u64 = line[key.len()..].split_whitespace().next()?.parse().ok()?;
+    Some(kib * 1024)
+}
+
 /// The memory available to new allocations, by the kernel's estimate.
 fn available_bytes() -> Option<u64> {
     let text = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
-    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kib * 1024)
+    kib_field(&text, "MemAvailable:")
 }
 
 #[cfg(test)]
@@ -47,14 +89,20 @@ mod tests {
     #[test]
     fn frames_beyond_the_available_memory_are_refused_with_the_numbers() {
         let gb = 1_000_000_000;
-        assert!(frame_fits(512, 512, gb).is_ok());
-        let e = frame_fits(16384, 16384, 11 * gb).unwrap_err().to_string();
+        assert!(frame_fits(512, 512, gb, "").is_ok());
+        let e = frame_fits(16384, 16384, 11 * gb, "")
+            .unwrap_err()
+            .to_string();
         assert_eq!(
             e,
             "a 16384×16384 frame needs about 19.3 GB of memory and 11.0 GB are available; render a smaller --size"
         );
-        assert!(frame_fits(16384, 16384, 20 * gb).is_ok());
-        assert!(frame_fits(16384, 16384, 18 * gb).is_err());
+        assert!(frame_fits(16384, 16384, 20 * gb, "").is_ok());
+        assert!(frame_fits(16384, 16384, 18 * gb, "").is_err());
+        assert_eq!(
+            kib_field("VmPeak:\t  10 kB\nVmSize:\t 2048 kB\n", "VmSize:"),
+            Some(2 << 20)
+        );
         // This machine reports its memory.
         assert!(available_bytes().is_some_and(|b| b > 0));
     }

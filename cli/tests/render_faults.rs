@@ -204,6 +204,31 @@ fn near_miss_presets_get_a_suggestion_and_a_missing_file_is_not_a_preset() {
     assert!(!d.join("render.png").exists());
 }
 
+/// Under an address-space limit (`ulimit -v`) a frame too large for it is
+/// refused with the numbers and the limit named, where the allocation failed
+/// and the process aborted.
+#[test]
+fn a_frame_beyond_the_address_space_limit_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = Command::new("bash")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -v 3000000 && exec {} render --size 8192 -o big.png",
+            env!("CARGO_BIN_EXE_raycaster")
+        ))
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    let said = stderr(&out);
+    assert!(
+        said.contains("a 8192×8192 frame needs about 4.8 GB of memory")
+            && said.contains("under the process's address-space limit (ulimit -v)"),
+        "{said}"
+    );
+    assert!(!dir.path().join("big.png").exists());
+}
+
 /// An elevation past a pole is refused (it was clamped to the pole without a
 /// word), and an --up within a degree of the view direction is warned of
 /// (the picture's roll then follows the small difference).
