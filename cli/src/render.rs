@@ -82,7 +82,8 @@ pub struct RenderArgs {
 
     /// Transfer function: a preset name or a transfer-function file. Default:
     /// the preset that suits the built-in scene; for a file, what fits its data
-    /// — `shapes` for u8 data, `ct-bone` for CT, `ct-skin` for other 16-bit data.
+    /// — `shapes` for u8 data, `ct-bone` for CT, `ct-skin` for other 16-bit data
+    /// and for u8 scans placed in the patient (a converted MR).
     #[arg(long, value_name = "PRESET|FILE")]
     tf: Option<String>,
 
@@ -90,7 +91,7 @@ pub struct RenderArgs {
     /// (Hounsfield units for CT: `--domain -1000,2000`), or a named CT window:
     /// ct, bone, soft-tissue, lung, brain. Default: what fits the data — the
     /// whole range of u8 data, −1000..2000 HU for CT, the 0.5th to 99.5th
-    /// percentile of other 16-bit data. Files converted before value units were
+    /// percentile of other 16-bit data and of u8 scans placed in the patient. Files converted before value units were
     /// kept take stored sample values. A domain outside the data's values gets a
     /// warning.
     #[arg(long, value_parser = parse_window, allow_hyphen_values = true, value_name = "LO,HI|NAME")]

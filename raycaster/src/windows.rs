@@ -80,7 +80,8 @@ pub enum DataKind {
     /// A CT scan: values in Hounsfield units (said by the file, or i16 values
     /// reaching down to air).
     Ct,
-    /// Other 16-bit data (MR, microscopy, simulations).
+    /// Other data (16-bit MR, microscopy, simulations; 8-bit scans placed in
+    /// the patient).
     Generic,
 }
 
@@ -102,7 +103,10 @@ const TAIL_PERCENT: f64 = 0.5;
 const PERCENTILE_SAMPLES: u64 = 1 << 18;
 
 /// The preset and domain a first render of `volume` uses without flags:
-/// - u8 data: the `shapes` preset over the type's range;
+/// - u8 data: the `shapes` preset over the type's range (generated scenes, the
+///   thesis's files), but for a scan placed in the patient (an orientation:
+///   an MR or CT converted to u8) the generic `ct-skin` below (the `shapes`
+///   colours painted a head blue and orange);
 /// - CT (the file says Hounsfield units, or the values came from i16 and reach
 ///   down to air, ≤ −900): `ct-bone` over −1000..2000 HU;
 /// - other u16 data: `ct-skin` over the 0.5th to 99.5th percentile of the
@@ -110,7 +114,7 @@ const PERCENTILE_SAMPLES: u64 = 1 << 18;
 ///   most 2^18 voxels of a small volume); a large volume without a pyramid gets
 ///   its stored value range (no pass over the data).
 pub fn fit(volume: &Volume) -> DataFit {
-    if volume.sample_type() == SampleType::U8 {
+    if volume.sample_type() == SampleType::U8 && volume.orientation().is_none() {
         return DataFit {
             kind: DataKind::Bytes,
             preset: "shapes",
@@ -244,5 +248,42 @@ mod tests {
             fit(&u16_volume(|i| (i % 3000) as u16, Some(said))).kind,
             DataKind::Ct
         );
+    }
+
+    /// 8-bit data opens with the `shapes` colours (generated scenes), but an
+    /// 8-bit scan placed in the patient as generic data (it was painted blue
+    /// and orange too).
+    #[test]
+    fn bytes_placed_in_the_patient_open_as_a_scan() {
+        let header = |orientation| {
+            Header::new(
+                [16; 3],
+                [1.0; 3],
+                Layout::Linear,
+                SampleType::U8,
+                Content::Scalar,
+                Format::Extended,
+            )
+            .with_orientation(orientation)
+        };
+        let samples: Vec<u8> = (0..16 * 16 * 16).map(|i| (i % 200) as u8).collect();
+        let plain = Volume::from_samples("scene.vol", &header(None), &samples).unwrap();
+        let f = fit(&plain);
+        assert_eq!(
+            (f.kind, f.preset, f.domain),
+            (DataKind::Bytes, "shapes", None)
+        );
+        let lps = crate::volume::Orientation::from_steps(
+            crate::volume::PatientSpace::Lps,
+            [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            [0.0; 3],
+        )
+        .unwrap()
+        .0;
+        let scan = Volume::from_samples("mr.vol", &header(Some(lps)), &samples).unwrap();
+        let f = fit(&scan);
+        assert_eq!((f.kind, f.preset), (DataKind::Generic, "ct-skin"));
+        let [lo, hi] = f.domain.unwrap();
+        assert!(lo <= 1.0 && (195.0..=199.0).contains(&hi), "{lo}..{hi}");
     }
 }
