@@ -75,10 +75,10 @@ pub fn json(
         "width": s.width,
         "height": s.height,
         "mode": settings.mode.name(),
-        "step": settings.step,
+        "step": shortest(settings.step),
         // On or off as "ess" is; the threshold beside it (null when off).
         "ert": settings.early_termination.is_some(),
-        "ert_threshold": settings.early_termination,
+        "ert_threshold": settings.early_termination.map(shortest),
         "ess": settings.empty_space_skipping,
         "preintegrated": settings.preintegrated,
         "jitter": settings.jitter,
@@ -97,6 +97,12 @@ pub fn json(
         "seconds": s.time.as_secs_f64(),
         "samples_per_second": s.samples_per_second(),
     })
+}
+
+/// `x` as the f64 its shortest decimal text reads as: 0.99, where the f32's
+/// exact value printed as 0.9900000095367432.
+fn shortest(x: f32) -> f64 {
+    x.to_string().parse().unwrap_or(f64::from(x))
 }
 
 /// The level line and the bytes read from storage, for [`table`]'s reader.

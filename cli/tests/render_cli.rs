@@ -205,16 +205,20 @@ fn renders_a_file_and_reports_stats_as_json() {
         args.extend_from_slice(extra);
         let out = raycaster(&args, dir.path());
         assert!(out.status.success(), "{}", stderr(&out));
-        serde_json::from_slice::<serde_json::Value>(&out.stdout).expect("one JSON object")
+        let text = String::from_utf8_lossy(&out.stdout).to_string();
+        let json = serde_json::from_str::<serde_json::Value>(&text).expect("one JSON object");
+        (json, text)
     };
-    let both = run(&[]);
-    let none = run(&["--no-ert", "--no-ess"]);
+    let (both, text) = run(&[]);
+    // As written (it read 0.9900000095367432, the f32's exact value).
+    assert!(text.contains("\"ert_threshold\":0.99,"), "{text}");
+    let (none, _) = run(&["--no-ert", "--no-ess"]);
     assert_eq!(both["rays"], none["rays"]);
     let samples = |v: &serde_json::Value| v["samples"].as_u64().unwrap();
     assert!(samples(&both) < samples(&none), "{both} vs {none}");
     assert!(none["samples_skipped_empty"].as_u64() == Some(0));
     assert_eq!(both["ert"], serde_json::json!(true));
-    assert_eq!(both["ert_threshold"], serde_json::json!(0.99f32));
+    assert_eq!(both["ert_threshold"], serde_json::json!(0.99));
     assert_eq!(none["ert"], serde_json::json!(false));
     assert_eq!(none["ert_threshold"], serde_json::Value::Null);
     assert_eq!(none["ess"], serde_json::json!(false));
@@ -222,8 +226,8 @@ fn renders_a_file_and_reports_stats_as_json() {
     // in the sequential renderer under `auto`; every one of this DVR frame
     // where the automatic level has a kernel (AVX2).
     let lanes = |v: &serde_json::Value| v["samples_in_lanes"].as_u64().unwrap();
-    assert_eq!(lanes(&run(&["--simd", "scalar"])), 0);
-    assert_eq!(lanes(&run(&["--sequential"])), 0);
+    assert_eq!(lanes(&run(&["--simd", "scalar"]).0), 0);
+    assert_eq!(lanes(&run(&["--sequential"]).0), 0);
     let automatic = raycaster::render::SimdLevel::automatic();
     let expected = if automatic == raycaster::render::SimdLevel::Scalar {
         0
