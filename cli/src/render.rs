@@ -220,7 +220,7 @@ pub struct RenderArgs {
     target: Option<[f32; 3]>,
 
     /// Camera up vector (world; with --position or instead of the vertical).
-    #[arg(long, default_value = "0,0,1", value_parser = parse_vec3, allow_hyphen_values = true, value_name = "X,Y,Z")]
+    #[arg(long, default_value = "0,0,1", value_parser = parse_direction, allow_hyphen_values = true, value_name = "X,Y,Z")]
     up: [f32; 3],
 
     /// Measure --azimuth and --elevation about the file's voxel axes with +z up,
