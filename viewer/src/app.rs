@@ -1190,11 +1190,21 @@ impl Controller {
         region
     }
 
-    /// Describes the clipping plane under its sliders.
+    /// Says what the cut keeps: the voxels along each axis over its crop
+    /// sliders, the clipping plane under its own.
     fn show_cut(&self) {
         let Some(ui) = self.ui() else { return };
         let st = self.state.borrow();
         let region = Self::clip(&ui, &st);
+        let dims = st
+            .current
+            .as_ref()
+            .map_or([1; 3], |c| c.volume.volume.dims());
+        let kept: Vec<SharedString> = crate::cut::kept_voxels(&region, dims)
+            .into_iter()
+            .map(SharedString::from)
+            .collect();
+        ui.set_crop_kept(ModelRc::new(VecModel::from(kept)));
         let keeps_nothing = st.current.as_ref().is_some_and(|c| {
             region
                 .plane_keeping_nothing(c.volume.volume.sampled_box())

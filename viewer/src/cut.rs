@@ -122,9 +122,64 @@ impl CutValues {
     }
 }
 
+/// What each crop row says: the voxels `region` keeps along x, y and z of a
+/// volume of `dims` voxels, `x 0 .. 24 of 0 .. 47 voxels` (a session's box
+/// may end between voxels: up to two decimals then).
+pub(crate) fn kept_voxels(region: &ClipRegion, dims: [u32; 3]) -> [String; 3] {
+    let last = extent(dims);
+    let number = |v: f32| {
+        let text = format!("{v:.2}");
+        text.trim_end_matches('0').trim_end_matches('.').to_string()
+    };
+    std::array::from_fn(|a| {
+        let (lo, hi) = region.crop.map_or((0.0, last[a]), |c| (c.lo[a], c.hi[a]));
+        format!(
+            "{} {} .. {} of 0 .. {} voxels",
+            ["x", "y", "z"][a],
+            number(lo),
+            number(hi),
+            number(last[a])
+        )
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The rows say the voxels the frame's region keeps: crossed sliders what
+    /// lies between them, sliders that meet one voxel's slab (46 .. 47 at the
+    /// top), a session's box between voxels with a decimal.
+    #[test]
+    fn crop_rows_say_the_voxels_the_region_keeps() {
+        let dims = [48, 40, 48];
+        let values = CutValues {
+            lo: [0.0, 0.75, 1.0],
+            hi: [0.5, 0.25, 1.0],
+            ..CutValues::default()
+        };
+        assert_eq!(
+            kept_voxels(&values.region(dims), dims),
+            [
+                "x 0 .. 24 of 0 .. 47 voxels",
+                "y 10 .. 29 of 0 .. 39 voxels",
+                "z 46 .. 47 of 0 .. 47 voxels",
+            ]
+        );
+        let whole = kept_voxels(&CutValues::default().region(dims), dims);
+        assert_eq!(whole[1], "y 0 .. 39 of 0 .. 39 voxels");
+        let session = ClipRegion {
+            crop: Some(CropBox {
+                lo: Vec3::new(0.0, 229.95, 0.0),
+                hi: Vec3::new(511.0, 511.0, 47.0),
+            }),
+            planes: Vec::new(),
+        };
+        assert_eq!(
+            kept_voxels(&session, [512, 512, 48])[1],
+            "y 229.95 .. 511 of 0 .. 511 voxels"
+        );
+    }
 
     #[test]
     fn full_sliders_and_no_plane_cut_nothing() {
