@@ -551,25 +551,26 @@ fn a_crop_box_renders_at_every_pyramid_level() {
 #[test]
 fn a_plane_that_keeps_nothing_is_warned_of() {
     let dir = tempfile::tempdir().unwrap();
-    let run = |clip: &str| {
-        let out = raycaster(
-            &[
-                "render",
-                "--scene-size",
-                "32",
-                "--size",
-                "24x24",
-                "--clip",
-                clip,
-                "-o",
-                "p.png",
-                "--force",
-            ],
-            dir.path(),
-        );
+    // Renders with one `--clip` per plane given.
+    let run_planes = |planes: &[&str]| {
+        let mut args = vec![
+            "render",
+            "--scene-size",
+            "32",
+            "--size",
+            "24x24",
+            "-o",
+            "p.png",
+            "--force",
+        ];
+        for plane in planes {
+            args.extend(["--clip", plane]);
+        }
+        let out = raycaster(&args, dir.path());
         assert!(out.status.success(), "{}", stderr(&out));
         stderr(&out)
     };
+    let run = |clip: &str| run_planes(&[clip]);
     let said = run("40,0,0,1,0,0");
     assert_eq!(
         said.matches("warning: the clipping plane through [40, 0, 0] with normal [1, 0, 0] keeps nothing of built-in shapes scene 32³: the picture is background").count(),
@@ -581,32 +582,11 @@ fn a_plane_that_keeps_nothing_is_warned_of() {
     assert!(!run("16,0,0,1,0,0").contains("warning"));
     // Two planes facing apart, each keeping half: together nothing, said once
     // (it rendered background without a word); overlapping halves are not.
-    let two = |a: &str, b: &str| {
-        let out = raycaster(
-            &[
-                "render",
-                "--scene-size",
-                "32",
-                "--size",
-                "24x24",
-                "--clip",
-                a,
-                "--clip",
-                b,
-                "-o",
-                "p.png",
-                "--force",
-            ],
-            dir.path(),
-        );
-        assert!(out.status.success(), "{}", stderr(&out));
-        stderr(&out)
-    };
-    let said = two("16,0,0,1,0,0", "12,0,0,-1,0,0");
+    let said = run_planes(&["16,0,0,1,0,0", "12,0,0,-1,0,0"]);
     assert_eq!(
         said.matches("warning: the crop box and clipping planes together keep nothing of built-in shapes scene 32³ in view").count(),
         1,
         "{said}"
     );
-    assert!(!two("12,0,0,1,0,0", "16,0,0,-1,0,0").contains("warning"));
+    assert!(!run_planes(&["12,0,0,1,0,0", "16,0,0,-1,0,0"]).contains("warning"));
 }

@@ -481,7 +481,13 @@ fn every_level_has_the_diagonal_of_level_0_in_level_0_voxels() {
 /// The [`pattern`] as an extended u8 file `name` in `dir`, bricked (side 16),
 /// with its pyramid.
 fn bricked_pattern_file(dir: &TempDir, name: &str) -> std::path::PathBuf {
-    let header = u8_header(Layout::Bricked { side: 16 }, Format::Extended);
+    pattern_file_spaced(dir, name, [1.0; 3])
+}
+
+/// [`bricked_pattern_file`] with voxels `spacing` apart.
+fn pattern_file_spaced(dir: &TempDir, name: &str, spacing: [f32; 3]) -> std::path::PathBuf {
+    let mut header = u8_header(Layout::Bricked { side: 16 }, Format::Extended);
+    header.spacing = spacing;
     let path = dir.path().join(name);
     write(
         &path,
@@ -651,18 +657,7 @@ fn the_automatic_level_follows_the_projected_voxel_size() {
 #[test]
 fn the_automatic_level_keeps_the_coarsest_axis_within_a_pixel() {
     let dir = TempDir::new().unwrap();
-    let mut header = u8_header(Layout::Bricked { side: 16 }, Format::Extended);
-    header.spacing = [1.0, 1.0, 8.0];
-    let path = dir.path().join("slices.vol");
-    write(
-        &path,
-        &header,
-        &pattern(DIMS, 255, false),
-        &small_slabs(),
-        &Job::silent(),
-    )
-    .unwrap();
-    let volume = Volume::open(&path).unwrap();
+    let volume = Volume::open(pattern_file_spaced(&dir, "slices.vol", [1.0, 1.0, 8.0])).unwrap();
     let coarsest = volume.level_count() - 1;
     assert!(coarsest >= 2);
     let hi = Vec3::from(volume.dims().map(|d| (d - 1) as f32)) * Vec3::from(volume.spacing());
