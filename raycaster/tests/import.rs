@@ -908,3 +908,48 @@ fn a_ct_scan_keeps_hounsfield_units_through_conversion_and_windows_in_them() {
     .unwrap();
     assert!(Volume::open(&thesis).unwrap().value_units().is_identity());
 }
+
+/// A device as a detached data file is said to be one whether the volume is
+/// opened in memory or streamed (before: `raycaster render` said "the data
+/// file holds 0 bytes of samples but the header needs 8000000000", as its
+/// length is 0, while `volgen info` gave the reason).
+#[test]
+fn a_device_as_the_data_file_is_said_to_be_one_in_memory_too() {
+    let dev = Path::new("/dev/zero");
+    if !dev.exists() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    for (name, extra) in [("z.nhdr", ""), ("end.nhdr", "byte skip: -1\n")] {
+        let p = dir.path().join(name);
+        std::fs::write(
+            &p,
+            format!(
+                "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2000 2000 2000\nencoding: raw\n{extra}data file: /dev/zero\n"
+            ),
+        )
+        .unwrap();
+        let said = format!("{name}: cannot open the data file /dev/zero: is a device");
+        let err = import::open_volume_any(&p, 1 << 30)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains(&said), "{err}");
+        assert!(!err.contains("bytes of samples"), "{err}");
+        if let Ok(imported) = import::open(&p) {
+            let err = imported.input(None, 1 << 20).unwrap_err().to_string();
+            assert!(err.contains(&said), "{err}");
+        }
+    }
+    // A missing data file is said as missing before the size is weighed.
+    let p = dir.path().join("gone.nhdr");
+    std::fs::write(
+        &p,
+        "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2000 2000 2000\nencoding: raw\ndata file: gone.raw\n",
+    )
+    .unwrap();
+    let err = import::open_volume_any(&p, 1 << 30)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("cannot open the data file"), "{err}");
+    assert!(!err.contains("limit"), "{err}");
+}

@@ -252,7 +252,7 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
             let data_path = path.parent().unwrap_or(Path::new(".")).join(name);
             let offset = match h.header_size {
                 Some(n) => n,
-                None => data_at_end(&data_path, sample_bytes, 0)?,
+                None => data_at_end(path, &data_path, sample_bytes, 0)?,
             };
             (data_path, offset)
         }

@@ -295,13 +295,18 @@ pub(crate) fn read_text_header(path: &Path, max: usize) -> Result<Vec<u8>, Impor
 /// Where raw samples start when a header says they end the data file (NRRD
 /// `byte skip: -1`, MetaImage `HeaderSize = -1`): `sample_bytes` before its end, not
 /// before `not_before` (the end of what precedes the data in that file).
+/// `header` is the file that names `data_path`, for the error when that is
+/// missing or no regular file.
 pub(crate) fn data_at_end(
+    header: &Path,
     data_path: &Path,
     sample_bytes: u64,
     not_before: u64,
 ) -> Result<u64, ImportError> {
-    let len = std::fs::metadata(data_path)
-        .map_err(|e| ImportError::new(data_path, e))?
+    // (A device's length is 0: said as what it is, not as a short file.)
+    let len = crate::files::check_regular(data_path)
+        .and_then(|()| std::fs::metadata(data_path))
+        .map_err(|source| data_file_error(header, data_path, source))?
         .len();
     len.checked_sub(sample_bytes)
         .filter(|&start| start >= not_before)
@@ -315,6 +320,12 @@ pub(crate) fn data_at_end(
                 },
             )
         })
+}
+
+/// [`ImportErrorKind::DataFile`] about `header`'s data file `file`.
+pub(crate) fn data_file_error(header: &Path, file: &Path, source: std::io::Error) -> ImportError {
+    let file = file.to_path_buf();
+    ImportError::new(header, ImportErrorKind::DataFile { file, source })
 }
 
 /// The file name endings of the foreign formats (lower case), and their formats.
@@ -528,10 +539,8 @@ impl Imported {
             return Input::from_raw_data(&self.path, data, spec, Some(self.spacing))
                 .map_err(|e| ImportError::new(&self.path, e));
         }
-        let file = crate::files::open_regular(&self.data_path).map_err(|source| {
-            let file = self.data_path.clone();
-            ImportError::new(&self.path, ImportErrorKind::DataFile { file, source })
-        })?;
+        let file = crate::files::open_regular(&self.data_path)
+            .map_err(|source| data_file_error(&self.path, &self.data_path, source))?;
         let data = match self.encoding {
             Encoding::Raw => {
                 self.check_raw_size(file.metadata().map_err(at_data)?.len())?;
@@ -794,8 +803,13 @@ impl Imported {
         limit: u64,
         job: &Job,
     ) -> Result<(Volume, Option<String>), ImportError> {
-        // A truncated file is said as one before its declared size is
-        // weighed against the limit (the size is what is wrong with it).
+        // A data file that is missing or no regular file (a device's length
+        // is 0), or a truncated one, is said as such before its declared size
+        // is weighed against the limit (what is wrong is the file).
+        if self.encoding != Encoding::Slices {
+            crate::files::check_regular(&self.data_path)
+                .map_err(|source| data_file_error(&self.path, &self.data_path, source))?;
+        }
         if self.encoding == Encoding::Raw
             && let Ok(meta) = std::fs::metadata(&self.data_path)
         {

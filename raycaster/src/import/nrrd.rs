@@ -352,6 +352,8 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
         }
     };
     if h.line_skip > 0 {
+        crate::files::check_regular(&data_path)
+            .map_err(|source| super::data_file_error(path, &data_path, source))?;
         offset += skip_lines(&data_path, offset, h.line_skip)
             .map_err(|e| ImportError::new(&data_path, e))?;
     }
@@ -368,7 +370,7 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
             })?;
             (start, 0)
         }
-        (Encoding::Raw, None) => (data_at_end(&data_path, sample_bytes, offset)?, 0),
+        (Encoding::Raw, None) => (data_at_end(path, &data_path, sample_bytes, offset)?, 0),
         (_, skip) => (offset, skip.unwrap_or(0)),
     };
     Ok(Imported {
