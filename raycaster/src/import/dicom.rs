@@ -323,6 +323,14 @@ fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
 
 /// Parses the series in the folder `path` (or the folder of the file `path`).
 pub fn open(path: &Path) -> Result<Imported, ImportError> {
+    // A file named is one of the series: it is said by name when it is
+    // missing or no DICOM file (not as its folder holding none).
+    if !path.is_dir() {
+        crate::files::check_regular(path).map_err(|e| ImportError::new(path, e))?;
+        if !has_dicm_marker(path) {
+            return Err(ImportError::new(path, ImportErrorKind::NotDicom));
+        }
+    }
     let dir = series_dir(path);
     let at_dir = |k: ImportErrorKind| ImportError::new(&dir, k);
     let plain: Vec<PathBuf> = std::fs::read_dir(&dir)

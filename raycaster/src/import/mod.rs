@@ -172,6 +172,9 @@ pub enum ImportErrorKind {
         "not a known volume format (expected .vol, .nrrd, .nhdr, .nii, .nii.gz, .hdr, .mha, .mhd, or a DICOM folder or .dcm file)"
     )]
     UnknownFormat,
+    /// A file opened as a DICOM slice (a `.dcm` file) is not DICOM.
+    #[error("not a DICOM file (it has no DICM marker at byte 128)")]
+    NotDicom,
     /// A folder (opened as a DICOM series) holds no DICOM file.
     #[error("{}", no_dicom_files_message(*files))]
     NoDicomFiles {
