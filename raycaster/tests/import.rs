@@ -284,7 +284,7 @@ fn malformed_files_give_clear_errors() {
     assert!(import_error(&p).contains("holds 119 bytes of samples but the header needs 120"));
     let p = copy_fixture(d, "u16_detached.nhdr", Some("u16_detached.raw"));
     std::fs::write(d.join("u16_detached.raw"), vec![0u8; 250]).unwrap();
-    assert!(import_error(&p).contains("holds 250 bytes"));
+    assert!(import_error(&p).contains("holds 10 bytes more than its 240 bytes of samples"));
     let p = copy_fixture(d, "u16.nii", None);
     truncate(&p, 10);
     assert!(import_error(&p).contains("but the header needs 240"));
@@ -907,6 +907,111 @@ fn a_ct_scan_keeps_hounsfield_units_through_conversion_and_windows_in_them() {
     )
     .unwrap();
     assert!(Volume::open(&thesis).unwrap().value_units().is_identity());
+}
+
+/// The fixture's values, read back from `imported`, are the formulas' own.
+fn assert_fixture_values(imported: &Imported, ty: RawType) {
+    let values = read_all(imported);
+    let mut i = 0;
+    each_voxel(|x, y, z| {
+        assert_eq!(values[i], expected(ty, x, y, z), "at {x},{y},{z}");
+        i += 1;
+    });
+}
+
+/// Data longer than its samples is said as longer, by how much, with the
+/// header field that skips a header before the samples; and that field
+/// reads them (before: "holds 250 bytes of samples but the header needs 240",
+/// which reads like a shortfall, and no hint).
+#[test]
+fn data_longer_than_its_samples_is_said_with_the_surplus_and_what_skips_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let prefix = |file: &Path, n: usize| {
+        let mut bytes = vec![0xAB; n];
+        bytes.extend(std::fs::read(file).unwrap());
+        std::fs::write(file, bytes).unwrap();
+    };
+    // A detached NRRD data file with 10 bytes before its samples.
+    let nhdr = copy_fixture(d, "u16_detached.nhdr", Some("u16_detached.raw"));
+    prefix(&d.join("u16_detached.raw"), 10);
+    let err = import_error(&nhdr);
+    assert!(
+        err.contains(
+            "u16_detached.raw: the data file holds 10 bytes more than its 240 bytes of samples \
+             (a header before them? `byte skip: 10` skips it; `byte skip: -1` reads the samples that end the file)"
+        ),
+        "{err}"
+    );
+    let header = std::fs::read_to_string(&nhdr).unwrap();
+    for skip in ["10", "-1"] {
+        let fixed = header.replacen("encoding:", &format!("byte skip: {skip}\nencoding:"), 1);
+        std::fs::write(&nhdr, fixed).unwrap();
+        assert_fixture_values(&import::open(&nhdr).unwrap(), RawType::U16);
+    }
+    // A MetaImage data file with one byte before its samples: only
+    // `HeaderSize` says to skip it (ITK's -1: the samples end the file).
+    let mhd = copy_fixture(d, "i16.mhd", Some("i16.raw"));
+    prefix(&d.join("i16.raw"), 1);
+    let err = import_error(&mhd);
+    assert!(
+        err.contains(
+            "i16.raw: the data file holds 1 byte more than its 240 bytes of samples \
+             (a header before them? `HeaderSize = 1` skips it; `HeaderSize = -1` reads the samples that end the file)"
+        ),
+        "{err}"
+    );
+    let header = std::fs::read_to_string(&mhd).unwrap();
+    for size in ["1", "-1"] {
+        let fixed = header.replacen(
+            "ElementDataFile",
+            &format!("HeaderSize = {size}\nElementDataFile"),
+            1,
+        );
+        std::fs::write(&mhd, fixed).unwrap();
+        assert_fixture_values(&import::open(&mhd).unwrap(), RawType::I16);
+    }
+    // Attached data with bytes after it: NRRD, NIfTI, MetaImage.
+    for (name, said) in [
+        (
+            "u8_raw.nrrd",
+            "holds 3 bytes more than its 120 bytes of samples (a header before them? `byte skip: -1` reads",
+        ),
+        (
+            "u8.nii",
+            "holds 3 bytes more than its 120 bytes of samples (is vox_offset 352 right? the samples that end the file start at byte 355)",
+        ),
+        (
+            "u8.mha",
+            "holds 3 bytes more than its 120 bytes of samples (are the header's sizes and sample type right?)",
+        ),
+    ] {
+        let p = copy_fixture(d, name, None);
+        let mut f = std::fs::OpenOptions::new().append(true).open(&p).unwrap();
+        f.write_all(&[1, 2, 3]).unwrap();
+        let err = import_error(&p);
+        assert!(err.contains(said), "{name}: {err}");
+        assert!(!err.contains("but the header needs"), "{name}: {err}");
+    }
+    // A gzip stream with 7 bytes more (a second member): counted.
+    let p = copy_fixture(d, "i16_gzip.nrrd", None);
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    gz.write_all(&[9; 7]).unwrap();
+    let mut f = std::fs::OpenOptions::new().append(true).open(&p).unwrap();
+    f.write_all(&gz.finish().unwrap()).unwrap();
+    let err = import_error(&p);
+    assert!(
+        err.contains("the decompressed stream holds 7 bytes more than its 240 bytes of samples"),
+        "{err}"
+    );
+    // Shorter data keeps its wording, in the singular where it is one byte.
+    let p = copy_fixture(d, "u8_raw.nrrd", None);
+    truncate(&p, 119);
+    let err = import_error(&p);
+    assert!(
+        err.contains("holds 1 byte of samples but the header needs 120"),
+        "{err}"
+    );
 }
 
 /// A device as a detached data file is said to be one whether the volume is

@@ -9,6 +9,7 @@ use raycaster::convert::{ConvertOptions, ValueMap, convert};
 use raycaster::import::{self, Imported};
 use raycaster::io::{Input, RawSpec, RawType, WriteOptions};
 use raycaster::job::Job;
+use raycaster::text::counted;
 use raycaster::volume::{Format, Layout, SampleType, pyramid_voxels};
 
 use crate::args::{
@@ -115,16 +116,19 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
         eprintln!("{warning}");
     }
     let input = match a.raw {
-        Some(dims) => Input::open_raw(
-            &a.input,
-            RawSpec {
+        Some(dims) => {
+            let spec = RawSpec {
                 dims,
                 sample: a.raw_type.into(),
                 endian: a.endian.into(),
                 skip: a.skip,
                 order: a.raw_order.into(),
-            },
-        )?,
+            };
+            if let Some(problem) = raw_length_problem(&a.input, &spec) {
+                anyhow::bail!("{}: {problem}", a.input.display());
+            }
+            Input::open_raw(&a.input, spec)?
+        }
         None => match import::detect(&a.input) {
             Some(_) => {
                 // A broken spacing is refused unless --spacing replaces it.
@@ -261,6 +265,43 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// Why a raw file of `spec` cannot be read from `path`: its length is not
+/// the skip plus the samples. Said with the difference, and for a longer file
+/// the `--skip` that would pass over a header before the samples. `None` when
+/// the length fits, or when the file cannot be measured (opening it says why).
+fn raw_length_problem(path: &Path, spec: &RawSpec) -> Option<String> {
+    let meta = std::fs::metadata(path).ok().filter(|m| m.is_file())?;
+    let [x, y, z] = spec.dims;
+    let needed = [x, y, z]
+        .iter()
+        .try_fold(spec.sample.size() as u64, |n, &d| {
+            n.checked_mul(u64::from(d))
+        })?;
+    let (len, skip) = (meta.len(), spec.skip);
+    let shape = format!("{x}x{y}x{z} {}", raw_type_name(spec.sample));
+    let skipped = match skip {
+        0 => String::new(),
+        n => format!("the {n}-byte skip and "),
+    };
+    let samples = counted(needed, "byte");
+    let have = len.saturating_sub(skip);
+    if have > needed {
+        let extra = have - needed;
+        Some(format!(
+            "the file holds {} more than {skipped}its {samples} of samples ({shape}; a header before them? --skip {} skips it)",
+            counted(extra, "byte"),
+            skip + extra
+        ))
+    } else if have < needed {
+        Some(format!(
+            "the file holds {}, fewer than {skipped}its {samples} of samples ({shape})",
+            counted(len, "byte")
+        ))
+    } else {
+        None
+    }
 }
 
 /// `u8`, `u16`, `i16` or `f32`.

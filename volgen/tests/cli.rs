@@ -245,7 +245,7 @@ fn bad_inputs_get_clear_errors_and_leave_no_files() {
         ),
         (
             &["convert", "short.raw", "--raw", "5", "-o", "o.vol"],
-            "file has 100 bytes but 5x5x5 samples",
+            "short.raw: the file holds 100 bytes, fewer than its 125 bytes of samples (5x5x5 u8)",
         ),
         (
             &["convert", "missing.vol", "-o", "o.vol"],
@@ -626,4 +626,45 @@ fn a_truncated_compressed_input_fails_cleanly_without_output() {
         "{err}"
     );
     assert_eq!(files_in(d), ["cut.nii.gz"]);
+}
+
+/// A raw file longer than its samples is said as longer, by how much, with
+/// the `--skip` that passes over a header before them (before: "file has
+/// 1376318 bytes but 128x128x84 samples of 1 bytes after a 0-byte skip need
+/// 1376256", which reads like a shortfall).
+#[test]
+fn a_raw_file_longer_than_its_samples_is_said_with_the_skip_that_fits() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut bytes = vec![7u8; 62];
+    bytes.extend((0..125u8).collect::<Vec<_>>());
+    std::fs::write(d.join("head.raw"), &bytes).unwrap();
+    let o = volgen(d, &["convert", "head.raw", "--raw", "5", "-o", "o.vol"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert_eq!(
+        stderr(&o).trim_end(),
+        "error: head.raw: the file holds 62 bytes more than its 125 bytes of samples (5x5x5 u8; a header before them? --skip 62 skips it)"
+    );
+    let args = [
+        "convert", "head.raw", "--raw", "5", "--skip", "61", "-o", "o.vol",
+    ];
+    let o = volgen(d, &args);
+    assert!(
+        stderr(&o).contains(
+            "the file holds 1 byte more than the 61-byte skip and its 125 bytes of samples (5x5x5 u8; a header before them? --skip 62 skips it)"
+        ),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(files_in(d), ["head.raw"]);
+    // The skip it names reads the samples.
+    let o = volgen(
+        d,
+        &[
+            "convert", "head.raw", "--raw", "5", "--skip", "62", "-o", "o.vol",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let info = stdout(&volgen(d, &["info", "o.vol"]));
+    assert!(info.contains("min 0, max 124"), "{info}");
 }

@@ -37,6 +37,10 @@ pub const DEFAULT_IN_MEMORY_LIMIT: u64 = 1 << 30;
 /// memory; larger ones into an anonymous temporary file (bounded memory).
 pub const DECOMPRESS_IN_MEMORY_MAX: u64 = 256 << 20;
 
+/// Bytes of a compressed stream past its samples that are decompressed to say
+/// how many there are (beyond, the count is said as "at least").
+const EXTRA_COUNT_MAX: u64 = 64 << 20;
+
 /// A foreign file format this module reads.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ImportFormat {
@@ -146,8 +150,11 @@ pub enum ImportErrorKind {
         /// What is not supported.
         message: String,
     },
-    /// The data is shorter or longer than the header says.
-    #[error("{what} holds {actual} bytes of samples but the header needs {expected}")]
+    /// The data is shorter than the header says.
+    #[error(
+        "{what} holds {} of samples but the header needs {expected}",
+        crate::text::counted(*actual, "byte")
+    )]
     WrongDataSize {
         /// Which data (the file or the decompressed stream).
         what: String,
@@ -155,6 +162,27 @@ pub enum ImportErrorKind {
         expected: u64,
         /// Bytes found.
         actual: u64,
+    },
+    /// The data is longer than the header says: said with how much longer, and
+    /// how the header would skip the surplus when it is a header before the
+    /// samples.
+    #[error(
+        "{what} holds {}{} more than its {} of samples{hint}",
+        if *at_least { "at least " } else { "" },
+        crate::text::counted(*extra, "byte"),
+        crate::text::counted(*expected, "byte")
+    )]
+    ExtraData {
+        /// Which data (the file or the decompressed stream).
+        what: String,
+        /// Bytes the header needs.
+        expected: u64,
+        /// Bytes found beyond them.
+        extra: u64,
+        /// Whether `extra` is a lower bound (a long stream is not read to its end).
+        at_least: bool,
+        /// What to change in the header, in parentheses after a space (or empty).
+        hint: String,
     },
     /// The detached data file the header names cannot be opened.
     #[error("cannot open the data file {}: {source}", file.display())]
@@ -569,20 +597,68 @@ impl Imported {
     /// not hold exactly what the header says (truncated, or longer).
     fn check_raw_size(&self, len: u64) -> Result<(), ImportError> {
         let actual = len.saturating_sub(self.data_offset);
-        if actual == self.sample_bytes() {
+        let expected = self.sample_bytes();
+        if actual == expected {
             return Ok(());
         }
-        Err(ImportError::new(
-            &self.data_path,
+        let what = match self.data_offset {
+            0 => "the data file".into(),
+            start => format!("the data file ({len} bytes, the samples from byte {start})"),
+        };
+        let kind = if actual > expected {
+            let extra = actual - expected;
+            ImportErrorKind::ExtraData {
+                what,
+                expected,
+                extra,
+                at_least: false,
+                hint: self.extra_data_hint(extra, false),
+            }
+        } else {
             ImportErrorKind::WrongDataSize {
-                what: match self.data_offset {
-                    0 => "the data file".into(),
-                    start => format!("the data file ({len} bytes, the samples from byte {start})"),
-                },
-                expected: self.sample_bytes(),
+                what,
+                expected,
                 actual,
-            },
-        ))
+            }
+        };
+        Err(ImportError::new(&self.data_path, kind))
+    }
+
+    /// What [`ImportErrorKind::ExtraData`] suggests for samples followed by
+    /// `extra` bytes more than the header needs (`at_least`: at least that
+    /// many): the header field that skips them when they are a header before
+    /// the samples (MetaImage's `HeaderSize = -1` and NRRD's `byte skip: -1`
+    /// read the samples that end the file), else a question about the sizes.
+    fn extra_data_hint(&self, extra: u64, at_least: bool) -> String {
+        let detached = self.data_path != self.path;
+        let (offset, after_decode) = (self.data_offset, self.skip_after_decode);
+        let sizes = " (are the header's sizes and sample type right?)".to_string();
+        match (self.format, self.encoding) {
+            (ImportFormat::Nrrd, Encoding::Raw) if offset == 0 => format!(
+                " (a header before them? `byte skip: {extra}` skips it; `byte skip: -1` reads the samples that end the file)"
+            ),
+            (ImportFormat::Nrrd, Encoding::Raw) => {
+                " (a header before them? `byte skip: -1` reads the samples that end the file)"
+                    .into()
+            }
+            (ImportFormat::Nrrd, Encoding::Gzip) if !at_least => format!(
+                " (a header before them? `byte skip: {}` skips it)",
+                after_decode + extra
+            ),
+            (ImportFormat::MetaImage, Encoding::Raw) if detached => format!(
+                " (a header before them? `HeaderSize = {}` skips it; `HeaderSize = -1` reads the samples that end the file)",
+                offset + extra
+            ),
+            (ImportFormat::Nifti, Encoding::Raw) => format!(
+                " (is vox_offset {offset} right? the samples that end the file start at byte {})",
+                offset + extra
+            ),
+            (ImportFormat::Nifti, Encoding::Gzip) if !at_least => format!(
+                " (is vox_offset {after_decode} right? the samples that end the stream start at byte {})",
+                after_decode + extra
+            ),
+            _ => sizes,
+        }
     }
 
     /// Decompresses the stream after `data_offset`, drops `skip_after_decode` bytes
@@ -612,6 +688,27 @@ impl Imported {
         .map_err(compressed)?;
         let expected = self.sample_bytes();
         let (data, got) = self.collect(&mut stream, scratch_dir, memory_max, job, &compressed)?;
+        if skipped == self.skip_after_decode && got > expected {
+            // How much longer, up to a bound: the rest is decompressed for
+            // the count only.
+            let more = std::io::copy(
+                &mut (&mut stream).take(EXTRA_COUNT_MAX),
+                &mut std::io::sink(),
+            )
+            .map_err(compressed)?;
+            let extra = got - expected + more;
+            let at_least = more == EXTRA_COUNT_MAX;
+            return Err(ImportError::new(
+                &self.data_path,
+                ImportErrorKind::ExtraData {
+                    what: "the decompressed stream".into(),
+                    expected,
+                    extra,
+                    at_least,
+                    hint: self.extra_data_hint(extra, at_least),
+                },
+            ));
+        }
         if skipped < self.skip_after_decode || got != expected {
             return Err(ImportError::new(
                 &self.data_path,
