@@ -58,11 +58,20 @@ pub fn parse_spacing(s: &str) -> Result<[f32; 3], String> {
             Ok(v)
         })
         .collect::<Result<Vec<f32>, String>>()?;
-    match nums[..] {
-        [v] => Ok([v; 3]),
-        [x, y, z] => Ok([x, y, z]),
-        _ => Err("expected S or X,Y,Z, e.g. 1 or 0.5,0.5,2".into()),
+    let spacing = match nums[..] {
+        [v] => [v; 3],
+        [x, y, z] => [x, y, z],
+        _ => return Err("expected S or X,Y,Z, e.g. 1 or 0.5,0.5,2".into()),
+    };
+    // The limit foreign files are read under: the renderer steps by the
+    // smallest spacing, and would refuse the file's rays as too long.
+    if let Some(ratio) = raycaster::import::lopsided_spacing(spacing) {
+        return Err(format!(
+            "the largest spacing is {ratio:.3e} times the smallest; at most {:.0e} renders (rays step by the smallest spacing, and would take too many samples)",
+            raycaster::import::MAX_SPACING_RATIO
+        ));
     }
+    Ok(spacing)
 }
 
 /// `LO:HI` (or `LO,HI`, as `raycaster` writes it) with LO < HI, or the name of
@@ -232,6 +241,15 @@ mod tests {
         assert!(too_large.contains("`1e39` is out of range"), "{too_large}");
         assert!(parse_spacing("1e-20").is_err());
         assert_eq!(parse_spacing("1e15"), Ok([1e15; 3]));
+        // Beyond the spacing ratio the renderer reads (before: generated, and
+        // `raycaster render` refused the file).
+        let lopsided = parse_spacing("1,1,100000").unwrap_err();
+        assert!(
+            lopsided
+                .contains("the largest spacing is 1.000e5 times the smallest; at most 1e4 renders"),
+            "{lopsided}"
+        );
+        assert_eq!(parse_spacing("1,1,10000"), Ok([1.0, 1.0, 1e4]));
         assert_eq!(parse_window("-1000:3000"), Ok((-1000.0, 3000.0)));
         assert!(parse_window("5:5").is_err());
         // raycaster's spelling and the named CT windows too.

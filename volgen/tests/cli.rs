@@ -668,3 +668,45 @@ fn a_raw_file_longer_than_its_samples_is_said_with_the_skip_that_fits() {
     let info = stdout(&volgen(d, &["info", "o.vol"]));
     assert!(info.contains("min 0, max 124"), "{info}");
 }
+
+/// A spacing whose largest is more than 1e4 times its smallest (the ratio
+/// foreign files are read under) is refused before anything is written
+/// (before: written, and `raycaster render` refused the file).
+#[test]
+fn a_spacing_the_renderer_would_refuse_is_refused_up_front() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let o = volgen(
+        d,
+        &[
+            "generate",
+            "--size",
+            "64",
+            "--spacing",
+            "1,1,100000",
+            "-o",
+            "g.vol",
+        ],
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o)
+            .contains("the largest spacing is 1.000e5 times the smallest; at most 1e4 renders"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(files_in(d).is_empty(), "{:?}", files_in(d));
+    let o = volgen(
+        d,
+        &[
+            "generate",
+            "--size",
+            "8",
+            "--spacing",
+            "1,1,10000",
+            "-o",
+            "g.vol",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+}

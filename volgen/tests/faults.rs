@@ -335,24 +335,32 @@ fn a_brick_side_for_a_linear_layout_is_refused_by_both_writers() {
 }
 
 /// Extreme spacings are shown in exponent form (before: `0.000000000001 x 2
-/// x 1000000000000`).
+/// x 1000000000000`). (Two files: one spacing of 1e-12 beside one of 1e12
+/// is past the ratio `volgen generate` writes.)
 #[test]
 fn info_shows_extreme_spacings_in_exponent_form() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let args = [
-        "generate",
-        "--size",
-        "8",
-        "--spacing",
-        "1e-12,2,1e12",
-        "-o",
-        "a.vol",
-    ];
-    assert!(volgen(d, &args).status.success());
-    let o = volgen(d, &["info", "a.vol", "--no-histogram"]);
-    let out = String::from_utf8_lossy(&o.stdout).into_owned();
-    assert!(out.contains("spacing     1e-12 x 2 x 1e12\n"), "{out}");
+    for (spacing, shown) in [
+        ("1e-12,2e-12,1e-12", "spacing     1e-12 x 2e-12 x 1e-12\n"),
+        ("1e12,2e12,1e12", "spacing     1e12 x 2e12 x 1e12\n"),
+    ] {
+        let args = [
+            "generate",
+            "--size",
+            "8",
+            "--spacing",
+            spacing,
+            "-o",
+            "a.vol",
+            "--force",
+        ];
+        let o = volgen(d, &args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let o = volgen(d, &["info", "a.vol", "--no-histogram"]);
+        let out = String::from_utf8_lossy(&o.stdout).into_owned();
+        assert!(out.contains(shown), "{out}");
+    }
 }
 
 #[test]

@@ -422,20 +422,31 @@ pub(crate) fn check_spacing_ratio(
     format: ImportFormat,
     spacing: [f32; 3],
 ) -> Result<(), ImportErrorKind> {
-    let lo = spacing.iter().copied().fold(f32::INFINITY, f32::min);
-    let hi = spacing.iter().copied().fold(0.0, f32::max);
-    // Written so that NaN fails too.
-    if hi / lo <= MAX_SPACING_RATIO {
+    let Some(ratio) = lopsided_spacing(spacing) else {
         return Ok(());
-    }
+    };
     let [x, y, z] = spacing.map(crate::volume::number_text);
     Err(header_error(
         format,
         format!(
-            "spacing {x} x {y} x {z}: the largest is {:.3e} times the smallest (at most {MAX_SPACING_RATIO:.0e} is read); the header's spacing is broken. Convert with `volgen convert --spacing` to override it",
-            f64::from(hi) / f64::from(lo)
+            "spacing {x} x {y} x {z}: the largest is {ratio:.3e} times the smallest (at most {MAX_SPACING_RATIO:.0e} is read); the header's spacing is broken. Convert with `volgen convert --spacing` to override it"
         ),
     ))
+}
+
+/// How many times the smallest of `spacing` its largest is, when that is more
+/// than [`MAX_SPACING_RATIO`] (or not a number); `None` for a spacing within
+/// it. Foreign files are refused beyond it, and `volgen` writes no file
+/// beyond it (the renderer would refuse the file's rays as too long).
+pub fn lopsided_spacing(spacing: [f32; 3]) -> Option<f64> {
+    let lo = spacing.iter().copied().fold(f32::INFINITY, f32::min);
+    let hi = spacing.iter().copied().fold(0.0, f32::max);
+    // Written so that NaN fails too.
+    if hi / lo <= MAX_SPACING_RATIO {
+        None
+    } else {
+        Some(f64::from(hi) / f64::from(lo))
+    }
 }
 
 /// The files a volume at `path` is read from, for commands that refuse to
