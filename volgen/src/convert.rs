@@ -10,7 +10,7 @@ use raycaster::import::{self, Imported};
 use raycaster::io::{Input, RawSpec, RawType, WriteOptions};
 use raycaster::job::Job;
 use raycaster::text::counted;
-use raycaster::volume::{Format, Layout, SampleType, pyramid_voxels};
+use raycaster::volume::{Format, Layout, SampleType, ValueUnits, pyramid_voxels};
 
 use crate::args::{
     EndianArg, FormatArg, LayoutArg, RawOrderArg, RawTypeArg, SampleArg, parse_brick, parse_dims,
@@ -246,7 +246,12 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
     }
     if !a.quiet {
         let window = match done.values {
-            ValueMap::Window(lo, hi) => format!(", values {lo}..={hi} mapped to the full range"),
+            // Said in the input's units, as --window takes them (a .vol file
+            // of HU stores HU + 32768).
+            ValueMap::Window(lo, hi) => {
+                let [lo, hi] = values_in_units(input.units(), [lo, hi]);
+                format!(", values {lo}..={hi} mapped to the full range")
+            }
             ValueMap::Offset => ", i16 values stored as value + 32768".to_string(),
             ValueMap::Copy => ", values copied".to_string(),
         };
@@ -302,6 +307,13 @@ fn raw_length_problem(path: &Path, spec: &RawSpec) -> Option<String> {
     } else {
         None
     }
+}
+
+/// `lo..hi` in stored input values said in `units` (the values --window takes),
+/// lower first.
+fn values_in_units(units: &ValueUnits, [lo, hi]: [f32; 2]) -> [f32; 2] {
+    let [a, b] = [lo, hi].map(|v| units.value(f64::from(v)) as f32);
+    if a <= b { [a, b] } else { [b, a] }
 }
 
 /// `u8`, `u16`, `i16` or `f32`.

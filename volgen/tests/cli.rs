@@ -669,6 +669,55 @@ fn a_raw_file_longer_than_its_samples_is_said_with_the_skip_that_fits() {
     assert!(info.contains("min 0, max 124"), "{info}");
 }
 
+/// A CT MetaImage of `values` (HU) along x, placed in the patient.
+fn write_ct_mha(path: &Path, values: &[i16]) {
+    let mut bytes = format!(
+        "ObjectType = Image\nNDims = 3\nDimSize = {} 1 1\nElementSpacing = 1 1 1\n\
+         TransformMatrix = 1 0 0 0 1 0 0 0 1\nOffset = -10 20 30\n\
+         Modality = MET_MOD_CT\nElementType = MET_SHORT\nElementDataFile = LOCAL\n",
+        values.len()
+    )
+    .into_bytes();
+    for v in values {
+        bytes.extend_from_slice(&v.to_le_bytes());
+    }
+    std::fs::write(path, bytes).unwrap();
+}
+
+/// A `.vol` file of HU (stored + 32768) converted with a window says the
+/// window in HU, as the NRRD's conversion does (before: "values
+/// 31768..=34768 mapped to the full range").
+#[test]
+fn a_window_is_said_in_the_files_units() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write_ct_mha(&d.join("ct.mha"), &[-1024, -1000, 0, 400, 3071]);
+    let o = volgen(d, &["convert", "ct.mha", "-o", "ct.vol"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for (window, said) in [
+        (
+            &["--window", "-1000:2000"][..],
+            "values -1000..=2000 mapped to the full range (values in HU)",
+        ),
+        (
+            &[][..],
+            "values -1024..=3071 mapped to the full range (values in HU)",
+        ),
+    ] {
+        let args = [
+            &[
+                "convert", "ct.vol", "--type", "u8", "--force", "-o", "u8.vol",
+            ][..],
+            window,
+        ]
+        .concat();
+        let o = volgen(d, &args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert!(stdout(&o).contains(said), "{window:?}: {}", stdout(&o));
+        assert!(stderr(&o).is_empty(), "{}", stderr(&o));
+    }
+}
+
 /// A spacing whose largest is more than 1e4 times its smallest (the ratio
 /// foreign files are read under) is refused before anything is written
 /// (before: written, and `raycaster render` refused the file).
