@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use clap::Args;
-use raycaster::convert::{ConvertOptions, ValueMap, convert};
+use raycaster::convert::{ConvertOptions, ConvertSummary, ValueMap, convert};
 use raycaster::import::{self, Imported};
 use raycaster::io::{Input, RawSpec, RawType, WriteOptions};
 use raycaster::job::Job;
@@ -244,6 +244,12 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
         let warning = raycaster::convert::non_finite_warning(&a.input, done.non_finite, voxels);
         eprintln!("warning: {warning}");
     }
+    if !a.quiet
+        && let Some(window) = a.window
+        && let Some(warning) = window_outside_warning(&input, window, &done)?
+    {
+        eprintln!("{warning}");
+    }
     if !a.quiet {
         let window = match done.values {
             // Said in the input's units, as --window takes them (a .vol file
@@ -314,6 +320,34 @@ fn raw_length_problem(path: &Path, spec: &RawSpec) -> Option<String> {
 fn values_in_units(units: &ValueUnits, [lo, hi]: [f32; 2]) -> [f32; 2] {
     let [a, b] = [lo, hi].map(|v| units.value(f64::from(v)) as f32);
     if a <= b { [a, b] } else { [b, a] }
+}
+
+/// The warning when `--window` lies wholly outside the input's values, so that
+/// the output is flat: said in the input's units, as `raycaster render
+/// --domain` says it. The input's range is only measured when the output came
+/// out flat.
+fn window_outside_warning(
+    input: &Input,
+    (lo, hi): (f32, f32),
+    done: &ConvertSummary,
+) -> anyhow::Result<Option<String>> {
+    let [out_lo, out_hi] = done.written.ranges.overall();
+    if out_lo != out_hi {
+        return Ok(None);
+    }
+    let job = Job::silent().with_cancel(&CANCEL);
+    let Some((data_lo, data_hi)) = input.value_range(&job)?.finite else {
+        return Ok(None);
+    };
+    let units = input.units();
+    let [data_lo, data_hi] = values_in_units(units, [data_lo, data_hi]);
+    if hi >= data_lo && lo <= data_hi {
+        return Ok(None);
+    }
+    let [lo, hi, data_lo, data_hi] = [lo, hi, data_lo, data_hi].map(|v| units.format(f64::from(v)));
+    Ok(Some(format!(
+        "warning: --window {lo} to {hi} lies outside the data's values {data_lo} to {data_hi}; every voxel of the output holds one value"
+    )))
 }
 
 /// `u8`, `u16`, `i16` or `f32`.

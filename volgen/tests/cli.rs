@@ -718,6 +718,65 @@ fn a_window_is_said_in_the_files_units() {
     }
 }
 
+/// A window wholly outside the data's values is warned of, once, in the
+/// file's units (before: a flat volume without a word); one that meets the
+/// data is not, and `-q` silences the warning.
+#[test]
+fn a_window_outside_the_data_is_warned_of_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write_ct_mha(&d.join("ct.mha"), &[-1024, -1000, 0, 400, 3071]);
+    assert!(
+        volgen(d, &["convert", "ct.mha", "-o", "ct.vol"])
+            .status
+            .success()
+    );
+    for input in ["ct.mha", "ct.vol"] {
+        for window in ["10000:20000", "-5000:-2000"] {
+            let args = [
+                "convert", input, "--type", "u8", "--window", window, "--force", "-o", "w.vol",
+            ];
+            let o = volgen(d, &args);
+            assert!(o.status.success(), "{}", stderr(&o));
+            let e = stderr(&o);
+            let [lo, hi] = match window {
+                "10000:20000" => ["10000", "20000"],
+                _ => ["-5000", "-2000"],
+            };
+            let said = format!(
+                "warning: --window {lo} HU to {hi} HU lies outside the data's values -1024 HU to 3071 HU; every voxel of the output holds one value"
+            );
+            assert_eq!(
+                e.matches("lies outside").count(),
+                1,
+                "{input} {window}: {e}"
+            );
+            assert!(e.contains(&said), "{input} {window}: {e}");
+            let o = volgen(d, &[&args[..], &["-q"]].concat());
+            assert!(
+                o.status.success() && stderr(&o).is_empty(),
+                "{}",
+                stderr(&o)
+            );
+        }
+        // Touching the data is not outside it.
+        let args = [
+            "convert",
+            input,
+            "--type",
+            "u8",
+            "--window",
+            "3071:5000",
+            "--force",
+            "-o",
+            "w.vol",
+        ];
+        let o = volgen(d, &args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert!(!stderr(&o).contains("lies outside"), "{}", stderr(&o));
+    }
+}
+
 /// A spacing whose largest is more than 1e4 times its smallest (the ratio
 /// foreign files are read under) is refused before anything is written
 /// (before: written, and `raycaster render` refused the file).
