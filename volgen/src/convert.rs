@@ -244,11 +244,15 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
         let warning = raycaster::convert::non_finite_warning(&a.input, done.non_finite, voxels);
         eprintln!("warning: {warning}");
     }
-    if !a.quiet
-        && let Some(window) = a.window
-        && let Some(warning) = window_outside_warning(&input, window, &done)?
-    {
-        eprintln!("{warning}");
+    if !a.quiet {
+        if let Some(warning) = thesis_loss_warning(&a.input, &input, options.format) {
+            eprintln!("{warning}");
+        }
+        if let Some(window) = a.window
+            && let Some(warning) = window_outside_warning(&input, window, &done)?
+        {
+            eprintln!("{warning}");
+        }
     }
     if !a.quiet {
         let window = match done.values {
@@ -320,6 +324,33 @@ fn raw_length_problem(path: &Path, spec: &RawSpec) -> Option<String> {
 fn values_in_units(units: &ValueUnits, [lo, hi]: [f32; 2]) -> [f32; 2] {
     let [a, b] = [lo, hi].map(|v| units.value(f64::from(v)) as f32);
     if a <= b { [a, b] } else { [b, a] }
+}
+
+/// The warning for a thesis-format output of an input whose values have units
+/// or which lies in the patient: the thesis header holds neither.
+fn thesis_loss_warning(path: &Path, input: &Input, format: Format) -> Option<String> {
+    if format != Format::Thesis {
+        return None;
+    }
+    let units = input.units();
+    let lost = match (!units.is_identity(), input.orientation().is_some()) {
+        (true, true) => format!(
+            "keeps neither what its values mean ({}) nor where it lies in the patient; the output stores plain samples (--format extended keeps both)",
+            units.describe()
+        ),
+        (true, false) => format!(
+            "cannot keep what its values mean ({}); the output stores plain samples (--format extended keeps it)",
+            units.describe()
+        ),
+        (false, true) => {
+            "cannot keep where it lies in the patient (--format extended keeps it)".into()
+        }
+        (false, false) => return None,
+    };
+    Some(format!(
+        "warning: {}: the thesis format {lost}",
+        path.display()
+    ))
 }
 
 /// The warning when `--window` lies wholly outside the input's values, so that

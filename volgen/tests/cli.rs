@@ -777,6 +777,48 @@ fn a_window_outside_the_data_is_warned_of_once() {
     }
 }
 
+/// The thesis format cannot hold units or an orientation: converting a file
+/// with them to it says so (before: dropped without a word).
+#[test]
+fn a_thesis_output_says_what_it_cannot_keep() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write_ct_mha(&d.join("ct.mha"), &[-1024, -1000, 0, 400, 3071]);
+    assert!(
+        volgen(d, &["convert", "ct.mha", "-o", "ct.vol"])
+            .status
+            .success()
+    );
+    let args = [
+        "convert", "ct.vol", "--type", "u8", "--format", "thesis", "-o", "t.vol",
+    ];
+    let o = volgen(d, &args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert_eq!(
+        e.trim_end(),
+        "warning: ct.vol: the thesis format keeps neither what its values mean (value = stored − 32768 (HU)) nor where it lies in the patient; the output stores plain samples (--format extended keeps both)"
+    );
+    let o = volgen(d, &[&args[..], &["--force", "-q"]].concat());
+    assert!(
+        o.status.success() && stderr(&o).is_empty(),
+        "{}",
+        stderr(&o)
+    );
+    // A file with neither converts to the thesis format without a word.
+    assert!(
+        volgen(d, &["generate", "--size", "8", "-o", "plain.vol"])
+            .status
+            .success()
+    );
+    let o = volgen(
+        d,
+        &["convert", "plain.vol", "--format", "thesis", "-o", "pt.vol"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).is_empty(), "{}", stderr(&o));
+}
+
 /// A spacing whose largest is more than 1e4 times its smallest (the ratio
 /// foreign files are read under) is refused before anything is written
 /// (before: written, and `raycaster render` refused the file).
