@@ -301,6 +301,13 @@ fn malformed_files_give_clear_errors() {
         err.contains("the data file (24 bytes, the samples from byte 200) holds 0 bytes of samples but the header needs 24"),
         "{err}"
     );
+    // One byte is said as one (was "(1 bytes, ...").
+    std::fs::write(d.join("skip.raw"), [0u8]).unwrap();
+    let err = import_error(&d.join("skip.mhd"));
+    assert!(
+        err.contains("the data file (1 byte, the samples from byte 200) holds 0 bytes"),
+        "{err}"
+    );
     // Float samples without one finite value: refused by name (before: a
     // volume of zeros that rendered blank without a word).
     let mut nan =

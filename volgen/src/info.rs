@@ -73,7 +73,8 @@ pub fn run(a: InfoArgs) -> anyhow::Result<()> {
     );
     if let Some((start, count)) = volume.unused_tail() {
         println!(
-            "unused      {count} bytes after the file's last block, from byte {start}: not part of the volume (a damaged copy, or two files joined?)"
+            "unused      {} after the file's last block, from byte {start}: not part of the volume (a damaged copy, or two files joined?)",
+            raycaster::text::counted(count, "byte")
         );
     }
     let ranges = volume.ranges();

@@ -184,6 +184,14 @@ fn a_damaged_pyramid_or_bytes_after_the_file_are_named_and_the_samples_converted
         )
     );
     assert!(std::fs::read(d.join("from-joined.vol")).unwrap() == copy);
+    // One byte is one byte (was "unused      1 bytes").
+    std::fs::write(d.join("one.vol"), [&whole[..], &[7]].concat()).unwrap();
+    let o = volgen(d, &["info", "one.vol"]);
+    assert!(
+        stdout(&o).contains("unused      1 byte after the file's last block"),
+        "{}",
+        stdout(&o)
+    );
 
     // A pyramid cut short: the file does not open, and convert rebuilds it.
     std::fs::write(d.join("cut.vol"), &whole[..whole.len() - 100]).unwrap();

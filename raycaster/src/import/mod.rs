@@ -614,7 +614,10 @@ impl Imported {
         }
         let what = match self.data_offset {
             0 => "the data file".into(),
-            start => format!("the data file ({len} bytes, the samples from byte {start})"),
+            start => format!(
+                "the data file ({}, the samples from byte {start})",
+                crate::text::counted(len, "byte")
+            ),
         };
         let kind = if actual > expected {
             let extra = actual - expected;
