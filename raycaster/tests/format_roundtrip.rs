@@ -695,7 +695,22 @@ fn raw_size_mismatch_names_the_file_and_the_sizes() {
     let err = Input::open_raw(&raw, spec).unwrap_err();
     let msg = err.to_string();
     assert!(
-        msg.contains("short.raw") && msg.contains("999") && msg.contains("1000"),
+        msg.contains("short.raw")
+            && msg.contains(
+                "the file holds 999 bytes, 1 short of the 1000 that 10x10x10 samples of 1 byte"
+            ),
         "{msg}"
     );
+    // Longer: said as longer, with the skip that reads the samples at the end
+    // (it read like a shortfall, "file has 1062 bytes but ... need 1000").
+    let long = dir.path().join("long.raw");
+    std::fs::write(&long, vec![0u8; 1062]).unwrap();
+    let msg = Input::open_raw(&long, spec).unwrap_err().to_string();
+    assert!(
+        msg.contains("the file holds 62 bytes more than the 1000")
+            && msg.contains("a skip of 62 reads the samples at the end"),
+        "{msg}"
+    );
+    let skipped = RawSpec { skip: 62, ..spec };
+    assert!(Input::open_raw(&long, skipped).is_ok());
 }

@@ -153,11 +153,24 @@ impl Input {
             .ok_or_else(|| bad("raw sizes overflow 64 bits".into()))?;
         if len != needed {
             let [x, y, z] = spec.dims;
-            return Err(bad(format!(
-                "file has {len} bytes but {x}x{y}x{z} samples of {} bytes after a {}-byte skip need {needed}",
-                spec.sample.size(),
-                spec.skip
-            )));
+            let size = spec.sample.size();
+            let sample = if size == 1 { "byte" } else { "bytes" };
+            let skip = spec.skip;
+            // Longer: by how much, and the skip that would read the end; shorter:
+            // what is missing.
+            return Err(bad(if len > needed {
+                let extra = len - needed;
+                let more = if extra == 1 { "byte" } else { "bytes" };
+                format!(
+                    "the file holds {extra} {more} more than the {needed} that {x}x{y}x{z} samples of {size} {sample} after a {skip}-byte skip need (a header before them? a skip of {} reads the samples at the end)",
+                    skip + extra
+                )
+            } else {
+                format!(
+                    "the file holds {len} bytes, {} short of the {needed} that {x}x{y}x{z} samples of {size} {sample} after a {skip}-byte skip need",
+                    needed - len
+                )
+            }));
         }
         Ok(Input {
             path: path.to_path_buf(),
