@@ -697,7 +697,7 @@ fn raw_size_mismatch_names_the_file_and_the_sizes() {
     assert!(
         msg.contains("short.raw")
             && msg.contains(
-                "the file holds 999 bytes, 1 short of the 1000 that 10x10x10 samples of 1 byte"
+                "the file holds 999 bytes, fewer than its 1000 bytes of samples (10x10x10 u8)"
             ),
         "{msg}"
     );
@@ -707,8 +707,9 @@ fn raw_size_mismatch_names_the_file_and_the_sizes() {
     std::fs::write(&long, vec![0u8; 1062]).unwrap();
     let msg = Input::open_raw(&long, spec).unwrap_err().to_string();
     assert!(
-        msg.contains("the file holds 62 bytes more than the 1000")
-            && msg.contains("a skip of 62 reads the samples at the end"),
+        msg.contains(
+            "the file holds 62 bytes more than its 1000 bytes of samples (10x10x10 u8; a header before them? a skip of 62 skips it)"
+        ),
         "{msg}"
     );
     let skipped = RawSpec { skip: 62, ..spec };

@@ -7,9 +7,8 @@ use std::time::Instant;
 use clap::Args;
 use raycaster::convert::{ConvertOptions, ConvertSummary, ValueMap, convert};
 use raycaster::import::{self, Imported};
-use raycaster::io::{Input, RawSpec, RawType, WriteOptions};
+use raycaster::io::{Input, RawSpec, WriteOptions};
 use raycaster::job::Job;
-use raycaster::text::counted;
 use raycaster::volume::{Format, Layout, SampleType, ValueUnits, pyramid_voxels};
 
 use crate::args::{
@@ -124,7 +123,9 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
                 skip: a.skip,
                 order: a.raw_order.into(),
             };
-            if let Some(problem) = raw_length_problem(&a.input, &spec) {
+            // Said with volgen's flag (the library's error says "a skip of").
+            let len = std::fs::metadata(&a.input).ok().filter(|m| m.is_file());
+            if let Some(problem) = len.and_then(|m| spec.length_problem(m.len(), "--skip")) {
                 anyhow::bail!("{}: {problem}", a.input.display());
             }
             Input::open_raw(&a.input, spec)?
@@ -282,43 +283,6 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Why a raw file of `spec` cannot be read from `path`: its length is not
-/// the skip plus the samples. Said with the difference, and for a longer file
-/// the `--skip` that would pass over a header before the samples. `None` when
-/// the length fits, or when the file cannot be measured (opening it says why).
-fn raw_length_problem(path: &Path, spec: &RawSpec) -> Option<String> {
-    let meta = std::fs::metadata(path).ok().filter(|m| m.is_file())?;
-    let [x, y, z] = spec.dims;
-    let needed = [x, y, z]
-        .iter()
-        .try_fold(spec.sample.size() as u64, |n, &d| {
-            n.checked_mul(u64::from(d))
-        })?;
-    let (len, skip) = (meta.len(), spec.skip);
-    let shape = format!("{x}x{y}x{z} {}", raw_type_name(spec.sample));
-    let skipped = match skip {
-        0 => String::new(),
-        n => format!("the {n}-byte skip and "),
-    };
-    let samples = counted(needed, "byte");
-    let have = len.saturating_sub(skip);
-    if have > needed {
-        let extra = have - needed;
-        Some(format!(
-            "the file holds {} more than {skipped}its {samples} of samples ({shape}; a header before them? --skip {} skips it)",
-            counted(extra, "byte"),
-            skip + extra
-        ))
-    } else if have < needed {
-        Some(format!(
-            "the file holds {}, fewer than {skipped}its {samples} of samples ({shape})",
-            counted(len, "byte")
-        ))
-    } else {
-        None
-    }
-}
-
 /// `lo..hi` in stored input values said in `units` (the values --window takes),
 /// lower first.
 fn values_in_units(units: &ValueUnits, [lo, hi]: [f32; 2]) -> [f32; 2] {
@@ -381,19 +345,9 @@ fn window_outside_warning(
     )))
 }
 
-/// `u8`, `u16`, `i16` or `f32`.
-pub fn raw_type_name(t: RawType) -> &'static str {
-    match t {
-        RawType::U8 => "u8",
-        RawType::U16 => "u16",
-        RawType::I16 => "i16",
-        RawType::F32 => "f32",
-    }
-}
-
 /// One line on what a foreign file holds.
 fn describe_import(i: &Imported) -> String {
-    let ty = raw_type_name(i.sample);
+    let ty = i.sample;
     let [sx, sy, sz] = i.spacing.map(raycaster::volume::number_text);
     let mut line = format!(
         "{}: {} {} {ty}, spacing {sx} x {sy} x {sz}, {} data",

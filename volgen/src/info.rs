@@ -185,7 +185,7 @@ fn run_foreign(a: &InfoArgs) -> anyhow::Result<()> {
     println!("spacing     {}", describe_spacing(imported.spacing));
     println!(
         "samples     {}, {} endian, {} data",
-        crate::convert::raw_type_name(imported.sample),
+        imported.sample,
         match imported.endian {
             raycaster::io::Endian::Little => "little",
             raycaster::io::Endian::Big => "big",

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use super::decode::{Endian, RawType, decode_into};
 use crate::job::Job;
+use crate::text::counted;
 use crate::volume::{
     AtPath, BlockGrid, Content, Header, Layout, MAX_AXIS, Orientation, SampleType, ValueUnits,
     VolumeError, VolumeErrorKind, read_header,
@@ -37,6 +38,46 @@ pub struct RawSpec {
     pub skip: u64,
     /// Which coordinate is fastest.
     pub order: RawOrder,
+}
+
+impl RawSpec {
+    /// Why a raw file of `len` bytes does not hold these samples: its length
+    /// is not the skip plus the samples. Said with the difference, and for a
+    /// longer file the skip that would pass over a header before the samples,
+    /// written as `skip_flag N` (`--skip` for volgen's flag). `None` when the
+    /// length fits.
+    pub fn length_problem(&self, len: u64, skip_flag: &str) -> Option<String> {
+        let [x, y, z] = self.dims;
+        // (Sizes past 64 bits are refused before a file is measured.)
+        let needed = self
+            .dims
+            .iter()
+            .try_fold(self.sample.size() as u64, |n, &d| {
+                n.checked_mul(u64::from(d))
+            })?;
+        let shape = format!("{x}x{y}x{z} {}", self.sample);
+        let skipped = match self.skip {
+            0 => String::new(),
+            n => format!("the {n}-byte skip and "),
+        };
+        let samples = counted(needed, "byte");
+        let have = len.saturating_sub(self.skip);
+        if have > needed {
+            let extra = have - needed;
+            Some(format!(
+                "the file holds {} more than {skipped}its {samples} of samples ({shape}; a header before them? {skip_flag} {} skips it)",
+                counted(extra, "byte"),
+                self.skip + extra
+            ))
+        } else if have < needed || len < self.skip {
+            Some(format!(
+                "the file holds {}, fewer than {skipped}its {samples} of samples ({shape})",
+                counted(len, "byte")
+            ))
+        } else {
+            None
+        }
+    }
 }
 
 /// The value type an input delivers.
@@ -143,34 +184,16 @@ impl Input {
         }
         let file = data;
         let len = file.len().at(path)?;
-        let needed = spec
-            .dims
+        // (Checked first: the length problem assumes sizes within 64 bits.)
+        spec.dims
             .iter()
             .try_fold(spec.sample.size() as u64, |a, &d| {
                 a.checked_mul(u64::from(d))
             })
             .and_then(|n| n.checked_add(spec.skip))
             .ok_or_else(|| bad("raw sizes overflow 64 bits".into()))?;
-        if len != needed {
-            let [x, y, z] = spec.dims;
-            let size = spec.sample.size();
-            let sample = if size == 1 { "byte" } else { "bytes" };
-            let skip = spec.skip;
-            // Longer: by how much, and the skip that would read the end; shorter:
-            // what is missing.
-            return Err(bad(if len > needed {
-                let extra = len - needed;
-                let more = if extra == 1 { "byte" } else { "bytes" };
-                format!(
-                    "the file holds {extra} {more} more than the {needed} that {x}x{y}x{z} samples of {size} {sample} after a {skip}-byte skip need (a header before them? a skip of {} reads the samples at the end)",
-                    skip + extra
-                )
-            } else {
-                format!(
-                    "the file holds {len} bytes, {} short of the {needed} that {x}x{y}x{z} samples of {size} {sample} after a {skip}-byte skip need",
-                    needed - len
-                )
-            }));
+        if let Some(problem) = spec.length_problem(len, "a skip of") {
+            return Err(bad(problem));
         }
         Ok(Input {
             path: path.to_path_buf(),
