@@ -1179,11 +1179,10 @@ impl Controller {
         {
             return region.clone();
         }
-        let dims = st
-            .current
-            .as_ref()
-            .map_or([1; 3], |c| c.volume.volume.dims());
-        let mut region = values.region(dims);
+        let (dims, spacing) = st.current.as_ref().map_or(([1; 3], [1.0; 3]), |c| {
+            (c.volume.volume.dims(), c.volume.volume.spacing())
+        });
+        let mut region = values.region(dims, spacing);
         region
             .planes
             .extend(st.fixed.clip.planes.iter().skip(1).copied());
@@ -1476,11 +1475,10 @@ impl Controller {
                 None => st.step_override = Some((ui.get_step_index(), settings.step)),
             }
             st.fixed = settings.clone();
-            let dims = st
-                .current
-                .as_ref()
-                .map_or([1; 3], |c| c.volume.volume.dims());
-            let values = CutValues::from_region(&settings.clip, dims);
+            let (dims, spacing) = st.current.as_ref().map_or(([1; 3], [1.0; 3]), |c| {
+                (c.volume.volume.dims(), c.volume.volume.spacing())
+            });
+            let values = CutValues::from_region(&settings.clip, dims, spacing);
             set_cut_values(&ui, &values);
             st.cut_restored = Some((values, settings.clip.clone()));
             if let Some(slices) = &session.slices {
