@@ -62,7 +62,7 @@ impl CutValues {
     /// The region these values keep in a volume of `dims` voxels (level 0)
     /// `spacing` apart. The plane's angles and offset are measured in world
     /// space (the voxels' spacing counts: 45° on a CT of 5 mm slices 0.6 mm
-    /// apart in-plane is 45° in the body, not 6°); the region, like `--clip`,
+    /// apart in-plane is 45° in the body, not 7°); the region, like `--clip`,
     /// holds it in voxels.
     pub(crate) fn region(&self, dims: [u32; 3], spacing: [f32; 3]) -> ClipRegion {
         let last = extent(dims);
