@@ -274,7 +274,7 @@ mod tests {
 
     /// On a volume of 5 mm slices 0.5 mm apart in-plane, a plane at 45°
     /// elevation is at 45° in the body: its voxel-space normal points mostly
-    /// along z (it was at 45° in voxels, 7° in the body); it round-trips, and
+    /// along z (it was at 45° in voxels, 6° in the body); it round-trips, and
     /// offset 0 cuts through the volume's centre.
     #[test]
     fn the_plane_is_turned_in_world_space() {
