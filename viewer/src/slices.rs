@@ -200,10 +200,17 @@ impl Crosshair {
 }
 
 /// The part of an axis of `len` pixels a zoom of `zoom` shows, centred on
-/// `centre` as far as the ends allow: its first pixel and its length.
+/// `centre` as far as the ends allow: its first pixel and its length. A part
+/// smaller than the axis has an odd length, so the centre pixel lies in its
+/// middle (an even one left it half a pixel off).
 pub(crate) fn zoom_span(len: u32, centre: u32, zoom: f32) -> (u32, u32) {
     let zoom = if zoom.is_finite() { zoom.max(1.0) } else { 1.0 };
     let count = ((len as f32 / zoom).round() as u32).clamp(1, len.max(1));
+    let count = if count < len && count % 2 == 0 {
+        count + 1
+    } else {
+        count
+    };
     let start = centre
         .saturating_sub(count / 2)
         .min(len.saturating_sub(count));
@@ -471,12 +478,15 @@ endian: little\nencoding: raw\n\n"
         // The x line (red) at column 9, the y line (green) at row 15 − 7.
         assert_eq!(px(9, 0), AXIS_COLOURS[0]);
         assert_eq!(px(0, 8), AXIS_COLOURS[1]);
-        // Zoomed 2×: 10 × 8 pixels about the crosshair (column 9, row 8).
+        // Zoomed 2×: 11 × 9 pixels (odd: the crosshair in the middle) about
+        // the crosshair (column 9, row 8), which lies at (5, 4) of them.
         let (zoomed, at) = slice_image(&volume, 0, Axis::Z, &c, [0.0, 255.0], 2.0).unwrap();
-        assert_eq!((zoomed.width(), zoomed.height()), (10, 8));
+        assert_eq!((zoomed.width(), zoomed.height()), (11, 9));
         assert_eq!(at, [4, 4]);
-        let i = ((4 * 10 + 5) * 3) as usize;
+        let i = ((4 * 11 + 5) * 3) as usize;
         assert_eq!(zoomed.data()[i..i + 3], AXIS_COLOURS[1]);
+        let i = ((0 * 11 + 5) * 3) as usize;
+        assert_eq!(zoomed.data()[i..i + 3], AXIS_COLOURS[0]);
     }
 
     /// A NRRD volume of `dims` u16 voxels placed in RAS space (x grows to the
@@ -587,11 +597,11 @@ endian: little\nencoding: raw\n\n"
             assert_eq!(px(10, y), AXIS_COLOURS[1], "row {y}");
         }
         assert_ne!(px(10, 153), AXIS_COLOURS[1]);
-        // Zoomed 8×: 75 × 38 pixels shown, and lines one pixel thick (not the
+        // Zoomed 8×: 75 × 39 pixels shown, and lines one pixel thick (not the
         // whole slice's 5 and 3, which the view would blow up eightfold).
         let (zoomed, at) = slice_image(&volume, 0, Axis::Z, &c, [0.0, 255.0], 8.0).unwrap();
         let (zw, zh) = (zoomed.width(), zoomed.height());
-        assert_eq!((zw, zh), (75, 38));
+        assert_eq!((zw, zh), (75, 39));
         let zpx = |x: u32, y: u32| {
             let i = ((y * zw + x) * 3) as usize;
             [zoomed.data()[i], zoomed.data()[i + 1], zoomed.data()[i + 2]]
@@ -612,5 +622,10 @@ endian: little\nencoding: raw\n\n"
         assert_eq!(zoom_span(100, 99, 4.0), (75, 25));
         assert_eq!(zoom_span(3, 1, 100.0), (1, 1));
         assert_eq!(zoom_span(10, 5, f32::NAN), (0, 10));
+        // An even share grows to odd: the centre pixel in the middle.
+        assert_eq!(zoom_span(48, 23, 2.0), (11, 25));
+        let (start, count) = zoom_span(512, 300, 8.0);
+        assert_eq!((start, count), (268, 65));
+        assert_eq!(300 - start, count / 2);
     }
 }

@@ -470,12 +470,13 @@ fn the_viewer_cuts_slices_and_remembers_files() {
         v.ui().get_slice_window_info()
     );
     assert_ne!(pixels(&v.ui().get_slice_z()), z_before);
-    // Zoomed 2× about the crosshair (12, 11): the axial view shows x 0..24 and
-    // y 0..24 (rows 24..48); a click maps through the zoom.
+    // Zoomed 2× about the crosshair (12, 11): the axial view shows 25 × 25
+    // voxels (odd, so a crosshair away from the edges sits in the middle),
+    // x 0..=24 and y 0..=24 (rows 23..48); a click maps through the zoom.
     v.ui().set_slice_zoom(2.0);
     v.ui().invoke_slice_zoom_changed();
     let zoomed = pixels(&v.ui().get_slice_z());
-    assert_eq!((zoomed.0, zoomed.1), (24, 24));
+    assert_eq!((zoomed.0, zoomed.1), (25, 25));
     v.ui().invoke_slice_clicked(2, 10.0, 90.0, 100.0, 100.0);
     assert_eq!(v.crosshair(), [2, 2, 24]);
     v.ui().set_slice_zoom(1.0);
