@@ -206,7 +206,7 @@ impl Crosshair {
 pub(crate) fn zoom_span(len: u32, centre: u32, zoom: f32) -> (u32, u32) {
     let zoom = if zoom.is_finite() { zoom.max(1.0) } else { 1.0 };
     let count = ((len as f32 / zoom).round() as u32).clamp(1, len.max(1));
-    let count = if count < len && count % 2 == 0 {
+    let count = if count < len && count.is_multiple_of(2) {
         count + 1
     } else {
         count
