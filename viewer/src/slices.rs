@@ -485,7 +485,7 @@ endian: little\nencoding: raw\n\n"
         assert_eq!(at, [4, 4]);
         let i = ((4 * 11 + 5) * 3) as usize;
         assert_eq!(zoomed.data()[i..i + 3], AXIS_COLOURS[1]);
-        let i = ((0 * 11 + 5) * 3) as usize;
+        let i = 5 * 3; // row 0, column 5
         assert_eq!(zoomed.data()[i..i + 3], AXIS_COLOURS[0]);
     }
 
