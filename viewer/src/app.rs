@@ -173,8 +173,8 @@ struct State {
     /// A screenshot asked for while the frame was still rendering: saved when
     /// the full-quality frame of the view is complete (not half old, half new).
     pending_screenshot: Option<PathBuf>,
-    /// An existing file *Save PNG* was pressed on once: a second press on the
-    /// same path replaces it.
+    /// An existing file a save button was pressed on once: a second press on
+    /// the same path replaces it.
     overwrite_armed: Option<PathBuf>,
     /// The newest request that failed, and its error: no screenshot of it.
     failed: Option<(u64, String)>,
@@ -1593,7 +1593,7 @@ impl Controller {
     }
 
     fn save_session(&self, path: &Path) {
-        if self.refuse_input_as_output(path) {
+        if self.refuse_input_as_output(path) || !self.replace_confirmed(path, "Save session") {
             return;
         }
         let Some(session) = self.session() else {
@@ -1982,6 +1982,16 @@ impl Controller {
         if self.refuse_input_as_output(path) {
             return;
         }
+        if self.replace_confirmed(path, "Save PNG") {
+            self.save_screenshot(path);
+        }
+    }
+
+    /// Whether a save by `button` may write `path`: it does not exist, or the
+    /// button was pressed on it a second time; else says so and arms the
+    /// second press. Every save button asks (*Save session* and the scene's
+    /// *Save* replaced a file without a word).
+    fn replace_confirmed(&self, path: &Path, button: &str) -> bool {
         let confirmed = {
             let mut st = self.state.borrow_mut();
             let again = st.overwrite_armed.take().is_some_and(|p| p == path);
@@ -1994,15 +2004,15 @@ impl Controller {
             }
         };
         if !confirmed {
-            return self.show_message(
+            self.show_message(
                 &format!(
-                    "{} exists: press Save PNG again to replace it",
+                    "{} exists: press {button} again to replace it",
                     path.display()
                 ),
                 true,
             );
         }
-        self.save_screenshot(path);
+        confirmed
     }
 
     /// Saves a screenshot asked for while the frame rendered, once it is complete.
@@ -2127,7 +2137,7 @@ impl Controller {
     /// Writes the scene on screen; without one, the plain view as a one-layer
     /// scene (which renders the same image).
     fn save_scene(&self, path: &Path) {
-        if self.refuse_input_as_output(path) {
+        if self.refuse_input_as_output(path) || !self.replace_confirmed(path, "Save (scene)") {
             return;
         }
         let scene = {

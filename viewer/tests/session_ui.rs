@@ -154,6 +154,20 @@ fn sessions_save_render_and_restore_the_picture() {
 
     // 2. Save it; the session renders the viewer's frame pixel for pixel.
     let path = dir.path().join("view.toml");
+    // An existing file is replaced on a second press only (Save session
+    // replaced it without a word, where Save PNG asked).
+    std::fs::write(&path, "# hand-edited\n").unwrap();
+    v.ui().set_session_path(path.display().to_string().into());
+    element(&v, "App::session-save").invoke_accessible_default_action();
+    assert!(v.ui().get_message_is_error());
+    assert!(
+        v.ui()
+            .get_message()
+            .contains("exists: press Save session again to replace it"),
+        "{}",
+        v.ui().get_message()
+    );
+    assert_eq!(std::fs::read_to_string(&path).unwrap(), "# hand-edited\n");
     save_session(&v, &path);
     let session = Session::load(&path).unwrap();
     assert_eq!(session.size, [w, h]);
