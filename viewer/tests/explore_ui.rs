@@ -77,6 +77,16 @@ fn scale_bar_measures_the_frame_shown(v: &Viewer) {
         ui.set_scale_fraction(0.25);
         assert!((bar() - 0.25 * width).abs() < 1.0, "{w}×{h}: {} px", bar());
     }
+    // On a dark plate that holds the bar and its label (they vanished over
+    // bright skin).
+    let plate = element(v, "App::scale-plate");
+    let bar = element(v, "App::scale-bar");
+    let (p, b) = (plate.absolute_position(), bar.absolute_position());
+    assert!(p.x < b.x && p.y < b.y, "{p:?} {b:?}");
+    assert!(
+        p.x + plate.size().width > b.x + bar.size().width
+            && p.y + plate.size().height > b.y + bar.size().height
+    );
     ui.set_frame(frame);
     ui.set_scale_fraction(fraction);
 }
