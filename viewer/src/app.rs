@@ -604,7 +604,7 @@ fn connect(ui: &App, c: &Rc<Controller>) {
         }
     });
     on!(on_open_file, |c, path| c
-        .open(Source::File(PathBuf::from(path.as_str()))));
+        .open(Source::File(typed_path(&path))));
     on!(on_browse, |c| c.toggle_browser());
     on!(on_browser_picked, |c, index| c.browser_pick(index));
     on!(on_browser_up, |c| c.browser_up());
@@ -612,7 +612,7 @@ fn connect(ui: &App, c: &Rc<Controller>) {
     on!(on_save_screenshot, |c, path| c
         .save_png_pressed(Path::new(path.as_str())));
     on!(on_open_session, |c, path| c
-        .open(Source::Session(PathBuf::from(path.as_str()))));
+        .open(Source::Session(typed_path(&path))));
     on!(on_save_session, |c, path| c
         .save_session(Path::new(path.as_str())));
     on!(on_preset_selected, |c, index| c.select_preset(index));
@@ -707,6 +707,26 @@ fn connect(ui: &App, c: &Rc<Controller>) {
         }
         true
     });
+}
+
+/// The path a user typed or pasted in a path field: without surrounding
+/// whitespace or one pair of matching quotes (a file manager's copy), and `~`
+/// at its start as the home folder (a shell's spelling); the field's text as
+/// it is otherwise.
+pub(crate) fn typed_path(text: &str) -> PathBuf {
+    let text = text.trim();
+    let text = ['\'', '"']
+        .iter()
+        .find_map(|&q| text.strip_prefix(q).and_then(|t| t.strip_suffix(q)))
+        .unwrap_or(text);
+    let home = std::env::var_os("HOME").filter(|h| !h.is_empty());
+    match (text.strip_prefix('~'), home) {
+        (Some(""), Some(home)) => PathBuf::from(home),
+        (Some(rest), Some(home)) if rest.starts_with('/') => {
+            PathBuf::from(home).join(rest.trim_start_matches('/'))
+        }
+        _ => PathBuf::from(text),
+    }
 }
 
 /// The Cut panel's values.
@@ -1044,6 +1064,14 @@ impl Controller {
                     ui.set_dim_y(y as i32);
                     ui.set_dim_z(z as i32);
                     set_cut_values(&ui, &CutValues::default());
+                    // The path field names the volume on screen (a session's,
+                    // a recent entry's), so *Open* opens what is shown.
+                    ui.set_file_path(match &st.source {
+                        VolumeSource::File { path, .. } => path.display().to_string().into(),
+                        VolumeSource::BuiltIn { .. } => SharedString::new(),
+                    });
+                    // A new volume's slices start whole (a session sets its zoom).
+                    ui.set_slice_zoom(1.0);
                     ui.set_volume_info(v.description.clone().into());
                     ui.set_preset_index(
                         PRESETS
@@ -2299,7 +2327,31 @@ pub fn status_line(
 
 #[cfg(test)]
 mod tests {
-    use super::{Sampling, numbered_path, over_built_in_scene, size_note, status_line};
+    use super::{Sampling, numbered_path, over_built_in_scene, size_note, status_line, typed_path};
+    use std::path::PathBuf;
+
+    /// Pasted paths open: surrounding spaces and one pair of quotes go, `~`
+    /// is the home folder (they failed with "No such file or directory").
+    #[test]
+    fn typed_paths_lose_quotes_and_spaces_and_find_home() {
+        assert_eq!(
+            typed_path("  /a/my scan.vol \n"),
+            PathBuf::from("/a/my scan.vol")
+        );
+        assert_eq!(
+            typed_path("'/a/my scan.vol'"),
+            PathBuf::from("/a/my scan.vol")
+        );
+        assert_eq!(typed_path(" \"/a/b.vol\" "), PathBuf::from("/a/b.vol"));
+        assert_eq!(typed_path("'/a/b.vol"), PathBuf::from("'/a/b.vol"));
+        assert_eq!(typed_path("a~b.vol"), PathBuf::from("a~b.vol"));
+        if let Some(home) = std::env::var_os("HOME").filter(|h| !h.is_empty()) {
+            let home = PathBuf::from(home);
+            assert_eq!(typed_path("~/scans/a.vol"), home.join("scans/a.vol"));
+            assert_eq!(typed_path("~"), home);
+            assert_eq!(typed_path("~other/a.vol"), PathBuf::from("~other/a.vol"));
+        }
+    }
 
     #[test]
     fn the_status_line_names_steps_far_from_the_rungs() {

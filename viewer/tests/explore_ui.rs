@@ -547,11 +547,19 @@ fn the_viewer_cuts_slices_and_remembers_files() {
     v.ui().invoke_slice_window_dragged(2, 0.0, 0.2, false);
     let custom = v.ui().get_slice_windows().row_count() as i32 - 1;
     assert_eq!(v.ui().get_slice_window_index(), custom);
-    v.ui().invoke_open_file(file_b.display().to_string().into());
+    // Typed with quotes and spaces around it, as pasted from a file manager,
+    // on zoomed slice views.
+    v.ui().set_slice_zoom(3.0);
+    v.ui()
+        .invoke_open_file(format!(" '{}' ", file_b.display()).into());
     wait_until(&v, "file b", |v| {
         v.volume_name() == file_b.display().to_string()
     });
     assert_eq!(v.ui().get_slice_window_index(), 0, "fitted");
+    // The new volume's slices start whole, and the path field names it as
+    // opened (it kept the text typed).
+    assert_eq!(v.ui().get_slice_zoom(), 1.0);
+    assert_eq!(v.ui().get_file_path(), file_b.display().to_string());
     assert_eq!(
         v.recent_files(),
         [file_b.clone(), session_path.clone(), file_a.clone()]
