@@ -4,7 +4,7 @@ use crate::navigation::AxisView;
 
 /// The help line the window shows under the canvas.
 pub(crate) const HELP: &str =
-    "keys: R reset view · 1/2/3 or X/Y/Z view along +x/+y/+z (shift: −) · S or Ctrl+S screenshot";
+    "keys: R reset view · 1/2/3 or X/Y/Z view from +x/+y/+z (shift: −) · S or Ctrl+S screenshot";
 
 /// What a key does.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
