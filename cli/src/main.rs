@@ -6,7 +6,6 @@
 mod args;
 mod bench;
 mod compare;
-mod dark_average;
 mod distributed;
 mod memory;
 mod output;

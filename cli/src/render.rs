@@ -561,18 +561,23 @@ pub fn run(args: RenderArgs) -> Result<()> {
             setup.volume.path().display()
         );
     }
-    // A dark average frame on the default domain: say which domain shows it.
+    // A dark average frame on the default domain: say which domain shows it
+    // (a transfer-function file's own domain was the user's choice).
+    let own_domain = args
+        .tf
+        .as_ref()
+        .is_some_and(|tf| TransferFunction::names_a_file(tf, Path::new("")));
     if setup.settings.mode == Mode::Average
         && args.domain.is_none()
-        && args.tf.is_none()
+        && !own_domain
         && args.session.is_none()
         && !args.quiet
     {
         let image = frame.to_image();
-        if let Some(warning) =
-            crate::dark_average::warning(&setup.volume, &setup.settings, &setup.camera, &image)?
+        if let Some(dark) =
+            raycaster::render::dark_average(&setup.volume, &setup.settings, &setup.camera, &image)?
         {
-            eprintln!("{warning}");
+            eprintln!("{}", dark_average_warning(&setup.volume, &dark));
         }
     }
     finish(&args, &setup, &frame, serde_json::Map::new())
@@ -813,6 +818,19 @@ pub(crate) fn finish(
         );
     }
     Ok(())
+}
+
+/// The warning for a dark average frame: where its rays' means lie, and the
+/// `--domain` that spans them.
+fn dark_average_warning(volume: &Volume, dark: &raycaster::render::DarkAverage) -> String {
+    let units = volume.value_units();
+    let [lo, hi] = dark.domain.map(|v| units.format(v));
+    // As --domain takes them: numbers without the unit.
+    let [a, b] = dark.spanning.map(raycaster::volume::number_text);
+    format!(
+        "warning: --mode average: the picture is dark: the means along the rays lie in the lowest {:.0} % of the transfer function's domain, {lo} to {hi}; --domain {a},{b} spans them",
+        dark.share * 100.0
+    )
 }
 
 /// Opens a label volume, checking that it holds labels.

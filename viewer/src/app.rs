@@ -118,6 +118,10 @@ struct State {
     latest: Option<(u64, bool)>,
     /// How the newest request samples its rays.
     latest_sampling: Sampling,
+    /// The newest average-mode request's id and settings, until its
+    /// full-quality frame has been looked at for darkness
+    /// ([`Controller::note_dark_average`]).
+    average_to_check: Option<(u64, RenderSettings)>,
     /// Frame id and tiles of the image on screen.
     shown: (u64, u64),
     last_stats: Option<(FrameStats, bool)>,
@@ -277,6 +281,7 @@ impl Viewer {
                 scene: None,
                 latest: None,
                 latest_sampling: Sampling::default(),
+                average_to_check: None,
                 last_sampling: Sampling::default(),
                 shown: (0, 0),
                 last_stats: None,
@@ -1721,6 +1726,7 @@ impl Controller {
             ..ParallelOptions::default()
         };
         let Some(current) = &st.current else { return };
+        let average = (settings.mode == Mode::Average && !moving).then(|| settings.clone());
         let id = current.front.request(FrameRequest {
             camera,
             settings,
@@ -1728,6 +1734,7 @@ impl Controller {
             level,
         });
         st.latest = Some((id, moving));
+        st.average_to_check = average.map(|settings| (id, settings));
         if st.cameras.len() == REMEMBERED_CAMERAS {
             st.cameras.pop_front();
         }
@@ -1760,6 +1767,7 @@ impl Controller {
         self.take_events();
         self.show_frame();
         self.save_pending_screenshot();
+        self.note_dark_average();
         // The moving frame in flight ended: render the view the camera moved to.
         let follow = {
             let mut st = self.state.borrow_mut();
@@ -2041,6 +2049,46 @@ impl Controller {
             );
         }
         confirmed
+    }
+
+    /// Once an average-mode frame is complete: when it is dark because its
+    /// rays' means lie low in the transfer function's domain, says where they
+    /// lie (`raycaster render` warns of the same, naming a `--domain`).
+    fn note_dark_average(&self) {
+        let found = {
+            let mut st = self.state.borrow_mut();
+            if !frame_complete(&st) {
+                return;
+            }
+            let Some((id, settings)) = st.average_to_check.take() else {
+                return;
+            };
+            let Some(current) = &st.current else { return };
+            let Some((_, camera, _)) = st.cameras.iter().rfind(|(c, _, _)| *c == id) else {
+                return;
+            };
+            let image = {
+                let fb = current.front.framebuffer().lock();
+                let rgb: Vec<u8> = fb.pixels.iter().flat_map(|p| [p[0], p[1], p[2]]).collect();
+                RgbImage::new(fb.width, fb.height, rgb)
+            };
+            let volume = &current.volume.volume;
+            raycaster::render::dark_average(volume, &settings, camera, &image)
+                .ok()
+                .flatten()
+                .map(|dark| (dark, volume.value_units()))
+        };
+        if let Some((dark, units)) = found {
+            let [lo, hi] = dark.domain.map(|v| units.format(v));
+            let [a, b] = dark.spanning.map(|v| units.format(v));
+            self.show_message(
+                &format!(
+                    "average: the picture is dark — the rays' means lie in {a} .. {b}, the lowest {:.0} % of the transfer function's range {lo} .. {hi}: move its points into that part to see them",
+                    dark.share * 100.0
+                ),
+                false,
+            );
+        }
     }
 
     /// Saves a screenshot asked for while the frame rendered, once it is complete.

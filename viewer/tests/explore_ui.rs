@@ -532,6 +532,26 @@ fn the_viewer_cuts_slices_and_remembers_files() {
         "{before:?} → {after:?}"
     );
 
+    // An average frame of this mostly empty volume is dark: the message line
+    // says where the rays' means lie (it showed a dark picture without a word,
+    // where `raycaster render` warned), once, and not in other modes.
+    let average = raycaster::render::Mode::ALL
+        .iter()
+        .position(|&m| m == raycaster::render::Mode::Average)
+        .unwrap() as i32;
+    v.ui().set_mode_index(average);
+    v.ui().invoke_settings_changed();
+    settle(&v);
+    let said = v.ui().get_message().to_string();
+    assert!(
+        said.starts_with("average: the picture is dark — the rays' means lie in 0 .. ")
+            && said.contains("of the transfer function's range 0 .. 255"),
+        "{said}"
+    );
+    v.ui().set_mode_index(0);
+    v.ui().invoke_settings_changed();
+    settle(&v);
+
     // 4. Recent files: the file and the session opened so far, newest first.
     let recent_file = config.join("raycaster/recent");
     let listed = std::fs::read_to_string(&recent_file).unwrap();

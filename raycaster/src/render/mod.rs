@@ -14,6 +14,7 @@ mod cells;
 mod clip;
 mod compositor;
 mod counters;
+mod dark_average;
 mod direct_send;
 mod error;
 mod frame;
@@ -63,6 +64,7 @@ pub use cells::{
 };
 pub use clip::{ClipPlane, ClipRegion, CropBox, MAX_CLIP_PLANES};
 pub use counters::{Counters, FrameStats};
+pub use dark_average::{DarkAverage, dark_average};
 pub use error::RenderError;
 pub use frame::Frame;
 pub use front::{FrameBuffer, FrameEvent, FrameRequest, Notify, RenderFront};

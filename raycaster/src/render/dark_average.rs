@@ -1,18 +1,18 @@
-//! A dark average frame, said with the domain that would show it.
+//! A dark average frame, and the domain that would show it.
 //!
 //! The mean along a ray through a scan is mostly air: on a CT, means lie in the
 //! lowest fifth of the default domain (−1000 to 2000 HU), where the transfer
 //! function shows little, and the picture is nearly black. The means' range is
 //! measured on a small preview of the coarsest level with an opaque grey ramp
-//! (each pixel is then its ray's mean, normalised over the domain), so the
-//! warning can name a domain that spans them.
+//! (each pixel is then its ray's mean, normalised over the domain), so front
+//! ends can name a domain that spans them (`raycaster render`'s warning, the
+//! viewer's message line).
 
-use anyhow::Result;
-use raycaster::render::{
-    Camera, ControlPoint, Mode, ParallelOptions, RenderSettings, RenderVolume, RgbImage,
-    TransferFunction, render_parallel,
+use super::{
+    Camera, ControlPoint, Mode, ParallelOptions, RenderError, RenderSettings, RenderVolume,
+    RgbImage, TransferFunction, render_parallel,
 };
-use raycaster::volume::Volume;
+use crate::volume::Volume;
 
 /// The brightness (of 255: the 99th percentile of the pixels' brightest
 /// channels) below which an average frame counts as dark.
@@ -24,16 +24,28 @@ const PREVIEW_WIDTH: u32 = 64;
 /// Means filling less than this share of the domain are worth a narrower one.
 const NARROW: f32 = 0.5;
 
-/// A warning for an average frame `image` of `volume` under `settings` and
-/// `camera` that is dark because its rays' means lie low in the transfer
-/// function's domain, naming a domain that spans them; `None` for any other
-/// frame.
-pub(crate) fn warning(
+/// Where the rays' means of a dark average frame lie in its transfer
+/// function's domain.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DarkAverage {
+    /// The share of the domain, from its low end, that holds the means.
+    pub share: f32,
+    /// The domain, in the volume's value units.
+    pub domain: [f64; 2],
+    /// A domain that spans the means (a little above the highest), in the
+    /// volume's value units, outward to whole values.
+    pub spanning: [f64; 2],
+}
+
+/// For an average frame `image` of `volume` under `settings` and `camera` that
+/// is dark because its rays' means lie low in the transfer function's domain,
+/// where they lie; `None` for any other frame.
+pub fn dark_average(
     volume: &Volume,
     settings: &RenderSettings,
     camera: &Camera,
     image: &RgbImage,
-) -> Result<Option<String>> {
+) -> Result<Option<DarkAverage>, RenderError> {
     if settings.mode != Mode::Average || settings.segments.is_some() {
         return Ok(None);
     }
@@ -41,10 +53,10 @@ pub(crate) fn warning(
     if percentile(image.data().chunks_exact(3).map(brightest)).is_none_or(|b| b >= DARK) {
         return Ok(None);
     }
-    let Some(high) = highest_mean(volume, settings, camera)? else {
+    let Some(share) = highest_mean(volume, settings, camera)? else {
         return Ok(None);
     };
-    if high >= NARROW {
+    if share >= NARROW {
         return Ok(None);
     }
     let units = volume.value_units();
@@ -53,22 +65,12 @@ pub(crate) fn warning(
         .domain
         .unwrap_or([0.0, f32::from(volume.sample_type().max_value())]);
     let value = |stored: f32| units.value(f64::from(stored));
-    // A little above the highest mean, so the brightest rays are not clipped.
-    let top = lo + (hi - lo) * (high * 1.1).min(1.0);
-    let plain = |v: f64| {
-        let text = units.format(v);
-        text.trim_end_matches(&format!(" {}", units.unit))
-            .to_string()
-    };
-    Ok(Some(format!(
-        "warning: --mode average: the picture is dark: the means along the rays lie in the \
-         lowest {:.0} % of the transfer function's domain, {} to {}; --domain {},{} spans them",
-        high * 100.0,
-        units.format(value(lo)),
-        units.format(value(hi)),
-        plain(value(lo).floor()),
-        plain(value(top).ceil()),
-    )))
+    let top = lo + (hi - lo) * (share * 1.1).min(1.0);
+    Ok(Some(DarkAverage {
+        share,
+        domain: [value(lo), value(hi)],
+        spanning: [value(lo).floor(), value(top).ceil()],
+    }))
 }
 
 /// The highest ray mean (the 99th percentile) of a small preview of
@@ -78,7 +80,7 @@ fn highest_mean(
     volume: &Volume,
     settings: &RenderSettings,
     camera: &Camera,
-) -> Result<Option<f32>> {
+) -> Result<Option<f32>, RenderError> {
     let height = (PREVIEW_WIDTH * camera.height() / camera.width().max(1)).max(1);
     let camera = camera.with_size(PREVIEW_WIDTH, height)?;
     let ramp = |value: f32| ControlPoint {
@@ -86,7 +88,9 @@ fn highest_mean(
         color: [value; 3],
         alpha: 1.0,
     };
-    let mut transfer = TransferFunction::new(vec![ramp(0.0), ramp(1.0)])?;
+    // (Two points in order, opacities in range: always a function.)
+    let mut transfer =
+        TransferFunction::new(vec![ramp(0.0), ramp(1.0)]).expect("a ramp of two points");
     transfer.domain = settings.transfer.domain;
     let preview = RenderSettings {
         transfer,
@@ -100,8 +104,8 @@ fn highest_mean(
     let coarsest = volume.level(volume.level_count() - 1);
     let prepared = RenderVolume::new(coarsest, None)?;
     let frame = render_parallel(&prepared, &camera, &preview, &ParallelOptions::default())?;
-    // Over the lit pixels: the rays that met the volume (and whose mean lies in
-    // the domain).
+    // Over the lit pixels: the rays that met the volume (and whose mean lies
+    // in the domain).
     let image = frame.to_image();
     let lit = image
         .data()
@@ -125,4 +129,18 @@ fn percentile(values: impl Iterator<Item = u8>) -> Option<u8> {
     }
     let at = (values.len() - 1) * 99 / 100;
     Some(*values.select_nth_unstable(at).1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::percentile;
+
+    #[test]
+    fn the_percentile_leaves_out_a_few_bright_pixels() {
+        let mut values = vec![10u8; 990];
+        values.extend([250u8; 10]);
+        assert_eq!(percentile(values.iter().copied()), Some(10));
+        assert_eq!(percentile(std::iter::empty()), None);
+        assert_eq!(percentile([7u8].into_iter()), Some(7));
+    }
 }
