@@ -198,21 +198,14 @@ pub fn parse_finite(s: &str) -> Result<f32, String> {
 /// A whole number `min` or more, said in words when it is not (clap's own
 /// message for `-1` reads "-1 is not in 0..=4294967295").
 fn parse_whole<T: std::str::FromStr + Into<u64> + Copy>(s: &str, min: u64) -> Result<T, String> {
-    let at_least = if min == 0 {
-        "0 or more".to_string()
-    } else {
-        format!("{min} or more")
-    };
-    match s.trim().parse::<T>() {
+    let text = s.trim();
+    match text.parse::<T>() {
         Ok(v) if v.into() >= min => Ok(v),
-        Ok(_) => Err(format!("{s:?} must be a whole number, {at_least}")),
-        Err(_) if s.trim().parse::<i128>().is_ok_and(|v| v < min as i128) => {
-            Err(format!("{s:?} must be a whole number, {at_least}"))
-        }
-        Err(_) if s.trim().parse::<i128>().is_ok() => {
+        // A whole number of the bound or more that the type cannot hold.
+        Err(_) if text.parse::<i128>().is_ok_and(|v| v >= i128::from(min)) => {
             Err(format!("{s:?} is too large for a whole number here"))
         }
-        Err(_) => Err(format!("{s:?} must be a whole number, {at_least}")),
+        _ => Err(format!("{s:?} must be a whole number, {min} or more")),
     }
 }
 

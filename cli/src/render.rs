@@ -1325,13 +1325,13 @@ fn camera(
         // Within a degree of the view, the picture's roll follows the small
         // difference (the camera's up is the part of --up across the view).
         let angle = (target - position).angle_between(up).to_degrees();
-        if angle.min(180.0 - angle) < 1.0 {
+        let off_view = angle.min(180.0 - angle);
+        if off_view < 1.0 {
             let flag = |v: Vec3| v.to_array().map(|c| c.to_string()).join(",");
             eprintln!(
-                "warning: --up {} lies {:.2}° from the view direction (from {} to {}): the \
+                "warning: --up {} lies {off_view:.2}° from the view direction (from {} to {}): the \
                  picture's roll follows that small difference; give an --up across the view",
                 flag(up),
-                angle.min(180.0 - angle),
                 flag(position),
                 flag(target)
             );

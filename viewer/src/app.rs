@@ -20,7 +20,7 @@ use raycaster::render::{Camera, ClipRegion};
 use raycaster::render::{
     DEFAULT_ERT_THRESHOLD, FrameEvent, FrameRequest, FrameStats, GlobalMode, LevelChoice,
     Membership, Mode, Notify, ObjectStyle, PRESETS, ParallelOptions, RenderFront, RenderSettings,
-    RgbImage, SegmentScene, TransferFunction,
+    SegmentScene, TransferFunction,
 };
 use raycaster::session::{Session, SessionCamera, SliceViews, SliceWindow};
 use raycaster::slice::Axis;
@@ -192,6 +192,16 @@ struct State {
     slice_window: [f32; 2],
     window_drag_base: [f32; 2],
     custom_window: Option<[f32; 2]>,
+}
+
+impl State {
+    /// The volume on screen's voxels per axis and spacing (one voxel of unit
+    /// spacing before a volume is there): what the Cut panel's values mean.
+    fn volume_shape(&self) -> ([u32; 3], [f32; 3]) {
+        self.current.as_ref().map_or(([1; 3], [1.0; 3]), |c| {
+            (c.volume.volume.dims(), c.volume.volume.spacing())
+        })
+    }
 }
 
 /// A part of the view that could not be drawn, said on the message line until
@@ -1212,9 +1222,7 @@ impl Controller {
         {
             return region.clone();
         }
-        let (dims, spacing) = st.current.as_ref().map_or(([1; 3], [1.0; 3]), |c| {
-            (c.volume.volume.dims(), c.volume.volume.spacing())
-        });
+        let (dims, spacing) = st.volume_shape();
         let mut region = values.region(dims, spacing);
         region
             .planes
@@ -1228,11 +1236,7 @@ impl Controller {
         let Some(ui) = self.ui() else { return };
         let st = self.state.borrow();
         let region = Self::clip(&ui, &st);
-        let dims = st
-            .current
-            .as_ref()
-            .map_or([1; 3], |c| c.volume.volume.dims());
-        let kept: Vec<SharedString> = crate::cut::kept_voxels(&region, dims)
+        let kept: Vec<SharedString> = crate::cut::kept_voxels(&region, st.volume_shape().0)
             .into_iter()
             .map(SharedString::from)
             .collect();
@@ -1508,9 +1512,7 @@ impl Controller {
                 None => st.step_override = Some((ui.get_step_index(), settings.step)),
             }
             st.fixed = settings.clone();
-            let (dims, spacing) = st.current.as_ref().map_or(([1; 3], [1.0; 3]), |c| {
-                (c.volume.volume.dims(), c.volume.volume.spacing())
-            });
+            let (dims, spacing) = st.volume_shape();
             let values = CutValues::from_region(&settings.clip, dims, spacing);
             set_cut_values(&ui, &values);
             st.cut_restored = Some((values, settings.clip.clone()));
@@ -2067,11 +2069,7 @@ impl Controller {
             let Some((_, camera, _)) = st.cameras.iter().rfind(|(c, _, _)| *c == id) else {
                 return;
             };
-            let image = {
-                let fb = current.front.framebuffer().lock();
-                let rgb: Vec<u8> = fb.pixels.iter().flat_map(|p| [p[0], p[1], p[2]]).collect();
-                RgbImage::new(fb.width, fb.height, rgb)
-            };
+            let image = current.front.framebuffer().lock().to_image();
             let volume = &current.volume.volume;
             raycaster::render::dark_average(volume, &settings, camera, &image)
                 .ok()
@@ -2126,9 +2124,7 @@ impl Controller {
         let image = {
             let st = self.state.borrow();
             let Some(current) = &st.current else { return };
-            let fb = current.front.framebuffer().lock();
-            let rgb = fb.pixels.iter().flat_map(|p| [p[0], p[1], p[2]]).collect();
-            RgbImage::new(fb.width, fb.height, rgb)
+            current.front.framebuffer().lock().to_image()
         };
         match image.save_png(path) {
             Ok(()) => self.show_message(

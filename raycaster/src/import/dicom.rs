@@ -338,14 +338,11 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.is_file())
         .collect();
-    let mut files: Vec<PathBuf> = plain
-        .iter()
-        .filter(|p| has_dicm_marker(p))
-        .cloned()
-        .collect();
+    let plain_count = plain.len();
+    let mut files: Vec<PathBuf> = plain.into_iter().filter(|p| has_dicm_marker(p)).collect();
     files.sort();
     if files.is_empty() {
-        return Err(at_dir(ImportErrorKind::NoDicomFiles { files: plain.len() }));
+        return Err(at_dir(ImportErrorKind::NoDicomFiles { files: plain_count }));
     }
     let mut slices = Vec::with_capacity(files.len());
     for f in &files {

@@ -49,12 +49,7 @@ impl RawSpec {
     pub fn length_problem(&self, len: u64, skip_flag: &str) -> Option<String> {
         let [x, y, z] = self.dims;
         // (Sizes past 64 bits are refused before a file is measured.)
-        let needed = self
-            .dims
-            .iter()
-            .try_fold(self.sample.size() as u64, |n, &d| {
-                n.checked_mul(u64::from(d))
-            })?;
+        let needed = self.sample_bytes()?;
         let shape = format!("{x}x{y}x{z} {}", self.sample);
         let skipped = match self.skip {
             0 => String::new(),
@@ -69,7 +64,7 @@ impl RawSpec {
                 counted(extra, "byte"),
                 self.skip + extra
             ))
-        } else if have < needed || len < self.skip {
+        } else if have < needed {
             Some(format!(
                 "the file holds {}, fewer than {skipped}its {samples} of samples ({shape})",
                 counted(len, "byte")
@@ -77,6 +72,15 @@ impl RawSpec {
         } else {
             None
         }
+    }
+
+    /// Bytes of the samples (without the skip); `None` past 64 bits.
+    fn sample_bytes(&self) -> Option<u64> {
+        self.dims
+            .iter()
+            .try_fold(self.sample.size() as u64, |n, &d| {
+                n.checked_mul(u64::from(d))
+            })
     }
 }
 
@@ -185,11 +189,7 @@ impl Input {
         let file = data;
         let len = file.len().at(path)?;
         // (Checked first: the length problem assumes sizes within 64 bits.)
-        spec.dims
-            .iter()
-            .try_fold(spec.sample.size() as u64, |a, &d| {
-                a.checked_mul(u64::from(d))
-            })
+        spec.sample_bytes()
             .and_then(|n| n.checked_add(spec.skip))
             .ok_or_else(|| bad("raw sizes overflow 64 bits".into()))?;
         if let Some(problem) = spec.length_problem(len, "a skip of") {

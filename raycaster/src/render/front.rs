@@ -93,6 +93,16 @@ pub struct FrameBuffer {
 }
 
 impl FrameBuffer {
+    /// The image as 8-bit RGB (alpha dropped): what is saved, or measured.
+    pub fn to_image(&self) -> super::RgbImage {
+        let rgb = self
+            .pixels
+            .iter()
+            .flat_map(|p| [p[0], p[1], p[2]])
+            .collect();
+        super::RgbImage::new(self.width, self.height, rgb)
+    }
+
     /// This image scaled (nearest pixel) to `width × height` as a camera of
     /// the new size sees it: the field of view is vertical, so the picture is
     /// scaled by the ratio of the heights about the centre, whatever the widths
