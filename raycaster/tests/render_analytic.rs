@@ -276,3 +276,42 @@ fn corrected_alpha_is_the_thesis_formula() {
         assert!((corrected_alpha(a0, r) - (1.0 - (1.0 - a0).powf(r))).abs() < 1e-7);
     }
 }
+
+/// An 8-bit ramp across the view, lit by the headlight from the side of its
+/// gradient (ambient only where shaded): its central differences alternate
+/// between just below and just above the shading threshold (2 or 3 levels of
+/// 255 per two voxels: 0.0098 and 0.0118). Shading fades in above the
+/// threshold, so neighbouring pixels differ by little; a hard switch drew
+/// stripes of unshaded and ambient-lit colour (neighbours 178 levels apart; now about 6).
+#[test]
+fn an_eight_bit_ramp_near_the_shading_threshold_renders_without_stripes() {
+    let n = 100u32;
+    let volume = volume_u8([n, 24, 24], [1.0; 3], |x, _, _| {
+        (x as f32 * 255.0 / (n - 1) as f32) as u8
+    });
+    let c = centre(&volume);
+    // Looking along +z, x across the image.
+    let camera = Camera::new(
+        Vec3::new(c.x, c.y, -10.0),
+        Vec3::Z,
+        Vec3::Y,
+        Projection::Orthographic { height: 110.0 },
+        200,
+        200,
+    )
+    .unwrap();
+    let settings = raycaster::render::RenderSettings {
+        shading: Some(raycaster::render::Shading::default()),
+        ..plain_settings(white_tf(&[(0.0, 0.3), (1.0, 0.3)]))
+    };
+    let frame = render(&volume, &camera, &settings);
+    let row: Vec<f32> = (0..200).map(|i| frame.rgba[100 * 200 + i][0]).collect();
+    // The ramp's inside, away from its ends (where the gradient is one-sided).
+    let inside = &row[30..170];
+    let jump = inside
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .fold(0.0f32, f32::max);
+    assert!(inside.iter().all(|&v| v > 0.1), "{inside:?}");
+    assert!(jump < 10.0 / 255.0, "neighbours differ by {}/255", jump * 255.0);
+}

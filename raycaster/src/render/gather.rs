@@ -804,6 +804,14 @@ mod x86 {
         ));
         // Not `magnitude ≤ threshold` (NaN lit, as `!cmple`).
         let lit = _mm256_cmp_ps::<_CMP_NLE_UQ>(magnitude, splat(shading.gradient_threshold));
+        // `Shading::shade`'s fade: `min((magnitude − threshold) · rate, 1)`.
+        let weight = _mm256_min_ps(
+            _mm256_mul_ps(
+                _mm256_sub_ps(magnitude, splat(shading.gradient_threshold)),
+                splat(shading.fade_rate()),
+            ),
+            splat(1.0),
+        );
         let abs_mask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fff_ffff));
         // `|gradient · v| / magnitude`, as `Shading::shade`.
         let dot = |v: Vec3| {
@@ -835,7 +843,9 @@ mod x86 {
         );
         for channel in rgb.iter_mut() {
             let c = load(channel);
-            let shaded = _mm256_min_ps(_mm256_add_ps(_mm256_mul_ps(c, k), specular), splat(1.0));
+            let lit_colour =
+                _mm256_min_ps(_mm256_add_ps(_mm256_mul_ps(c, k), specular), splat(1.0));
+            let shaded = _mm256_add_ps(c, _mm256_mul_ps(_mm256_sub_ps(lit_colour, c), weight));
             // SAFETY: `channel` holds eight `f32`s; an unaligned store.
             unsafe { _mm256_storeu_ps(channel.as_mut_ptr(), _mm256_blendv_ps(c, shaded, lit)) };
         }

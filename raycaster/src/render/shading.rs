@@ -1,9 +1,18 @@
 //! Blinn-Phong shading, applied where the gradient is strong enough to define a
-//! surface normal (the thesis's threshold).
+//! surface normal (the thesis's threshold). Above the threshold it fades in: a
+//! gradient at the threshold leaves the colour as it is, one of
+//! [`FULL_SHADING_AT`] times the threshold or more is fully lit. A hard switch
+//! drew bands wherever a smooth field's gradient magnitude sits near the
+//! threshold (an 8-bit ramp of about 100 voxels: its central differences
+//! alternate between just below and just above 0.01).
 
 use glam::{Vec3, Vec4};
 
 use super::optics::{light_vectors, specular_power, specular_power_lanes};
+
+/// Shading is full from this many times [`Shading::gradient_threshold`] on;
+/// between the threshold and there it fades in linearly.
+pub const FULL_SHADING_AT: f32 = 4.0;
 
 /// Where the light comes from.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -27,8 +36,9 @@ pub struct Shading {
     pub specular: f32,
     /// Specular exponent.
     pub shininess: f32,
-    /// Gradient magnitude (normalised value per voxel) below which samples are
-    /// left unshaded.
+    /// Gradient magnitude (normalised value per voxel) at and below which
+    /// samples are left unshaded; shading fades in up to [`FULL_SHADING_AT`]
+    /// times it.
     pub gradient_threshold: f32,
 }
 
@@ -46,14 +56,23 @@ impl Default for Shading {
 }
 
 impl Shading {
+    /// The fade's slope: shading's weight per unit of gradient magnitude above
+    /// the threshold (infinite for a threshold of 0: full at once).
+    #[inline]
+    pub(crate) fn fade_rate(&self) -> f32 {
+        1.0 / (self.gradient_threshold * (FULL_SHADING_AT - 1.0))
+    }
+
     /// The colour `color` lit at a point with (unnormalised) gradient `gradient`,
     /// seen along the unit ray direction `view_dir`. Two-sided: `|N·L|`, `|N·H|`.
+    /// Weighted by the fade above the threshold: `c + (lit − c)·weight`.
     #[inline]
     pub fn shade(&self, color: [f32; 3], gradient: Vec3, view_dir: Vec3) -> [f32; 3] {
         let magnitude = gradient.length();
         if magnitude <= self.gradient_threshold {
             return color;
         }
+        let weight = ((magnitude - self.gradient_threshold) * self.fade_rate()).min(1.0);
         // `|normal · v|` as `|gradient · v| / magnitude`: one division per
         // light vector instead of three for the normal.
         let cosine = |v: Vec3| (gradient.dot(v) / magnitude).abs();
@@ -70,7 +89,7 @@ impl Shading {
         };
         let specular = self.specular * specular_power(facing, self.shininess);
         let k = self.ambient + self.diffuse * diffuse;
-        color.map(|c| (c * k + specular).min(1.0))
+        color.map(|c| c + ((c * k + specular).min(1.0) - c) * weight)
     }
 
     /// The unit vectors towards the light and halfway to the eye for a ray of
@@ -94,6 +113,9 @@ impl Shading {
         // `Vec3::length`: `(x·x + y·y) + z·z`, then the root.
         let magnitude = (gx * gx + gy * gy + gz * gz).sqrt();
         let lit = !magnitude.cmple(Vec4::splat(self.gradient_threshold));
+        let weight = ((magnitude - Vec4::splat(self.gradient_threshold))
+            * Vec4::splat(self.fade_rate()))
+        .min(Vec4::ONE);
         // `shade`'s `|gradient · v| / magnitude`.
         let dot = |v: Vec3| {
             ((gx * Vec4::splat(v.x) + gy * Vec4::splat(v.y) + gz * Vec4::splat(v.z)) / magnitude)
@@ -106,7 +128,7 @@ impl Shading {
         };
         let specular = Vec4::splat(self.specular) * specular_power_lanes(facing, self.shininess);
         let k = Vec4::splat(self.ambient) + Vec4::splat(self.diffuse) * diffuse;
-        color.map(|c| Vec4::select(lit, (c * k + specular).min(Vec4::ONE), c))
+        color.map(|c| Vec4::select(lit, c + ((c * k + specular).min(Vec4::ONE) - c) * weight, c))
     }
 }
 
@@ -133,5 +155,76 @@ mod tests {
         let grazing = s.shade([1.0; 3], Vec3::X, Vec3::Z);
         assert!((grazing[0] - s.ambient).abs() < 1e-6);
         assert_eq!(s.shade([0.7; 3], Vec3::X * 1e-4, Vec3::Z), [0.7; 3]);
+    }
+
+    /// Shading fades in above the threshold: no step where the magnitude
+    /// crosses it (the bands of an 8-bit ramp), full from `FULL_SHADING_AT`
+    /// times it on, and the lanes take the same weights.
+    #[test]
+    fn shading_fades_in_between_the_threshold_and_full_shading() {
+        let s = Shading::default();
+        let t = s.gradient_threshold;
+        let color = [0.6, 0.4, 0.2];
+        // A normal at 60° to the headlight: lit darker than the colour.
+        let direction = Vec3::new(0.0, 0.75f32.sqrt(), -0.5);
+        let at = |m: f32| s.shade(color, direction * m, Vec3::Z);
+        let full = at(10.0);
+        assert!(full[0] < color[0] - 0.05, "{full:?}");
+        assert_eq!(at(t), color);
+        // Just above the threshold: within a hair of the unshaded colour (the
+        // hard switch jumped to `full` here).
+        let above = at(t * 1.001);
+        assert!((above[0] - color[0]).abs() < 1e-3, "{above:?}");
+        assert!((at(FULL_SHADING_AT * t)[0] - full[0]).abs() < 1e-6);
+        let mut previous = color[0];
+        for i in 1..=30 {
+            let m = t * (1.0 + (FULL_SHADING_AT - 1.0) * i as f32 / 30.0);
+            let r = at(m)[0];
+            assert!(
+                r < previous && r >= full[0] - 1e-6,
+                "{m}: {r} after {previous}"
+            );
+            previous = r;
+        }
+        // Halfway through the fade: halfway between.
+        let half = at(t * (1.0 + FULL_SHADING_AT) / 2.0);
+        assert!(
+            (half[0] - (color[0] + full[0]) / 2.0).abs() < 1e-5,
+            "{half:?}"
+        );
+        // The lanes: the same bits, lane by lane.
+        let magnitudes = [t * 0.5, t * 1.3, t * 2.9, t * 7.0];
+        let g = [0, 1, 2].map(|a| Vec4::from_array(magnitudes.map(|m| (direction * m)[a])));
+        let lanes = s.shade_lanes(
+            [
+                Vec4::splat(color[0]),
+                Vec4::splat(color[1]),
+                Vec4::splat(color[2]),
+            ],
+            g,
+            s.ray_lights(Vec3::Z),
+        );
+        for (i, m) in magnitudes.into_iter().enumerate() {
+            let one = at(m);
+            for c in 0..3 {
+                assert_eq!(
+                    lanes[c].to_array()[i].to_bits(),
+                    one[c].to_bits(),
+                    "{m} {c}"
+                );
+            }
+        }
+    }
+
+    /// A threshold of 0 shades every sample with a gradient fully.
+    #[test]
+    fn a_zero_threshold_shades_fully_at_once() {
+        let s = Shading {
+            gradient_threshold: 0.0,
+            ..Shading::default()
+        };
+        let full = Shading::default().shade([0.5; 3], Vec3::Z * 5.0, Vec3::Z);
+        assert_eq!(s.shade([0.5; 3], Vec3::Z * 1e-6, Vec3::Z), full);
+        assert_eq!(s.shade([0.5; 3], Vec3::ZERO, Vec3::Z), [0.5; 3]);
     }
 }
