@@ -313,5 +313,9 @@ fn an_eight_bit_ramp_near_the_shading_threshold_renders_without_stripes() {
         .map(|w| (w[1] - w[0]).abs())
         .fold(0.0f32, f32::max);
     assert!(inside.iter().all(|&v| v > 0.1), "{inside:?}");
-    assert!(jump < 10.0 / 255.0, "neighbours differ by {}/255", jump * 255.0);
+    assert!(
+        jump < 10.0 / 255.0,
+        "neighbours differ by {}/255",
+        jump * 255.0
+    );
 }

@@ -16,7 +16,7 @@ use crate::args::{
     parse_spacing, parse_window, wrong_command_line,
 };
 use crate::generate::{describe_layout, describe_pyramid, describe_size};
-use crate::output::{check_output, output_name_warning};
+use crate::output::{check_output, output_name_warning, ray_length_warning};
 use crate::progress::{CANCEL, voxel_bar};
 
 /// Convert a raw, .vol, NRRD, NIfTI-1, MetaImage file or DICOM series into a .vol file.
@@ -247,6 +247,9 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
     }
     if !a.quiet {
         if let Some(warning) = thesis_loss_warning(&a.input, &input, options.format) {
+            eprintln!("{warning}");
+        }
+        if let Some(warning) = ray_length_warning(done.header.dims, done.header.spacing) {
             eprintln!("{warning}");
         }
         if let Some(window) = a.window

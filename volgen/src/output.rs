@@ -28,3 +28,50 @@ pub fn output_name_warning(output: &Path) -> Option<String> {
         )
     })
 }
+
+/// A warning for a volume of `dims` voxels at `spacing` whose rays, at the
+/// renderer's default step, would take more samples than it allows
+/// ([`raycaster::render::MAX_SAMPLES_PER_RAY`]): a spacing ratio within the
+/// 1e4 read can still make a long axis too long (512 voxels at 1e4). Names the
+/// finest step that renders it; `None` when the default step does.
+pub fn ray_length_warning(dims: [u32; 3], spacing: [f32; 3]) -> Option<String> {
+    use raycaster::render::{MAX_SAMPLES_PER_RAY, RenderSettings, samples_over, world_diagonal};
+    let step = RenderSettings::default().step;
+    let min_spacing = spacing.into_iter().fold(f32::INFINITY, f32::min);
+    let diagonal = world_diagonal(dims, spacing);
+    let per_ray = samples_over(diagonal, min_spacing, step);
+    if per_ray <= MAX_SAMPLES_PER_RAY {
+        return None;
+    }
+    // The finest step whose rays fit, rounded up to two significant digits.
+    let finest = diagonal / f64::from(min_spacing) / (MAX_SAMPLES_PER_RAY - 2.0);
+    let scale = 10f64.powf(finest.log10().floor() - 1.0);
+    let finest = (finest / scale).ceil() * scale;
+    Some(format!(
+        "warning: rays through this volume take up to {per_ray:.0} samples at the default step {step}, \
+         more than the {MAX_SAMPLES_PER_RAY:.0} the renderer allows (its diagonal is {:.0} times the \
+         smallest spacing): render it with --step {finest} or more, or with spacings closer together",
+        diagonal / f64::from(min_spacing)
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_long_axis_at_a_lopsided_spacing_is_warned_of_with_a_step_that_renders() {
+        assert_eq!(ray_length_warning([512, 512, 512], [1.0, 1.0, 1.0]), None);
+        // Within the 1e4 ratio, but 511 · 1e4 long in units of the smallest.
+        let warning = ray_length_warning([512, 4, 4], [1e4, 1.0, 1.0]).unwrap();
+        assert!(warning.contains("--step 1.3 or more"), "{warning}");
+        assert!(warning.contains("10220002 samples"), "{warning}");
+        // The step it names renders: within the renderer's budget.
+        let diagonal = raycaster::render::world_diagonal([512, 4, 4], [1e4, 1.0, 1.0]);
+        let per_ray = raycaster::render::samples_over(diagonal, 1.0, 1.3);
+        assert!(
+            per_ray <= raycaster::render::MAX_SAMPLES_PER_RAY,
+            "{per_ray}"
+        );
+    }
+}

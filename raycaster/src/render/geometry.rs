@@ -19,6 +19,22 @@ pub const MAX_SAMPLES_PER_RAY: f64 = (1u64 << 22) as f64;
 /// skipping): 2^42, hours of work on any machine.
 pub const MAX_SAMPLES_PER_FRAME: f64 = (1u64 << 42) as f64;
 
+/// The samples a ray takes along a world length `length`, stepping `step` times
+/// `min_spacing`: rounded up, plus one. (What [`check_sample_budget`] counts per
+/// ray, along the volume's diagonal.)
+pub fn samples_over(length: f64, min_spacing: f32, step: f32) -> f64 {
+    (length / (f64::from(step) * f64::from(min_spacing))).ceil() + 1.0
+}
+
+/// The world diagonal of a volume of `dims` voxels at `spacing` (voxel centre
+/// to voxel centre).
+pub fn world_diagonal(dims: [u32; 3], spacing: [f32; 3]) -> f64 {
+    (0..3)
+        .map(|a| (f64::from(dims[a].max(1) - 1) * f64::from(spacing[a])).powi(2))
+        .sum::<f64>()
+        .sqrt()
+}
+
 /// Refuses a frame whose rays could take more samples than [`MAX_SAMPLES_PER_RAY`]
 /// each or [`MAX_SAMPLES_PER_FRAME`] together, at `step` (in units of the smallest
 /// spacing) over the pixels `camera` sees the volume in. Such a frame comes from an
@@ -137,9 +153,7 @@ impl VolumeGeometry {
     /// Infinite or huge for absurd spacings (one axis 1e-45 of another).
     pub fn max_samples_per_ray(&self, step: f32) -> f64 {
         let (lo, hi) = self.world_bounds();
-        let diagonal = f64::from((hi - lo).length());
-        let dt = f64::from(step) * f64::from(self.min_spacing());
-        (diagonal / dt).ceil() + 1.0
+        samples_over(f64::from((hi - lo).length()), self.min_spacing(), step)
     }
 
     /// The positions whose samples brick `b` takes, in voxel coordinates: the

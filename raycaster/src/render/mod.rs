@@ -69,7 +69,8 @@ pub use error::RenderError;
 pub use frame::Frame;
 pub use front::{FrameBuffer, FrameEvent, FrameRequest, Notify, RenderFront};
 pub use geometry::{
-    MAX_SAMPLES_PER_FRAME, MAX_SAMPLES_PER_RAY, VolumeGeometry, check_sample_budget,
+    MAX_SAMPLES_PER_FRAME, MAX_SAMPLES_PER_RAY, VolumeGeometry, check_sample_budget, samples_over,
+    world_diagonal,
 };
 pub use glam::{Mat3, Vec3};
 pub use image::{ImageError, RgbImage};
