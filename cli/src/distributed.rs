@@ -208,7 +208,7 @@ mod mpi_rank {
             extra.insert("ranks".into(), rank_json(&result.ranks));
             extra.insert("gather_seconds".into(), result.gather.as_secs_f64().into());
         }
-        finish(&args, &setup, &frame, extra)
+        finish(&args, &setup, &frame, &frame.to_image(), extra)
     }
 
     /// Per-rank statistics for `--stats-json`.

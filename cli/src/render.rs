@@ -567,20 +567,18 @@ pub fn run(args: RenderArgs) -> Result<()> {
         .tf
         .as_ref()
         .is_some_and(|tf| TransferFunction::names_a_file(tf, Path::new("")));
+    let image = frame.to_image();
     if setup.settings.mode == Mode::Average
         && args.domain.is_none()
         && !own_domain
         && args.session.is_none()
         && !args.quiet
-    {
-        let image = frame.to_image();
-        if let Some(dark) =
+        && let Some(dark) =
             raycaster::render::dark_average(&setup.volume, &setup.settings, &setup.camera, &image)?
-        {
-            eprintln!("{}", dark_average_warning(&setup.volume, &dark));
-        }
+    {
+        eprintln!("{}", dark_average_warning(&setup.volume, &dark));
     }
-    finish(&args, &setup, &frame, serde_json::Map::new())
+    finish(&args, &setup, &frame, &image, serde_json::Map::new())
 }
 
 /// The parallel renderer's options from the flags; without `--threads`, the
@@ -777,15 +775,16 @@ impl Setup {
     }
 }
 
-/// Writes the image and prints the statistics and the closing line; `extra`
-/// fields join the `--stats-json` object.
+/// Writes `image` (the frame's) and prints the statistics and the closing
+/// line; `extra` fields join the `--stats-json` object.
 pub(crate) fn finish(
     args: &RenderArgs,
     setup: &Setup,
     frame: &raycaster::render::Frame,
+    image: &raycaster::render::RgbImage,
     extra: serde_json::Map<String, serde_json::Value>,
 ) -> Result<()> {
-    frame.to_image().save_png(&args.output)?;
+    image.save_png(&args.output)?;
     let bytes_read = raycaster::io::process_bytes_read().saturating_sub(setup.read_before);
     if args.stats {
         eprint!("{}", stats::table(&frame.stats));
