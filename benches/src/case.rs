@@ -103,7 +103,8 @@ impl View {
         match self {
             View::Default => {}
             View::Front => orbit = Orbit::framing(lo, hi, 0.0, 0.0, Some(40.0)),
-            View::Close => orbit.zoom(2.0),
+            // (`zoom` scales the distance: a half is twice as near.)
+            View::Close => orbit.zoom(0.5),
         }
         // In the patient's directions where the file gives them, as
         // `raycaster render` turns its views.

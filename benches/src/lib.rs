@@ -220,6 +220,33 @@ mod tests {
 
     use super::*;
 
+    /// The close view is twice as near as the default: the camera sits at half
+    /// its distance from the volume's centre (it sat twice as far).
+    #[test]
+    fn the_close_view_is_twice_as_near() {
+        let volume = raycaster::volume::Volume::from_samples(
+            "cube",
+            &raycaster::volume::Header::new(
+                [8, 8, 8],
+                [1.0; 3],
+                Layout::Linear,
+                SampleType::U8,
+                raycaster::volume::Content::Scalar,
+                raycaster::volume::Format::Extended,
+            ),
+            &[0u8; 512],
+        )
+        .unwrap();
+        let centre = raycaster::render::Vec3::splat(3.5);
+        let distance =
+            |view: View| (view.camera(&volume, [64, 64]).unwrap().position() - centre).length();
+        let (default, close) = (distance(View::Default), distance(View::Close));
+        assert!(
+            (close / default - 0.5).abs() < 1e-4,
+            "{close} against {default}"
+        );
+    }
+
     fn unique(cases: &[BenchCase]) -> bool {
         let names: HashSet<String> = cases.iter().map(BenchCase::name).collect();
         names.len() == cases.len()

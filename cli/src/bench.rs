@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use raycaster::render::{PRESETS, RenderVolume};
+use raycaster::render::{Mode, PRESETS, RenderVolume, SimdLevel};
 use raycaster::volume::{Access, Layout, SampleType};
 use raycaster_benches::{
     BenchCase, Optimisations, SceneSpec, View, VolumeSource, VolumeSpec, parse_layout,
@@ -34,21 +34,25 @@ use crate::render::ModeArg;
 /// Bricks are logical bricks over linear storage (any size, no conversion); a
 /// bricked volume is rendered by its own bricks or sub-bricks that divide them.
 #[derive(Args, Debug)]
-#[command(after_help = "\
+#[command(
+    allow_negative_numbers = true,
+    after_help = "\
 Examples:
   raycaster bench --quick --plot sweep.png
   raycaster bench --volume-size 512 --sequential --csv sweep.csv --plot sweep.png
   raycaster bench --volume-size 800 --threads 1 --sequential --optimisations none,ert,ess,both
-  raycaster bench volumes/data/lung1.vol --ram --tiles 16 --bricks 16 --image 700x700 --step 0.2")]
+  raycaster bench volumes/data/lung1.vol --ram --tiles 16 --bricks 16 --image 700x700 --step 0.2"
+)]
 pub struct BenchArgs {
     /// Volume to render, a .vol file (default: a generated `shapes` volume;
     /// other formats: convert them first, `volgen convert FILE -o FILE.vol`).
     file: Option<PathBuf>,
 
-    /// Size of the generated volume (voxels per axis).
-    #[arg(long, visible_alias = "scene-size", default_value_t = 256, value_name = "N",
+    /// Size of the generated volume (voxels per axis) [default: 256; 96 with
+    /// --quick].
+    #[arg(long, visible_alias = "scene-size", value_name = "N",
           value_parser = clap::value_parser!(u32).range(2..=i64::from(raycaster::volume::MAX_AXIS)))]
-    volume_size: u32,
+    volume_size: Option<u32>,
 
     /// Sample type of the generated volume: u8, u16.
     #[arg(long, default_value = "u8", value_parser = parse_sample_type, value_name = "TYPE")]
@@ -67,9 +71,9 @@ pub struct BenchArgs {
     #[arg(long, value_name = "DIR")]
     cache_dir: Option<PathBuf>,
 
-    /// Image size.
-    #[arg(long, visible_alias = "size", default_value = "512x512", value_parser = parse_size, value_name = "WxH")]
-    image: [u32; 2],
+    /// Image size [default: 512x512; 128x128 with --quick].
+    #[arg(long, visible_alias = "size", value_parser = parse_size, value_name = "WxH")]
+    image: Option<[u32; 2]>,
 
     /// Render-thread counts to try [default: 1, the powers of two below the
     /// core count, and the core count: 1,2 on two cores].
@@ -105,9 +109,10 @@ pub struct BenchArgs {
     #[arg(long = "tf", value_parser = parse_preset, value_name = "PRESET")]
     transfer: Option<&'static str>,
 
-    /// Timed frames per configuration (the fastest is reported).
-    #[arg(long, default_value_t = 3, value_parser = crate::args::parse_count, value_name = "N")]
-    frames: u32,
+    /// Timed frames per configuration (the fastest is reported) [default: 3;
+    /// 1 with --quick].
+    #[arg(long, value_parser = crate::args::parse_count, value_name = "N")]
+    frames: Option<u32>,
 
     /// Untimed frames before the timed ones (page cache, allocations).
     #[arg(long, default_value_t = 1, value_parser = crate::args::parse_index, value_name = "N")]
@@ -131,8 +136,8 @@ pub struct BenchArgs {
     #[arg(long, default_value = "auto", value_parser = crate::render::parse_simd, value_name = "LEVEL")]
     simd: crate::render::SimdChoice,
 
-    /// Small and fast: at most a 96³ volume and a 128×128 image (smaller ones
-    /// asked for stay), one frame (for CI).
+    /// Small and fast (for CI): a 96³ volume, a 128×128 image and one frame
+    /// unless --volume-size, --image or --frames say otherwise.
     #[arg(long)]
     quick: bool,
 
@@ -150,15 +155,45 @@ pub struct BenchArgs {
     force: bool,
 }
 
+impl BenchArgs {
+    /// The generated volume's side: `--volume-size`, else 256 (96 quick).
+    fn volume_size(&self) -> u32 {
+        self.volume_size
+            .unwrap_or(if self.quick { 96 } else { 256 })
+    }
+
+    /// The image size: `--image`, else 512×512 (128×128 quick).
+    fn image(&self) -> [u32; 2] {
+        self.image
+            .unwrap_or(if self.quick { [128, 128] } else { [512, 512] })
+    }
+
+    /// Timed frames per configuration: `--frames`, else 3 (1 quick).
+    fn frames(&self) -> u32 {
+        self.frames.unwrap_or(if self.quick { 1 } else { 3 })
+    }
+}
+
+/// Drops the repeats of a list, keeping its first order.
+fn dedup<T: PartialEq + Copy>(list: &mut Vec<T>) {
+    let mut seen = Vec::with_capacity(list.len());
+    list.retain(|v| {
+        let new = !seen.contains(v);
+        if new {
+            seen.push(*v);
+        }
+        new
+    });
+}
+
 /// The most render threads a case may ask for (as `raycaster render --threads`).
 const MAX_THREADS: usize = 1024;
 
 /// A `--threads` count: 1 to [`MAX_THREADS`].
 fn parse_threads(s: &str) -> Result<usize, String> {
-    match s.trim().parse::<usize>() {
-        Ok(n) if (1..=MAX_THREADS).contains(&n) => Ok(n),
-        Ok(n) => Err(format!("{n} is not in 1..={MAX_THREADS}")),
-        Err(e) => Err(e.to_string()),
+    match crate::args::parse_count(s)? as usize {
+        n if n <= MAX_THREADS => Ok(n),
+        n => Err(format!("{n} is not in 1..={MAX_THREADS}")),
     }
 }
 
@@ -227,8 +262,24 @@ impl Record {
             c.view.name().to_string(),
             format!("{:.3}", self.median.as_secs_f64() * 1e3),
             format!("{:.3}", self.spread.as_secs_f64() * 1e3),
-            c.preintegrated.to_string(),
+            // Whether the frames used it (DVR only).
+            (c.preintegrated && c.mode == Mode::Dvr).to_string(),
+            c.mode.name().to_string(),
+            c.transfer.unwrap_or("fitted").to_string(),
+            self.kernel().to_string(),
         ]
+    }
+
+    /// The marching kernel the frames ran: `--simd`, else each renderer's
+    /// automatic choice (the parallel renderer's widest, the sequential
+    /// renderer's scalar loop).
+    pub fn kernel(&self) -> SimdLevel {
+        let auto = if self.case.threads.is_some() {
+            SimdLevel::automatic()
+        } else {
+            SimdLevel::Scalar
+        };
+        self.case.simd.unwrap_or(auto)
     }
 
     /// Samples per second per render thread.
@@ -278,7 +329,7 @@ fn cases(args: &BenchArgs) -> Vec<BenchCase> {
         None => VolumeSpec {
             source: VolumeSource::Scene(SceneSpec {
                 scene: raycaster::synth::SceneKind::Shapes,
-                dims: [args.volume_size; 3],
+                dims: [args.volume_size(); 3],
                 sample_type: args.sample_type,
                 layout: args.layout,
                 seed: 1,
@@ -293,7 +344,7 @@ fn cases(args: &BenchArgs) -> Vec<BenchCase> {
         mode: args.mode.into(),
         // The built-in volume's preset, or what render fits to a file.
         transfer: args.transfer.or(args.file.is_none().then_some("shapes")),
-        image: args.image,
+        image: args.image(),
         simd: args.simd.0,
         preintegrated: args.preintegrate,
         ..BenchCase::default()
@@ -328,24 +379,35 @@ fn cases(args: &BenchArgs) -> Vec<BenchCase> {
 
 /// Runs the bench command.
 pub fn run(mut args: BenchArgs) -> Result<()> {
-    if args.quick {
-        // Limits: a smaller volume or image asked for stays.
-        args.volume_size = args.volume_size.min(96);
-        args.image = args.image.map(|side| side.min(128));
-        args.frames = 1;
-    }
+    // A value given twice in a list is measured once.
+    dedup(&mut args.threads);
+    dedup(&mut args.tiles);
+    dedup(&mut args.bricks);
+    dedup(&mut args.optimisations);
     // The outputs are checked before the sweep, not after it.
     if let Some(csv) = &args.csv {
+        if csv.as_os_str() == "-" {
+            bail!("--csv -: the table goes to standard output already; name a file for the CSV");
+        }
+        crate::output::check_not_an_input(csv, &args.file, "the CSV")?;
         crate::output::check_file(csv, args.force)?;
     }
     if let Some(path) = &args.plot {
+        crate::output::check_not_an_input(path, &args.file, "the plot")?;
         if plot::is_svg(path) {
             crate::output::check_file(path, args.force)?;
         } else {
             crate::output::check_output(path, args.force)?;
         }
     }
-    crate::memory::check_frame(args.image[0], args.image[1])?;
+    let [w, h] = args.image();
+    crate::memory::check_frame(w, h)?;
+    if args.preintegrate && args.mode != ModeArg::Dvr {
+        eprintln!(
+            "warning: --preintegrate applies to --mode dvr only; {} frames ignore it",
+            Mode::from(args.mode).name()
+        );
+    }
     if let Some(level) = args.simd.0.filter(|l| !l.is_available()) {
         bail!("--simd {level}: this machine does not have it");
     }
@@ -385,11 +447,14 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
         args.bricks = bricks_for(volume.layout());
     }
     let cases = cases(&args);
-    // Every brick side is checked before the sweep prints anything.
+    // Every brick side is checked before the sweep prints anything, and the
+    // frame's samples (the step, image and view are every case's).
     for &side in &args.bricks {
         RenderVolume::new(&volume, Some(side)).with_context(|| format!("--bricks {side}"))?;
     }
-    let [w, h] = args.image;
+    let camera = first.view.camera(&volume, args.image())?;
+    let geometry = *RenderVolume::new(&volume, Some(args.bricks[0]))?.geometry();
+    raycaster::render::check_sample_budget(&geometry, args.step, &camera)?;
     eprintln!(
         "bench: {} ({}×{}×{}, {}), image {w}×{h}, step {}{}, {} frame(s) per configuration, {} kernel",
         volume.path().display(),
@@ -403,7 +468,7 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
         } else {
             ""
         },
-        args.frames,
+        args.frames(),
         args.simd.0.map_or("auto".to_string(), |l| l.to_string())
     );
     if let Some(warning) = load_warning(load_average(), available_cores()) {
@@ -420,17 +485,16 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
         }
         let (_, shared) = prepared.take().expect("prepared above");
         let ready = case.prepare_with(shared)?;
-        let record = measure(&case, &ready, args.warm_up, args.frames)?;
+        let record = measure(&case, &ready, args.warm_up, args.frames())?;
         prepared = Some((case.brick, ready.volume));
         println!("{}", table_row(&record.fields()));
         records.push(record);
-        // Written as it goes: an interrupted sweep keeps what it measured.
-        if let Some(csv) = &args.csv {
-            write_atomically(csv, csv_text(&records).as_bytes())?;
-        }
     }
     summarise(&records, args.quick);
+    // Written once the sweep is complete: an interrupted sweep leaves no CSV
+    // of part of the grid (its rows are in the table on standard output).
     if let Some(csv) = &args.csv {
+        write_atomically(csv, csv_text(&records).as_bytes())?;
         eprintln!("wrote {}", csv.display());
     }
     if let Some(path) = &args.plot {
@@ -558,7 +622,9 @@ fn summarise(records: &[Record], quick: bool) {
             .filter(|p| p.case.threads == Some(1) && same(&p.case, &s.case))
         {
             eprintln!(
-                "parallel renderer on 1 thread against the sequential one (tile {}, brick {}, {}): {:.2}× its speed, {} samples",
+                "parallel renderer on 1 thread ({} kernel) against the sequential one ({} kernel) (tile {}, brick {}, {}): {:.2}× its speed, {} samples",
+                p.kernel(),
+                s.kernel(),
                 p.case.tile,
                 brick_text(p.case.brick),
                 p.case.optimisations,
@@ -574,7 +640,7 @@ fn summarise(records: &[Record], quick: bool) {
 }
 
 /// Columns of the CSV and the table.
-const COLUMNS: usize = 15;
+const COLUMNS: usize = 18;
 
 /// Column names (CSV header and table heading).
 const HEADER: [&str; COLUMNS] = [
@@ -593,13 +659,16 @@ const HEADER: [&str; COLUMNS] = [
     "median_ms",
     "spread_ms",
     "preintegrated",
+    "mode",
+    "transfer",
+    "kernel",
 ];
 
 /// One aligned table row: the CSV columns with median and spread beside the
 /// fastest frame (a tile of 0, the CSV's "no tiles", shown as `-`).
 fn table_row(fields: &[String; COLUMNS]) -> String {
-    const ORDER: [usize; COLUMNS] = [0, 1, 2, 3, 4, 5, 12, 13, 6, 7, 8, 9, 10, 11, 14];
-    const WIDTHS: [usize; COLUMNS] = [10, 7, 5, 5, 13, 10, 10, 10, 12, 22, 0, 0, 0, 0, 0];
+    const ORDER: [usize; COLUMNS] = [0, 1, 2, 3, 4, 5, 12, 13, 6, 7, 8, 9, 10, 11, 14, 15, 16, 17];
+    const WIDTHS: [usize; COLUMNS] = [10, 7, 5, 5, 13, 10, 10, 10, 12, 22, 0, 0, 0, 0, 0, 0, 0, 0];
     ORDER
         .iter()
         .zip(WIDTHS)

@@ -11,6 +11,9 @@ pub fn check_output(output: &Path, force: bool) -> Result<()> {
     if output.is_dir() {
         bail!("{}: is a directory; name a file", output.display());
     }
+    if output.as_os_str() == "-" {
+        bail!("-: images are written to files, not to standard output; name a .png file");
+    }
     if let Some(problem) = raycaster::files::png_name_problem(output) {
         bail!("{}: {problem}", output.display());
     }
@@ -24,12 +27,23 @@ pub fn check_output_of<I: AsRef<Path>>(
     force: bool,
     inputs: impl IntoIterator<Item = I>,
 ) -> Result<()> {
+    check_not_an_input(output, inputs, "the image")?;
+    check_output(output, force)
+}
+
+/// Refuses an output that is one of `inputs` (`--force` would replace the
+/// input with `what`, "the image" or "the CSV").
+pub fn check_not_an_input<I: AsRef<Path>>(
+    output: &Path,
+    inputs: impl IntoIterator<Item = I>,
+    what: &str,
+) -> Result<()> {
     if let Some(input) = inputs
         .into_iter()
         .find(|i| raycaster::files::same_file(i.as_ref(), output))
     {
         let input = input.as_ref();
-        // (The input's own name where the image's is another way to write it,
+        // (The input's own name where the output's is another way to write it,
         // a data file a header names.)
         let which = if input == output {
             String::new()
@@ -37,11 +51,11 @@ pub fn check_output_of<I: AsRef<Path>>(
             format!(" ({})", input.display())
         };
         bail!(
-            "{}: is an input of this command{which}; name another file for the image",
+            "{}: is an input of this command{which}; name another file for {what}",
             output.display()
         );
     }
-    check_output(output, force)
+    Ok(())
 }
 
 /// Refuses, before any work, an output file that could not be written

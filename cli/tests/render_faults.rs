@@ -666,7 +666,7 @@ fn a_brick_larger_than_the_volume_is_the_one_brick_of_it() {
 }
 
 #[test]
-fn bench_reports_median_and_spread_writes_csv_as_it_goes_and_warns_on_one_frame() {
+fn bench_reports_median_and_spread_writes_its_csv_and_warns_on_one_frame() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let common = [
@@ -767,6 +767,107 @@ fn an_interrupted_bench_leaves_no_partial_volume_in_its_cache() {
         );
         assert_eq!(partials(), Vec::<String>::new(), "{signal}");
     }
+}
+
+/// An interrupted sweep leaves no CSV of part of its grid (it wrote one row by
+/// row while saying that no partial output was left), and `--csv` may name
+/// neither the volume it reads (`--force` replaced it with the CSV) nor `-`.
+#[test]
+fn an_interrupted_bench_leaves_no_csv_and_the_csv_is_never_its_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_raycaster"))
+        .args([
+            "bench",
+            "--volume-size",
+            "48",
+            "--image",
+            "96x96",
+            "--threads",
+            "1,2",
+            "--tiles",
+            "8,16,32",
+            "--bricks",
+            "8,16",
+            "--frames",
+            "20",
+            "--cache-dir",
+            "cache",
+            "--csv",
+            "part.csv",
+        ])
+        .current_dir(d)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The heading, then the first measured row: the sweep is under way.
+    let mut lines = std::io::BufRead::lines(std::io::BufReader::new(child.stdout.take().unwrap()));
+    for _ in 0..2 {
+        lines.next().unwrap().unwrap();
+    }
+    let killed = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    drop(lines);
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(130), "{}", stderr(&out));
+    assert!(!d.join("part.csv").exists(), "{}", stderr(&out));
+    // The volume it reads, and standard output, are refused before any work.
+    let volume = cached_bench_volume(d);
+    let before = std::fs::read(&volume).unwrap();
+    let name = volume.to_str().unwrap();
+    for (csv, said) in [
+        (
+            name,
+            "is an input of this command; name another file for the CSV",
+        ),
+        ("-", "--csv -: the table goes to standard output already"),
+    ] {
+        let o = raycaster(&["bench", name, "--quick", "--csv", csv, "--force"], d);
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+        assert!(stderr(&o).contains(said), "{}", stderr(&o));
+        assert_eq!(stderr(&o).lines().count(), 1, "{}", stderr(&o));
+    }
+    assert!(std::fs::read(&volume).unwrap() == before);
+}
+
+/// A value given twice in a list is measured once (`--threads 1,1,2` ran
+/// rows under identical labels), and `render -o -` says images go to files.
+#[test]
+fn bench_measures_a_repeated_value_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let o = raycaster(
+        &[
+            "bench",
+            "--quick",
+            "--threads",
+            "1,1",
+            "--tiles",
+            "16,16",
+            "--bricks",
+            "16,16",
+            "--optimisations",
+            "both,both",
+            "--cache-dir",
+            "cache",
+            "--csv",
+            "r.csv",
+        ],
+        d,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let csv = std::fs::read_to_string(d.join("r.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 2, "{csv}");
+    let o = raycaster(&["render", "-o", "-"], d);
+    assert!(
+        stderr(&o).contains("-: images are written to files, not to standard output"),
+        "{}",
+        stderr(&o)
+    );
 }
 
 /// The volume file `raycaster bench` generated into `DIR/cache`.
@@ -914,13 +1015,15 @@ fn bench_takes_render_flag_names_as_aliases() {
     assert_eq!(canonical[..3], ["40x40", "16", "8"]);
 }
 
-/// `--quick` limits the volume and the image; smaller ones asked for stay
-/// (it used to set 128×128 whatever `--size` said).
+/// `--quick` gives the volume, image and frame count when they are not
+/// given: a size or frame count asked for stays (it used to set 128×128
+/// whatever `--size` said, then to cap it; and one frame whatever `--frames`
+/// said).
 #[test]
-fn bench_quick_keeps_a_smaller_image() {
+fn bench_quick_gives_way_to_sizes_asked_for() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    for (size, expected) in [("64x48", "64x48"), ("700x100", "128x100")] {
+    for (size, expected) in [("64x48", "64x48"), ("200x100", "200x100")] {
         let args = [
             "bench",
             "--quick",
@@ -942,6 +1045,35 @@ fn bench_quick_keeps_a_smaller_image() {
         assert!(o.status.success(), "{}", stderr(&o));
         assert_eq!(first_csv_row_column(&d.join("q.csv"), "image"), expected);
     }
+    // Without --size, --quick's 128×128; --frames 2 stays two frames (the
+    // one-frame warning does not come).
+    let o = raycaster(
+        &[
+            "bench",
+            "--quick",
+            "--frames",
+            "2",
+            "--threads",
+            "1",
+            "--tiles",
+            "16",
+            "--bricks",
+            "16",
+            "--cache-dir",
+            "cache",
+            "--csv",
+            "q.csv",
+            "--force",
+        ],
+        d,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(first_csv_row_column(&d.join("q.csv"), "image"), "128x128");
+    assert!(
+        stderr(&o).contains("2 frame(s) per configuration"),
+        "{}",
+        stderr(&o)
+    );
 }
 
 /// `raycaster bench FILE` times the frame `raycaster render FILE --level 0`
