@@ -1256,6 +1256,7 @@ fn shading(s: &ShadingFile) -> Result<Option<Shading>, SessionError> {
             "shading.gradient_threshold",
             s.gradient_threshold.unwrap_or(d.gradient_threshold),
         )?,
+        fade_width: d.fade_width,
     };
     Ok(s.enabled.unwrap_or(true).then_some(shading))
 }

@@ -282,7 +282,7 @@ fn corrected_alpha_is_the_thesis_formula() {
 /// between just below and just above the shading threshold (2 or 3 levels of
 /// 255 per two voxels: 0.0098 and 0.0118). Shading fades in above the
 /// threshold, so neighbouring pixels differ by little; a hard switch drew
-/// stripes of unshaded and ambient-lit colour (neighbours 178 levels apart; now about 6).
+/// stripes of unshaded and ambient-lit colour (neighbours 178 levels apart; 6 over a fade of 3 times the threshold).
 #[test]
 fn an_eight_bit_ramp_near_the_shading_threshold_renders_without_stripes() {
     let n = 100u32;

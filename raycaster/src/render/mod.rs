@@ -98,7 +98,7 @@ pub use settings::{
     AUTO_XRAY_DEPTH, DEFAULT_ERT_THRESHOLD, Mode, ModeParameters, RenderSettings, auto_xray_gain,
     step_past_volume,
 };
-pub use shading::{FULL_SHADING_AT, Light, Shading};
+pub use shading::{FADE_QUANTA, Light, Shading};
 pub use simd::{SimdLevel, available as simd_levels};
 pub use state_buffer::{StateBuffer, StateBufferError};
 pub use transfer::{

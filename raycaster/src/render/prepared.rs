@@ -263,6 +263,10 @@ impl FramePlan {
             .domain
             .unwrap_or([0.0, f32::from(type_max)]);
         let geometry = volume.geometry();
+        // The fade of shading spans the data's quantisation at least.
+        let shading = settings
+            .shading
+            .map(|s| s.covering_quantum(1.0 / (domain[1] - domain[0])));
         let compositor = match &settings.segments {
             Some(scene) => {
                 if matches!(scene.membership, Membership::Labels(_)) && volume.labels().is_none() {
@@ -275,7 +279,7 @@ impl FramePlan {
                     type_max,
                     domain,
                     step_ratio,
-                    settings.shading,
+                    shading,
                     settings.preintegrated,
                     volume.volume().level_scale(),
                     settings.early_termination,
@@ -294,7 +298,7 @@ impl FramePlan {
                             volume.volume().diagonal_voxels(),
                         ),
                         Arc::new(table),
-                        settings.shading,
+                        shading,
                         domain,
                     )
                     .stopping_at(settings.early_termination),

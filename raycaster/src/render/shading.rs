@@ -1,18 +1,21 @@
 //! Blinn-Phong shading, applied where the gradient is strong enough to define a
 //! surface normal (the thesis's threshold). Above the threshold it fades in: a
-//! gradient at the threshold leaves the colour as it is, one of
-//! [`FULL_SHADING_AT`] times the threshold or more is fully lit. A hard switch
-//! drew bands wherever a smooth field's gradient magnitude sits near the
-//! threshold (an 8-bit ramp of about 100 voxels: its central differences
-//! alternate between just below and just above 0.01).
+//! gradient at the threshold leaves the colour as it is, one
+//! [`Shading::fade_width`] above it or more is fully lit. A hard switch drew
+//! bands wherever a smooth field's gradient magnitude sits near the threshold
+//! (an 8-bit ramp of about 100 voxels: its central differences alternate
+//! between just below and just above 0.01). A frame widens the fade to cover
+//! its data's quantisation ([`Shading::covering_quantum`]).
 
 use glam::{Vec3, Vec4};
 
 use super::optics::{light_vectors, specular_power, specular_power_lanes};
 
-/// Shading is full from this many times [`Shading::gradient_threshold`] on;
-/// between the threshold and there it fades in linearly.
-pub const FULL_SHADING_AT: f32 = 4.0;
+/// How many quantisation steps of the data (one raw unit over the transfer
+/// function's domain) a frame's fade spans at least: the central differences
+/// of quantised data jitter by half a step, which then moves the fade's weight
+/// by about 4 % (over a narrower fade, bands of lit and unlit samples).
+pub const FADE_QUANTA: f32 = 12.0;
 
 /// Where the light comes from.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -37,9 +40,12 @@ pub struct Shading {
     /// Specular exponent.
     pub shininess: f32,
     /// Gradient magnitude (normalised value per voxel) at and below which
-    /// samples are left unshaded; shading fades in up to [`FULL_SHADING_AT`]
-    /// times it.
+    /// samples are left unshaded.
     pub gradient_threshold: f32,
+    /// Over how much gradient magnitude above the threshold shading fades in
+    /// (linearly, to full); 0 switches it on at once. A frame widens it to
+    /// [`FADE_QUANTA`] quantisation steps of its data.
+    pub fade_width: f32,
 }
 
 impl Default for Shading {
@@ -51,16 +57,34 @@ impl Default for Shading {
             specular: 0.25,
             shininess: 24.0,
             gradient_threshold: 0.01,
+            fade_width: 0.03,
         }
     }
 }
 
 impl Shading {
     /// The fade's slope: shading's weight per unit of gradient magnitude above
-    /// the threshold (infinite for a threshold of 0: full at once).
+    /// the threshold (infinite for a width of 0: full at once).
     #[inline]
     pub(crate) fn fade_rate(&self) -> f32 {
-        1.0 / (self.gradient_threshold * (FULL_SHADING_AT - 1.0))
+        1.0 / self.fade_width
+    }
+
+    /// The shading of a frame whose data is quantised in steps of `quantum`
+    /// (normalised value: one raw unit over the transfer function's domain):
+    /// the fade spans at least [`FADE_QUANTA`] of them (`0.047` for 8-bit data
+    /// over its whole range, `0.005` for CT over 3000 HU: the default 0.03
+    /// then).
+    pub(crate) fn covering_quantum(self, quantum: f32) -> Shading {
+        let widest = FADE_QUANTA * quantum;
+        Shading {
+            fade_width: if self.fade_width > 0.0 && widest > self.fade_width {
+                widest
+            } else {
+                self.fade_width
+            },
+            ..self
+        }
     }
 
     /// The colour `color` lit at a point with (unnormalised) gradient `gradient`,
@@ -158,8 +182,8 @@ mod tests {
     }
 
     /// Shading fades in above the threshold: no step where the magnitude
-    /// crosses it (the bands of an 8-bit ramp), full from `FULL_SHADING_AT`
-    /// times it on, and the lanes take the same weights.
+    /// crosses it (the bands of an 8-bit ramp), full from `fade_width` above
+    /// it on, and the lanes take the same weights.
     #[test]
     fn shading_fades_in_between_the_threshold_and_full_shading() {
         let s = Shading::default();
@@ -175,10 +199,11 @@ mod tests {
         // hard switch jumped to `full` here).
         let above = at(t * 1.001);
         assert!((above[0] - color[0]).abs() < 1e-3, "{above:?}");
-        assert!((at(FULL_SHADING_AT * t)[0] - full[0]).abs() < 1e-6);
+        let w = s.fade_width;
+        assert!((at(t + w)[0] - full[0]).abs() < 1e-6);
         let mut previous = color[0];
         for i in 1..=30 {
-            let m = t * (1.0 + (FULL_SHADING_AT - 1.0) * i as f32 / 30.0);
+            let m = t + w * i as f32 / 30.0;
             let r = at(m)[0];
             assert!(
                 r < previous && r >= full[0] - 1e-6,
@@ -187,7 +212,7 @@ mod tests {
             previous = r;
         }
         // Halfway through the fade: halfway between.
-        let half = at(t * (1.0 + FULL_SHADING_AT) / 2.0);
+        let half = at(t + w / 2.0);
         assert!(
             (half[0] - (color[0] + full[0]) / 2.0).abs() < 1e-5,
             "{half:?}"
@@ -216,15 +241,24 @@ mod tests {
         }
     }
 
-    /// A threshold of 0 shades every sample with a gradient fully.
+    /// A threshold and a fade of 0 shade every sample with a gradient fully;
+    /// a frame's data widens a fade (not a hard switch) to its quantisation.
     #[test]
-    fn a_zero_threshold_shades_fully_at_once() {
+    fn a_zero_threshold_and_fade_shade_fully_at_once() {
         let s = Shading {
             gradient_threshold: 0.0,
+            fade_width: 0.0,
             ..Shading::default()
         };
         let full = Shading::default().shade([0.5; 3], Vec3::Z * 5.0, Vec3::Z);
         assert_eq!(s.shade([0.5; 3], Vec3::Z * 1e-6, Vec3::Z), full);
         assert_eq!(s.shade([0.5; 3], Vec3::ZERO, Vec3::Z), [0.5; 3]);
+        assert_eq!(s.covering_quantum(1.0 / 255.0).fade_width, 0.0);
+        let d = Shading::default();
+        assert_eq!(
+            d.covering_quantum(1.0 / 255.0).fade_width,
+            FADE_QUANTA * (1.0 / 255.0)
+        );
+        assert_eq!(d.covering_quantum(1.0 / 3000.0).fade_width, 0.03);
     }
 }
