@@ -40,6 +40,13 @@ pub fn parse_direction(s: &str) -> Result<[f32; 3], String> {
     if v == [0.0; 3] {
         return Err(format!("{s:?} is no direction: x, y and z are all zero"));
     }
+    // (A vector whose squared length underflows normalises to nothing: it
+    // lit nothing without a word.)
+    if raycaster::render::Vec3::from(v).try_normalize().is_none() {
+        return Err(format!(
+            "{s:?} is too short to give a direction; scale it up (only its direction counts)"
+        ));
+    }
     Ok(v)
 }
 
@@ -404,6 +411,10 @@ mod tests {
         assert_eq!(parse_direction("0,-1,0.5"), Ok([0.0, -1.0, 0.5]));
         let zero = parse_direction("0,0,-0").unwrap_err();
         assert!(zero.contains("all zero"), "{zero}");
+        // Its length squared underflows: no direction (it lit nothing).
+        let tiny = parse_direction("1e-30,0,0").unwrap_err();
+        assert!(tiny.contains("too short to give a direction"), "{tiny}");
+        assert!(parse_direction("1e-20,0,0").is_ok());
         assert_eq!(parse_color("#ff0080"), Ok([1.0, 0.0, 128.0 / 255.0]));
         assert_eq!(parse_color("255,255,255"), Ok([1.0; 3]));
         assert!(parse_color("#12345").is_err());

@@ -15,7 +15,8 @@ pub struct CompareArgs {
     image: PathBuf,
     /// The reference.
     reference: PathBuf,
-    /// Print one JSON object instead of text.
+    /// Print one JSON object instead of text: max_difference, psnr_db (null for
+    /// identical images, whose PSNR is infinite) and pixels.
     #[arg(long)]
     json: bool,
     /// Write the difference image (×8) here.
@@ -60,10 +61,11 @@ pub fn run(args: CompareArgs) -> Result<()> {
         a.diff(&b).save_png(path)?;
     }
     if args.json {
+        // (JSON has no infinity: identical images give null, not a string.)
         let psnr = if psnr.is_finite() {
             serde_json::json!(psnr)
         } else {
-            serde_json::json!("inf")
+            serde_json::Value::Null
         };
         println!(
             "{}",

@@ -1298,6 +1298,11 @@ fn compare_keeps_its_inputs_and_outputs_refuse_pipes_and_devices() {
         let o = render(&["-o", name]);
         assert!(o.status.success(), "{}", stderr(&o));
     }
+    // Identical images: a PSNR of null in JSON (it was the string "inf").
+    let o = raycaster(&["compare", "a.png", "b.png", "--json"], d);
+    let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(json["psnr_db"].is_null(), "{json}");
+    assert_eq!(json["max_difference"], 0, "{json}");
     let b = std::fs::read(d.join("b.png")).unwrap();
     let o = raycaster(
         &["compare", "a.png", "b.png", "--diff", "b.png", "--force"],

@@ -419,6 +419,12 @@ fn positive(field: &str, v: f32) -> Result<f32, SessionError> {
 fn non_negative(field: &str, v: f32) -> Result<f32, SessionError> {
     if v.is_finite() && v >= 0.0 {
         Ok(v)
+    } else if v == f32::INFINITY {
+        // (A number beyond f32's range reads as infinity.)
+        Err(invalid(
+            field,
+            "the number is too large (a 32-bit float holds up to 3.4e38)",
+        ))
     } else {
         Err(invalid(field, format!("{v} must be a non-negative number")))
     }
@@ -1243,6 +1249,12 @@ fn shading(s: &ShadingFile) -> Result<Option<Shading>, SessionError> {
             if v == Vec3::ZERO {
                 return Err(invalid("shading.light", "the direction is zero"));
             }
+            if v.try_normalize().is_none() {
+                return Err(invalid(
+                    "shading.light",
+                    "the direction is too short to normalise; scale it up (only its direction counts)",
+                ));
+            }
             Light::Fixed(v)
         }
     };
@@ -1717,7 +1729,9 @@ mod tests {
                 "transfer.points",
             ),
             ("shading", "light = [0.0, 0.0, 0.0]", "shading.light"),
+            ("shading", "light = [1e-30, 0.0, 0.0]", "shading.light"),
             ("shading", "ambient = -1.0", "shading.ambient"),
+            ("shading", "diffuse = 1e39", "shading.diffuse"),
             ("clip", "planes = [[1.0, 1.0, 1.0, 0.0, 0.0, 0.0]]", "clip"),
             ("clip", "crop = [5.0, 0.0, 0.0, 1.0, 9.0, 9.0]", "clip"),
             ("slices", "window = \"liver\"", "slices.window"),
