@@ -255,7 +255,7 @@ impl Record {
             c.optimisations.to_string(),
             format!("{:.3}", self.frame.as_secs_f64() * 1e3),
             self.samples.to_string(),
-            format!("{:.0}", self.samples_per_second_per_core()),
+            format!("{:.0}", self.samples_per_second_per_thread()),
             c.volume.name(),
             format!("{}x{}", c.image[0], c.image[1]),
             c.step.to_string(),
@@ -283,7 +283,7 @@ impl Record {
     }
 
     /// Samples per second per render thread.
-    pub fn samples_per_second_per_core(&self) -> f64 {
+    pub fn samples_per_second_per_thread(&self) -> f64 {
         self.samples as f64 / self.frame.as_secs_f64().max(1e-9) / self.case.render_threads() as f64
     }
 
@@ -651,7 +651,7 @@ const HEADER: [&str; COLUMNS] = [
     "optimisations",
     "frame_ms",
     "samples",
-    "samples_per_s_per_core",
+    "samples_per_s_per_thread",
     "volume",
     "image",
     "step",

@@ -106,7 +106,7 @@ const METRICS: [Metric; 2] = [
     },
     Metric {
         name: "M samples/s per render thread",
-        value: |r| r.samples_per_second_per_core() / 1e6,
+        value: |r| r.samples_per_second_per_thread() / 1e6,
         lower_is_better: false,
     },
 ];
