@@ -106,6 +106,9 @@ struct Controller {
     wake: Notify,
     installs: (InstallSender, Receiver<InstallResult>),
     settle: slint::Timer,
+    /// Repaints the whole window again a moment after a new volume
+    /// ([`Controller::repaint_window`]).
+    repaint: slint::Timer,
 }
 
 struct State {
@@ -329,6 +332,7 @@ impl Viewer {
             wake: wake.clone(),
             installs,
             settle: slint::Timer::default(),
+            repaint: slint::Timer::default(),
         });
         ACTIVE.with(|a| *a.borrow_mut() = Rc::downgrade(&controller));
         let message = first.opened_message(&first.description);
@@ -1148,6 +1152,29 @@ impl Controller {
         self.update_slices();
         self.redraw_tf();
         self.request_frame(false);
+        self.repaint_window();
+    }
+
+    /// Makes the whole window dirty now and again a moment later (`repaints`
+    /// in app.slint): after a new volume, the software renderer's partial
+    /// repaint sometimes left the text of the volume before on screen (status
+    /// and message lines, crop rows; about one open in twenty under Xvfb,
+    /// slint 1.18.1), while the window's state was right.
+    fn repaint_window(&self) {
+        let toggle = |ui: &App| ui.set_repaints(ui.get_repaints().wrapping_add(1));
+        if let Some(ui) = self.ui() {
+            toggle(&ui);
+        }
+        let weak = self.ui.clone();
+        self.repaint.start(
+            slint::TimerMode::SingleShot,
+            std::time::Duration::from_millis(600),
+            move || {
+                if let Some(ui) = weak.upgrade() {
+                    toggle(&ui);
+                }
+            },
+        );
     }
 
     /// Puts `path` first in the recent files; returns a note for the message
@@ -1788,6 +1815,8 @@ impl Controller {
     fn take_events(&self) {
         let mut failures = Vec::new();
         let mut latest_done = false;
+        // The first frame of a new volume ended (its status line follows).
+        let mut first_done = false;
         {
             let mut guard = self.state.borrow_mut();
             let st = &mut *guard;
@@ -1805,6 +1834,7 @@ impl Controller {
                         }
                         if latest.is_some_and(|(l, _)| l == id) {
                             latest_done = true;
+                            first_done |= st.first_frame;
                             st.last_stats = Some((stats, moving));
                             st.last_sampling = st.latest_sampling;
                             st.ended = Some(id);
@@ -1835,6 +1865,9 @@ impl Controller {
         };
         if let (Some(ui), Some(status)) = (self.ui(), status) {
             ui.set_status(status.into());
+        }
+        if first_done {
+            self.repaint_window();
         }
     }
 

@@ -570,10 +570,16 @@ fn the_viewer_cuts_slices_and_remembers_files() {
     // Typed with quotes and spaces around it, as pasted from a file manager,
     // on zoomed slice views.
     v.ui().set_slice_zoom(3.0);
+    let repaints = v.ui().get_repaints();
     v.ui()
         .invoke_open_file(format!(" '{}' ", file_b.display()).into());
     wait_until(&v, "file b", |v| {
         v.volume_name() == file_b.display().to_string()
+    });
+    // The whole window is made dirty for the new volume (the software
+    // renderer's partial repaint left text of the volume before on screen).
+    wait_until(&v, "whole-window repaints", |v| {
+        v.ui().get_repaints() >= repaints + 2
     });
     assert_eq!(v.ui().get_slice_window_index(), 0, "fitted");
     // The new volume's slices start whole, and the path field names it as
