@@ -1023,50 +1023,29 @@ fn bench_takes_render_flag_names_as_aliases() {
 fn bench_quick_gives_way_to_sizes_asked_for() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
+    let common = [
+        "bench",
+        "--quick",
+        "--threads",
+        "1",
+        "--tiles",
+        "16",
+        "--bricks",
+        "16",
+        "--cache-dir",
+        "cache",
+        "--csv",
+        "q.csv",
+        "--force",
+    ];
     for (size, expected) in [("64x48", "64x48"), ("200x100", "200x100")] {
-        let args = [
-            "bench",
-            "--quick",
-            "--size",
-            size,
-            "--threads",
-            "1",
-            "--tiles",
-            "16",
-            "--bricks",
-            "16",
-            "--cache-dir",
-            "cache",
-            "--csv",
-            "q.csv",
-            "--force",
-        ];
-        let o = raycaster(&args, d);
+        let o = raycaster(&[&common[..], &["--size", size]].concat(), d);
         assert!(o.status.success(), "{}", stderr(&o));
         assert_eq!(first_csv_row_column(&d.join("q.csv"), "image"), expected);
     }
     // Without --size, --quick's 128×128; --frames 2 stays two frames (the
     // one-frame warning does not come).
-    let o = raycaster(
-        &[
-            "bench",
-            "--quick",
-            "--frames",
-            "2",
-            "--threads",
-            "1",
-            "--tiles",
-            "16",
-            "--bricks",
-            "16",
-            "--cache-dir",
-            "cache",
-            "--csv",
-            "q.csv",
-            "--force",
-        ],
-        d,
-    );
+    let o = raycaster(&[&common[..], &["--frames", "2"]].concat(), d);
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(first_csv_row_column(&d.join("q.csv"), "image"), "128x128");
     assert!(
