@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use raycaster::render::{Mode, PRESETS, RenderVolume, SimdLevel};
+use raycaster::render::{PRESETS, RenderVolume, SimdLevel};
 use raycaster::volume::{Access, Layout, SampleType};
 use raycaster_benches::{
     BenchCase, Optimisations, SceneSpec, View, VolumeSource, VolumeSpec, parse_layout,
@@ -263,7 +263,7 @@ impl Record {
             format!("{:.3}", self.median.as_secs_f64() * 1e3),
             format!("{:.3}", self.spread.as_secs_f64() * 1e3),
             // Whether the frames used it (DVR only).
-            (c.preintegrated && c.mode == Mode::Dvr).to_string(),
+            c.settings().is_ok_and(|s| s.preintegrates()).to_string(),
             c.mode.name().to_string(),
             c.transfer.unwrap_or("fitted").to_string(),
             self.kernel().to_string(),
@@ -402,11 +402,8 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
     }
     let [w, h] = args.image();
     crate::memory::check_frame(w, h)?;
-    if args.preintegrate && args.mode != ModeArg::Dvr {
-        eprintln!(
-            "warning: --preintegrate applies to --mode dvr only; {} frames ignore it",
-            Mode::from(args.mode).name()
-        );
+    if let Some(warning) = crate::render::preintegrate_ignored(args.preintegrate, args.mode) {
+        eprintln!("{warning}");
     }
     if let Some(level) = args.simd.0.filter(|l| !l.is_available()) {
         bail!("--simd {level}: this machine does not have it");
@@ -449,12 +446,16 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
     let cases = cases(&args);
     // Every brick side is checked before the sweep prints anything, and the
     // frame's samples (the step, image and view are every case's).
+    let mut geometry = None;
     for &side in &args.bricks {
-        RenderVolume::new(&volume, Some(side)).with_context(|| format!("--bricks {side}"))?;
+        let prepared =
+            RenderVolume::new(&volume, Some(side)).with_context(|| format!("--bricks {side}"))?;
+        geometry.get_or_insert(*prepared.geometry());
     }
-    let camera = first.view.camera(&volume, args.image())?;
-    let geometry = *RenderVolume::new(&volume, Some(args.bricks[0]))?.geometry();
-    raycaster::render::check_sample_budget(&geometry, args.step, &camera)?;
+    if let Some(geometry) = &geometry {
+        let camera = first.view.camera(&volume, args.image())?;
+        raycaster::render::check_sample_budget(geometry, args.step, &camera)?;
+    }
     eprintln!(
         "bench: {} ({}×{}×{}, {}), image {w}×{h}, step {}{}, {} frame(s) per configuration, {} kernel",
         volume.path().display(),

@@ -581,6 +581,17 @@ pub fn run(args: RenderArgs) -> Result<()> {
     finish(&args, &setup, &frame, &image, serde_json::Map::new())
 }
 
+/// The warning for `--preintegrate` with a mode that ignores it (`render` and
+/// `bench` alike), or `None`.
+pub(crate) fn preintegrate_ignored(preintegrate: bool, mode: ModeArg) -> Option<String> {
+    (preintegrate && mode != ModeArg::Dvr).then(|| {
+        format!(
+            "warning: --preintegrate applies to --mode dvr only; {} frames ignore it",
+            Mode::from(mode).name()
+        )
+    })
+}
+
 /// The parallel renderer's options from the flags; without `--threads`, the
 /// cores shared by `processes` processes on this machine.
 pub(crate) fn parallel_options(args: &RenderArgs, processes: usize) -> ParallelOptions {
@@ -954,11 +965,10 @@ fn flags_session(args: &RenderArgs, source: VolumeSource, volume: &Volume) -> Re
         eprintln!("warning: --step: {warning}");
     }
     // (In a two-level scene it applies to the objects rendered by DVR.)
-    if args.preintegrate && args.mode != ModeArg::Dvr && args.segments.is_none() && !args.quiet {
-        eprintln!(
-            "warning: --preintegrate applies to --mode dvr only; {} frames ignore it",
-            Mode::from(args.mode).name()
-        );
+    if let Some(warning) = preintegrate_ignored(args.preintegrate, args.mode)
+        .filter(|_| args.segments.is_none() && !args.quiet)
+    {
+        eprintln!("{warning}");
     }
     Ok(Session {
         source,

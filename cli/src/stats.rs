@@ -80,9 +80,8 @@ pub fn json(
         "ert": settings.early_termination.is_some(),
         "ert_threshold": settings.early_termination.map(shortest),
         "ess": settings.empty_space_skipping,
-        // Whether the frame used it: DVR only (a two-level scene's DVR objects).
-        "preintegrated": settings.preintegrated
-            && (settings.mode == raycaster::render::Mode::Dvr || settings.segments.is_some()),
+        // Whether the frame used it (DVR, a two-level scene's DVR objects).
+        "preintegrated": settings.preintegrates(),
         "jitter": settings.jitter,
         "threads": s.threads,
         "rays": c.rays,

@@ -18,7 +18,7 @@ use super::local::LocalCompositor;
 use super::pixel::{PixelRay, ray_jitter};
 use super::read_ahead::ReadAheadLog;
 use super::segments::Membership;
-use super::settings::{Mode, RenderSettings};
+use super::settings::RenderSettings;
 use super::simd::SimdLevel;
 use super::transfer::TransferTable;
 use super::two_level::TwoLevel;
@@ -287,7 +287,7 @@ impl FramePlan {
             }
             None => {
                 let mut table = TransferTable::new(&settings.transfer, type_max, step_ratio);
-                if settings.preintegrated && settings.mode == Mode::Dvr {
+                if settings.preintegrates() {
                     table = table.with_preintegration(&settings.transfer, type_max);
                 }
                 FrameCompositor::Plain(

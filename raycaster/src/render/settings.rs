@@ -211,3 +211,12 @@ impl Default for RenderSettings {
         }
     }
 }
+
+impl RenderSettings {
+    /// Whether frames of these settings use pre-integrated tables:
+    /// [`Self::preintegrated`] in DVR, or for a two-level scene's DVR objects
+    /// (other modes ignore it).
+    pub fn preintegrates(&self) -> bool {
+        self.preintegrated && (self.mode == Mode::Dvr || self.segments.is_some())
+    }
+}
