@@ -121,6 +121,27 @@ fn empty_space_skipping_stays_exact_with_preintegration() {
                 .samples_skipped_empty;
             assert_eq!(skipped > 0, skips, "{} at step {step}", kind.name());
         }
+        // Modes that ignore pre-integration keep skipping at that step: their
+        // frames are those without it, samples included.
+        for mode in [Mode::Mip, Mode::FirstHit] {
+            let plain = RenderSettings {
+                step: limit,
+                mode,
+                ..settings(kind, Some(0.99), true)
+            };
+            let asked = RenderSettings {
+                preintegrated: true,
+                ..plain.clone()
+            };
+            let (a, b) = (
+                render_bricked(&volume, Some(5), &camera, &asked),
+                render_bricked(&volume, Some(5), &camera, &plain),
+            );
+            let name = format!("{} {mode:?}", kind.name());
+            assert!(a.stats.counters.samples_skipped_empty > 0, "{name}");
+            assert_eq!(a.stats.counters.samples, b.stats.counters.samples, "{name}");
+            assert_eq!(a.to_image(), b.to_image(), "{name}");
+        }
     }
 }
 

@@ -1734,17 +1734,14 @@ impl Controller {
         };
         let mut settings = Self::view_settings(&ui, &st, step);
         // Moving frames at coarse steps pre-integrate (no rings or stripes)
-        // where it changes the picture (DVR and two-level scenes) and keeps
-        // empty-space skipping (else it would cost several times the frame).
-        if quality.preintegrated
-            && (settings.mode == Mode::Dvr || settings.segments.is_some())
-            && settings.step < skipping_below
-        {
+        // where that keeps empty-space skipping (else it would cost several
+        // times the frame); modes other than DVR and two-level scenes ignore it.
+        if quality.preintegrated && settings.step < skipping_below {
             settings.preintegrated = true;
         }
         st.latest_sampling = Sampling {
             step: settings.step,
-            preintegrated: settings.preintegrated,
+            preintegrated: settings.preintegrates(),
         };
         let options = ParallelOptions {
             render_threads: ui.get_threads().max(1) as usize,

@@ -183,6 +183,23 @@ fn the_viewer_runs_headless() {
         "{status}"
     );
     assert_ne!(frame(&v).2, before_preintegration, "pre-integration shows");
+    // MIP ignores it: the status does not claim it.
+    let mip = raycaster::render::Mode::ALL
+        .iter()
+        .position(|&m| m == raycaster::render::Mode::Mip)
+        .unwrap() as i32;
+    v.ui().set_mode_index(mip);
+    v.ui().invoke_settings_changed();
+    wait_for_frame(&v);
+    i_slint_backend_testing::mock_elapsed_time(Duration::from_millis(300));
+    slint::platform::update_timers_and_animations();
+    wait_for_frame(&v);
+    let status = v.ui().get_status().to_string();
+    assert!(
+        !status.starts_with("interactive") && !status.contains("pre-integrated"),
+        "{status}"
+    );
+    v.ui().set_mode_index(0);
     v.ui().set_preintegrate(false);
     v.ui().invoke_settings_changed();
 

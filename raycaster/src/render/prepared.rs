@@ -310,7 +310,7 @@ impl FramePlan {
             compositor,
             ert_threshold: settings.early_termination.unwrap_or(f32::INFINITY),
             empty_space_skipping: settings.empty_space_skipping
-                && !(settings.preintegrated
+                && !(settings.preintegrates()
                     && settings.step >= volume.preintegrated_skipping_below()),
             dt: settings.step * geometry.min_spacing(),
             jitter: settings.jitter,
