@@ -451,9 +451,9 @@ pub(crate) enum ModeArg {
     Mip,
     /// Average intensity projection: the mean value along the ray, classified.
     /// The means of a mostly empty volume are low, and so the image dark: a
-    /// transfer function or domain over the means' range (render's
-    /// `--domain 0,60` for `shapes`) brightens it; render warns of a dark
-    /// average picture and names the domain that spans the means.
+    /// transfer function or domain over the means' range brightens it;
+    /// render warns of a dark average picture and names the domain that spans
+    /// the means.
     Average,
     /// First hit of the iso-value, refined between samples, shaded.
     FirstHit,
