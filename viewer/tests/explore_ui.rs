@@ -10,7 +10,7 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 mod support;
-use support::{element, generate_file, wait_for_frame};
+use support::{element, generate_file, mode_index, settle};
 
 use i_slint_backend_testing::ElementHandle;
 use raycaster::render::{CropBox, Vec3};
@@ -21,14 +21,6 @@ use raycaster::volume::Volume;
 use slint::platform::{Key, PointerEventButton, WindowEvent};
 use slint::{ComponentHandle, Model};
 use viewer::{Source, Viewer};
-
-/// Lets the view rest and waits for the full-quality frame.
-fn settle(v: &Viewer) {
-    wait_for_frame(v);
-    i_slint_backend_testing::mock_elapsed_time(Duration::from_millis(300));
-    slint::platform::update_timers_and_animations();
-    wait_for_frame(v);
-}
 
 /// Pumps until `done` holds, then until the newest frame is on screen.
 fn wait_until(v: &Viewer, what: &str, done: impl Fn(&Viewer) -> bool) {
@@ -535,11 +527,8 @@ fn the_viewer_cuts_slices_and_remembers_files() {
     // An average frame of this mostly empty volume is dark: the message line
     // says where the rays' means lie (it showed a dark picture without a word,
     // where `raycaster render` warned), once, and not in other modes.
-    let average = raycaster::render::Mode::ALL
-        .iter()
-        .position(|&m| m == raycaster::render::Mode::Average)
-        .unwrap() as i32;
-    v.ui().set_mode_index(average);
+    v.ui()
+        .set_mode_index(mode_index(raycaster::render::Mode::Average));
     v.ui().invoke_settings_changed();
     settle(&v);
     let said = v.ui().get_message().to_string();

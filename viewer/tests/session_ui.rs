@@ -9,7 +9,7 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 mod support;
-use support::{element, wait_for_frame};
+use support::{element, mode_index, settle};
 
 use raycaster::render::{Mode, PRESETS, RenderVolume, RgbImage, render_sequential_levels};
 use raycaster::session::Session;
@@ -17,20 +17,6 @@ use raycaster::synth::SceneKind;
 use slint::platform::PointerEventButton;
 use slint::{LogicalPosition, Model};
 use viewer::{Source, Viewer};
-
-/// Lets the view rest (the settle timer fires) and waits for the full-quality
-/// frame, checking that it is one.
-fn settle(v: &Viewer) {
-    wait_for_frame(v);
-    i_slint_backend_testing::mock_elapsed_time(Duration::from_millis(300));
-    slint::platform::update_timers_and_animations();
-    wait_for_frame(v);
-    assert_eq!(
-        v.last_stats().map(|(_, moving)| moving),
-        Some(false),
-        "a settled, full-quality frame"
-    );
-}
 
 /// The canvas image as RGB bytes, with its size.
 fn frame(v: &Viewer) -> (u32, u32, Vec<u8>) {
@@ -130,7 +116,7 @@ fn sessions_save_render_and_restore_the_picture() {
     // A click adds a control point: a transfer function no preset has.
     element(&v, "App::tf-area").mock_single_click(PointerEventButton::Left);
     settle(&v);
-    let sabella = Mode::ALL.iter().position(|&m| m == Mode::Sabella).unwrap() as i32;
+    let sabella = mode_index(Mode::Sabella);
     v.ui().set_mode_index(sabella);
     v.ui().set_step_index(1);
     v.ui().set_ert(false);

@@ -86,6 +86,30 @@ pub fn wait_for_frame(v: &Viewer) {
     }
 }
 
+/// Lets the view rest (the settle timer fires) and waits for the full-quality
+/// frame, checking that it is one.
+#[allow(dead_code)]
+pub fn settle(v: &Viewer) {
+    wait_for_frame(v);
+    i_slint_backend_testing::mock_elapsed_time(Duration::from_millis(300));
+    slint::platform::update_timers_and_animations();
+    wait_for_frame(v);
+    assert_eq!(
+        v.last_stats().map(|(_, moving)| moving),
+        Some(false),
+        "a settled, full-quality frame"
+    );
+}
+
+/// The mode box's index of `mode`.
+#[allow(dead_code)]
+pub fn mode_index(mode: raycaster::render::Mode) -> i32 {
+    raycaster::render::Mode::ALL
+        .iter()
+        .position(|&m| m == mode)
+        .expect("every mode is in the box") as i32
+}
+
 /// The UI element with the id `id` (`App::canvas`).
 pub fn element(v: &Viewer, id: &str) -> ElementHandle {
     ElementHandle::find_by_element_id(v.ui(), id)
