@@ -136,6 +136,12 @@ struct State {
     /// requested when that frame ends (moving frames are never dropped
     /// unfinished, so a picture keeps up with a drag).
     pending_move: bool,
+    /// A full-quality frame was asked for while a moving frame was in flight:
+    /// it is requested once the moving frames have caught up with the camera,
+    /// so its tiles fill in over a picture of its own view (over the older
+    /// view of a superseded moving frame they showed torn edges for as long as
+    /// the frame took).
+    pending_still: bool,
     /// Frames superseded before they finished.
     superseded: u64,
     busy: bool,
@@ -300,6 +306,7 @@ impl Viewer {
                 last_stats: None,
                 ended: None,
                 pending_move: false,
+                pending_still: false,
                 superseded: 0,
                 busy: false,
                 first_frame: false,
@@ -400,6 +407,7 @@ impl Viewer {
         let st = self.controller.state.borrow();
         !st.busy
             && !st.pending_move
+            && !st.pending_still
             && st
                 .latest
                 .is_some_and(|(id, _)| st.ended == Some(id) && st.shown.0 == id)
@@ -1678,11 +1686,17 @@ impl Controller {
             .is_some_and(|(id, was_moving)| was_moving && st.ended != Some(id));
         if moving && moving_in_flight {
             st.pending_move = true;
+            st.pending_still = false;
             drop(st);
             self.settle_later();
             return;
         }
+        if !moving && moving_in_flight {
+            st.pending_still = true;
+            return;
+        }
         st.pending_move = false;
+        st.pending_still = false;
         // Until a new volume's first frame is done: its coarsest level at
         // interactive quality, refined like any moving frame once the view rests.
         let first_levels = st
@@ -1794,18 +1808,19 @@ impl Controller {
         self.show_frame();
         self.save_pending_screenshot();
         self.note_dark_average();
-        // The moving frame in flight ended: render the view the camera moved to.
-        let follow = {
-            let mut st = self.state.borrow_mut();
+        // The moving frame in flight ended: render the view the camera moved
+        // to, then the full-quality frame asked for meanwhile.
+        let (follow, still) = {
+            let st = self.state.borrow();
             let ended = st.latest.is_some_and(|(id, _)| st.ended == Some(id));
-            let follow = st.pending_move && ended;
-            if follow {
-                st.pending_move = false;
-            }
-            follow
+            (st.pending_move && ended, st.pending_still && ended)
         };
         if follow {
             self.request_frame(true);
+            // (Still asked for: after this frame.)
+            self.state.borrow_mut().pending_still = still;
+        } else if still {
+            self.request_frame(false);
         }
     }
 
