@@ -39,7 +39,7 @@ enum Command {
 fn main() {
     restore_sigpipe();
     stop_cleanly_on_signals();
-    raycaster::files::guard_mapped_reads();
+    raycaster::files::guard_mapped_reads("stopped, nothing was written");
     use clap::{CommandFactory, FromArgMatches};
     let matches = Cli::command().get_matches();
     let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());

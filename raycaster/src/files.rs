@@ -98,14 +98,19 @@ pub fn read_text(path: &Path, max_bytes: u64) -> std::io::Result<String> {
 static SIGBUS_MESSAGE: std::sync::atomic::AtomicPtr<Vec<u8>> =
     std::sync::atomic::AtomicPtr::new(std::ptr::null_mut());
 
+/// What the SIGBUS message says happened after the fault ([`guard_mapped_reads`]).
+static SIGBUS_CONSEQUENCE: std::sync::Mutex<String> = std::sync::Mutex::new(String::new());
+
 /// Makes a fault on a memory-mapped file (SIGBUS: another program truncated the
 /// file while it was mapped) end the process with an `error:` line naming the file
-/// ([`guard_mapped_file`]) and exit status 1, instead of a crash. Outputs are written
-/// atomically, so none is left half-written.
+/// ([`guard_mapped_file`]) and what that meant, `consequence` ("stopped, nothing
+/// was written": outputs are written atomically, so none is left half-written),
+/// and exit status 1, instead of a crash.
 ///
-/// For programs (the `raycaster` and `volgen` binaries): call once, early.
+/// For programs (the `raycaster`, `volgen` and `viewer` binaries): call once, early.
 #[allow(unsafe_code)] // libc calls without a safe wrapper; SAFETY notes inside
-pub fn guard_mapped_reads() {
+pub fn guard_mapped_reads(consequence: &str) {
+    *SIGBUS_CONSEQUENCE.lock().unwrap_or_else(|e| e.into_inner()) = consequence.to_string();
     set_sigbus_message("a memory-mapped volume file".to_string());
     extern "C" fn on_sigbus(_: libc::c_int) {
         // Only async-signal-safe calls: an atomic load, write(2) and _exit(2).
@@ -132,8 +137,9 @@ pub fn guard_mapped_file(path: &Path) {
 }
 
 fn set_sigbus_message(what: String) {
+    let consequence = SIGBUS_CONSEQUENCE.lock().unwrap_or_else(|e| e.into_inner());
     let message = format!(
-        "error: {what}: shrank or vanished while it was read (another program truncated it?); stopped, nothing was written\n"
+        "error: {what}: shrank or vanished while it was read (another program truncated it?); {consequence}\n"
     );
     // Leaked on purpose: the signal handler may be reading the previous one.
     let new = Box::into_raw(Box::new(message.into_bytes()));

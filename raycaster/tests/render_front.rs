@@ -329,3 +329,66 @@ fn a_deep_view_renders_its_levels_by_depth_into_the_buffer_like_the_cli() {
     }
     front.shutdown();
 }
+
+#[test]
+fn a_file_truncated_under_its_mapping_fails_frames_instead_of_faulting() {
+    use raycaster::volume::{Access, Layout, SampleType};
+    let dir = tempfile::tempdir().unwrap();
+    for access in [Access::Mapped, Access::Ram] {
+        let volume = Arc::new(scene_file(
+            dir.path(),
+            SceneKind::Shapes,
+            96,
+            Layout::Bricked { side: 16 },
+            SampleType::U8,
+            access,
+        ));
+        let path = volume.path().to_path_buf();
+        let whole = std::fs::metadata(&path).unwrap().len();
+        volume.check_whole().unwrap();
+        let front = RenderFront::new(volume.clone(), None, None).unwrap();
+        let camera = default_camera(&volume, 48);
+        let request = || FrameRequest {
+            camera,
+            settings: settings(),
+            options: ParallelOptions::default(),
+            level: LevelChoice::Fixed(0),
+        };
+        front.request(request());
+        let event = front
+            .events()
+            .recv_timeout(Duration::from_secs(30))
+            .unwrap();
+        assert!(matches!(event, FrameEvent::Done { .. }), "{event:?}");
+        // Another program cuts the file in half (its pyramid and the second
+        // half of its samples): a mapped volume's frames fail, naming the file
+        // and its sizes; one read into RAM renders on.
+        let file = std::fs::OpenOptions::new().write(true).open(&path).unwrap();
+        file.set_len(whole / 2).unwrap();
+        let id = front.request(request());
+        let event = front
+            .events()
+            .recv_timeout(Duration::from_secs(30))
+            .unwrap();
+        match (access, event) {
+            (Access::Mapped, FrameEvent::Failed { id: failed, error }) => {
+                assert_eq!(failed, id);
+                let expected = format!(
+                    "{}: shrank to {} bytes while open (it held {whole})",
+                    path.display(),
+                    whole / 2
+                );
+                assert!(error.starts_with(&expected), "{error}");
+                assert!(volume.check_whole().is_err());
+            }
+            (Access::Ram, FrameEvent::Done { id: done, .. }) => {
+                assert_eq!(done, id);
+                volume.check_whole().unwrap();
+            }
+            (access, event) => panic!("{access:?}: {event:?}"),
+        }
+        front.shutdown();
+        drop(volume);
+        std::fs::remove_file(&path).unwrap();
+    }
+}

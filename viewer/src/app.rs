@@ -1073,6 +1073,10 @@ impl Controller {
                 if let Some(source) = install.source {
                     st.source = source;
                 }
+                // A fault on its mapping ends the viewer naming the file.
+                if let VolumeSource::File { path, .. } = &st.source {
+                    raycaster::files::guard_mapped_file(path);
+                }
                 st.labels_path = install.labels_path;
                 st.fixed = RenderSettings::default();
                 st.cut_restored = None;
@@ -1308,6 +1312,14 @@ impl Controller {
         let st = self.state.borrow();
         let Some(current) = &st.current else { return };
         let volume = &current.volume.volume;
+        // A file truncated under its mapping is not read (a read of a missing
+        // byte would end the viewer); the slices shown stay.
+        if let Err(e) = volume.check_whole() {
+            drop(st);
+            let text = raycaster::errors::error_text(&e);
+            self.show_failure(Failure::Slices, &format!("slices: {text}"));
+            return;
+        }
         let units = volume.value_units();
         let fitted = fitted_window(&current.volume);
         let index = ui.get_slice_window_index().max(0) as usize;

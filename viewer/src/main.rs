@@ -51,7 +51,7 @@ fn parse_scene(s: &str) -> Result<SceneKind, String> {
 
 fn main() -> ExitCode {
     // A volume file truncated while mapped: an error line, not a bus error.
-    raycaster::files::guard_mapped_reads();
+    raycaster::files::guard_mapped_reads("the viewer stopped");
     let args = Args::parse();
     let source = match (args.session, args.file) {
         (Some(session), _) => Source::Session(session),

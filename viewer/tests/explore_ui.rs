@@ -603,5 +603,42 @@ fn the_viewer_cuts_slices_and_remembers_files() {
         .lines()
         .map(PathBuf::from)
         .collect();
-    assert_eq!(listed, [file_a, session_path]);
+    assert_eq!(listed, [file_a.clone(), session_path]);
+
+    // Another program truncates the open file: frames and slices refuse to
+    // read it (a read of a missing byte would end the viewer), saying why,
+    // and the viewer goes on.
+    let whole = std::fs::metadata(&file_a).unwrap().len();
+    let cut = std::fs::OpenOptions::new()
+        .write(true)
+        .open(&file_a)
+        .unwrap();
+    cut.set_len(whole / 2).unwrap();
+    let said = format!(
+        "{}: shrank to {} bytes while open (it held {whole})",
+        file_a.display(),
+        whole / 2
+    );
+    v.ui().invoke_settings_changed();
+    let start = Instant::now();
+    while !v
+        .ui()
+        .get_message()
+        .starts_with(&format!("cannot render: {said}"))
+    {
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "{}",
+            v.ui().get_message()
+        );
+        v.pump();
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    v.ui().invoke_slice_zoom_changed();
+    v.pump();
+    assert!(
+        v.ui().get_message().contains(&format!("slices: {said}")),
+        "{}",
+        v.ui().get_message()
+    );
 }

@@ -45,7 +45,7 @@ enum Command {
 
 fn main() {
     restore_sigpipe();
-    raycaster::files::guard_mapped_reads();
+    raycaster::files::guard_mapped_reads("stopped, nothing was written");
     let cli = Cli::parse();
     if let Some(n) = cli.threads {
         rayon::ThreadPoolBuilder::new()

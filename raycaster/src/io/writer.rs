@@ -610,9 +610,16 @@ mod tests {
         )
         .unwrap();
         let len = shape.table_len(SampleType::U16).unwrap();
-        let table = CellTable::read_from(&file, table_at, len, &shape, SampleType::U16)
-            .unwrap()
-            .expect("a table of the shape");
+        let table = CellTable::read_from(
+            &file,
+            table_at,
+            len,
+            &shape,
+            SampleType::U16,
+            crate::volume::Access::Mapped,
+        )
+        .unwrap()
+        .expect("a table of the shape");
         let volume = TypedVolume::new(&values, dims, Layout::Linear);
         let scan = shape.scan_bricks(0..shape.grid().block_count(), |b| {
             volume.brick(shape.grid(), b)

@@ -330,6 +330,19 @@ impl Worker {
                 self.emit(FrameEvent::Superseded { id });
                 continue;
             }
+            // A file truncated under its mapping: no frame reads it (a read of a
+            // missing byte would end the process).
+            let labels = levels.iter().filter_map(RenderVolume::labels);
+            if let Err(e) = std::iter::once(volume)
+                .chain(labels)
+                .try_for_each(Volume::check_whole)
+            {
+                self.emit(FrameEvent::Failed {
+                    id,
+                    error: crate::errors::error_text(&e),
+                });
+                continue;
+            }
             let bands =
                 request
                     .level

@@ -21,6 +21,7 @@ use super::grid::BlockGrid;
 use super::header::{Header, Layout, SampleType};
 use super::ranges::LINEAR_RANGE_SIDE;
 use super::sample::Sample;
+use super::storage::Access;
 use super::view::BrickView;
 
 /// Smallest cell size aimed at, in voxel steps per axis.
@@ -371,15 +372,16 @@ enum Entries {
 
 impl CellTable {
     /// The table of `shape` for a volume of `sample`s at byte `offset` of `file`
-    /// (at most `len` bytes), its entries mapped read-only where the file allows
-    /// it, else read. `Ok(None)` when the bytes are not a table of exactly that
-    /// shape.
+    /// (at most `len` bytes), its entries mapped read-only where `access` maps
+    /// and the file allows it, else read. `Ok(None)` when the bytes are not a
+    /// table of exactly that shape.
     pub fn read_from(
         file: &File,
         offset: u64,
         len: u64,
         shape: &CellShape,
         sample: SampleType,
+        access: Access,
     ) -> std::io::Result<Option<Self>> {
         let Some(table_len) = shape.table_len(sample) else {
             return Ok(None);
@@ -394,7 +396,11 @@ impl CellTable {
         }
         let body = table_len - CELL_TABLE_HEAD_LEN;
         let start = offset + CELL_TABLE_HEAD_LEN;
-        let entries = match super::pyramid::map_region(file, start, body) {
+        let mapped = match access {
+            Access::Mapped => super::pyramid::map_region(file, start, body),
+            Access::Ram => Err(std::io::Error::other("read into memory")),
+        };
+        let entries = match mapped {
             Ok(map) => {
                 // A frame reads the cells of the bricks it marches, scattered over
                 // the table: read-ahead would fetch the cells of bricks it skips.
@@ -486,7 +492,7 @@ mod tests {
             })
             .unwrap();
         let len = shape.table_len(SampleType::U8).unwrap();
-        let table = CellTable::read_from(&file, 64, len, &shape, SampleType::U8)
+        let table = CellTable::read_from(&file, 64, len, &shape, SampleType::U8, Access::Mapped)
             .unwrap()
             .unwrap();
         assert!(table.is_mapped());
@@ -494,6 +500,12 @@ mod tests {
             vol.brick(shape.grid(), b)
         });
         assert_eq!(table.to_vec(), all);
+        // A volume held in RAM reads its table too (nothing of it stays mapped).
+        let read = CellTable::read_from(&file, 64, len, &shape, SampleType::U8, Access::Ram)
+            .unwrap()
+            .unwrap();
+        assert!(!read.is_mapped());
+        assert_eq!(read.to_vec(), all);
         // Each bound takes a byte in a u8 volume; the empty range survives.
         assert_eq!(
             len,
@@ -518,13 +530,13 @@ mod tests {
         }
         // Cut short, or read for another shape: no table.
         assert!(
-            CellTable::read_from(&file, 64, len - 1, &shape, SampleType::U8)
+            CellTable::read_from(&file, 64, len - 1, &shape, SampleType::U8, Access::Mapped)
                 .unwrap()
                 .is_none()
         );
         let other = CellShape::of_grid(&BlockGrid::new(dims, 5));
         assert!(
-            CellTable::read_from(&file, 64, len, &other, SampleType::U8)
+            CellTable::read_from(&file, 64, len, &other, SampleType::U8, Access::Mapped)
                 .unwrap()
                 .is_none()
         );

@@ -465,6 +465,24 @@ impl Volume {
         self.cells.as_ref()
     }
 
+    /// Checks that the files this volume maps (its own, and its pyramid's) still
+    /// hold every byte it may read. A file another program truncated while it is
+    /// mapped would stop the process at the first read of a missing byte
+    /// ([`crate::files::guard_mapped_reads`]); a long-lived reader (the viewer)
+    /// asks this before each frame and refuses to read a shrunk file instead.
+    pub fn check_whole(&self) -> Result<(), VolumeError> {
+        if let Some((now, needed)) = self.storage.shrunk() {
+            let message = format!(
+                "shrank to {now} bytes while open (it held {needed}): another program truncated it; open it again once it is whole"
+            );
+            return Err(VolumeError::new(
+                &self.path,
+                std::io::Error::new(std::io::ErrorKind::UnexpectedEof, message),
+            ));
+        }
+        self.levels.iter().try_for_each(Volume::check_whole)
+    }
+
     /// The typed samples.
     pub fn data(&self) -> VolumeData<'_> {
         typed_data(&self.header, self.storage.bytes()).expect("alignment checked at open")
@@ -536,7 +554,9 @@ fn load_ranges(
         // for random access); files in RAM decode it from their bytes.
         let available = len.saturating_sub(offset);
         let table = match storage {
-            Storage::Mapped(_) => BrickRanges::read_from(file, offset, available, dims).at(path)?,
+            Storage::Mapped { .. } => {
+                BrickRanges::read_from(file, offset, available, dims, Access::Mapped).at(path)?
+            }
             Storage::Ram { .. } => {
                 let table_len = BrickRanges::table_len(&grid).min(available);
                 BrickRanges::decode(
@@ -646,7 +666,7 @@ fn read_levels(
     cells: Option<bool>,
 ) -> Result<PyramidBlock, VolumeError> {
     let layout = PyramidLayout::read(file, start, file_len, base, cells).at(path)?;
-    let level0_cells = layout.read_cells(file, start, base, 0).at(path)?;
+    let level0_cells = layout.read_cells(file, start, base, 0, access).at(path)?;
     let levels = (1..=layout.levels.len())
         .map(|k| {
             let e = &layout.levels[k - 1];
@@ -657,8 +677,8 @@ fn read_levels(
                 storage.advise_random();
             }
             typed_data(&header, storage.bytes()).at(path)?;
-            let ranges = layout.read_ranges(file, start, base, k).at(path)?;
-            let cells = layout.read_cells(file, start, base, k).at(path)?;
+            let ranges = layout.read_ranges(file, start, base, k, access).at(path)?;
+            let cells = layout.read_cells(file, start, base, k, access).at(path)?;
             Ok(Volume {
                 path: path.to_path_buf(),
                 header,

@@ -23,6 +23,7 @@ use super::error::{AtPath, VolumeError, VolumeErrorKind};
 use super::header::{Content, Format, Header, HeaderError};
 use super::ranges::{BrickRanges, LINEAR_RANGE_SIDE};
 use super::sample::Sample;
+use super::storage::Access;
 use super::view::TypedVolume;
 
 /// Levels are added until the largest axis is at most this many voxels.
@@ -283,29 +284,38 @@ impl PyramidLayout {
     }
 
     /// Reads and checks the value-range table of level `k` (1-based); its entries
-    /// stay in the file, mapped ([`BrickRanges::read_from`]).
+    /// stay in the file, mapped where `access` maps ([`BrickRanges::read_from`]).
     pub fn read_ranges(
         &self,
         file: &File,
         block_start: u64,
         base: &Header,
         k: usize,
+        access: Access,
     ) -> Result<BrickRanges, VolumeErrorKind> {
         let e = &self.levels[k - 1];
         let header = self.level_header(base, k);
-        BrickRanges::read_from(file, block_start + e.ranges_offset, e.ranges_len, e.dims)?
-            .filter(|r| r.grid() == &header.block_grid(LINEAR_RANGE_SIDE))
-            .ok_or_else(|| VolumeErrorKind::CorruptPyramid(format!("level {k}'s range table")))
+        BrickRanges::read_from(
+            file,
+            block_start + e.ranges_offset,
+            e.ranges_len,
+            e.dims,
+            access,
+        )?
+        .filter(|r| r.grid() == &header.block_grid(LINEAR_RANGE_SIDE))
+        .ok_or_else(|| VolumeErrorKind::CorruptPyramid(format!("level {k}'s range table")))
     }
 
     /// Reads and checks the cell-range table of level `k` (0: the volume itself),
-    /// if the block stores cell tables; its entries stay in the file, mapped.
+    /// if the block stores cell tables; its entries stay in the file, mapped
+    /// where `access` maps.
     pub fn read_cells(
         &self,
         file: &File,
         block_start: u64,
         base: &Header,
         k: usize,
+        access: Access,
     ) -> Result<Option<CellTable>, VolumeErrorKind> {
         let place = match k {
             0 => self.level0_cells,
@@ -315,13 +325,20 @@ impl PyramidLayout {
             return Ok(None);
         };
         let shape = self.cell_shape(base, k);
-        CellTable::read_from(file, block_start + offset, len, &shape, base.sample_type)?
-            .map(Some)
-            .ok_or_else(|| {
-                VolumeErrorKind::CorruptPyramid(format!(
-                    "level {k}'s cell table does not match its bricks"
-                ))
-            })
+        CellTable::read_from(
+            file,
+            block_start + offset,
+            len,
+            &shape,
+            base.sample_type,
+            access,
+        )?
+        .map(Some)
+        .ok_or_else(|| {
+            VolumeErrorKind::CorruptPyramid(format!(
+                "level {k}'s cell table does not match its bricks"
+            ))
+        })
     }
 }
 

@@ -19,6 +19,7 @@ use rayon::prelude::*;
 
 use super::grid::BlockGrid;
 use super::sample::Sample;
+use super::storage::Access;
 use super::view::TypedVolume;
 
 /// Side of the logical bricks whose ranges are kept for linear volumes.
@@ -238,7 +239,7 @@ impl BrickRanges {
 
     /// The table written by [`Self::encode`] at byte `offset` of `file`, at most
     /// `len` bytes long, for a volume of `dims`: its entries mapped read-only where
-    /// the file allows it (they stay in the page cache, not in this process's
+    /// `access` maps and the file allows it (they stay in the page cache, not in this process's
     /// memory), else read and decoded. `Ok(None)` when the bytes are not a
     /// consistent table for those dims.
     pub fn read_from(
@@ -246,6 +247,7 @@ impl BrickRanges {
         offset: u64,
         len: u64,
         dims: [u32; 3],
+        access: Access,
     ) -> std::io::Result<Option<Self>> {
         let mut head = [0u8; TABLE_HEADER_LEN];
         if len < TABLE_HEADER_LEN as u64 {
@@ -263,6 +265,7 @@ impl BrickRanges {
         }
         let start = offset + TABLE_HEADER_LEN as u64;
         if body > 0
+            && access == Access::Mapped
             && let Ok(map) = super::pyramid::map_region(file, start, body)
             && bytemuck::try_cast_slice::<u8, [u16; 2]>(&map).is_ok()
         {
@@ -331,7 +334,9 @@ impl BrickRanges {
             return Ok(None);
         }
         let header = SIDECAR_HEADER_LEN as u64;
-        Self::read_from(sidecar, header, sidecar_len - header, dims)
+        // Read into memory (4 bytes a brick): a sidecar cut while mapped would
+        // fault, and no check of the volume's own file sees it.
+        Self::read_from(sidecar, header, sidecar_len - header, dims, Access::Ram)
     }
 }
 
@@ -459,23 +464,24 @@ mod tests {
             image.extend_from_slice(&[0x55; 10]);
             std::io::Write::write_all(&mut file, &image).unwrap();
             let len = image.len() as u64 - offset;
-            let read = BrickRanges::read_from(&file, offset, len, dims)
+            let read = BrickRanges::read_from(&file, offset, len, dims, Access::Mapped)
                 .unwrap()
                 .unwrap();
             assert_eq!(read, table, "offset {offset}");
             assert_eq!(read.is_mapped(), mapped, "offset {offset}");
             assert_eq!(read.clone().as_slice(), table.as_slice());
             // Cut short, another volume's dims, or an entry with min > max: refused.
-            let short = BrickRanges::read_from(&file, offset, bytes.len() as u64 - 1, dims);
+            let short =
+                BrickRanges::read_from(&file, offset, bytes.len() as u64 - 1, dims, Access::Mapped);
             assert!(short.unwrap().is_none());
-            let other = BrickRanges::read_from(&file, offset, len, [37, 50, 24]);
+            let other = BrickRanges::read_from(&file, offset, len, [37, 50, 24], Access::Mapped);
             assert!(other.unwrap().is_none());
             let mut bad = image.clone();
             let at = offset as usize + TABLE_HEADER_LEN + 4 * 7;
             bad[at..at + 4].copy_from_slice(&[9, 0, 8, 0]);
             std::os::unix::fs::FileExt::write_all_at(&file, &bad, 0).unwrap();
             assert!(
-                BrickRanges::read_from(&file, offset, len, dims)
+                BrickRanges::read_from(&file, offset, len, dims, Access::Mapped)
                     .unwrap()
                     .is_none()
             );

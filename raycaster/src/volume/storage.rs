@@ -20,8 +20,15 @@ pub enum Access {
 /// The bytes of a whole volume file.
 #[derive(Debug)]
 pub(crate) enum Storage {
-    /// A read-only mapping of the file.
-    Mapped(Mmap),
+    /// A read-only mapping of the file (or of a region of it).
+    Mapped {
+        map: Mmap,
+        /// The mapped file, to see whether it still holds the mapping's bytes.
+        file: File,
+        /// The file's length when it was mapped: a shorter file lost bytes the
+        /// volume may read (the mapping's, or its tables', mapped apart).
+        end: u64,
+    },
     /// The file read into an 8-byte aligned buffer (so u16 samples can be viewed in place).
     Ram { words: Vec<u64>, len: usize },
 }
@@ -51,7 +58,11 @@ impl Storage {
                         "file shrank while it was being opened",
                     ));
                 }
-                Ok(Storage::Mapped(map))
+                Ok(Storage::Mapped {
+                    map,
+                    file: file.try_clone()?,
+                    end: len as u64,
+                })
             }
             // Positioned: the header was already read through this handle.
             Access::Ram => Storage::read_into_ram(file, 0, len),
@@ -66,9 +77,12 @@ impl Storage {
         access: Access,
     ) -> std::io::Result<Storage> {
         match access {
-            Access::Mapped => Ok(Storage::Mapped(super::pyramid::map_region(
-                file, offset, len,
-            )?)),
+            // (The whole file counts: its tables lie beyond the region.)
+            Access::Mapped => Ok(Storage::Mapped {
+                map: super::pyramid::map_region(file, offset, len)?,
+                file: file.try_clone()?,
+                end: file.metadata()?.len().max(offset.saturating_add(len)),
+            }),
             Access::Ram => {
                 let len = usize::try_from(len).map_err(|_| {
                     std::io::Error::new(std::io::ErrorKind::OutOfMemory, "level too large")
@@ -83,7 +97,7 @@ impl Storage {
     /// bricks); the renderer asks for the bricks it needs itself
     /// ([`Self::will_need`]). Best effort.
     pub(crate) fn advise_random(&self) {
-        if let Storage::Mapped(map) = self {
+        if let Storage::Mapped { map, .. } = self {
             let _ = map.advise(memmap2::Advice::Random);
         }
     }
@@ -99,7 +113,7 @@ impl Storage {
     /// Asks the OS to read `len` bytes at `offset` ahead of use (mapped storage
     /// only; best effort: errors are ignored).
     pub(crate) fn will_need(&self, offset: u64, len: u64) {
-        if let Storage::Mapped(map) = self {
+        if let Storage::Mapped { map, .. } = self {
             let start = (offset as usize).min(map.len());
             let len = (len as usize).min(map.len() - start);
             if len > 0 {
@@ -121,15 +135,28 @@ impl Storage {
     /// All bytes of the file.
     pub(crate) fn bytes(&self) -> &[u8] {
         match self {
-            Storage::Mapped(map) => map,
+            Storage::Mapped { map, .. } => map,
             Storage::Ram { words, len } => &bytemuck::cast_slice(words)[..*len],
+        }
+    }
+
+    /// The mapped file's length now and the length the mapping needs, when the
+    /// file has become shorter than that (another program truncated it: a read
+    /// of the missing bytes would fault); `None` for a whole file or RAM.
+    pub(crate) fn shrunk(&self) -> Option<(u64, u64)> {
+        match self {
+            Storage::Mapped { file, end, .. } => {
+                let now = file.metadata().ok()?.len();
+                (now < *end).then_some((now, *end))
+            }
+            Storage::Ram { .. } => None,
         }
     }
 
     /// Which kind of storage this is.
     pub(crate) fn access(&self) -> Access {
         match self {
-            Storage::Mapped(_) => Access::Mapped,
+            Storage::Mapped { .. } => Access::Mapped,
             Storage::Ram { .. } => Access::Ram,
         }
     }
