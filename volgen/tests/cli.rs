@@ -206,7 +206,11 @@ fn a_damaged_pyramid_or_bytes_after_the_file_are_named_and_the_samples_converted
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(
         stderr(&o).trim_end(),
-        "warning: cut.vol: the resolution pyramid is corrupt: the levels are cut off; the output's is built from the samples"
+        format!(
+            "warning: cut.vol: the resolution pyramid is corrupt: the levels are cut off: the pyramid ends at byte {}, the file has {} bytes (an incomplete copy?); the samples before it are whole: `volgen convert` copies them into a new file with a new pyramid; the output's is built from the samples",
+            whole.len(),
+            whole.len() - 100
+        )
     );
     assert!(std::fs::read(d.join("from-cut.vol")).unwrap() == copy);
 }
