@@ -525,7 +525,8 @@ fn a_corrupt_embedded_pyramid_is_refused_and_a_stale_sidecar_ignored() {
     let err = Volume::open(&path).expect_err("a lying directory");
     let msg = err.to_string();
     assert!(msg.contains("pyramid") && msg.contains("c.vol"), "{msg}");
-    // A pyramid offset past the file's end is a header error.
+    // A pyramid offset past the file's end: a file cut short (or a damaged
+    // header).
     bytes[offset + 64] ^= 0x40;
     let past_end = (bytes.len() as u64 + 64).to_le_bytes();
     bytes[34..40].copy_from_slice(&past_end[..6]);
@@ -534,7 +535,7 @@ fn a_corrupt_embedded_pyramid_is_refused_and_a_stale_sidecar_ignored() {
         .expect_err("offset past the end")
         .to_string();
     assert!(
-        msg.contains("resolution pyramid starts at byte") && msg.contains("truncated"),
+        msg.contains("resolution pyramid starts at byte") && msg.contains("cut short"),
         "{msg}"
     );
 
@@ -553,8 +554,9 @@ fn a_corrupt_embedded_pyramid_is_refused_and_a_stale_sidecar_ignored() {
     let warnings = cut.open_warnings();
     assert_eq!(warnings.len(), 1, "{warnings:?}");
     assert!(
-        warnings[0].contains("t.vol.pyramid: ignored (the resolution pyramid is corrupt")
-            && warnings[0].contains("`volgen pyramid "),
+        warnings[0].contains("t.vol.pyramid: ignored (the resolution pyramid is cut off in its directory (it ends at byte 256, the file has 100 bytes))")
+            && warnings[0].contains("`volgen pyramid ")
+            && !warnings[0].contains("volgen convert"),
         "{warnings:?}"
     );
     write_pyramid_sidecar(&path, &small_slabs(), &Job::silent()).unwrap();
@@ -583,6 +585,20 @@ fn opening_reads_nothing_and_frames_read_stored_cells_or_compute_them_for_bricks
         assert!(level.ranges().is_mapped(), "level {k}");
         assert!(
             level.stored_cells().is_some_and(|c| c.is_mapped()),
+            "level {k}"
+        );
+    }
+    // Opened into RAM, nothing stays mapped (a file cut while open would fault).
+    let options = raycaster::volume::OpenOptions {
+        access: raycaster::volume::Access::Ram,
+        write_ranges_sidecar: false,
+    };
+    let in_ram = Volume::open_with(&path, options).unwrap();
+    for k in 0..in_ram.level_count() {
+        let level = in_ram.level(k);
+        assert!(!level.ranges().is_mapped(), "level {k}");
+        assert!(
+            level.stored_cells().is_some_and(|c| !c.is_mapped()),
             "level {k}"
         );
     }

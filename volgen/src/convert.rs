@@ -160,9 +160,11 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
             None => Input::open_vol(&a.input)?,
         },
     };
-    if input.embedded_ranges_intact() == Some(false) && !a.quiet {
+    if let Some(Err(why)) = input.embedded_ranges_intact()
+        && !a.quiet
+    {
         eprintln!(
-            "warning: {}: the value-range table after the samples is corrupt; the output's table is computed from the samples",
+            "warning: {}: {why}; the output's table is computed from the samples",
             a.input.display()
         );
     }

@@ -193,26 +193,70 @@ fn a_damaged_pyramid_or_bytes_after_the_file_are_named_and_the_samples_converted
         stdout(&o)
     );
 
-    // A pyramid cut short: the file does not open, and convert rebuilds it.
+    // A pyramid cut short: the file does not open (the error says where it
+    // ends and what rescues the samples), and convert rebuilds it.
     std::fs::write(d.join("cut.vol"), &whole[..whole.len() - 100]).unwrap();
     let o = volgen(d, &["info", "cut.vol"]);
     assert_eq!(o.status.code(), Some(1));
-    assert!(
-        stderr(&o).contains("the levels are cut off"),
-        "{}",
-        stderr(&o)
+    assert_eq!(
+        stderr(&o).trim_end(),
+        format!(
+            "error: cut.vol: the resolution pyramid is cut off in its levels: it ends at byte {}, the file has {} bytes (an incomplete copy?); the samples before it are whole: `volgen convert` copies them into a new file with a new pyramid",
+            whole.len(),
+            whole.len() - 100
+        )
     );
     let o = volgen(d, &["convert", "cut.vol", "-o", "from-cut.vol"]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(
         stderr(&o).trim_end(),
         format!(
-            "warning: cut.vol: the resolution pyramid is corrupt: the levels are cut off: the pyramid ends at byte {}, the file has {} bytes (an incomplete copy?); the samples before it are whole: `volgen convert` copies them into a new file with a new pyramid; the output's is built from the samples",
+            "warning: cut.vol: the resolution pyramid is cut off in its levels (it ends at byte {}, the file has {} bytes); the output's is built from the samples",
             whole.len(),
             whole.len() - 100
         )
     );
     assert!(std::fs::read(d.join("from-cut.vol")).unwrap() == copy);
+
+    // Cut inside the range table (the pyramid, after it, is gone too): the
+    // header places blocks past the end, said as a file cut short (not an
+    // invalid header); convert still rescues the samples, whole.
+    let header = raycaster::volume::Header::parse(&whole[..64], whole.len() as u64).unwrap();
+    let (table, pyramid) = (
+        header.ranges_offset.unwrap(),
+        header.pyramid_offset.unwrap(),
+    );
+    let cut_at = table + 100;
+    std::fs::write(d.join("cut-table.vol"), &whole[..cut_at as usize]).unwrap();
+    let o = volgen(d, &["info", "cut-table.vol"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(
+        stderr(&o).trim_end(),
+        format!(
+            "error: cut-table.vol: the resolution pyramid starts at byte {pyramid}, past the file's end ({cut_at} bytes): the file is cut short (an incomplete copy?) or its header is damaged; the samples before it are whole: `volgen convert` copies them into a new file"
+        )
+    );
+    let o = volgen(d, &["convert", "cut-table.vol", "-o", "from-cut-table.vol"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let said = stderr(&o);
+    assert!(
+        said.starts_with(&format!(
+            "warning: cut-table.vol: the value-range table after the samples is cut off (it ends at byte {}, the file has {cut_at} bytes); the output's table is computed from the samples\n",
+            table + raycaster::volume::BrickRanges::table_len(&header.block_grid(raycaster::volume::LINEAR_RANGE_SIDE))
+        )) && said.contains("warning: cut-table.vol: the resolution pyramid is cut off in its directory"),
+        "{said}"
+    );
+    assert!(std::fs::read(d.join("from-cut-table.vol")).unwrap() == copy);
+    // Cut inside the samples: nothing to rescue.
+    std::fs::write(d.join("cut-samples.vol"), &whole[..1000]).unwrap();
+    let o = volgen(d, &["convert", "cut-samples.vol", "-o", "none.vol"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("the file is cut short: its samples end at byte"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!d.join("none.vol").exists());
 }
 
 #[test]

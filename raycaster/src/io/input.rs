@@ -8,8 +8,8 @@ use super::decode::{Endian, RawType, decode_into};
 use crate::job::Job;
 use crate::text::counted;
 use crate::volume::{
-    AtPath, BlockGrid, Content, Header, Layout, MAX_AXIS, Orientation, SampleType, ValueUnits,
-    VolumeError, VolumeErrorKind, read_header,
+    AtPath, BlockGrid, Content, Header, HeaderError, Layout, MAX_AXIS, Orientation, SampleType,
+    ValueUnits, VolumeError, VolumeErrorKind, read_header,
 };
 
 /// Bytes read per positioned read when streaming.
@@ -208,7 +208,21 @@ impl Input {
 
     /// Opens a `.vol` file (either header format, any layout).
     pub fn open_vol(path: &Path) -> Result<Input, VolumeError> {
-        let (header, file, _) = read_header(path)?;
+        // A range table or pyramid cut off: the samples before it are whole and
+        // read (the blocks' damage is reported by `embedded_ranges_intact` and
+        // `embedded_pyramid_intact`).
+        let (header, file, _) = match read_header(path) {
+            Err(e)
+                if matches!(&e.kind, VolumeErrorKind::Header(h) if h.is_cut_short())
+                    && !matches!(
+                        e.kind,
+                        VolumeErrorKind::Header(HeaderError::Truncated { .. })
+                    ) =>
+            {
+                crate::volume::read_header_of_cut_file(path)?
+            }
+            result => result?,
+        };
         Ok(Input {
             path: path.to_path_buf(),
             file: RawData::File(file),
@@ -220,27 +234,30 @@ impl Input {
         })
     }
 
-    /// For a `.vol` input with an embedded value-range table: whether that table is
-    /// consistent (`Some(false)`: corrupt, so a conversion recomputes the ranges from
-    /// the samples, which it always does). `None` for other inputs.
-    pub fn embedded_ranges_intact(&self) -> Option<bool> {
+    /// For a `.vol` input with an embedded value-range table: what is wrong with
+    /// it (`Some(Err(why))`: cut off or corrupt, so a conversion recomputes the
+    /// ranges from the samples, which it always does). `None` for other inputs.
+    pub fn embedded_ranges_intact(&self) -> Option<Result<(), String>> {
         let (Source::Vol(header), RawData::File(file)) = (&self.source, &self.file) else {
             return None;
         };
         let offset = header.ranges_offset?;
         let grid = header.block_grid(crate::volume::LINEAR_RANGE_SIDE);
-        // The table: a small head and four bytes per brick (bounded by the grid).
-        let max = 64 + grid.block_count().saturating_mul(4);
         let len = file.metadata().map(|m| m.len()).unwrap_or(0);
-        let n = len.saturating_sub(offset).min(max) as usize;
-        let mut table = vec![0u8; n];
-        if file.read_exact_at(&mut table, offset).is_err() {
-            return Some(false);
+        let end = offset.saturating_add(crate::volume::BrickRanges::table_len(&grid));
+        if end > len {
+            let cut = VolumeErrorKind::RangesCutOff { end, file_len: len };
+            return Some(Err(cut.without_advice()));
         }
-        Some(
-            crate::volume::BrickRanges::decode(&table, header.dims)
-                .is_some_and(|r| r.grid() == &grid),
-        )
+        let mut table = vec![0u8; (end - offset) as usize];
+        let intact = file.read_exact_at(&mut table, offset).is_ok()
+            && crate::volume::BrickRanges::decode(&table, header.dims)
+                .is_some_and(|r| r.grid() == &grid);
+        Some(if intact {
+            Ok(())
+        } else {
+            Err("the value-range table after the samples is corrupt".to_string())
+        })
     }
 
     /// For a `.vol` input with an embedded resolution pyramid: what is wrong
@@ -256,7 +273,8 @@ impl Input {
         Some(
             crate::volume::pyramid::PyramidLayout::read(file, offset, len, header, cells)
                 .map(|_| ())
-                .map_err(|e| e.to_string()),
+                // (Not the advice to convert: this is the conversion.)
+                .map_err(|e| e.without_advice()),
         )
     }
 

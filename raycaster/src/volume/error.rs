@@ -4,6 +4,44 @@ use std::path::{Path, PathBuf};
 
 use super::header::HeaderError;
 
+impl VolumeErrorKind {
+    /// The message without its advice to convert the file, for where that is
+    /// not the way out (a conversion saying what it rescues, a sidecar that
+    /// `volgen pyramid` writes again).
+    pub fn without_advice(&self) -> String {
+        match *self {
+            VolumeErrorKind::PyramidCutOff {
+                part,
+                end,
+                file_len,
+            } => format!(
+                "the resolution pyramid is cut off in {part} ({})",
+                cut_off_at(end, file_len)
+            ),
+            VolumeErrorKind::RangesCutOff { end, file_len } => format!(
+                "the value-range table after the samples is cut off ({})",
+                cut_off_at(end, file_len)
+            ),
+            ref other => other.to_string(),
+        }
+    }
+}
+
+/// Where a block cut off ends and what the file holds.
+fn cut_off_at(end: u64, file_len: u64) -> String {
+    format!("it ends at byte {end}, the file has {file_len} bytes")
+}
+
+/// A header error as said to users: "invalid header: …", except for a file
+/// that ends before its samples or blocks do (the header is fine there).
+fn header_text(e: &HeaderError) -> String {
+    if e.is_cut_short() {
+        e.to_string()
+    } else {
+        format!("invalid header: {e}")
+    }
+}
+
 /// An error about one volume file.
 #[derive(Debug, thiserror::Error)]
 #[error("{}: {kind}", path.display())]
@@ -20,8 +58,9 @@ pub enum VolumeErrorKind {
     /// The operating system refused or failed an operation.
     #[error("{0}")]
     Io(#[from] std::io::Error),
-    /// The header is invalid or does not match the file.
-    #[error("invalid header: {0}")]
+    /// The header is invalid or does not match the file (a file cut short is
+    /// said as such, not as an invalid header).
+    #[error("{}", header_text(.0))]
     Header(#[from] HeaderError),
     /// A file not named `.vol` whose first bytes are no `.vol` header either.
     #[error(
@@ -31,9 +70,34 @@ pub enum VolumeErrorKind {
     /// The embedded value-range table is unreadable.
     #[error("the value-range table after the samples is corrupt")]
     CorruptRanges,
+    /// The file ends inside its embedded value-range table.
+    #[error(
+        "the value-range table after the samples is cut off: {} (an incomplete copy?); the samples before it are whole: `volgen convert` copies them into a new file",
+        cut_off_at(*end, *file_len)
+    )]
+    RangesCutOff {
+        /// Where the table ends.
+        end: u64,
+        /// The file's length.
+        file_len: u64,
+    },
     /// The resolution pyramid (embedded or sidecar) is inconsistent.
     #[error("the resolution pyramid is corrupt: {0}")]
     CorruptPyramid(String),
+    /// The file ends inside its embedded resolution pyramid (`part`: its
+    /// directory or its levels).
+    #[error(
+        "the resolution pyramid is cut off in {part}: {} (an incomplete copy?); the samples before it are whole: `volgen convert` copies them into a new file with a new pyramid",
+        cut_off_at(*end, *file_len)
+    )]
+    PyramidCutOff {
+        /// What the file lacks: "its directory" or "its levels".
+        part: &'static str,
+        /// Where the pyramid ends.
+        end: u64,
+        /// The file's length.
+        file_len: u64,
+    },
     /// The samples are not aligned for their type in memory.
     #[error("u16 samples are not 2-byte aligned in memory")]
     Misaligned,

@@ -86,6 +86,21 @@ pub fn full_resolution_coordinate(q: f32, scale: f32) -> f32 {
 
 /// Reads and validates the header of the volume file `path` (without mapping it).
 pub fn read_header(path: &Path) -> Result<(Header, File, u64), VolumeError> {
+    read_header_as(path, None)
+}
+
+/// [`read_header`] of a file whose samples are whole though it ends before a
+/// block its header places after them (a range table or pyramid cut off): the
+/// header as if the file were long enough. For reading the samples alone (a
+/// conversion rescuing them); the blocks are checked apart.
+pub fn read_header_of_cut_file(path: &Path) -> Result<(Header, File, u64), VolumeError> {
+    read_header_as(path, Some(u64::MAX))
+}
+
+fn read_header_as(
+    path: &Path,
+    claimed_len: Option<u64>,
+) -> Result<(Header, File, u64), VolumeError> {
     // Regular files only: a named pipe would block the read below forever.
     let file = crate::files::open_regular(path).at(path)?;
     let len = file.metadata().at(path)?.len();
@@ -94,7 +109,7 @@ pub fn read_header(path: &Path) -> Result<(Header, File, u64), VolumeError> {
         .take(MAX_HEADER_LEN)
         .read_to_end(&mut head)
         .at(path)?;
-    let header = Header::parse(&head, len).map_err(|e| match e {
+    let header = Header::parse(&head, claimed_len.unwrap_or(len)).map_err(|e| match e {
         // The first byte that tells formats apart names no .vol layout: a file
         // not named `.vol` is most likely no volume at all (a README, a PNG).
         HeaderError::UnknownOrder(_) if !has_vol_extension(path) => {
@@ -553,6 +568,11 @@ fn load_ranges(
         // read ahead sequentially: the samples' mapping of bricked files is advised
         // for random access); files in RAM decode it from their bytes.
         let available = len.saturating_sub(offset);
+        let end = offset.saturating_add(BrickRanges::table_len(&grid));
+        if end > len {
+            let kind = VolumeErrorKind::RangesCutOff { end, file_len: len };
+            return Err(VolumeError::new(path, kind));
+        }
         let table = match storage {
             Storage::Mapped { .. } => {
                 BrickRanges::read_from(file, offset, available, dims, Access::Mapped).at(path)?
@@ -649,7 +669,8 @@ fn load_pyramid(
         None,
     )
     .unwrap_or_else(|e| PyramidBlock {
-        ignored: Some(e.kind.to_string()),
+        // (`volgen pyramid` writes it again: the warning says so.)
+        ignored: Some(e.kind.without_advice()),
         ..PyramidBlock::default()
     }))
 }

@@ -262,7 +262,9 @@ pub enum HeaderError {
     #[error("sizes overflow: the sample data would exceed 2^64 bytes")]
     SizeOverflow,
     /// The file ends before the samples do.
-    #[error("file is truncated: samples end at byte {expected} but the file has {actual} bytes")]
+    #[error(
+        "the file is cut short: its samples end at byte {expected}, the file has {actual} bytes (an incomplete copy?)"
+    )]
     Truncated {
         /// Where the samples end.
         expected: u64,
@@ -291,6 +293,27 @@ pub enum HeaderError {
     },
 }
 
+impl HeaderError {
+    /// Whether the file ends before the samples, or before a block the header
+    /// places after them: a file cut short rather than a bad header.
+    pub fn is_cut_short(&self) -> bool {
+        match *self {
+            HeaderError::Truncated { .. } => true,
+            HeaderError::BadRangesOffset {
+                offset,
+                data_end,
+                file_len,
+            }
+            | HeaderError::BadPyramidOffset {
+                offset,
+                data_end,
+                file_len,
+            } => offset >= file_len && offset >= data_end,
+            _ => false,
+        }
+    }
+}
+
 /// The message of a block (range table, pyramid) whose offset is wrong: one
 /// past the file's end most likely means a truncated file.
 fn misplaced_block(
@@ -302,7 +325,7 @@ fn misplaced_block(
 ) -> String {
     if offset >= file_len && offset >= data_end {
         format!(
-            "the {block} starts at byte {offset}, past the file's end ({file_len} bytes): the file is truncated or its header is damaged"
+            "the {block} starts at byte {offset}, past the file's end ({file_len} bytes): the file is cut short (an incomplete copy?) or its header is damaged; the samples before it are whole: `volgen convert` copies them into a new file"
         )
     } else {
         format!(

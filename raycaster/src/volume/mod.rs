@@ -27,7 +27,8 @@ pub use error::{VolumeError, VolumeErrorKind};
 pub(crate) use file::content_end;
 pub use file::{
     OpenOptions, Volume, VolumeData, full_resolution_coordinate, has_vol_extension,
-    level_coordinate, ranges_sidecar_path, read_header, unused_tail_warning, write_pyramid_sidecar,
+    level_coordinate, ranges_sidecar_path, read_header, read_header_of_cut_file,
+    unused_tail_warning, write_pyramid_sidecar,
 };
 pub use grid::BlockGrid;
 pub use header::{

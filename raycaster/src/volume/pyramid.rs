@@ -245,15 +245,14 @@ impl PyramidLayout {
         cells: Option<bool>,
     ) -> Result<Self, VolumeErrorKind> {
         let corrupt = |why: &str| VolumeErrorKind::CorruptPyramid(why.to_string());
-        // What was cut off, where it ends and what the file holds.
-        let cut_off = |what: &str, end: u64| {
-            VolumeErrorKind::CorruptPyramid(format!(
-                "{what} cut off: the pyramid ends at byte {end}, the file has {file_len} bytes (an incomplete copy?); the samples before it are whole: `volgen convert` copies them into a new file with a new pyramid"
-            ))
+        let cut_off = |part, end| VolumeErrorKind::PyramidCutOff {
+            part,
+            end,
+            file_len,
         };
         let mut head = [0u8; 8];
         if block_start.saturating_add(8) > file_len {
-            return Err(cut_off("the directory is", block_start.saturating_add(8)));
+            return Err(cut_off("its directory", block_start.saturating_add(8)));
         }
         file.read_exact_at(&mut head, block_start)?;
         if head[..4] != BLOCK_MAGIC {
@@ -276,7 +275,7 @@ impl PyramidLayout {
         let mut bytes = vec![0u8; expected.len()];
         let directory_end = block_start.saturating_add(expected.len() as u64);
         if directory_end > file_len {
-            return Err(cut_off("the directory is", directory_end));
+            return Err(cut_off("its directory", directory_end));
         }
         file.read_exact_at(&mut bytes, block_start)?;
         if bytes != expected {
@@ -286,7 +285,7 @@ impl PyramidLayout {
         }
         let block_end = block_start.saturating_add(plan.block_len());
         if block_end > file_len {
-            return Err(cut_off("the levels are", block_end));
+            return Err(cut_off("its levels", block_end));
         }
         Ok(plan)
     }

@@ -106,7 +106,21 @@ impl Storage {
     fn read_into_ram(file: &File, offset: u64, len: usize) -> std::io::Result<Storage> {
         let mut words = vec![0u64; len.div_ceil(8)];
         let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut words);
-        file.read_exact_at(&mut bytes[..len], offset)?;
+        file.read_exact_at(&mut bytes[..len], offset)
+            .map_err(|e| match e.kind() {
+                // Another program cut the file while it was read.
+                std::io::ErrorKind::UnexpectedEof => {
+                    let now = file.metadata().map_or(0, |m| m.len());
+                    let needed = offset.saturating_add(len as u64);
+                    std::io::Error::new(
+                        e.kind(),
+                        format!(
+                            "shrank to {now} bytes while it was read into memory (it needs {needed}): another program truncated it"
+                        ),
+                    )
+                }
+                _ => e,
+            })?;
         Ok(Storage::Ram { words, len })
     }
 
@@ -159,5 +173,40 @@ impl Storage {
             Storage::Mapped { .. } => Access::Mapped,
             Storage::Ram { .. } => Access::Ram,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_file_shorter_than_opened_is_said_so() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("v");
+        std::fs::write(&path, [7u8; 1000]).unwrap();
+        let file = File::open(&path).unwrap();
+        // Read into RAM expecting more than is there (cut after the header
+        // was read): the sizes, not "failed to fill whole buffer".
+        let e = Storage::open(&file, 4000, Access::Ram).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "shrank to 1000 bytes while it was read into memory (it needs 4000): another program truncated it"
+        );
+        // Mapped: whole until the file shrinks below its length when mapped.
+        let mapped = Storage::open(&file, 1000, Access::Mapped).unwrap();
+        assert_eq!(mapped.shrunk(), None);
+        let region = Storage::open_region(&file, 100, 200, Access::Mapped).unwrap();
+        std::fs::OpenOptions::new()
+            .write(true)
+            .open(&path)
+            .unwrap()
+            .set_len(600)
+            .unwrap();
+        assert_eq!(mapped.shrunk(), Some((600, 1000)));
+        // (A region counts the whole file: its tables lie beyond it.)
+        assert_eq!(region.shrunk(), Some((600, 1000)));
+        let ram = Storage::open(&file, 600, Access::Ram).unwrap();
+        assert_eq!(ram.shrunk(), None);
     }
 }
