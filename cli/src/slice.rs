@@ -50,7 +50,7 @@ pub struct SliceArgs {
 
     /// Values shown black and white, LO,HI (or LO:HI) in the file's units
     /// (Hounsfield units for CT: `--window -160,240`), or a named CT window: ct, bone,
-    /// soft-tissue, lung, brain. Default: the slice's own value range. Files
+    /// soft-tissue, lung, brain. Default: the slice's own value range (a slice of one value: the volume's). Files
     /// converted before value units were kept take stored sample values.
     #[arg(long, value_parser = parse_window, allow_hyphen_values = true, value_name = "LO,HI|NAME")]
     window: Option<WindowArg>,
@@ -140,9 +140,21 @@ pub fn run(args: SliceArgs) -> Result<()> {
     {
         eprintln!("{warning}");
     }
-    let window = args.window.map(|w| units.stored_range(w.values()));
+    let asked = args.window.map(|w| {
+        let [lo, hi] = units.stored_range(w.values());
+        // A window narrower than f32 holds at the stored values (0 to 0.001 HU
+        // is 32768 to 32768 stored): a threshold there, as typed (lo < hi).
+        [lo, if hi > lo { hi } else { lo.next_up() }]
+    });
+    // Without one, the slice's own range; a slice of one value (empty space)
+    // is shown as in the volume's range (black for its lowest value), not as
+    // a flat mid-grey.
+    let [slice_lo, slice_hi] = slice.range();
+    let volume_range = volume.ranges().overall();
+    let flat = asked.is_none() && slice_lo == slice_hi && volume_range[0] < volume_range[1];
+    let window = asked.or(flat.then(|| volume_range.map(f32::from)));
     // A window beside all of the slice's values shows one grey: say so.
-    if let (Some(arg), Some([lo, hi])) = (args.window, window)
+    if let (Some(arg), Some([lo, hi])) = (args.window, asked)
         && !args.quiet
     {
         let [min, max] = slice.range().map(f32::from);
@@ -222,6 +234,15 @@ pub fn run(args: SliceArgs) -> Result<()> {
             Some(window) => {
                 let [black, white] = window.values().map(|v| units.format(f64::from(v)));
                 format!("black at {black}, white at {white}; the slice's values {lo} to {hi}")
+            }
+            None if flat => {
+                let [black, white] = volume_range.map(|v| units.format(units.value(f64::from(v))));
+                format!(
+                    "every value {lo}, shown as in the volume's values {black} (black) to {white} (white)"
+                )
+            }
+            None if slice_lo == slice_hi => {
+                format!("every value {lo}, as in the whole volume: grey")
             }
             None => format!("values {lo} (black) to {hi} (white)"),
         };

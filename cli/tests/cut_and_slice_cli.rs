@@ -590,3 +590,46 @@ fn a_plane_that_keeps_nothing_is_warned_of() {
     );
     assert!(!run_planes(&["12,0,0,1,0,0", "16,0,0,-1,0,0"]).contains("warning"));
 }
+
+#[test]
+fn a_slice_of_one_value_is_shown_as_in_the_volume_not_mid_grey() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // The shapes scene has planes of empty space (0); its values 0 to 254.
+    write_scene(
+        &d.join("shapes.vol"),
+        raycaster::synth::SceneKind::Shapes,
+        48,
+        7,
+        Format::Extended,
+    );
+    let volume = Volume::open(d.join("shapes.vol")).unwrap();
+    let [lo, hi] = volume.ranges().overall();
+    assert!(lo == 0 && hi > 200, "{lo} {hi}");
+    let empty = (0..48)
+        .find(|&x| (0..48).all(|y| (0..48).all(|z| volume.voxel([x, y, z]) == 0)))
+        .expect("an empty plane")
+        .to_string();
+    let args = [
+        "slice",
+        "shapes.vol",
+        "--axis",
+        "x",
+        "--index",
+        &empty,
+        "-o",
+        "flat.png",
+    ];
+    let out = raycaster(&args, d);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains(&format!(
+            "every value 0, shown as in the volume's values 0 (black) to {hi} (white))"
+        )),
+        "{}",
+        stderr(&out)
+    );
+    // Black, as empty space is in every other slice (it was a flat 128 grey).
+    let image = RgbImage::load_png(&d.join("flat.png")).unwrap();
+    assert!(image.data().iter().all(|&v| v == 0));
+}

@@ -72,6 +72,17 @@ fn the_output_is_checked_before_rendering_and_kept_without_force() {
     );
     assert_eq!(e.lines().count(), 1, "{e}");
     assert_eq!(e.matches("does not exist").count(), 1, "{e}");
+    // A file where the folder should be is no folder (it was "does not exist").
+    std::fs::write(d.join("plain"), b"x").unwrap();
+    let o = render(d, &["-o", "plain/a.png"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o)
+            .trim_end()
+            .ends_with("plain/a.png: cannot write there: plain is not a directory"),
+        "{}",
+        stderr(&o)
+    );
     // Another format's name.
     let o = render(d, &["-o", "a.jpg"]);
     assert_eq!(o.status.code(), Some(1));

@@ -240,6 +240,12 @@ fn slice_windows_are_in_hounsfield_units_or_named() {
     assert!(slice("ct.vol", "lung") == stored);
     assert!(slice("ct.vol", "-1350,150") == stored);
     assert!(slice("ct.vol", "bone") != stored);
+    // A window narrower than f32 holds at the stored values (0 to 0.001 HU
+    // both store as 32768): a threshold at 0 HU, as that of stored values
+    // (it was refused as "window 32768,32768").
+    let threshold = slice("ct.vol", "0,0.001");
+    assert!(threshold == slice("old.vol", "32768,32768.01"));
+    assert!(threshold.data().iter().all(|&v| v == 0 || v == 255));
     let out = raycaster(
         &[
             "slice", "ct.vol", "--axis", "z", "--index", "20", "-o", "t.png",

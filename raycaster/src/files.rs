@@ -157,8 +157,14 @@ fn set_sigbus_message(what: String) {
 pub fn temp_file_beside(path: &Path) -> std::io::Result<tempfile::NamedTempFile> {
     let dir = parent_dir(path);
     if !dir.is_dir() {
-        let msg = format!("directory {} does not exist", dir.display());
-        return Err(std::io::Error::new(std::io::ErrorKind::NotFound, msg));
+        let (kind, msg) = if dir.exists() {
+            let msg = format!("{} is not a directory", dir.display());
+            (std::io::ErrorKind::NotADirectory, msg)
+        } else {
+            let msg = format!("directory {} does not exist", dir.display());
+            (std::io::ErrorKind::NotFound, msg)
+        };
+        return Err(std::io::Error::new(kind, msg));
     }
     // The rename at the end would replace a device, a named pipe or a folder's
     // entry with a regular file (`--force` onto /dev/null): refused.
