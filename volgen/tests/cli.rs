@@ -916,3 +916,33 @@ fn a_spacing_the_renderer_would_refuse_is_refused_up_front() {
     );
     assert!(o.status.success(), "{}", stderr(&o));
 }
+
+#[test]
+fn a_sidecar_given_for_its_volume_is_named_as_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let o = volgen(
+        d,
+        &[
+            "generate", "--size", "80", "--format", "thesis", "-o", "t.vol", "-q",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = volgen(d, &["pyramid", "t.vol", "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for (sidecar, what) in [
+        ("t.vol.pyramid", "the resolution pyramid"),
+        ("t.vol.ranges", "the value-range table"),
+    ] {
+        assert!(d.join(sidecar).exists(), "{sidecar}");
+        let o = volgen(d, &["info", sidecar]);
+        assert_eq!(o.status.code(), Some(1));
+        // (It said "unknown sample order byte 0x51".)
+        assert_eq!(
+            stderr(&o).trim_end(),
+            format!(
+                "error: {sidecar}: is a sidecar holding {what} of t.vol, not a volume: give t.vol"
+            )
+        );
+    }
+}

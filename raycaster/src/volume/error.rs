@@ -98,6 +98,15 @@ pub enum VolumeErrorKind {
         /// The file's length.
         file_len: u64,
     },
+    /// A sidecar file (a pyramid's, a range table's) given where its volume
+    /// belongs.
+    #[error("is a sidecar holding {what} of {volume}, not a volume: give {volume}")]
+    Sidecar {
+        /// What the sidecar holds.
+        what: &'static str,
+        /// The volume it belongs to (the sidecar's name without its suffix).
+        volume: String,
+    },
     /// The samples are not aligned for their type in memory.
     #[error("u16 samples are not 2-byte aligned in memory")]
     Misaligned,

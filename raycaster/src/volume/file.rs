@@ -109,6 +109,15 @@ fn read_header_as(
         .take(MAX_HEADER_LEN)
         .read_to_end(&mut head)
         .at(path)?;
+    // A sidecar given for its volume: named as what it is.
+    if let Some(what) = sidecar_kind(&head) {
+        let volume = path.with_extension("");
+        let kind = VolumeErrorKind::Sidecar {
+            what,
+            volume: volume.display().to_string(),
+        };
+        return Err(VolumeError::new(path, kind));
+    }
     let header = Header::parse(&head, claimed_len.unwrap_or(len)).map_err(|e| match e {
         // The first byte that tells formats apart names no .vol layout: a file
         // not named `.vol` is most likely no volume at all (a README, a PNG).
@@ -118,6 +127,15 @@ fn read_header_as(
         e => VolumeError::new(path, VolumeErrorKind::Header(e)),
     })?;
     Ok((header, file, len))
+}
+
+/// What kind of sidecar a file starting with `head` is, if it is one.
+fn sidecar_kind(head: &[u8]) -> Option<&'static str> {
+    match head.get(..4)? {
+        b"RCPS" => Some("the resolution pyramid"),
+        b"RCRS" => Some("the value-range table"),
+        _ => None,
+    }
 }
 
 /// Where a file with `header` ends by its format: after its samples, its
