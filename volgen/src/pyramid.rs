@@ -74,6 +74,9 @@ pub fn run(a: PyramidArgs) -> anyhow::Result<()> {
         return Ok(());
     }
     drop(volume);
+    // The sidecar can be written (a read-only folder is said before any work;
+    // a stale sidecar is replaced).
+    crate::output::check_output(&pyramid_sidecar_path(&a.file), true)?;
     let bar = voxel_bar(pyramid_voxels(dims), "pyramid", a.quiet);
     let on_progress = |n| bar.inc(n);
     let job = Job::silent()

@@ -946,3 +946,32 @@ fn a_sidecar_given_for_its_volume_is_named_as_one() {
         );
     }
 }
+
+#[test]
+fn pyramid_checks_its_sidecar_can_be_written_before_any_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let o = volgen(
+        d,
+        &[
+            "generate",
+            "--size",
+            "80",
+            "--format",
+            "thesis",
+            "--no-pyramid",
+            "-o",
+            "t.vol",
+            "-q",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    // A folder where the sidecar goes: said at once, nothing written.
+    std::fs::create_dir(d.join("t.vol.pyramid")).unwrap();
+    let o = volgen(d, &["pyramid", "t.vol"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(
+        stderr(&o).trim_end(),
+        "error: t.vol.pyramid: is a directory; name a file"
+    );
+}
