@@ -1121,6 +1121,7 @@ impl Controller {
             // Request ids start again with the new front: forget the old front's.
             st.latest = None;
             st.ended = None;
+            (st.pending_move, st.pending_still) = (false, false);
             st.shown = (0, 0);
             st.cameras.clear();
             // A dragged window belonged to the old volume: the picker goes
