@@ -75,8 +75,16 @@ pub fn run(a: PyramidArgs) -> anyhow::Result<()> {
     }
     drop(volume);
     // The sidecar can be written (a read-only folder is said before any work;
-    // a stale sidecar is replaced).
-    crate::output::check_output(&pyramid_sidecar_path(&a.file), true)?;
+    // a stale sidecar is replaced). Its name is not the user's to choose.
+    let sidecar = pyramid_sidecar_path(&a.file);
+    if sidecar.is_dir() {
+        anyhow::bail!(
+            "{}: is a directory, where the pyramid of {} goes: move it away",
+            sidecar.display(),
+            a.file.display()
+        );
+    }
+    crate::output::check_output(&sidecar, true)?;
     let bar = voxel_bar(pyramid_voxels(dims), "pyramid", a.quiet);
     let on_progress = |n| bar.inc(n);
     let job = Job::silent()

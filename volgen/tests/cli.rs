@@ -972,6 +972,6 @@ fn pyramid_checks_its_sidecar_can_be_written_before_any_work() {
     assert_eq!(o.status.code(), Some(1));
     assert_eq!(
         stderr(&o).trim_end(),
-        "error: t.vol.pyramid: is a directory; name a file"
+        "error: t.vol.pyramid: is a directory, where the pyramid of t.vol goes: move it away"
     );
 }
