@@ -8,8 +8,8 @@ use super::decode::{Endian, RawType, decode_into};
 use crate::job::Job;
 use crate::text::counted;
 use crate::volume::{
-    AtPath, BlockGrid, Content, Header, HeaderError, Layout, MAX_AXIS, Orientation, SampleType,
-    ValueUnits, VolumeError, VolumeErrorKind, read_header,
+    AtPath, BlockGrid, Content, Header, Layout, MAX_AXIS, Orientation, SampleType, ValueUnits,
+    VolumeError, VolumeErrorKind, read_header,
 };
 
 /// Bytes read per positioned read when streaming.
@@ -212,13 +212,7 @@ impl Input {
         // read (the blocks' damage is reported by `embedded_ranges_intact` and
         // `embedded_pyramid_intact`).
         let (header, file, _) = match read_header(path) {
-            Err(e)
-                if matches!(&e.kind, VolumeErrorKind::Header(h) if h.is_cut_short())
-                    && !matches!(
-                        e.kind,
-                        VolumeErrorKind::Header(HeaderError::Truncated { .. })
-                    ) =>
-            {
+            Err(e) if matches!(&e.kind, VolumeErrorKind::Header(h) if h.is_block_past_end()) => {
                 crate::volume::read_header_of_cut_file(path)?
             }
             result => result?,
@@ -244,11 +238,10 @@ impl Input {
         let offset = header.ranges_offset?;
         let grid = header.block_grid(crate::volume::LINEAR_RANGE_SIDE);
         let len = file.metadata().map(|m| m.len()).unwrap_or(0);
-        let end = offset.saturating_add(crate::volume::BrickRanges::table_len(&grid));
-        if end > len {
-            let cut = VolumeErrorKind::RangesCutOff { end, file_len: len };
-            return Some(Err(cut.without_advice()));
-        }
+        let end = match crate::volume::embedded_ranges_end(header, offset, len) {
+            Ok(end) => end,
+            Err(cut) => return Some(Err(cut.without_advice())),
+        };
         let mut table = vec![0u8; (end - offset) as usize];
         let intact = file.read_exact_at(&mut table, offset).is_ok()
             && crate::volume::BrickRanges::decode(&table, header.dims)

@@ -331,8 +331,9 @@ impl Worker {
                 continue;
             }
             // A file truncated under its mapping: no frame reads it (a read of a
-            // missing byte would end the process).
-            let labels = levels.iter().filter_map(RenderVolume::labels);
+            // missing byte would end the process). Level 0's labels are the
+            // whole label volume: its check covers its levels.
+            let labels = levels.first().and_then(RenderVolume::labels);
             if let Err(e) = std::iter::once(volume)
                 .chain(labels)
                 .try_for_each(Volume::check_whole)

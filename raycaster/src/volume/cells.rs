@@ -397,17 +397,17 @@ impl CellTable {
         let body = table_len - CELL_TABLE_HEAD_LEN;
         let start = offset + CELL_TABLE_HEAD_LEN;
         let mapped = match access {
-            Access::Mapped => super::pyramid::map_region(file, start, body),
-            Access::Ram => Err(std::io::Error::other("read into memory")),
+            Access::Mapped => super::pyramid::map_region(file, start, body).ok(),
+            Access::Ram => None,
         };
         let entries = match mapped {
-            Ok(map) => {
+            Some(map) => {
                 // A frame reads the cells of the bricks it marches, scattered over
                 // the table: read-ahead would fetch the cells of bricks it skips.
                 let _ = map.advise(memmap2::Advice::Random);
                 Entries::Mapped(Arc::new(map))
             }
-            Err(_) => {
+            None => {
                 let mut bytes = vec![0u8; body as usize];
                 file.read_exact_at(&mut bytes, start)?;
                 Entries::Owned(bytes)

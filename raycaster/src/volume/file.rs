@@ -129,6 +129,22 @@ fn read_header_as(
     Ok((header, file, len))
 }
 
+/// Where the embedded value-range table at `offset` of a file with `header`
+/// ends, or that a file of `file_len` bytes cuts it off.
+pub(crate) fn embedded_ranges_end(
+    header: &Header,
+    offset: u64,
+    file_len: u64,
+) -> Result<u64, VolumeErrorKind> {
+    let end = offset.saturating_add(BrickRanges::table_len(
+        &header.block_grid(LINEAR_RANGE_SIDE),
+    ));
+    if end > file_len {
+        return Err(VolumeErrorKind::RangesCutOff { end, file_len });
+    }
+    Ok(end)
+}
+
 /// What kind of sidecar a file starting with `head` is, if it is one.
 fn sidecar_kind(head: &[u8]) -> Option<&'static str> {
     match head.get(..4)? {
@@ -586,11 +602,7 @@ fn load_ranges(
         // read ahead sequentially: the samples' mapping of bricked files is advised
         // for random access); files in RAM decode it from their bytes.
         let available = len.saturating_sub(offset);
-        let end = offset.saturating_add(BrickRanges::table_len(&grid));
-        if end > len {
-            let kind = VolumeErrorKind::RangesCutOff { end, file_len: len };
-            return Err(VolumeError::new(path, kind));
-        }
+        embedded_ranges_end(header, offset, len).at(path)?;
         let table = match storage {
             Storage::Mapped { .. } => {
                 BrickRanges::read_from(file, offset, available, dims, Access::Mapped).at(path)?

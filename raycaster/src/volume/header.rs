@@ -297,8 +297,13 @@ impl HeaderError {
     /// Whether the file ends before the samples, or before a block the header
     /// places after them: a file cut short rather than a bad header.
     pub fn is_cut_short(&self) -> bool {
+        matches!(self, HeaderError::Truncated { .. }) || self.is_block_past_end()
+    }
+
+    /// Whether the file's samples are whole but it ends before a block (range
+    /// table, pyramid) its header places after them.
+    pub fn is_block_past_end(&self) -> bool {
         match *self {
-            HeaderError::Truncated { .. } => true,
             HeaderError::BadRangesOffset {
                 offset,
                 data_end,

@@ -24,12 +24,12 @@ pub use cells::{
     default_linear_brick_side, target_cell_step,
 };
 pub use error::{VolumeError, VolumeErrorKind};
-pub(crate) use file::content_end;
 pub use file::{
     OpenOptions, Volume, VolumeData, full_resolution_coordinate, has_vol_extension,
     level_coordinate, ranges_sidecar_path, read_header, read_header_of_cut_file,
     unused_tail_warning, write_pyramid_sidecar,
 };
+pub(crate) use file::{content_end, embedded_ranges_end};
 pub use grid::BlockGrid;
 pub use header::{
     Content, EXTENDED_HEADER_LEN, EXTENSION_MAGIC, EXTENSION_VERSION, Format, Header, HeaderError,
