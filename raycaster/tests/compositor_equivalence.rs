@@ -231,3 +231,43 @@ fn every_mode_draws_its_own_picture() {
         }
     }
 }
+
+#[test]
+fn an_object_without_a_domain_spans_the_frames_domain_values_beyond_it_included() {
+    // A scene's preset (no domain of its own) over a domain narrower than the
+    // data (a CT window, `--domain`): the object's function spans that domain,
+    // and the layer [0, 1] holds the values beyond it, which the function
+    // classifies as its ends — the plain mode's picture. (The object's function
+    // spanned the type's whole range once: CT rendered as an opaque box.)
+    for sample_type in [SampleType::U8, SampleType::U16] {
+        let volume = volume(SceneKind::Shapes, sample_type);
+        let data = transfer(SceneKind::Shapes, &volume);
+        let [lo, hi] = data.domain.unwrap();
+        let mut narrow = data.clone();
+        narrow.domain = Some([lo + 0.1 * (hi - lo), lo + 0.8 * (hi - lo)]);
+        let mut preset = narrow.clone();
+        preset.domain = None;
+        for (mode, local) in modes()
+            .into_iter()
+            .filter(|(m, _)| matches!(m, Mode::Dvr | Mode::Mip | Mode::FirstHit))
+        {
+            let plain = RenderSettings {
+                mode,
+                iso_value: ISO,
+                early_termination: None,
+                transfer: narrow.clone(),
+                ..RenderSettings::default()
+            };
+            let two_level = RenderSettings {
+                segments: Some(one_object(&preset, local)),
+                ..plain.clone()
+            };
+            for parallel in [false, true] {
+                let name = format!("narrow-domain-{}-{sample_type:?}-{parallel}", mode.name());
+                let expected = draw(&volume, &plain, parallel).to_image();
+                let actual = draw(&volume, &two_level, parallel).to_image();
+                assert_images_match(&name, &actual, &expected, 1);
+            }
+        }
+    }
+}

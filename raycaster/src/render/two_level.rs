@@ -93,7 +93,8 @@ pub(crate) struct TwoLevel {
     /// The distinct transfer tables of the visible objects (emptiness tests ask
     /// each table once, however many objects share it).
     tables: Vec<Arc<TransferTable>>,
-    /// Value layers in raw units (layer i = object i + 1), or `None` for labels.
+    /// Value layers in raw units (layer i = object i + 1; a layer from 0 or to 1
+    /// is open below or above), or `None` for labels.
     layers: Option<Vec<[f32; 2]>>,
     /// No two layers overlap (the usual case): a value in the current layer needs
     /// no other test.
@@ -132,12 +133,20 @@ impl TwoLevel {
         early_termination: Option<f32>,
     ) -> TwoLevel {
         let mut objects = vec![None; 256];
+        // An object's function without a domain of its own spans the frame's
+        // (the data's fitted values, or `--domain`), as the plain modes' does.
+        let spanning = |tf: &TransferFunction| {
+            let mut tf = tf.clone();
+            tf.domain = Some(tf.domain.unwrap_or(domain));
+            tf
+        };
         let mut tables: Vec<(&TransferFunction, Arc<TransferTable>)> = Vec::new();
         for o in scene.objects.iter().filter(|o| o.visible) {
             let table = match tables.iter().find(|(tf, _)| **tf == o.transfer) {
                 Some((_, t)) => t.clone(),
                 None => {
-                    let mut t = TransferTable::new(&o.transfer, type_max, step_ratio);
+                    let transfer = spanning(&o.transfer);
+                    let mut t = TransferTable::new(&transfer, type_max, step_ratio);
                     // One table per function: pre-integrated when any DVR object
                     // uses it (other modes ignore that part).
                     let dvr = scene
@@ -145,7 +154,7 @@ impl TwoLevel {
                         .iter()
                         .any(|p| p.visible && p.mode == LocalMode::Dvr && p.transfer == o.transfer);
                     if preintegrate && dvr {
-                        t = t.with_preintegration(&o.transfer, type_max);
+                        t = t.with_preintegration(&transfer, type_max);
                     }
                     let t = Arc::new(t);
                     tables.push((&o.transfer, t.clone()));
@@ -159,10 +168,18 @@ impl TwoLevel {
             Membership::Layers(layers) => Some(
                 layers
                     .iter()
-                    .map(|[lo, hi]| {
+                    .map(|&[lo, hi]| {
+                        // A layer from 0 takes the values below the domain too,
+                        // one to 1 those above it, as a transfer function is
+                        // constant beyond its domain: `[0, 1]` holds every value.
+                        let raw = |x: f32| domain[0] + x * (domain[1] - domain[0]);
                         [
-                            domain[0] + lo * (domain[1] - domain[0]),
-                            domain[0] + hi * (domain[1] - domain[0]),
+                            if lo <= 0.0 {
+                                f32::NEG_INFINITY
+                            } else {
+                                raw(lo)
+                            },
+                            if hi >= 1.0 { f32::INFINITY } else { raw(hi) },
                         ]
                     })
                     .collect(),
