@@ -845,14 +845,11 @@ fn dark_average_warning(volume: &Volume, dark: &raycaster::render::DarkAverage) 
 
 /// Opens a label volume, checking that it holds labels.
 fn open_labels(path: &Path) -> Result<Volume> {
-    let labels = Volume::open(path)?;
-    if labels.content() != Content::Labels {
-        bail!(
-            "{}: holds values, not labels; --labels takes a label volume (e.g. NAME.labels.vol from volgen generate --scene shells)",
-            path.display()
-        );
-    }
-    Ok(labels)
+    raycaster::source::open_labels(path).map_err(|e| match e {
+        // The volume's own error names its file.
+        raycaster::source::SourceError::Volume { source, .. } => source.into(),
+        e => e.into(),
+    })
 }
 
 /// Where the flags say the volume comes from.

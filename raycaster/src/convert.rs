@@ -25,6 +25,10 @@ pub struct ConvertOptions {
     /// Input values mapped linearly onto the output's full range, clamped outside.
     /// `None` chooses a [`ValueMap`] with [`plan_values`].
     pub window: Option<(f32, f32)>,
+    /// The input holds object ids (a segmentation): the output is a label
+    /// volume (u8 ids, never interpolated), its values copied (their whole
+    /// part); values beyond 0..=255, NaN or infinite ones are refused.
+    pub labels: bool,
 }
 
 /// How input values become stored samples.
@@ -171,8 +175,13 @@ pub fn convert(
     if input.files().any(|f| crate::files::same_file(f, output)) {
         return Err(VolumeError::new(output, VolumeErrorKind::SameFile));
     }
-    let content = input.content();
+    let content = if options.labels {
+        Content::Labels
+    } else {
+        input.content()
+    };
     let sample_type = options.sample_type.unwrap_or(match input.value_type() {
+        _ if content == Content::Labels => SampleType::U8,
         InputType::U8 => SampleType::U8,
         _ => SampleType::U16,
     });
@@ -208,7 +217,12 @@ pub fn convert(
         None => input.path(),
     };
     header.validate().at(blamed)?;
-    let (_, values, non_finite) = plan_values(input, Some(sample_type), options.window, job)?;
+    let (values, non_finite) = if content == Content::Labels {
+        (label_values(input, job)?, None)
+    } else {
+        let (_, values, non_finite) = plan_values(input, Some(sample_type), options.window, job)?;
+        (values, non_finite)
+    };
     // Units need the extended header; a thesis file of a windowed input keeps
     // stored values only (the summary's value map says how they were made).
     let header = match (content, options.format) {
@@ -233,6 +247,32 @@ pub fn convert(
         header,
         written,
     })
+}
+
+/// How the values of `input` become the ids of a label volume: copied, once a
+/// pass has found them all in 0..=255 (u8 inputs need none).
+fn label_values(input: &Input, job: &Job) -> Result<ValueMap, VolumeError> {
+    if input.value_type() == InputType::U8 {
+        return Ok(ValueMap::Copy);
+    }
+    let refuse = |what: String| {
+        Err(VolumeError::new(
+            input.path(),
+            VolumeErrorKind::RawSpec(format!("{what}: a label volume holds object ids 0 to 255")),
+        ))
+    };
+    let range = input.value_range(job)?;
+    match range.finite {
+        _ if range.non_finite > 0 => {
+            let voxels = input.dims().iter().map(|&d| u64::from(d)).product();
+            refuse(non_finite_count(range.non_finite, voxels))
+        }
+        None => refuse("it holds no finite value".into()),
+        Some((lo, hi)) if lo < 0.0 || hi >= 256.0 => {
+            refuse(format!("its values span {lo} to {hi}"))
+        }
+        Some(_) => Ok(ValueMap::Copy),
+    }
 }
 
 fn copy_slabs<T: Sample>(

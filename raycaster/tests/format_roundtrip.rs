@@ -381,6 +381,7 @@ fn convert_to(
         format: Format::Extended,
         spacing: None,
         window: None,
+        labels: false,
     };
     let write = WriteOptions {
         overwrite: false,
@@ -459,6 +460,7 @@ fn windowing_maps_the_window_onto_the_full_u8_range() {
         format: Format::Extended,
         spacing: Some([0.5, 0.5, 3.0]),
         window: Some((-1000.0, 1300.0)),
+        labels: false,
     };
     let done = convert(
         &input,
@@ -485,6 +487,7 @@ fn windowing_maps_the_window_onto_the_full_u8_range() {
     let out2 = dir.path().join("ct2.vol");
     let auto = ConvertOptions {
         window: None,
+        labels: false,
         ..options
     };
     let done = convert(
@@ -670,6 +673,7 @@ fn converting_a_file_onto_itself_is_refused() {
         format: Format::Extended,
         spacing: None,
         window: None,
+        labels: false,
     };
     let write = WriteOptions {
         overwrite: true,

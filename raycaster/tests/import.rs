@@ -198,6 +198,7 @@ fn convert_to(imported: &Imported, out: &Path, layout: Layout) -> ValueMap {
         format: Format::Extended,
         spacing: None,
         window: None,
+        labels: false,
     };
     let done = convert(
         &input,
@@ -550,6 +551,7 @@ fn random_mutations_of_whole_files_never_panic_or_leave_output() {
                 format: Format::Extended,
                 spacing: None,
                 window: None,
+                labels: false,
             };
             let write = WriteOptions {
                 overwrite: true,
@@ -880,6 +882,7 @@ fn a_ct_scan_keeps_hounsfield_units_through_conversion_and_windows_in_them() {
         format: Format::Extended,
         spacing: None,
         window: Some((-1000.0, 3080.0)),
+        labels: false,
     };
     let done = convert(
         &input,

@@ -68,6 +68,7 @@ fn convert_extended(input: &raycaster::io::Input, out: &Path, format: Format) {
         format,
         spacing: None,
         window: None,
+        labels: false,
     };
     convert(
         input,

@@ -27,7 +27,7 @@ use raycaster::slice::Axis;
 use raycaster::source::VolumeSource;
 use raycaster::synth::SceneKind;
 use raycaster::text::counted;
-use raycaster::volume::{Content, Volume, write_file_atomically};
+use raycaster::volume::{Volume, write_file_atomically};
 use slint::{
     ComponentHandle, Image, ModelRc, Rgba8Pixel, SharedPixelBuffer, SharedString, VecModel,
 };
@@ -489,11 +489,11 @@ fn open_session_volume(
         _ => None,
     };
     if let Some(labels) = wanted {
-        let label_volume = Volume::open(&labels)
-            .with_context(|| format!("cannot open labels {}", labels.display()))?;
-        if label_volume.content() != Content::Labels {
-            anyhow::bail!("{}: holds values, not labels", labels.display());
-        }
+        let label_volume = raycaster::source::open_labels(&labels).map_err(|e| match e {
+            raycaster::source::SourceError::Volume { source, .. } => anyhow::Error::new(source)
+                .context(format!("cannot open labels {}", labels.display())),
+            e => e.into(),
+        })?;
         volume.labels = Some(Arc::new(label_volume));
     }
     let labels_path = session.labels.clone();

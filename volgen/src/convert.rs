@@ -48,6 +48,8 @@ use crate::progress::{CANCEL, voxel_bar};
 ///   volgen convert volumes/data/ch2.nii.gz --layout linear -o ch2.vol
 ///
 ///   volgen convert shapes.vol --layout linear -o shapes-linear.vol
+///
+///   volgen convert segmentation.nrrd --labels -o scan.labels.vol
 #[derive(Args, Debug)]
 #[command(allow_negative_numbers = true)]
 pub struct ConvertArgs {
@@ -88,6 +90,13 @@ pub struct ConvertArgs {
     /// brain.
     #[arg(long, value_name = "LO:HI|NAME", allow_hyphen_values = true, value_parser = parse_window)]
     window: Option<(f32, f32)>,
+    /// The input is a segmentation (object ids 0 to 255, e.g. from a
+    /// segmentation tool's NRRD or NIfTI): write a label volume for
+    /// `raycaster render --labels` and scene files' `labels = ...` (u8 ids,
+    /// never interpolated). Values beyond 0..=255 are refused; fractions are
+    /// cut to their whole part.
+    #[arg(long, conflicts_with_all = ["window", "sample_type"])]
+    labels: bool,
     /// Output voxel spacing: S or X,Y,Z [default: the input's, or 1].
     #[arg(long, value_name = "S|X,Y,Z", value_parser = parse_spacing, allow_hyphen_values = true)]
     spacing: Option<[f32; 3]>,
@@ -216,6 +225,7 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
         format: Format::from(a.format),
         spacing: a.spacing,
         window: a.window,
+        labels: a.labels,
     };
     let voxels: u64 = input.dims().iter().map(|&d| u64::from(d)).product();
     let extra = if a.no_pyramid {
@@ -269,6 +279,7 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
                 format!(", values {lo}..={hi} mapped to the full range")
             }
             ValueMap::Offset => ", i16 values stored as value + 32768".to_string(),
+            ValueMap::Copy if a.labels => ", object ids copied (a label volume)".to_string(),
             ValueMap::Copy => ", values copied".to_string(),
         };
         let unit = match done.header.units.as_ref().map(|u| u.unit.as_str()) {

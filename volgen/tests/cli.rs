@@ -975,3 +975,102 @@ fn pyramid_checks_its_sidecar_can_be_written_before_any_work() {
         "error: t.vol.pyramid: is a directory, where the pyramid of t.vol goes: move it away"
     );
 }
+
+/// A segmentation from elsewhere (ids in a u16 or f32 NRRD) becomes a label
+/// volume with `convert --labels`: the ids of the generated shells' labels,
+/// voxel for voxel, opened as labels by what `raycaster render --labels` and
+/// the viewer call; the NRRD itself, or a conversion without `--labels`, is
+/// refused there with the command that makes one; ids beyond 0..=255 are
+/// refused with nothing written.
+#[test]
+fn a_segmentation_converted_with_labels_is_a_label_volume_of_its_ids() {
+    use raycaster::source::open_labels;
+    use raycaster::volume::{Content, Volume};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let o = volgen(
+        d,
+        &[
+            "generate", "--scene", "shells", "--size", "24", "-o", "s.vol", "-q",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let generated = Volume::open(d.join("s.labels.vol")).unwrap();
+    let [nx, ny, nz] = generated.dims();
+    let ids: Vec<u16> = (0..nz)
+        .flat_map(|z| (0..ny).flat_map(move |y| (0..nx).map(move |x| [x, y, z])))
+        .map(|v| generated.voxel(v))
+        .collect();
+    assert!(ids.iter().any(|&i| i == 4), "the shells have ids 0 to 4");
+    let nrrd = |name: &str, kind: &str, bytes: Vec<u8>| {
+        let header = format!(
+            "NRRD0004\ntype: {kind}\ndimension: 3\nsizes: {nx} {ny} {nz}\nencoding: raw\nendian: little\n\n"
+        );
+        std::fs::write(d.join(name), [header.into_bytes(), bytes].concat()).unwrap();
+    };
+    nrrd(
+        "seg.nrrd",
+        "uint16",
+        ids.iter().flat_map(|i| i.to_le_bytes()).collect(),
+    );
+    nrrd(
+        "seg-f.nrrd",
+        "float",
+        ids.iter()
+            .flat_map(|&i| f32::from(i).to_le_bytes())
+            .collect(),
+    );
+    for input in ["seg.nrrd", "seg-f.nrrd"] {
+        let out = input.replace(".nrrd", ".labels.vol");
+        let o = volgen(d, &["convert", input, "--labels", "-o", &out]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert!(
+            stdout(&o).contains("object ids copied (a label volume)"),
+            "{}",
+            stdout(&o)
+        );
+        let converted = open_labels(&d.join(&out)).unwrap();
+        assert_eq!(converted.content(), Content::Labels);
+        assert_eq!(converted.dims(), [nx, ny, nz]);
+        for z in 0..nz {
+            for y in 0..ny {
+                for x in 0..nx {
+                    let v = [x, y, z];
+                    assert_eq!(converted.voxel(v), generated.voxel(v), "{input} at {v:?}");
+                }
+            }
+        }
+    }
+    // The NRRD itself and its conversion as values: the command that helps.
+    let e = open_labels(&d.join("seg.nrrd")).unwrap_err().to_string();
+    assert!(
+        e.contains("label volumes are .vol files of object ids")
+            && e.contains("seg.nrrd --labels -o NAME.labels.vol"),
+        "{e}"
+    );
+    let o = volgen(d, &["convert", "seg.nrrd", "-o", "values.vol", "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let e = open_labels(&d.join("values.vol")).unwrap_err().to_string();
+    assert!(
+        e.contains("holds values, not labels") && e.contains("--labels"),
+        "{e}"
+    );
+    // An id of 256 fits no label volume: refused, nothing written.
+    let mut wide = ids.clone();
+    wide[3] = 256;
+    nrrd(
+        "wide.nrrd",
+        "uint16",
+        wide.iter().flat_map(|i| i.to_le_bytes()).collect(),
+    );
+    let o = volgen(d, &["convert", "wide.nrrd", "--labels", "-o", "wide.vol"]);
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains(
+            "wide.nrrd: its values span 0 to 256: a label volume holds object ids 0 to 255"
+        ),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!d.join("wide.vol").exists());
+}
