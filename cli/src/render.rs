@@ -693,7 +693,15 @@ impl Setup {
         } else {
             "--labels FILE names another"
         };
-        Setup::from_session(volume, session, read_before, labels_advice)
+        let setup = Setup::from_session(volume, session, read_before, labels_advice)?;
+        if let Some(scene) = &setup.settings.segments
+            && !args.quiet
+        {
+            for warning in scene.warnings(setup.labels.as_ref()) {
+                eprintln!("warning: {warning}");
+            }
+        }
+        Ok(setup)
     }
 
     /// The frame a session describes, its volume opened; `labels_advice` says

@@ -592,6 +592,13 @@ fn bad_segment_scenes_fail_with_a_clear_message_and_no_output() {
         "layers = [[0.0, 1.0]]\n[[object]]\nmode = \"glow\"\n",
     );
     write("both.toml", "layers = [[0.0, 1.0]]\nlabels = \"x.vol\"\n");
+    // Ids a layer scene can never show: 0 (the values in no layer) and one
+    // past its layers (a second object without an id takes 2).
+    write("zero.toml", "layers = [[0.1, 0.5]]\n[[object]]\nid = 0\n");
+    write(
+        "second.toml",
+        "layers = [[0.1, 0.5]]\n[[object]]\n[[object]]\nname = \"rim\"\n",
+    );
     write(
         "labels.toml",
         "labels = \"missing.labels.vol\"\n[[object]]\n",
@@ -603,7 +610,15 @@ fn bad_segment_scenes_fail_with_a_clear_message_and_no_output() {
         1,
         raycaster::volume::Format::Extended,
     );
-    let cases: [(&[&str], &str); 9] = [
+    let cases: [(&[&str], &str); 11] = [
+        (
+            &["--segments", "zero.toml"],
+            "object \"object 0\": id 0 names no layer: the scene has 1 layer (id 1; layer i is object i + 1)",
+        ),
+        (
+            &["--segments", "second.toml"],
+            "object \"rim\": id 2 names no layer",
+        ),
         // A scene given as the volume: the flag that takes it is named.
         (
             &["labels.toml"],
@@ -649,6 +664,85 @@ fn bad_segment_scenes_fail_with_a_clear_message_and_no_output() {
             "{extra:?} left an image"
         );
     }
+}
+
+/// A scene that shows nothing, or an object whose id the labels never hold,
+/// is rendered with a warning naming it (it rendered black without a word).
+#[test]
+fn scenes_showing_nothing_are_warned_of() {
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, text: &str| std::fs::write(dir.path().join(name), text).unwrap();
+    write("empty.toml", "labels = \"unused.labels.vol\"\n");
+    write(
+        "hidden.toml",
+        "layers = [[0.0, 1.0]]\n[[object]]\nvisible = false\n",
+    );
+    write(
+        "nine.toml",
+        "labels = \"unused.labels.vol\"\n[[object]]\nid = 9\nname = \"ghost\"\n[[object]]\nid = 2\n",
+    );
+    // The built-in shells bring their labels (ids 0 to 4).
+    let cases = [
+        (
+            "empty.toml",
+            "warning: the scene has no [[object]]: nothing shows",
+        ),
+        (
+            "hidden.toml",
+            "warning: the scene has no visible [[object]]: nothing shows",
+        ),
+        (
+            "nine.toml",
+            "warning: object \"ghost\" (id 9) shows nothing: the ids of ",
+        ),
+    ];
+    for (scene, needle) in cases {
+        let out = raycaster(
+            &[
+                "render",
+                "--scene",
+                "shells",
+                "--scene-size",
+                "32",
+                "--size",
+                "32",
+                "--segments",
+                scene,
+                "-o",
+                "out.png",
+                "--force",
+            ],
+            dir.path(),
+        );
+        assert!(out.status.success(), "{scene}: {}", stderr(&out));
+        let err = stderr(&out);
+        assert_eq!(err.matches(needle).count(), 1, "{scene}: {err}");
+        assert_eq!(err.matches("warning").count(), 1, "{scene}: {err}");
+    }
+    // A scene whose objects all show: no warning.
+    write(
+        "fine.toml",
+        "labels = \"unused.labels.vol\"\n[[object]]\nid = 4\n",
+    );
+    let out = raycaster(
+        &[
+            "render",
+            "--scene",
+            "shells",
+            "--scene-size",
+            "32",
+            "--size",
+            "32",
+            "--segments",
+            "fine.toml",
+            "-o",
+            "out.png",
+            "--force",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(!stderr(&out).contains("warning"), "{}", stderr(&out));
 }
 
 /// A flag the frame would not use is refused (exit 2, said once), where it

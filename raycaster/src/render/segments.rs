@@ -406,6 +406,22 @@ impl SegmentScene {
                     "object id {id} is defined twice"
                 )));
             }
+            // A layer object's id is its layer's index + 1: another id can
+            // never show (0 holds the values in no layer, transparent).
+            if let Membership::Layers(layers) = &membership
+                && !(1..=layers.len()).contains(&usize::from(id))
+            {
+                let n = layers.len();
+                let ids = if n == 1 {
+                    "id 1".to_string()
+                } else {
+                    format!("ids 1 to {n}")
+                };
+                let layer_s = if n == 1 { "layer" } else { "layers" };
+                return Err(SceneError::Invalid(format!(
+                    "object {name:?}: id {id} names no layer: the scene has {n} {layer_s} ({ids}; layer i is object i + 1)"
+                )));
+            }
             objects.push(ObjectStyle {
                 name,
                 id,
@@ -524,6 +540,46 @@ impl SegmentScene {
             }
         }
         out
+    }
+
+    /// What makes the scene show nothing, or less than it names, with its
+    /// label volume `labels` (`None` for value layers): no visible object, or
+    /// an object whose id no voxel of the labels holds (above their largest).
+    /// One line each, for people.
+    pub fn warnings(&self, labels: Option<&crate::volume::Volume>) -> Vec<String> {
+        let visible: Vec<&ObjectStyle> = self.objects.iter().filter(|o| o.visible).collect();
+        if visible.is_empty() {
+            let what = if self.objects.is_empty() {
+                "no [[object]]"
+            } else {
+                "no visible [[object]]"
+            };
+            return vec![format!(
+                "the scene has {what}: nothing shows (an object gives an id its transfer function and mode)"
+            )];
+        }
+        let Some(labels) = labels else {
+            return Vec::new();
+        };
+        let largest = labels
+            .ranges()
+            .as_slice()
+            .iter()
+            .map(|r| r[1])
+            .max()
+            .unwrap_or(0);
+        visible
+            .iter()
+            .filter(|o| u16::from(o.id) > largest)
+            .map(|o| {
+                format!(
+                    "object {:?} (id {}) shows nothing: the ids of {} go up to {largest}",
+                    o.name,
+                    o.id,
+                    labels.path().display()
+                )
+            })
+            .collect()
     }
 
     /// The style of object `id`, if any.
