@@ -1001,7 +1001,7 @@ fn a_segmentation_converted_with_labels_is_a_label_volume_of_its_ids() {
         .flat_map(|z| (0..ny).flat_map(move |y| (0..nx).map(move |x| [x, y, z])))
         .map(|v| generated.voxel(v))
         .collect();
-    assert!(ids.iter().any(|&i| i == 4), "the shells have ids 0 to 4");
+    assert!(ids.contains(&4), "the shells have ids 0 to 4");
     let nrrd = |name: &str, kind: &str, bytes: Vec<u8>| {
         let header = format!(
             "NRRD0004\ntype: {kind}\ndimension: 3\nsizes: {nx} {ny} {nz}\nencoding: raw\nendian: little\n\n"
