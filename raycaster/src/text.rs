@@ -47,9 +47,19 @@ pub fn toml_error(text: &str, error: &toml::de::Error) -> String {
     }
 }
 
+/// A linear map of stored samples said as people write it: `value = 2 *
+/// stored - 1024` (not `+ -1024`), the sign of the offset as an operator.
+pub fn scaling_text(slope: f32, intercept: f32) -> String {
+    if intercept < 0.0 {
+        format!("value = {slope} * stored - {}", -intercept)
+    } else {
+        format!("value = {slope} * stored + {intercept}")
+    }
+}
+
 #[cfg(test)]
 mod tests {
-    use super::{counted, toml_error, without_bom};
+    use super::{counted, scaling_text, toml_error, without_bom};
 
     #[test]
     fn toml_errors_are_one_line_with_their_place() {
@@ -89,5 +99,12 @@ mod tests {
         assert_eq!(counted(1, "bin"), "1 bin");
         assert_eq!(counted(0, "bin"), "0 bins");
         assert_eq!(counted(16, "bin"), "16 bins");
+    }
+
+    #[test]
+    fn a_negative_offset_is_said_with_a_minus() {
+        assert_eq!(scaling_text(2.0, -1024.0), "value = 2 * stored - 1024");
+        assert_eq!(scaling_text(0.5, 10.0), "value = 0.5 * stored + 10");
+        assert_eq!(scaling_text(1.0, 0.0), "value = 1 * stored + 0");
     }
 }

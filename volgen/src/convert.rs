@@ -278,7 +278,7 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
                 let [lo, hi] = values_in_units(input.units(), [lo, hi]);
                 format!(", values {lo}..={hi} mapped to the full range")
             }
-            ValueMap::Offset => ", i16 values stored as value + 32768".to_string(),
+            ValueMap::Offset => ", i16 samples stored as sample + 32768".to_string(),
             ValueMap::Copy if a.labels => ", object ids copied (a label volume)".to_string(),
             ValueMap::Copy => ", values copied".to_string(),
         };
@@ -373,7 +373,10 @@ fn describe_import(i: &Imported) -> String {
         encoding_name(i.encoding),
     );
     if let Some((slope, inter)) = i.scaling {
-        line += &format!(" (declares value = {slope} * stored + {inter}; stored values are kept)");
+        line += &format!(
+            " (declares {}; stored values are kept)",
+            raycaster::text::scaling_text(slope, inter)
+        );
     }
     line
 }

@@ -196,7 +196,10 @@ fn run_foreign(a: &InfoArgs) -> anyhow::Result<()> {
         println!("orientation {}", orientation.describe());
     }
     if let Some((slope, inter)) = imported.scaling {
-        println!("scaling     value = {slope} * stored + {inter} (the values below are scaled)");
+        println!(
+            "scaling     {} (the values below are scaled)",
+            raycaster::text::scaling_text(slope, inter)
+        );
     }
     if a.no_histogram {
         return Ok(());

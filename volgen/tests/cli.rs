@@ -630,12 +630,12 @@ fn converts_nrrd_nifti_and_metaimage_keeping_spacing() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     for (name, kept) in [
-        ("i16_gzip.nrrd", "i16 values stored as value + 32768"),
+        ("i16_gzip.nrrd", "i16 samples stored as sample + 32768"),
         ("u16_detached.nhdr", "values copied"),
         ("u8.nii", "values copied"),
         ("f32.nii.gz", "values -0.875..=7.125 mapped"),
         ("u16_zlib.mha", "values copied"),
-        ("i16.mhd", "i16 values stored"),
+        ("i16.mhd", "i16 samples stored"),
     ] {
         let input = fixture(name);
         let o = volgen(
