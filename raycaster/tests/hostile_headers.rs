@@ -732,7 +732,21 @@ fn a_file_of_another_kind_is_called_no_volume_not_a_broken_header() {
             "{name}: {e:?}"
         );
         assert!(e.to_string().contains("not a volume file"), "{e}");
+        // (A raw dump is the likeliest such file that is a volume.)
+        assert!(
+            e.to_string().contains("volgen convert FILE --raw XxYxZ"),
+            "{e}"
+        );
     }
+    // Gzip data under a name that says no compression: said as such.
+    let p = write(
+        &dir,
+        "scan.gz",
+        &[0x1f, 0x8b, 8, 0, 0, 0, 0, 0, 0, 3, 1, 2, 3],
+    );
+    let e = open_fails(&p);
+    assert!(matches!(e.kind, VolumeErrorKind::GzipUnnamed), "{e:?}");
+    assert!(e.to_string().contains("holds gzip-compressed data"), "{e}");
     // Named .vol, the same bytes are a broken .vol header.
     let p = write(&dir, "broken.VOL", &text);
     assert!(matches!(

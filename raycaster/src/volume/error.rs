@@ -64,9 +64,14 @@ pub enum VolumeErrorKind {
     Header(#[from] HeaderError),
     /// A file not named `.vol` whose first bytes are no `.vol` header either.
     #[error(
-        "not a volume file: its name ends in none of .vol, .nrrd, .nhdr, .nii, .nii.gz, .hdr, .mha, .mhd, .dcm, and its first bytes are no .vol header: {0}"
+        "not a volume file: its name ends in none of .vol, .nrrd, .nhdr, .nii, .nii.gz, .hdr, .mha, .mhd, .dcm, and its first bytes are no .vol header: {0} (headerless raw samples convert with `volgen convert FILE --raw XxYxZ -o NAME.vol`)"
     )]
     NotAVolume(HeaderError),
+    /// A file not named for a compressed format that holds gzip data.
+    #[error(
+        "not a volume file: it holds gzip-compressed data, and its name ends in none of .nii.gz, .nrrd, .nhdr, .mha, .mhd (a compressed NIfTI-1 file is named .nii.gz; NRRD and MetaImage headers name their compression)"
+    )]
+    GzipUnnamed,
     /// The embedded value-range table is unreadable.
     #[error("the value-range table after the samples is corrupt")]
     CorruptRanges,
