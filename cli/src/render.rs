@@ -693,6 +693,11 @@ impl Setup {
         } else {
             "--labels FILE names another"
         };
+        if let Some(warning) = raycaster::render::flat_volume(volume.dims())
+            && !args.quiet
+        {
+            eprintln!("warning: {}: {warning}", volume.path().display());
+        }
         let setup = Setup::from_session(volume, session, read_before, labels_advice)?;
         if let Some(scene) = &setup.settings.segments
             && !args.quiet

@@ -950,3 +950,59 @@ fn a_deep_perspective_view_samples_each_depth_at_its_own_level() {
         stderr(&out)
     );
 }
+
+/// A volume one voxel thick (a 2D image, a single slice, a line) renders as
+/// background: said, with the command that shows it (it wrote a black
+/// picture without a word).
+#[test]
+fn a_flat_volume_is_said_to_render_as_background() {
+    let dir = tempfile::tempdir().unwrap();
+    let nrrd = |name: &str, sizes: [u32; 3]| {
+        let n: u32 = sizes.iter().product();
+        let [x, y, z] = sizes;
+        let header =
+            format!("NRRD0004\ntype: uint8\ndimension: 3\nsizes: {x} {y} {z}\nencoding: raw\n\n");
+        let data: Vec<u8> = (0..n).map(|i| (i * 7 % 256) as u8).collect();
+        std::fs::write(dir.path().join(name), [header.into_bytes(), data].concat()).unwrap();
+    };
+    nrrd("slice.nrrd", [24, 16, 1]);
+    nrrd("line.nrrd", [1, 1, 40]);
+    nrrd("thin.nrrd", [24, 16, 2]);
+    for (name, needle) in [
+        (
+            "slice.nrrd",
+            "slice.nrrd: 24x16x1 voxels, one voxel thick along z: rays cross no volume, the picture is background (`raycaster slice` shows the plane)",
+        ),
+        (
+            "line.nrrd",
+            "line.nrrd: 1x1x40 voxels, one voxel thick along x and y",
+        ),
+    ] {
+        let out = raycaster(
+            &["render", name, "-o", "out.png", "--force", "--size", "32"],
+            dir.path(),
+        );
+        assert!(out.status.success(), "{name}: {}", stderr(&out));
+        assert_eq!(
+            stderr(&out).matches(needle).count(),
+            1,
+            "{name}: {}",
+            stderr(&out)
+        );
+    }
+    // Two voxels give depth: no warning.
+    let out = raycaster(
+        &[
+            "render",
+            "thin.nrrd",
+            "-o",
+            "out.png",
+            "--force",
+            "--size",
+            "32",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(!stderr(&out).contains("thick"), "{}", stderr(&out));
+}

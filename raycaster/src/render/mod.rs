@@ -96,7 +96,7 @@ pub use segments::{
 pub use sequential::{render_sequential, render_sequential_levels, render_sequential_noting};
 pub use settings::{
     AUTO_XRAY_DEPTH, DEFAULT_ERT_THRESHOLD, Mode, ModeParameters, RenderSettings, auto_xray_gain,
-    step_past_volume,
+    flat_volume, step_past_volume,
 };
 pub use shading::{FADE_QUANTA, Light, Shading};
 pub use simd::{SimdLevel, available as simd_levels};

@@ -114,6 +114,26 @@ pub fn step_past_volume(step: f32, diagonal: f32) -> Option<String> {
     })
 }
 
+/// What to say of a volume of `dims` voxels that is one voxel thick along an
+/// axis (a 2D image, a single slice, a line): the sampled box has no depth
+/// there, so rays cross no volume and a frame is background. `None` for
+/// volumes with depth on every axis.
+pub fn flat_volume(dims: [u32; 3]) -> Option<String> {
+    let flat: Vec<&str> = ["x", "y", "z"]
+        .into_iter()
+        .zip(dims)
+        .filter(|&(_, d)| d < 2)
+        .map(|(axis, _)| axis)
+        .collect();
+    (!flat.is_empty()).then(|| {
+        let [x, y, z] = dims;
+        format!(
+            "{x}x{y}x{z} voxels, one voxel thick along {}: rays cross no volume, the picture is background (`raycaster slice` shows the plane)",
+            flat.join(" and ")
+        )
+    })
+}
+
 /// The automatic X-ray gain's numerator ([`auto_xray_gain`]): about 0.036 for
 /// a 128³ volume, 0.0096 for a 512 × 512 × 48 CT of 0.57 × 0.57 × 5 mm voxels.
 pub const AUTO_XRAY_DEPTH: f32 = 8.0;
