@@ -440,6 +440,7 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
     std::fs::create_dir_all(&cache_dir)
         .with_context(|| format!("cannot create the cache folder {}", cache_dir.display()))?;
     let volume = first.open_volume(&cache_dir)?;
+    raycaster::files::guard_mapped_file(volume.path());
     if default_bricks {
         args.bricks = bricks_for(volume.layout());
     }

@@ -113,7 +113,7 @@ pub fn guard_mapped_reads(consequence: &str) {
     *SIGBUS_CONSEQUENCE.lock().unwrap_or_else(|e| e.into_inner()) = consequence.to_string();
     set_sigbus_message("a memory-mapped volume file".to_string());
     extern "C" fn on_sigbus(_: libc::c_int) {
-        // Only async-signal-safe calls: an atomic load, write(2) and _exit(2).
+        // Only async-signal-safe calls: atomic loads, write(2), unlink(2), _exit(2).
         let m = SIGBUS_MESSAGE.load(std::sync::atomic::Ordering::Acquire);
         if !m.is_null() {
             // SAFETY: the buffer is leaked, never freed; writing it to stderr.
@@ -122,6 +122,7 @@ pub fn guard_mapped_reads(consequence: &str) {
                 libc::write(2, m.as_ptr().cast(), m.len());
             }
         }
+        remove_partial_outputs_at_fault();
         // SAFETY: ends the process at once, as the signal would have.
         unsafe { libc::_exit(1) };
     }
@@ -185,7 +186,42 @@ pub fn temp_file_beside(path: &Path) -> std::io::Result<tempfile::NamedTempFile>
         .lock()
         .unwrap_or_else(|e| e.into_inner())
         .push(tmp.path().to_path_buf());
+    note_partial_for_faults(tmp.path());
     Ok(tmp)
+}
+
+/// The latest temporary files of [`temp_file_beside`] as C strings, for the
+/// SIGBUS handler of [`guard_mapped_reads`], which may neither lock nor
+/// allocate: a ring of leaked strings (a few dozen bytes per output written;
+/// the oldest, long finished, are forgotten first).
+static PARTIALS_AT_FAULT: [std::sync::atomic::AtomicPtr<libc::c_char>; 32] =
+    [const { std::sync::atomic::AtomicPtr::new(std::ptr::null_mut()) }; 32];
+static PARTIALS_AT_FAULT_NEXT: std::sync::atomic::AtomicUsize =
+    std::sync::atomic::AtomicUsize::new(0);
+
+fn note_partial_for_faults(path: &Path) {
+    use std::os::unix::ffi::OsStrExt;
+    let Ok(c) = std::ffi::CString::new(path.as_os_str().as_bytes()) else {
+        return;
+    };
+    let slot = PARTIALS_AT_FAULT_NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+        % PARTIALS_AT_FAULT.len();
+    // Leaked on purpose: the handler may be reading the string it replaces.
+    PARTIALS_AT_FAULT[slot].store(c.into_raw(), std::sync::atomic::Ordering::Release);
+}
+
+/// Unlinks the noted temporary files (those renamed or deleted since are
+/// gone: the unlink fails harmlessly); only async-signal-safe calls.
+#[allow(unsafe_code)] // unlink(2) without a safe wrapper that takes no allocation
+fn remove_partial_outputs_at_fault() {
+    for slot in &PARTIALS_AT_FAULT {
+        let p = slot.load(std::sync::atomic::Ordering::Acquire);
+        if !p.is_null() {
+            // SAFETY: `p` is a leaked, never freed C string; unlink(2) is
+            // async-signal-safe.
+            unsafe { libc::unlink(p) };
+        }
+    }
 }
 
 /// Every temporary file [`temp_file_beside`] made in this process: those of

@@ -166,7 +166,10 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
                 bar.finish_and_clear();
                 input
             }
-            None => Input::open_vol(&a.input)?,
+            None => {
+                raycaster::files::guard_mapped_file(&a.input);
+                Input::open_vol(&a.input)?
+            }
         },
     };
     if let Some(Err(why)) = input.embedded_ranges_intact()

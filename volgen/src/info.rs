@@ -38,6 +38,7 @@ pub fn run(a: InfoArgs) -> anyhow::Result<()> {
     if raycaster::import::detect(&a.file).is_some() {
         return run_foreign(&a);
     }
+    raycaster::files::guard_mapped_file(&a.file);
     let volume = Volume::open_with(&a.file, OpenOptions::default())?;
     let h = volume.header();
     let file_bytes = std::fs::metadata(&a.file)?.len();

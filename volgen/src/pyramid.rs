@@ -39,6 +39,7 @@ pub fn run(a: PyramidArgs) -> anyhow::Result<()> {
     if let Some(problem) = raycaster::import::vol_only_problem(&a.file) {
         anyhow::bail!("{}: {problem}", a.file.display());
     }
+    raycaster::files::guard_mapped_file(&a.file);
     let volume = Volume::open(&a.file)?;
     let dims = volume.dims();
     if level_dims(dims).is_empty() {

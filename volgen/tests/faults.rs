@@ -102,6 +102,27 @@ fn sigterm_and_sighup_cancel_like_ctrl_c_and_leave_no_partial_file() {
     }
 }
 
+/// A fault on a mapped file (SIGBUS: another program truncated it) ends the
+/// process at once, with no unwinding: the handler itself removes the output
+/// being written (`volgen pyramid` left a 218 MB partial file behind, saying
+/// nothing was written).
+#[test]
+fn a_fault_on_a_mapped_file_leaves_no_partial_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = interrupt_generate(dir.path(), libc::SIGBUS);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("shrank or vanished while it was read"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(
+        files_in(dir.path()).is_empty(),
+        "left {:?}",
+        files_in(dir.path())
+    );
+}
+
 /// Two signals (GNU `timeout` sends the child two): the second exits at once,
 /// and leaves no partial file either.
 #[test]
