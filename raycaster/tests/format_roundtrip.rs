@@ -719,3 +719,30 @@ fn raw_size_mismatch_names_the_file_and_the_sizes() {
     let skipped = RawSpec { skip: 62, ..spec };
     assert!(Input::open_raw(&long, skipped).is_ok());
 }
+
+/// A `.vol` input cut by another program while it is converted: said as such,
+/// with the sizes (it said "failed to fill whole buffer").
+#[test]
+fn an_input_cut_while_it_is_read_says_it_shrank() {
+    let dir = tmp();
+    let path = dir.path().join("cut.vol");
+    let header = unit_header([16; 3], Layout::Linear, SampleType::U8, Format::Extended);
+    write_pattern(&path, &header);
+    let input = Input::open_vol(&path).unwrap();
+    let file = std::fs::OpenOptions::new().write(true).open(&path).unwrap();
+    file.set_len(header.data_offset + 100).unwrap();
+    let mut slab = vec![0u8; 16 * 16 * 16];
+    let e = input
+        .read_slab(0, 16, &|v: f32| v as u8, &mut slab)
+        .unwrap_err();
+    let text = e.to_string();
+    assert!(
+        text.contains("cut.vol")
+            && text.contains(&format!(
+                "shrank to {} bytes while it was read",
+                header.data_offset + 100
+            ))
+            && text.contains("another program truncated it"),
+        "{text}"
+    );
+}

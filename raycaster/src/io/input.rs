@@ -379,7 +379,24 @@ impl Input {
     }
 
     fn read_at(&self, buf: &mut [u8], offset: u64) -> Result<(), VolumeError> {
-        self.file.read_exact_at(buf, offset).at(&self.path)
+        self.file
+            .read_exact_at(buf, offset)
+            .map_err(|e| match e.kind() {
+                // Its length was checked when it was opened: another program
+                // cut the file while it was read.
+                std::io::ErrorKind::UnexpectedEof => {
+                    let now = self.file.len().unwrap_or(0);
+                    let needed = offset.saturating_add(buf.len() as u64);
+                    std::io::Error::new(
+                        e.kind(),
+                        format!(
+                            "shrank to {now} bytes while it was read (it needs {needed}): another program truncated it"
+                        ),
+                    )
+                }
+                _ => e,
+            })
+            .at(&self.path)
     }
 
     /// Fills `out` with `map(value)` for every voxel of planes `x0..x1`, x slowest
