@@ -394,6 +394,14 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
     }
     if let Some(path) = &args.plot {
         crate::output::check_not_an_input(path, &args.file, "the plot")?;
+        if let Some(csv) = &args.csv
+            && raycaster::files::same_target(csv, path)
+        {
+            bail!(
+                "--csv and --plot both name {}: the plot would replace the CSV; name two files",
+                path.display()
+            );
+        }
         if plot::is_svg(path) {
             crate::output::check_file(path, args.force)?;
         } else {
@@ -441,6 +449,23 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
         .with_context(|| format!("cannot create the cache folder {}", cache_dir.display()))?;
     let volume = first.open_volume(&cache_dir)?;
     raycaster::files::guard_mapped_file(volume.path());
+    // The generated volume is an input too (a named FILE was checked above).
+    for (output, what) in [(&args.csv, "--csv"), (&args.plot, "--plot")] {
+        if let Some(output) = output
+            && raycaster::files::same_target(output, volume.path())
+        {
+            bail!(
+                "{what} {}: is the volume this benchmark reads; name another file",
+                output.display()
+            );
+        }
+    }
+    // A table piped to `head` must not cost the files written at the end: a
+    // closed standard output skips the rest of the table
+    // (`raycaster::console`) instead of ending the process.
+    if args.csv.is_some() || args.plot.is_some() {
+        crate::ignore_sigpipe();
+    }
     if default_bricks {
         args.bricks = bricks_for(volume.layout());
     }

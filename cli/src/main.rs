@@ -3,6 +3,27 @@
 //! A thin command-line shell around the `raycaster` library; every camera,
 //! transfer function and renderer lives there.
 
+// `println!` and its kin without the standard library's panic when the stream
+// cannot take the text (a full disk, a closed standard output): the
+// `raycaster::console` functions; defined before the modules, they stand in
+// for the standard macros in all of them.
+macro_rules! println {
+    () => { raycaster::console::print_line(format_args!("")) };
+    ($($arg:tt)*) => { raycaster::console::print_line(format_args!($($arg)*)) };
+}
+#[allow(unused_macros)] // (every one stands in, used or not yet)
+macro_rules! print {
+    ($($arg:tt)*) => { raycaster::console::print(format_args!($($arg)*)) };
+}
+macro_rules! eprintln {
+    () => { raycaster::console::eprint_line(format_args!("")) };
+    ($($arg:tt)*) => { raycaster::console::eprint_line(format_args!($($arg)*)) };
+}
+#[allow(unused_macros)]
+macro_rules! eprint {
+    ($($arg:tt)*) => { raycaster::console::eprint(format_args!($($arg)*)) };
+}
+
 mod args;
 mod bench;
 mod compare;
@@ -67,6 +88,11 @@ fn main() {
         report_error(&e);
         std::process::exit(1);
     }
+    // The work is done and its files written; what it printed was not.
+    if let Some(failure) = raycaster::console::stdout_failure() {
+        eprintln!("error: {failure}");
+        std::process::exit(1);
+    }
 }
 
 /// Prints `e` the one way the command reports a failure (`error: …`).
@@ -99,6 +125,17 @@ fn stop_cleanly_on_signals() {
 /// A closed stdout (`raycaster render --stats-json | head -c 10`) ends the process
 /// quietly, as for any Unix tool, instead of a panic in `println!` (Rust ignores
 /// SIGPIPE).
+/// A closed standard output no longer ends the process (a command whose
+/// files are written after its table): writes to it fail instead, and
+/// `raycaster::console` skips the rest.
+#[allow(unsafe_code)] // signal() has no safe wrapper in std
+pub(crate) fn ignore_sigpipe() {
+    // SAFETY: setting a signal's disposition; no handler runs Rust code.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_IGN);
+    }
+}
+
 #[allow(unsafe_code)] // signal() has no safe wrapper in std
 fn restore_sigpipe() {
     // SAFETY: setting a signal's disposition to the default before any thread starts.

@@ -10,7 +10,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::OnceLock;
 
-use anyhow::{Context, Result, anyhow};
+use anyhow::{Result, anyhow};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use raycaster::render::RgbImage;
@@ -45,9 +45,8 @@ pub fn write(path: &Path, records: &[Record]) -> Result<()> {
             BitMapBackend::with_buffer(&mut rgb, SIZE).into_drawing_area(),
             records,
         )?;
-        RgbImage::new(SIZE.0, SIZE.1, rgb)
-            .save_png(path)
-            .with_context(|| format!("cannot write {}", path.display()))
+        // (The image's error names the file.)
+        Ok(RgbImage::new(SIZE.0, SIZE.1, rgb).save_png(path)?)
     }
 }
 

@@ -400,6 +400,42 @@ fn a_closed_stdout_is_a_quiet_exit_not_a_panic() {
     );
 }
 
+/// Standard output or error on a full disk (`> /dev/full`): the image is
+/// written, one error line says what was lost, exit 1 (it panicked, 101).
+#[test]
+fn a_full_standard_output_or_error_is_an_error_line_not_a_panic() {
+    let dir = tempfile::tempdir().unwrap();
+    let full = || std::fs::File::create("/dev/full").unwrap();
+    let mut args = vec!["render", "--stats-json", "--force", "-o", "out.png"];
+    args.extend(SMALL);
+    let o = Command::new(env!("CARGO_BIN_EXE_raycaster"))
+        .args(&args)
+        .current_dir(dir.path())
+        .stdout(full())
+        .stderr(Stdio::piped())
+        .output()
+        .unwrap();
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    // (With --stats-json the summary line goes to standard error.)
+    assert!(
+        e.ends_with("\nerror: standard output: No space left on device (os error 28); the output printed is incomplete\n"),
+        "{e}"
+    );
+    assert_eq!(e.matches("error:").count(), 1, "{e}");
+    assert!(dir.path().join("out.png").exists());
+    // Standard error full: nothing can be said, the image is written all the same.
+    let o = Command::new(env!("CARGO_BIN_EXE_raycaster"))
+        .args(&args)
+        .current_dir(dir.path())
+        .stdout(Stdio::piped())
+        .stderr(full())
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(0));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("\"samples\""));
+}
+
 #[test]
 fn absurd_spacings_are_refused_at_once_not_rendered_forever() {
     let dir = tempfile::tempdir().unwrap();
@@ -1482,5 +1518,72 @@ fn render_and_slice_never_write_the_image_over_their_input() {
         stderr(&o).starts_with("error: out: is a directory; name a file"),
         "{}",
         stderr(&o)
+    );
+}
+
+/// Bench's outputs: the CSV and the plot under one name, or an output that is
+/// the generated volume it reads, are refused before the sweep (the plot
+/// replaced the CSV; the CSV replaced the cached volume); a table piped to a
+/// reader that closes early still gets its CSV written (the process ended at
+/// the first row past the pipe).
+#[test]
+fn bench_outputs_never_replace_each_other_or_its_volume() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let quick = [
+        "bench",
+        "--quick",
+        "--volume-size",
+        "16",
+        "--cache-dir",
+        "c",
+    ];
+    let o = raycaster(
+        &[&quick[..], &["--csv", "o.png", "--plot", "./o.png"]].concat(),
+        d,
+    );
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("--csv and --plot both name ./o.png: the plot would replace the CSV"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!d.join("o.png").exists());
+    // The cache's volume as the CSV (its name is what bench generates).
+    let o = raycaster(&quick, d);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let cached: Vec<_> = std::fs::read_dir(d.join("c"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    assert_eq!(cached.len(), 1, "{cached:?}");
+    let before = std::fs::read(&cached[0]).unwrap();
+    let name = cached[0].to_str().unwrap();
+    let o = raycaster(&[&quick[..], &["--csv", name, "--force"]].concat(), d);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("is the volume this benchmark reads; name another file"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(std::fs::read(&cached[0]).unwrap(), before);
+    // A reader that closes at once: the sweep goes on and writes its CSV.
+    let (reader, writer) = std::io::pipe().unwrap();
+    drop(reader);
+    let o = Command::new(env!("CARGO_BIN_EXE_raycaster"))
+        .args([&quick[..], &["--csv", "t.csv"]].concat())
+        .current_dir(d)
+        .stdout(writer)
+        .stderr(Stdio::piped())
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(0), "{:?}: {}", o.status, stderr(&o));
+    assert!(stderr(&o).contains("wrote t.csv"), "{}", stderr(&o));
+    assert!(
+        std::fs::read_to_string(d.join("t.csv"))
+            .unwrap()
+            .lines()
+            .count()
+            > 1
     );
 }

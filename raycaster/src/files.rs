@@ -77,6 +77,19 @@ pub fn same_file(a: &Path, b: &Path) -> bool {
     }
 }
 
+/// Whether `a` and `b` name the same file, existing or not: the same name in
+/// the same folder, however the folders are written (`x.vol` and `./x.vol`, a
+/// linked folder). For two outputs of one command, or an output and a file
+/// it reads.
+pub fn same_target(a: &Path, b: &Path) -> bool {
+    let place = |p: &Path| {
+        let folder = parent_dir(p).canonicalize().ok();
+        (folder, p.file_name().map(|n| n.to_os_string()))
+    };
+    let (pa, pb) = (place(a), place(b));
+    pa.0.is_some() && pa == pb
+}
+
 /// Reads the regular file `path` as UTF-8 text, refusing files over `max_bytes`
 /// (a text file of settings is small; a huge one is a mistake, not a setting).
 pub fn read_text(path: &Path, max_bytes: u64) -> std::io::Result<String> {

@@ -138,7 +138,10 @@ pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
     if a.labels.is_some() && !scene.has_labels() {
         wrong_command_line!("scene `{}` has no label volume; drop --labels", kind.name());
     }
-    if labels.as_deref().is_some_and(|l| same_target(l, &a.output)) {
+    if labels
+        .as_deref()
+        .is_some_and(|l| raycaster::files::same_target(l, &a.output))
+    {
         wrong_command_line!("--labels must differ from --output");
     }
     let options = WriteOptions {
@@ -319,17 +322,6 @@ impl Drop for Staged {
             }
         }
     }
-}
-
-/// Whether `a` and `b` name the same file: the same name in the same folder,
-/// however the folders are written (`x.vol` and `./x.vol`, a linked folder).
-fn same_target(a: &Path, b: &Path) -> bool {
-    let place = |p: &Path| {
-        let folder = raycaster::files::parent_dir(p).canonicalize().ok();
-        (folder, p.file_name().map(|n| n.to_os_string()))
-    };
-    let (pa, pb) = (place(a), place(b));
-    pa.0.is_some() && pa == pb
 }
 
 /// `, pyramid of 3 levels` (or nothing).

@@ -3,6 +3,27 @@
 //! A thin command-line shell around the `raycaster` library: every format, scene and
 //! conversion lives there.
 
+// `println!` and its kin without the standard library's panic when the stream
+// cannot take the text (a full disk, a closed standard output): the
+// `raycaster::console` functions; defined before the modules, they stand in
+// for the standard macros in all of them.
+macro_rules! println {
+    () => { raycaster::console::print_line(format_args!("")) };
+    ($($arg:tt)*) => { raycaster::console::print_line(format_args!($($arg)*)) };
+}
+#[allow(unused_macros)] // (every one stands in, used or not yet)
+macro_rules! print {
+    ($($arg:tt)*) => { raycaster::console::print(format_args!($($arg)*)) };
+}
+macro_rules! eprintln {
+    () => { raycaster::console::eprint_line(format_args!("")) };
+    ($($arg:tt)*) => { raycaster::console::eprint_line(format_args!($($arg)*)) };
+}
+#[allow(unused_macros)]
+macro_rules! eprint {
+    ($($arg:tt)*) => { raycaster::console::eprint(format_args!($($arg)*)) };
+}
+
 mod args;
 mod convert;
 mod generate;
@@ -71,6 +92,11 @@ fn main() {
         eprintln!("error: {}", raycaster::errors::error_text(e.as_ref()));
         let wrong_command_line = e.downcast_ref::<args::CommandLineError>().is_some();
         std::process::exit(if wrong_command_line { 2 } else { 1 });
+    }
+    // The work is done and its files written; what it printed was not.
+    if let Some(failure) = raycaster::console::stdout_failure() {
+        eprintln!("error: {failure}");
+        std::process::exit(1);
     }
 }
 

@@ -123,6 +123,32 @@ fn a_fault_on_a_mapped_file_leaves_no_partial_file() {
     );
 }
 
+/// Standard output on a full disk (`> /dev/full`): the volume is written, one
+/// error line says what was lost, exit 1 (it panicked, 101); `info` too.
+#[test]
+fn a_full_standard_output_is_an_error_line_not_a_panic() {
+    let dir = tempfile::tempdir().unwrap();
+    for args in [
+        &["generate", "--size", "16", "-o", "g.vol"][..],
+        &["info", "g.vol"],
+    ] {
+        let o = Command::new(env!("CARGO_BIN_EXE_volgen"))
+            .current_dir(dir.path())
+            .args(args)
+            .stdout(std::fs::File::create("/dev/full").unwrap())
+            .stderr(Stdio::piped())
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {}", stderr(&o));
+        assert_eq!(
+            stderr(&o),
+            "error: standard output: No space left on device (os error 28); the output printed is incomplete\n",
+            "{args:?}"
+        );
+    }
+    assert!(dir.path().join("g.vol").exists());
+}
+
 /// Two signals (GNU `timeout` sends the child two): the second exits at once,
 /// and leaves no partial file either.
 #[test]

@@ -813,8 +813,10 @@ pub(crate) fn temp_file_beside(path: &Path) -> std::io::Result<tempfile::NamedTe
 /// rename, so readers never see a partial file.
 pub fn write_file_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     use std::io::Write;
-    let mut tmp = temp_file_beside(path)?;
-    tmp.write_all(bytes)?;
+    let tmp = temp_file_beside(path)?;
+    // (Through the file itself: the temporary file's own writer names its
+    // path in errors, which the user never chose.)
+    tmp.as_file().write_all(bytes)?;
     tmp.as_file().sync_all()?;
     tmp.persist(path).map_err(|e| e.error)?;
     Ok(())
