@@ -136,6 +136,77 @@ mod mpi_rank {
         Err(ReportedElsewhere.into())
     }
 
+    /// Whether this rank set up the frame rank 0 did: the same volume (its
+    /// size, type, spacing, levels and brick value ranges), view and
+    /// settings. Ranks that read another file (a path that differs between
+    /// machines) or were given other flags would exchange pixel states of
+    /// other frames: they hung waiting for bands that never came, or wrote a
+    /// mixed image.
+    fn same_frame_as_rank_0(
+        world: &SimpleCommunicator,
+        setup: &Setup,
+        args: &RenderArgs,
+    ) -> Result<()> {
+        use std::hash::{DefaultHasher, Hash, Hasher};
+        let volume = &setup.volume;
+        let described = [
+            (
+                "volume",
+                format!(
+                    "{} {}x{}x{} {:?}, spacing {:?}, {} levels",
+                    volume.path().display(),
+                    volume.dims()[0],
+                    volume.dims()[1],
+                    volume.dims()[2],
+                    volume.sample_type(),
+                    volume.spacing(),
+                    volume.level_count()
+                ),
+                format!("{:?}", volume.ranges().as_slice()),
+            ),
+            ("view", String::new(), format!("{:?}", setup.camera)),
+            (
+                "settings",
+                String::new(),
+                format!(
+                    "{:?} {:?} {:?} {:?}",
+                    setup.settings, setup.bands, args.bands, args.compositing
+                ),
+            ),
+        ];
+        // (DefaultHasher::new has fixed keys: every rank runs this binary.)
+        let mine: Vec<u64> = described
+            .iter()
+            .map(|(_, said, detail)| {
+                let mut h = DefaultHasher::new();
+                // The volume's path may differ between machines; its content not.
+                let said = said.split_once(' ').map_or(said.as_str(), |(_, rest)| rest);
+                (said, detail).hash(&mut h);
+                h.finish()
+            })
+            .collect();
+        let mut all = vec![0u64; mine.len() * world.size() as usize];
+        world.all_gather_into(&mine[..], &mut all[..]);
+        let rank_0 = &all[..mine.len()];
+        match described
+            .iter()
+            .zip(&mine)
+            .zip(rank_0)
+            .find(|((_, m), r)| m != r)
+        {
+            None => Ok(()),
+            Some(((("volume", said, _), _), _)) => Err(anyhow!(
+                "its volume ({said}) is not rank 0's: every rank must read the same volume (on a cluster, the same file at the same path)"
+            )),
+            Some(((("view", _, _), _), _)) => Err(anyhow!(
+                "its view (camera and image size) is not rank 0's: every rank must be given the same flags"
+            )),
+            Some(_) => Err(anyhow!(
+                "its render settings are not rank 0's: every rank must be given the same flags"
+            )),
+        }
+    }
+
     /// A panic on one rank aborts the whole job instead of leaving the others
     /// waiting for its messages.
     fn abort_job_on_panic() {
@@ -161,6 +232,7 @@ mod mpi_rank {
         };
         agree(&world, checked)?;
         let mut setup = agree(&world, Setup::new(&args))?;
+        agree(&world, same_frame_as_rank_0(&world, &setup, &args))?;
         if Compositing::from(args.compositing) == Compositing::DirectSend {
             // Partial images of one level: the nearest band's for the whole frame.
             setup.bands.truncate(1);

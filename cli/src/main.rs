@@ -62,8 +62,17 @@ fn main() {
     stop_cleanly_on_signals();
     raycaster::files::guard_mapped_reads("stopped, nothing was written");
     use clap::{CommandFactory, FromArgMatches};
-    let matches = Cli::command().get_matches();
-    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
+    // Under mpirun every rank runs this command line: what is wrong with it
+    // is said once, by rank 0.
+    let other_rank = launched_as_rank().is_some_and(|(rank, size)| rank > 0 && size > 1);
+    let exit = |e: clap::Error| -> ! {
+        if other_rank {
+            std::process::exit(e.exit_code());
+        }
+        e.exit()
+    };
+    let matches = Cli::command().try_get_matches().unwrap_or_else(|e| exit(e));
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| exit(e));
     if let Command::Render(args) = &cli.command
         && let Some(given) = matches.subcommand_matches("render")
         && let Some(conflict) = args.conflict(given)
@@ -71,9 +80,18 @@ fn main() {
         let mut cli = Cli::command();
         cli.build();
         let render = cli.find_subcommand_mut("render").expect("a render command");
-        render
-            .error(clap::error::ErrorKind::ArgumentConflict, conflict)
-            .exit();
+        exit(render.error(clap::error::ErrorKind::ArgumentConflict, conflict));
+    }
+    if let Command::Render(args) = &cli.command
+        && !args.distributed
+        && let Some((_, size @ 2..)) = launched_as_rank()
+    {
+        if !other_rank {
+            eprintln!(
+                "error: raycaster render runs as {size} processes under mpirun, each rendering the whole frame into the same file: add --distributed to render one frame together (docs/distributed.md), or run it without mpirun"
+            );
+        }
+        std::process::exit(2);
     }
     let result = match cli.command {
         Command::Render(a) => render::run(*a),
@@ -85,7 +103,11 @@ fn main() {
         if distributed::reported_elsewhere(&e) {
             std::process::exit(1);
         }
-        report_error(&e);
+        // (The ranks of a distributed frame agree on errors and name the
+        // failing rank; any other error is every rank's, said once.)
+        if !other_rank {
+            report_error(&e);
+        }
         std::process::exit(1);
     }
     // The work is done and its files written; what it printed was not.
@@ -93,6 +115,20 @@ fn main() {
         eprintln!("error: {failure}");
         std::process::exit(1);
     }
+}
+
+/// This process's rank and the job's size when mpirun started it (Open MPI's
+/// variables, or the PMI ones of MPICH and others); `None` outside MPI.
+fn launched_as_rank() -> Option<(u32, u32)> {
+    let number = |names: [&str; 2]| {
+        names
+            .iter()
+            .find_map(|n| std::env::var(n).ok()?.parse::<u32>().ok())
+    };
+    Some((
+        number(["OMPI_COMM_WORLD_RANK", "PMI_RANK"])?,
+        number(["OMPI_COMM_WORLD_SIZE", "PMI_SIZE"])?,
+    ))
 }
 
 /// Prints `e` the one way the command reports a failure (`error: …`).

@@ -21,9 +21,27 @@ fn binary() -> &'static str {
 /// Runs `mpirun -np ranks raycaster ARGS`, killed after two minutes (a hang
 /// fails the test instead of blocking CI).
 fn mpirun(ranks: usize, args: &[&str]) -> Output {
+    let ranks = ranks.to_string();
+    mpirun_line(&[&["-np", &ranks, binary()][..], args].concat())
+}
+
+/// One rank per argument list (`mpirun -np 1 raycaster A : -np 1 raycaster B`).
+fn mpirun_ranks(ranks: &[&[&str]]) -> Output {
+    let mut line: Vec<&str> = Vec::new();
+    for (i, args) in ranks.iter().enumerate() {
+        if i > 0 {
+            line.push(":");
+        }
+        line.extend(["-np", "1", binary()]);
+        line.extend(args.iter());
+    }
+    mpirun_line(&line)
+}
+
+fn mpirun_line(line: &[&str]) -> Output {
     let mut child = Command::new("mpirun")
-        .args(["--oversubscribe", "-np", &ranks.to_string(), binary()])
-        .args(args)
+        .arg("--oversubscribe")
+        .args(line)
         .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
         .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
         .stdout(std::process::Stdio::piped())
@@ -34,7 +52,7 @@ fn mpirun(ranks: usize, args: &[&str]) -> Output {
     while child.try_wait().unwrap().is_none() {
         if start.elapsed() > Duration::from_secs(120) {
             child.kill().unwrap();
-            panic!("mpirun -np {ranks} {args:?} hung");
+            panic!("mpirun {line:?} hung");
         }
         std::thread::sleep(Duration::from_millis(20));
     }
@@ -274,5 +292,71 @@ fn a_deep_view_of_a_pyramid_file_samples_the_same_levels_distributed() {
         let stdout = String::from_utf8_lossy(&out.stdout);
         let dist: serde_json::Value = serde_json::from_str(stdout.trim()).unwrap();
         assert_eq!(dist["samples"], json["samples"], "{ranks} ranks");
+    }
+}
+
+/// Ranks that open another volume, or were given another view or settings,
+/// end the job with one error naming the first such rank and what differs
+/// (they hung waiting for bands of another frame, or wrote a mixed image).
+#[test]
+fn ranks_of_another_frame_end_the_job_with_one_message() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("mixed.png");
+    let out = out.to_str().unwrap();
+    let base = [
+        "render",
+        "--distributed",
+        "--scene-size",
+        "24",
+        "--size",
+        "32",
+        "-o",
+        out,
+    ];
+    for (other, needle) in [
+        (&["--scene", "noise"][..], "rank 1 of 2: its volume ("),
+        (
+            &["--azimuth", "10"][..],
+            "rank 1 of 2: its view (camera and image size) is not rank 0's",
+        ),
+        (
+            &["--step", "0.3"][..],
+            "rank 1 of 2: its render settings are not rank 0's",
+        ),
+    ] {
+        let second = [&base[..], other].concat();
+        let o = mpirun_ranks(&[&base, &second]);
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{other:?}: {e}");
+        assert_eq!(e.matches("error:").count(), 1, "{other:?}: {e}");
+        assert!(e.contains(needle), "{other:?}: {e}");
+        assert!(!Path::new(out).exists(), "{other:?} wrote an image");
+    }
+}
+
+/// Every rank runs one command line: what is wrong with it is said once (it
+/// was said by every rank), and a render without `--distributed` under
+/// mpirun is refused (each rank rendered the whole frame into one file).
+#[test]
+fn a_command_line_is_judged_once_under_mpirun() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("b.png");
+    let out = out.to_str().unwrap();
+    for (args, needle) in [
+        (
+            &["render", "--distributed", "--bogus", "-o", out][..],
+            "unexpected argument '--bogus'",
+        ),
+        (
+            &["render", "--scene-size", "24", "-o", out],
+            "raycaster render runs as 2 processes under mpirun, each rendering the whole frame into the same file: add --distributed",
+        ),
+    ] {
+        let o = mpirun(2, args);
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{args:?}: {e}");
+        assert_eq!(e.matches("error:").count(), 1, "{args:?}: {e}");
+        assert!(e.contains(needle), "{args:?}: {e}");
+        assert!(!Path::new(out).exists(), "{args:?} wrote an image");
     }
 }
