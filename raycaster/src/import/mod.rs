@@ -771,9 +771,38 @@ impl Imported {
             Ok((RawData::Memory(buf), got))
         } else {
             let dir = scratch_dir.map_or_else(std::env::temp_dir, Path::to_path_buf);
+            // A write that fails is the scratch folder's, not the input's:
+            // said as such (a full disk read as "truncated or corrupt").
+            let scratch = |e: std::io::Error| {
+                let said = format!(
+                    "the decompressed samples ({}) go to a temporary file here first: {e}",
+                    crate::files::human_bytes(expected)
+                );
+                ImportError::new(&dir, std::io::Error::new(e.kind(), said))
+            };
+            if let Ok(free) = crate::files::free_space(&dir)
+                && free < expected
+            {
+                let said = format!("{} free", crate::files::human_bytes(free));
+                return Err(scratch(std::io::Error::new(
+                    std::io::ErrorKind::StorageFull,
+                    said,
+                )));
+            }
             let mut tmp = tempfile::tempfile_in(&dir).map_err(|e| ImportError::new(&dir, e))?;
-            let got = std::io::copy(&mut limited, &mut tmp).map_err(failed)?;
-            tmp.flush().map_err(|e| ImportError::new(&dir, e))?;
+            let mut got = 0u64;
+            let mut buf = vec![0u8; 1 << 20];
+            loop {
+                let n = match limited.read(&mut buf) {
+                    Ok(0) => break,
+                    Ok(n) => n,
+                    Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                    Err(e) => return Err(failed(e)),
+                };
+                tmp.write_all(&buf[..n]).map_err(scratch)?;
+                got += n as u64;
+            }
+            tmp.flush().map_err(scratch)?;
             Ok((RawData::File(tmp), got))
         }
     }
