@@ -67,7 +67,8 @@ pub struct BenchArgs {
     ram: bool,
 
     /// Where generated volumes are kept between runs [default:
-    /// $XDG_CACHE_HOME/raycaster/bench-volumes, else ~/.cache/raycaster/bench-volumes].
+    /// $XDG_CACHE_HOME/raycaster/bench-volumes, else ~/.cache/raycaster/bench-volumes,
+    /// else raycaster/bench-volumes in the temporary folder].
     #[arg(long, value_name = "DIR")]
     cache_dir: Option<PathBuf>,
 

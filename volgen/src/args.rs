@@ -76,10 +76,13 @@ pub fn parse_spacing(s: &str) -> Result<[f32; 3], String> {
 
 /// `LO:HI` (or `LO,HI`, as `raycaster` writes it) with LO < HI, or the name of
 /// a CT window (`lung`: its Hounsfield units).
-pub fn parse_window(s: &str) -> Result<(f32, f32), String> {
+pub fn parse_window(s: &str) -> Result<WindowArg, String> {
     if let Some(named) = raycaster::windows::named_window(s.trim()) {
         let [lo, hi] = named.range();
-        return Ok((lo, hi));
+        return Ok(WindowArg {
+            range: (lo, hi),
+            name: Some(named.name),
+        });
     }
     let separator = if s.contains(':') { ':' } else { ',' };
     let (lo, hi) = s.split_once(separator).ok_or_else(|| {
@@ -99,7 +102,20 @@ pub fn parse_window(s: &str) -> Result<(f32, f32), String> {
     if lo >= hi {
         return Err(format!("window low {lo} must be below high {hi}"));
     }
-    Ok((lo, hi))
+    Ok(WindowArg {
+        range: (lo, hi),
+        name: None,
+    })
+}
+
+/// A `--window`: input values `lo..hi`, and the name of a CT window given by
+/// name (in Hounsfield units).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WindowArg {
+    /// The values, in the input's units.
+    pub range: (f32, f32),
+    /// The CT window's name, when one was named.
+    pub name: Option<&'static str>,
 }
 
 /// A brick side that fits the header byte and is at least 2.
@@ -250,12 +266,13 @@ mod tests {
             "{lopsided}"
         );
         assert_eq!(parse_spacing("1,1,10000"), Ok([1.0, 1.0, 1e4]));
-        assert_eq!(parse_window("-1000:3000"), Ok((-1000.0, 3000.0)));
+        assert_eq!(parse_window("-1000:3000").unwrap().range, (-1000.0, 3000.0));
         assert!(parse_window("5:5").is_err());
         // raycaster's spelling and the named CT windows too.
-        assert_eq!(parse_window("-1000,2000"), Ok((-1000.0, 2000.0)));
+        assert_eq!(parse_window("-1000,2000").unwrap().range, (-1000.0, 2000.0));
         let lung = raycaster::windows::named_window("lung").unwrap().range();
-        assert_eq!(parse_window("lung"), Ok((lung[0], lung[1])));
+        assert_eq!(parse_window("lung").unwrap().range, (lung[0], lung[1]));
+        assert_eq!(parse_window("lung").unwrap().name, Some("lung"));
         assert!(parse_window("lungs").unwrap_err().contains("named window"));
         assert_eq!(parse_brick("16"), Ok(16));
         assert!(parse_brick("1").is_err());

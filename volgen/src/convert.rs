@@ -7,13 +7,13 @@ use std::time::Instant;
 use clap::Args;
 use raycaster::convert::{ConvertOptions, ConvertSummary, ValueMap, convert};
 use raycaster::import::{self, Imported};
-use raycaster::io::{Input, RawSpec, WriteOptions};
+use raycaster::io::{Input, InputType, RawSpec, WriteOptions};
 use raycaster::job::Job;
 use raycaster::volume::{Format, Layout, SampleType, ValueUnits, pyramid_voxels};
 
 use crate::args::{
-    EndianArg, FormatArg, LayoutArg, RawOrderArg, RawTypeArg, SampleArg, parse_brick, parse_dims,
-    parse_spacing, parse_window, wrong_command_line,
+    EndianArg, FormatArg, LayoutArg, RawOrderArg, RawTypeArg, SampleArg, WindowArg, parse_brick,
+    parse_dims, parse_spacing, parse_window, wrong_command_line,
 };
 use crate::generate::{describe_layout, describe_pyramid, describe_size};
 use crate::output::{check_output, output_name_warning, ray_length_warning};
@@ -89,7 +89,7 @@ pub struct ConvertArgs {
     /// (clamped outside); or a named CT window: ct, bone, soft-tissue, lung,
     /// brain.
     #[arg(long, value_name = "LO:HI|NAME", allow_hyphen_values = true, value_parser = parse_window)]
-    window: Option<(f32, f32)>,
+    window: Option<WindowArg>,
     /// The input is a segmentation (object ids 0 to 255, e.g. from a
     /// segmentation tool's NRRD or NIfTI): write a label volume for
     /// `raycaster render --labels` and scene files' `labels = ...` (u8 ids,
@@ -196,6 +196,20 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
         let warning = raycaster::volume::unused_tail_warning(&a.input, tail, "they are not copied");
         eprintln!("{warning}");
     }
+    // A named window is in Hounsfield units: 8-bit data without value units
+    // holds no HU (said as render's --domain and slice's --window say it).
+    if let Some(WindowArg {
+        name: Some(name), ..
+    }) = a.window
+        && input.units().is_identity()
+        && input.value_type() == InputType::U8
+        && !a.quiet
+    {
+        eprintln!(
+            "warning: --window {name}: a CT window in Hounsfield units, and {} holds 8-bit samples without value units; --window LO:HI gives a range in its own values",
+            a.input.display()
+        );
+    }
     let input_layout = input.header().map(|h| h.layout);
     let layout = match (a.layout, a.brick) {
         (Some(LayoutArg::Linear), Some(_)) => {
@@ -227,7 +241,7 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
         sample_type: a.sample_type.map(SampleType::from),
         format: Format::from(a.format),
         spacing: a.spacing,
-        window: a.window,
+        window: a.window.map(|w| w.range),
         labels: a.labels,
     };
     let voxels: u64 = input.dims().iter().map(|&d| u64::from(d)).product();
@@ -268,7 +282,7 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
             eprintln!("{warning}");
         }
         if let Some(window) = a.window
-            && let Some(warning) = window_outside_warning(&input, window, &done)?
+            && let Some(warning) = window_outside_warning(&input, window.range, &done)?
         {
             eprintln!("{warning}");
         }

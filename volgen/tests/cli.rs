@@ -1074,3 +1074,39 @@ fn a_segmentation_converted_with_labels_is_a_label_volume_of_its_ids() {
     );
     assert!(!d.join("wide.vol").exists());
 }
+
+/// A named CT window (Hounsfield units) on 8-bit data without value units is
+/// warned of, as render's `--domain` and slice's `--window` warn (it squeezed
+/// the values into a few stored levels without a word); a numeric window not.
+#[test]
+fn a_named_ct_window_on_8_bit_data_is_warned_of() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let o = volgen(d, &["generate", "--size", "16", "-o", "u8.vol", "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = volgen(
+        d,
+        &["convert", "u8.vol", "--window", "lung", "-o", "w.vol", "-q"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).is_empty(), "--quiet: {}", stderr(&o));
+    let o = volgen(
+        d,
+        &[
+            "convert", "u8.vol", "--window", "lung", "-o", "w.vol", "--force",
+        ],
+    );
+    assert_eq!(
+        stderr(&o).matches("warning: --window lung: a CT window in Hounsfield units, and u8.vol holds 8-bit samples without value units").count(),
+        1,
+        "{}",
+        stderr(&o)
+    );
+    let o = volgen(
+        d,
+        &[
+            "convert", "u8.vol", "--window", "0:100", "-o", "w.vol", "--force",
+        ],
+    );
+    assert!(!stderr(&o).contains("Hounsfield"), "{}", stderr(&o));
+}
