@@ -344,7 +344,7 @@ fn errors_in_transfer_function_and_scene_files_name_the_file() {
         (["--tf", "bad.tf"], "error: bad.tf: line 1: "),
         (
             ["--segments", "scene.toml"],
-            "error: scene.toml: scene description, object \"a\": ",
+            "error: scene.toml: scene description: object \"a\": ",
         ),
         (
             ["--segments", "broken.toml"],

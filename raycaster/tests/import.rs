@@ -788,6 +788,14 @@ fn broken_dicom_series_give_clear_errors() {
             && !err.contains("header"),
         "{err}"
     );
+    // A study's folder, the series in a subfolder: not searched, and said so.
+    let study = tempfile::tempdir().unwrap();
+    std::fs::create_dir(study.path().join("series-1")).unwrap();
+    let err = import::open(study.path()).unwrap_err().to_string();
+    assert!(
+        err.contains("it holds no files, only 1 folder (subfolders are not searched: name the series' own folder)"),
+        "{err}"
+    );
     // A folder of other files (it was an "invalid DICOM header").
     std::fs::write(empty.path().join("notes.txt"), "not a slice").unwrap();
     std::fs::write(empty.path().join("scan.raw"), [0u8; 300]).unwrap();
@@ -1067,6 +1075,26 @@ fn a_device_as_the_data_file_is_said_to_be_one_in_memory_too() {
         .to_string();
     assert!(err.contains("cannot open the data file"), "{err}");
     assert!(!err.contains("limit"), "{err}");
+    // A NIfTI pair's .img, missing, is said as the header's data file too (it
+    // was a bare "No such file or directory" of the .img).
+    let hdr = dir.path().join("pair.hdr");
+    let mut header = vec![0u8; 348];
+    header[0..4].copy_from_slice(&348i32.to_le_bytes());
+    for (i, d) in [3i16, 4, 4, 4, 1, 1, 1, 1].iter().enumerate() {
+        header[40 + 2 * i..42 + 2 * i].copy_from_slice(&d.to_le_bytes());
+    }
+    header[70..72].copy_from_slice(&2i16.to_le_bytes()); // uint8
+    header[72..74].copy_from_slice(&8i16.to_le_bytes());
+    for i in 0..4 {
+        header[76 + 4 * i..80 + 4 * i].copy_from_slice(&1f32.to_le_bytes());
+    }
+    header[344..348].copy_from_slice(b"ni1\0");
+    std::fs::write(&hdr, header).unwrap();
+    let err = import::open(&hdr).unwrap_err().to_string();
+    assert!(
+        err.contains("pair.hdr: cannot open the data file") && err.contains("pair.img"),
+        "{err}"
+    );
 }
 
 /// A `.dcm` file that is not DICOM is named, not its folder (before:

@@ -333,16 +333,19 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
     }
     let dir = series_dir(path);
     let at_dir = |k: ImportErrorKind| ImportError::new(&dir, k);
-    let plain: Vec<PathBuf> = std::fs::read_dir(&dir)
+    let (plain, folders): (Vec<PathBuf>, Vec<PathBuf>) = std::fs::read_dir(&dir)
         .map_err(|e| at_dir(e.into()))?
         .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.is_file())
-        .collect();
+        .filter(|p| p.is_file() || p.is_dir())
+        .partition(|p| p.is_file());
     let plain_count = plain.len();
     let mut files: Vec<PathBuf> = plain.into_iter().filter(|p| has_dicm_marker(p)).collect();
     files.sort();
     if files.is_empty() {
-        return Err(at_dir(ImportErrorKind::NoDicomFiles { files: plain_count }));
+        return Err(at_dir(ImportErrorKind::NoDicomFiles {
+            files: plain_count,
+            folders: folders.len(),
+        }));
     }
     let mut slices = Vec::with_capacity(files.len());
     for f in &files {

@@ -204,10 +204,12 @@ pub enum ImportErrorKind {
     #[error("not a DICOM file (it has no DICM marker at byte 128)")]
     NotDicom,
     /// A folder (opened as a DICOM series) holds no DICOM file.
-    #[error("{}", no_dicom_files_message(*files))]
+    #[error("{}", no_dicom_files_message(*files, *folders))]
     NoDicomFiles {
         /// The plain files it holds (none with the DICM marker).
         files: usize,
+        /// The folders it holds.
+        folders: usize,
     },
     /// The volume is too large to be built in memory.
     #[error(
@@ -230,8 +232,13 @@ pub enum ImportErrorKind {
 }
 
 /// [`ImportErrorKind::NoDicomFiles`]'s text.
-fn no_dicom_files_message(files: usize) -> String {
+fn no_dicom_files_message(files: usize, folders: usize) -> String {
     let held = match files {
+        // Series in subfolders (a study's folder): not searched.
+        0 if folders > 0 => format!(
+            "it holds no files, only {} (subfolders are not searched: name the series' own folder)",
+            crate::text::counted(folders as u64, "folder")
+        ),
         0 => "it holds no files".to_string(),
         1 => "its one file is not DICOM (it has no DICM marker)".to_string(),
         n => format!("none of its {n} files is DICOM (none has the DICM marker)"),

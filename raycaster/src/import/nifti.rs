@@ -326,7 +326,9 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
         image_path(path)
     };
     let encoding = if !h.single_file {
-        if is_gzip(&data_path).map_err(|e| ImportError::new(&data_path, e))? {
+        // (A missing .img is said as the header's data file, as NRRD's and
+        // MetaImage's are.)
+        if is_gzip(&data_path).map_err(|e| super::data_file_error(path, &data_path, e))? {
             Encoding::Gzip
         } else {
             Encoding::Raw

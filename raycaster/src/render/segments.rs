@@ -172,7 +172,7 @@ pub enum SceneError {
         source: Box<SceneError>,
     },
     /// An object's transfer function.
-    #[error("scene description, object {object:?}: {source}")]
+    #[error("scene description: object {object:?}: {source}")]
     Transfer {
         /// The object's name.
         object: String,
@@ -659,7 +659,22 @@ fn local_mode(o: &ObjectFile) -> Result<LocalMode, String> {
                     p[0], p[1], p[2]
                 ));
             }
-            let source = match o.importance.as_deref().unwrap_or("constant") {
+            // Each source takes `weight` or `p`, not both: the other is a
+            // leftover of an edit, said as the mode's parameters are.
+            let name = o.importance.as_deref().unwrap_or("constant");
+            let takes_p = matches!(name, "silhouette" | "lighting");
+            let known = takes_p || matches!(name, "constant" | "intensity" | "gradient");
+            if known && takes_p && o.weight.is_some() {
+                return Err(format!(
+                    "`weight` applies to importance constant, intensity or gradient; this object's importance is {name:?} (it takes `p`)"
+                ));
+            }
+            if known && !takes_p && o.p.is_some() {
+                return Err(format!(
+                    "`p` applies to importance silhouette or lighting; this object's importance is {name:?} (it takes `weight`)"
+                ));
+            }
+            let source = match name {
                 "constant" => ImportanceSource::Constant(w),
                 "intensity" => ImportanceSource::Intensity(w),
                 "gradient" => ImportanceSource::Gradient(w),
@@ -684,6 +699,27 @@ fn local_mode(o: &ObjectFile) -> Result<LocalMode, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_parameter_of_another_importance_source_is_named() {
+        let scene = |object: &str| {
+            SegmentScene::parse(
+                &format!("layers = [[0, 1]]\n[[object]]\nmode = \"importance\"\n{object}\n"),
+                Path::new(""),
+            )
+        };
+        let e = scene("p = [1, 2, 3]").unwrap_err().to_string();
+        assert!(
+            e.contains("`p` applies to importance silhouette or lighting; this object's importance is \"constant\""),
+            "{e}"
+        );
+        let e = scene("importance = \"lighting\"\nweight = 2")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`weight` applies to importance constant"), "{e}");
+        scene("importance = \"lighting\"\np = [1, 2, 3]").unwrap();
+        scene("importance = \"gradient\"\nweight = 2").unwrap();
+    }
 
     #[test]
     fn a_parameter_of_another_mode_is_named() {
