@@ -155,7 +155,9 @@ fn panel<B: DrawingBackend>(
     let mut keys: Vec<f64> = points.iter().map(|p| p.1).collect();
     keys.sort_by(f64::total_cmp);
     keys.dedup();
-    let at = |x: f64| SegmentValue::CenterOf(keys.iter().position(|&k| k == x).unwrap_or(0) as i32);
+    // Key k at x = k's index; an empty step either side keeps a lone value
+    // off the axes (it sat on the y axis, half drawn, without its label).
+    let at = |x: f64| keys.iter().position(|&k| k == x).unwrap_or(0) as i32;
     let y_hi = points.iter().map(|p| p.2).fold(0.0, f64::max).max(1e-6) * 1.1;
     let mut chart = ChartBuilder::on(area)
         .caption(
@@ -165,20 +167,17 @@ fn panel<B: DrawingBackend>(
         .margin(12)
         .x_label_area_size(36)
         .y_label_area_size(60)
-        .build_cartesian_2d(
-            (0..keys.len().saturating_sub(1) as i32).into_segmented(),
-            0.0..y_hi,
-        )?;
+        .build_cartesian_2d(-1..keys.len() as i32, 0.0..y_hi)?;
     chart
         .configure_mesh()
         .light_line_style(TRANSPARENT)
         .x_desc(parameter.name)
-        .x_labels(keys.len().max(1))
-        .x_label_formatter(&|x| match x {
-            SegmentValue::CenterOf(i) => keys
-                .get(*i as usize)
-                .map_or_else(String::new, |k| format!("{k}")),
-            _ => String::new(),
+        .x_labels(keys.len() + 2)
+        .x_label_formatter(&|i| {
+            usize::try_from(*i)
+                .ok()
+                .and_then(|i| keys.get(i))
+                .map_or_else(String::new, |k| format!("{k}"))
         })
         .y_label_formatter(&|y| format!("{y:.1}"))
         .label_style(("sans-serif", 13))
@@ -212,8 +211,7 @@ fn panel<B: DrawingBackend>(
             .map(|(x, y)| (f64::from_bits(x), y))
             .collect();
         line.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let line: Vec<(SegmentValue<i32>, f64)> =
-            line.into_iter().map(|(x, y)| (at(x), y)).collect();
+        let line: Vec<(i32, f64)> = line.into_iter().map(|(x, y)| (at(x), y)).collect();
         chart
             .draw_series(LineSeries::new(line.clone(), colour.stroke_width(2)))?
             .label(name)
