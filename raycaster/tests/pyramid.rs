@@ -60,7 +60,8 @@ fn pattern(dims: [u32; 3], max: u16, labels: bool) -> Vec<u16> {
 }
 
 /// The level below `src` computed voxel by voxel: the rounded mean of the 2×2×2
-/// block at twice the coordinates, indices clamped; the maximum for labels.
+/// block at twice the coordinates, indices clamped; for labels the most frequent
+/// id of the block (the largest of ids as frequent).
 fn reduce_reference(src: &[u16], dims: [u32; 3], labels: bool) -> (Vec<u16>, [u32; 3]) {
     let out_dims = dims.map(|d| d.div_ceil(2));
     let at = |x: u32, y: u32, z: u32| {
@@ -75,7 +76,9 @@ fn reduce_reference(src: &[u16], dims: [u32; 3], labels: bool) -> (Vec<u16>, [u3
                     .map(|i| at(2 * x + (i & 1), 2 * y + ((i >> 1) & 1), 2 * z + (i >> 2)))
                     .collect();
                 out.push(if labels {
-                    *block.iter().max().unwrap()
+                    // The most frequent id; of ids as frequent, the largest.
+                    let count = |id: u16| block.iter().filter(|&&v| v == id).count();
+                    *block.iter().max_by_key(|&&id| (count(id), id)).unwrap()
                 } else {
                     ((block.iter().map(|&v| u32::from(v)).sum::<u32>() + 4) / 8) as u16
                 });

@@ -15,7 +15,7 @@ use raycaster::text::counted;
 /// Add a resolution pyramid to a .vol file, in a sidecar FILE.pyramid beside it.
 ///
 /// Levels 1, 2, … each halve the previous level on every axis (the mean of 2×2×2
-/// voxels; the maximum for label volumes) down to at most 64 voxels per axis, so
+/// voxels; the most frequent id for label volumes) down to at most 64 voxels per axis, so
 /// the renderer and the viewer show a large volume at once and refine it. The
 /// sidecar is written atomically and remembers the file's length and modification
 /// time: it is ignored (and can be rebuilt) when the file changes. `volgen generate`

@@ -1,5 +1,5 @@
 //! The resolution pyramid: levels 1, 2, … of a volume, each half the previous on
-//! every axis (a 2×2×2 box filter, or the maximum for label volumes), stored in the
+//! every axis (a 2×2×2 box filter, or the most frequent id for label volumes), stored in the
 //! same layout as level 0 with their own brick value ranges.
 //!
 //! One block format serves both places a pyramid can live (docs/format.md): embedded
@@ -365,20 +365,30 @@ fn level_header(base: &Header, dims: [u32; 3], spacing: [f32; 3]) -> Header {
 }
 
 /// The sample of level `k + 1` at `(x, y, z)` from level `k` rows: the rounded mean
-/// of the 2×2×2 block at `2·(x, y, z)` (indices clamped to the level), or its
-/// maximum for labels. `rows` are the four z-runs at `(2x, 2y)`, `(2x+1, 2y)`,
+/// of the 2×2×2 block at `2·(x, y, z)` (indices clamped to the level), or for
+/// labels its most frequent id, the largest of ids as frequent (the maximum
+/// pushed a boundary's larger id into its neighbour, where the averaged
+/// values are the neighbour's: coarse two-level frames speckled). `rows` are the four z-runs at `(2x, 2y)`, `(2x+1, 2y)`,
 /// `(2x, 2y+1)`, `(2x+1, 2y+1)` (clamped).
 #[inline]
 fn reduce<T: Sample>(rows: [&[T]; 4], z: usize, labels: bool) -> T {
     let last = rows[0].len() - 1;
     let (z0, z1) = (2 * z, (2 * z + 1).min(last));
     if labels {
-        let m = rows
-            .iter()
-            .map(|r| r[z0].max(r[z1]))
-            .max()
-            .expect("four rows");
-        return m;
+        let ids: [T; 8] = std::array::from_fn(|i| rows[i / 2][if i % 2 == 0 { z0 } else { z1 }]);
+        // Inside an object (most blocks): one id.
+        if ids.iter().all(|&v| v == ids[0]) {
+            return ids[0];
+        }
+        let count = |id: T| ids.iter().filter(|&&v| v == id).count();
+        let mut best = ids[0];
+        for &id in &ids[1..] {
+            let (c, b) = (count(id), count(best));
+            if c > b || (c == b && id > best) {
+                best = id;
+            }
+        }
+        return best;
     }
     let sum: u32 = rows
         .iter()
