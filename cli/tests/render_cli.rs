@@ -696,24 +696,21 @@ fn scenes_showing_nothing_are_warned_of() {
             "warning: object \"ghost\" (id 9) shows nothing: the ids of ",
         ),
     ];
+    let render = |scene: &str| {
+        let args = [
+            "render",
+            "--scene",
+            "shells",
+            "--scene-size",
+            "32",
+            "--size",
+            "32",
+        ];
+        let more = ["--segments", scene, "-o", "out.png", "--force"];
+        raycaster(&[&args[..], &more].concat(), dir.path())
+    };
     for (scene, needle) in cases {
-        let out = raycaster(
-            &[
-                "render",
-                "--scene",
-                "shells",
-                "--scene-size",
-                "32",
-                "--size",
-                "32",
-                "--segments",
-                scene,
-                "-o",
-                "out.png",
-                "--force",
-            ],
-            dir.path(),
-        );
+        let out = render(scene);
         assert!(out.status.success(), "{scene}: {}", stderr(&out));
         let err = stderr(&out);
         assert_eq!(err.matches(needle).count(), 1, "{scene}: {err}");
@@ -724,23 +721,7 @@ fn scenes_showing_nothing_are_warned_of() {
         "fine.toml",
         "labels = \"unused.labels.vol\"\n[[object]]\nid = 4\n",
     );
-    let out = raycaster(
-        &[
-            "render",
-            "--scene",
-            "shells",
-            "--scene-size",
-            "32",
-            "--size",
-            "32",
-            "--segments",
-            "fine.toml",
-            "-o",
-            "out.png",
-            "--force",
-        ],
-        dir.path(),
-    );
+    let out = render("fine.toml");
     assert!(out.status.success(), "{}", stderr(&out));
     assert!(!stderr(&out).contains("warning"), "{}", stderr(&out));
 }
