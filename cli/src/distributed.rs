@@ -149,15 +149,14 @@ mod mpi_rank {
     ) -> Result<()> {
         use std::hash::{DefaultHasher, Hash, Hasher};
         let volume = &setup.volume;
+        // What each part is said as, and what else of it is compared (the
+        // volume's path may differ between machines, its content not).
+        let [x, y, z] = volume.dims();
         let described = [
             (
                 "volume",
                 format!(
-                    "{} {}x{}x{} {:?}, spacing {:?}, {} levels",
-                    volume.path().display(),
-                    volume.dims()[0],
-                    volume.dims()[1],
-                    volume.dims()[2],
+                    "{x}x{y}x{z} {:?}, spacing {:?}, {} levels",
                     volume.sample_type(),
                     volume.spacing(),
                     volume.level_count()
@@ -179,8 +178,6 @@ mod mpi_rank {
             .iter()
             .map(|(_, said, detail)| {
                 let mut h = DefaultHasher::new();
-                // The volume's path may differ between machines; its content not.
-                let said = said.split_once(' ').map_or(said.as_str(), |(_, rest)| rest);
                 (said, detail).hash(&mut h);
                 h.finish()
             })
@@ -196,7 +193,8 @@ mod mpi_rank {
         {
             None => Ok(()),
             Some(((("volume", said, _), _), _)) => Err(anyhow!(
-                "its volume ({said}) is not rank 0's: every rank must read the same volume (on a cluster, the same file at the same path)"
+                "its volume ({} {said}) is not rank 0's: every rank must read the same volume (on a cluster, the same file at the same path)",
+                volume.path().display()
             )),
             Some(((("view", _, _), _), _)) => Err(anyhow!(
                 "its view (camera and image size) is not rank 0's: every rank must be given the same flags"
