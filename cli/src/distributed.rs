@@ -132,16 +132,18 @@ mod mpi_rank {
             };
             crate::report_error(&e);
         }
+        crate::ERROR_SAID.store(true, std::sync::atomic::Ordering::Relaxed);
         world.barrier();
         Err(ReportedElsewhere.into())
     }
 
-    /// Whether this rank set up the frame rank 0 did: the same volume (its
-    /// size, type, spacing, levels and brick value ranges), view and
-    /// settings. Ranks that read another file (a path that differs between
-    /// machines) or were given other flags would exchange pixel states of
-    /// other frames: they hung waiting for bands that never came, or wrote a
-    /// mixed image.
+    /// Whether this rank set up the frame rank 0 did, part by part: the
+    /// volume (size, sample type, spacing, levels; its samples, by their
+    /// brick value ranges), the label volume, the image size and camera, and
+    /// each setting. Ranks that read another file (a path that differs
+    /// between machines) or were given other flags would exchange pixel
+    /// states of other frames: they hung waiting for bands that never came,
+    /// or wrote a mixed image. The first part that differs is named.
     fn same_frame_as_rank_0(
         world: &SimpleCommunicator,
         setup: &Setup,
@@ -149,60 +151,142 @@ mod mpi_rank {
     ) -> Result<()> {
         use std::hash::{DefaultHasher, Hash, Hasher};
         let volume = &setup.volume;
-        // What each part is said as, and what else of it is compared (the
-        // volume's path may differ between machines, its content not).
-        let [x, y, z] = volume.dims();
-        let described = [
+        let shape = |v: &raycaster::volume::Volume| {
+            let [x, y, z] = v.dims();
+            let [sx, sy, sz] = v.spacing().map(raycaster::volume::number_text);
+            format!(
+                "{} is {x}x{y}x{z} {}, spacing {sx} x {sy} x {sz}, {}",
+                v.path().display(),
+                v.sample_type(),
+                raycaster::text::counted(v.level_count() as u64, "level")
+            )
+        };
+        // Brick value ranges, and the voxels of an 8×8×8 lattice (ranges alone
+        // miss label volumes whose bricks each hold the same ids).
+        let samples = |v: &raycaster::volume::Volume| {
+            let d = v.dims();
+            let lattice: Vec<u16> = (0..512u32)
+                .map(|i| {
+                    let at = |k: u32, n: u32| ((2 * k + 1) * n / 16).min(n - 1);
+                    v.voxel([at(i % 8, d[0]), at(i / 8 % 8, d[1]), at(i / 64, d[2])])
+                })
+                .collect();
+            format!("{:?} {lattice:?}", v.ranges().as_slice())
+        };
+        let labels = setup.labels.as_ref();
+        let settings = &setup.settings;
+        let camera = &setup.camera;
+        // (Part, what this rank says of it, what is compared; a file's path
+        // may differ between machines, so it is said, never compared.)
+        let parts: Vec<(&str, String, String)> = vec![
             (
                 "volume",
-                format!(
-                    "{x}x{y}x{z} {:?}, spacing {:?}, {} levels",
-                    volume.sample_type(),
-                    volume.spacing(),
-                    volume.level_count()
-                ),
-                format!("{:?}", volume.ranges().as_slice()),
+                shape(volume),
+                shape(volume)
+                    .split_once(" is ")
+                    .map_or(String::new(), |(_, s)| s.to_string()),
             ),
-            ("view", String::new(), format!("{:?}", setup.camera)),
             (
-                "settings",
+                "volume's samples",
+                volume.path().display().to_string(),
+                samples(volume),
+            ),
+            (
+                "label volume",
+                labels.map_or("none".into(), |l| l.path().display().to_string()),
+                labels.map_or(String::new(), |l| format!("{:?} {}", l.dims(), samples(l))),
+            ),
+            (
+                "image size",
+                format!("{}x{}", camera.width(), camera.height()),
+                String::new(),
+            ),
+            ("camera", String::new(), format!("{camera:?}")),
+            (
+                "mode",
+                format!("{:?}", settings.mode),
+                format!(
+                    "{:?} {:?} {}",
+                    settings.mode, settings.mode_parameters, settings.iso_value
+                ),
+            ),
+            ("step", settings.step.to_string(), String::new()),
+            (
+                "transfer function",
+                String::new(),
+                format!("{:?}", settings.transfer),
+            ),
+            (
+                "scene (--segments)",
+                String::new(),
+                format!("{:?}", settings.segments),
+            ),
+            (
+                "early termination, empty-space skipping, shading",
                 String::new(),
                 format!(
-                    "{:?} {:?} {:?} {:?}",
-                    setup.settings, setup.bands, args.bands, args.compositing
+                    "{:?} {} {:?}",
+                    settings.early_termination, settings.empty_space_skipping, settings.shading
                 ),
+            ),
+            (
+                "background, pre-integration, jitter",
+                String::new(),
+                format!(
+                    "{:?} {} {}",
+                    settings.background, settings.preintegrated, settings.jitter
+                ),
+            ),
+            (
+                "crop and clipping planes",
+                String::new(),
+                format!("{:?}", settings.clip),
+            ),
+            ("levels", String::new(), format!("{:?}", setup.bands)),
+            (
+                "--bands and --compositing",
+                String::new(),
+                format!("{:?} {:?}", args.bands, args.compositing),
             ),
         ];
         // (DefaultHasher::new has fixed keys: every rank runs this binary.)
-        let mine: Vec<u64> = described
+        let mine: Vec<u64> = parts
             .iter()
-            .map(|(_, said, detail)| {
+            .map(|(_, said, compared)| {
                 let mut h = DefaultHasher::new();
-                (said, detail).hash(&mut h);
+                // A path is said, not compared: parts that say one compare
+                // something else.
+                let said_compared = if compared.is_empty() {
+                    said.as_str()
+                } else {
+                    ""
+                };
+                (said_compared, compared).hash(&mut h);
                 h.finish()
             })
             .collect();
         let mut all = vec![0u64; mine.len() * world.size() as usize];
         world.all_gather_into(&mine[..], &mut all[..]);
         let rank_0 = &all[..mine.len()];
-        match described
+        let Some(((part, said, _), _)) = parts
             .iter()
-            .zip(&mine)
-            .zip(rank_0)
-            .find(|((_, m), r)| m != r)
-        {
-            None => Ok(()),
-            Some(((("volume", said, _), _), _)) => Err(anyhow!(
-                "its volume ({} {said}) is not rank 0's: every rank must read the same volume (on a cluster, the same file at the same path)",
-                volume.path().display()
-            )),
-            Some(((("view", _, _), _), _)) => Err(anyhow!(
-                "its view (camera and image size) is not rank 0's: every rank must be given the same flags"
-            )),
-            Some(_) => Err(anyhow!(
-                "its render settings are not rank 0's: every rank must be given the same flags"
-            )),
-        }
+            .zip(mine.iter().zip(rank_0))
+            .find(|(_, (m, r))| m != r)
+        else {
+            return Ok(());
+        };
+        let here = if said.is_empty() {
+            String::new()
+        } else {
+            format!(" ({said})")
+        };
+        let what = match *part {
+            "volume" | "volume's samples" | "label volume" => {
+                "every rank must read the same files (on a cluster, the same file at the same path)"
+            }
+            _ => "every rank must be given the same flags",
+        };
+        Err(anyhow!("its {part}{here} is not rank 0's: {what}"))
     }
 
     /// A panic on one rank aborts the whole job instead of leaving the others
@@ -215,12 +299,17 @@ mod mpi_rank {
         }));
     }
 
-    pub fn run(args: RenderArgs) -> Result<()> {
+    pub fn run(mut args: RenderArgs) -> Result<()> {
         let (universe, _threading) = mpi::initialize_with_threading(mpi::Threading::Funneled)
             .ok_or_else(|| anyhow!("MPI could not be initialised"))?;
         abort_job_on_panic();
         let world = universe.world();
         let rank = world.rank();
+        // Every rank sets up the same frame: its warnings are said once, by
+        // rank 0 (errors are agreed on and said by the failing rank).
+        if rank > 0 {
+            args.quiet = true;
+        }
         // Ranks sharing this machine share its cores.
         let local = world.split_shared(rank).size().max(1) as usize;
         let checked = if rank == 0 {

@@ -63,8 +63,10 @@ fn main() {
     raycaster::files::guard_mapped_reads("stopped, nothing was written");
     use clap::{CommandFactory, FromArgMatches};
     // Under mpirun every rank runs this command line: what is wrong with it
-    // is said once, by rank 0.
-    let other_rank = launched_as_rank().is_some_and(|(rank, size)| rank > 0 && size > 1);
+    // is said once, by rank 0 (when ranks were given other command lines,
+    // `mpirun -np 1 A : -np 1 B`, each says its own).
+    let other_rank = launched_as_rank().is_some_and(|(rank, size)| rank > 0 && size > 1)
+        && std::env::var("OMPI_NUM_APP_CTX").map_or(true, |n| n == "1");
     let exit = |e: clap::Error| -> ! {
         if other_rank {
             std::process::exit(e.exit_code());
@@ -134,7 +136,14 @@ fn launched_as_rank() -> Option<(u32, u32)> {
 /// Prints `e` the one way the command reports a failure (`error: …`).
 pub(crate) fn report_error(e: &anyhow::Error) {
     eprintln!("error: {}", raycaster::errors::error_text(e.as_ref()));
+    ERROR_SAID.store(true, std::sync::atomic::Ordering::Relaxed);
 }
+
+/// An error was said (by this process, or by another rank of the job): a
+/// signal that follows (mpirun ending the other ranks) ends the process
+/// without a second line.
+pub(crate) static ERROR_SAID: std::sync::atomic::AtomicBool =
+    std::sync::atomic::AtomicBool::new(false);
 
 /// Ctrl-C, SIGTERM and SIGHUP end the process with status 130, as a shell
 /// reports an interrupted command, after deleting the temporary files of
@@ -153,7 +162,15 @@ fn stop_cleanly_on_signals() {
                 eprintln!();
             }
         }
-        eprintln!("interrupted; no partial output was left");
+        // Under mpirun only rank 0 says it (mpirun signals every rank), and
+        // no rank after an error was said.
+        let other_rank = launched_as_rank().is_some_and(|(rank, _)| rank > 0);
+        if ERROR_SAID.load(std::sync::atomic::Ordering::Relaxed) {
+            std::process::exit(1);
+        }
+        if !other_rank {
+            eprintln!("interrupted; no partial output was left");
+        }
         std::process::exit(130);
     });
 }

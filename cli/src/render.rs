@@ -335,7 +335,7 @@ pub struct RenderArgs {
 
     /// No message on success.
     #[arg(short, long)]
-    quiet: bool,
+    pub(crate) quiet: bool,
 
     /// Show progress (reading a scan, rendering the frame) on stderr from the start,
     /// even when it is not a terminal (on a terminal, steps longer than a second

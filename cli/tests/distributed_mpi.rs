@@ -314,14 +314,21 @@ fn ranks_of_another_frame_end_the_job_with_one_message() {
         out,
     ];
     for (other, needle) in [
-        (&["--scene", "noise"][..], "rank 1 of 2: its volume ("),
+        (
+            &["--scene", "noise"][..],
+            "rank 1 of 2: its volume's samples (built-in",
+        ),
         (
             &["--azimuth", "10"][..],
-            "rank 1 of 2: its view (camera and image size) is not rank 0's",
+            "rank 1 of 2: its camera is not rank 0's: every rank must be given the same flags",
         ),
         (
             &["--step", "0.3"][..],
-            "rank 1 of 2: its render settings are not rank 0's",
+            "rank 1 of 2: its step (0.3) is not rank 0's",
+        ),
+        (
+            &["--tf", "cloud"][..],
+            "rank 1 of 2: its transfer function is not rank 0's",
         ),
     ] {
         let second = [&base[..], other].concat();
@@ -330,8 +337,52 @@ fn ranks_of_another_frame_end_the_job_with_one_message() {
         assert!(!o.status.success(), "{other:?}: {e}");
         assert_eq!(e.matches("error:").count(), 1, "{other:?}: {e}");
         assert!(e.contains(needle), "{other:?}: {e}");
+        // (The ranks mpirun then ends say nothing more.)
+        assert!(!e.contains("interrupted"), "{other:?}: {e}");
         assert!(!Path::new(out).exists(), "{other:?} wrote an image");
     }
+    // Label volumes of other ids on one rank (it wrote a mixed image).
+    let labels = |name: &str, period: u32| {
+        let path = dir.path().join(name);
+        let header = raycaster::volume::Header::new(
+            [24; 3],
+            [1.0; 3],
+            raycaster::volume::Layout::Bricked { side: 16 },
+            raycaster::volume::SampleType::U8,
+            raycaster::volume::Content::Labels,
+            raycaster::volume::Format::Extended,
+        );
+        // Ids by the x plane (x fastest-changing slabs: planes x0..x1).
+        raycaster::io::write_volume::<u8>(
+            &path,
+            &header,
+            &Default::default(),
+            &raycaster::job::Job::silent(),
+            |x0, _, slab| {
+                for (i, id) in slab.iter_mut().enumerate() {
+                    *id = ((x0 + (i / (24 * 24)) as u32) / period % 2 + 1) as u8;
+                }
+                Ok(())
+            },
+        )
+        .unwrap();
+        path.to_str().unwrap().to_string()
+    };
+    let a = labels("a.labels.vol", 4);
+    let b = labels("b.labels.vol", 6);
+    let scene = dir.path().join("scene.toml");
+    std::fs::write(&scene, "labels = \"a.labels.vol\"\n[[object]]\nid = 1\n").unwrap();
+    let scene = scene.to_str().unwrap();
+    let with = |l: &'static str| [&base[..], &["--segments", scene, "--labels", l]].concat();
+    let (a, b): (&'static str, &'static str) = (a.leak(), b.leak());
+    let o = mpirun_ranks(&[&with(a), &with(b)]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{e}");
+    assert!(
+        e.contains("rank 1 of 2: its label volume (")
+            && e.contains("b.labels.vol) is not rank 0's"),
+        "{e}"
+    );
 }
 
 /// Every rank runs one command line: what is wrong with it is said once (it
@@ -359,4 +410,11 @@ fn a_command_line_is_judged_once_under_mpirun() {
         assert!(e.contains(needle), "{args:?}: {e}");
         assert!(!Path::new(out).exists(), "{args:?} wrote an image");
     }
+    // Ranks given other command lines (`A : B`): the one that is wrong says so.
+    let good = ["render", "--distributed", "--scene-size", "24", "-o", out];
+    let bad = [&good[..], &["--bogus"]].concat();
+    let o = mpirun_ranks(&[&good, &bad]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{e}");
+    assert_eq!(e.matches("unexpected argument '--bogus'").count(), 1, "{e}");
 }
