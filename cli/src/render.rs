@@ -693,7 +693,7 @@ impl Setup {
         } else {
             "--labels FILE names another"
         };
-        if let Some(warning) = raycaster::render::flat_volume(volume.dims())
+        if let Some(warning) = raycaster::render::flat_volume(volume.dims(), &session.settings)
             && !args.quiet
         {
             eprintln!("warning: {}: {warning}", volume.path().display());

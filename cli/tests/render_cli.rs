@@ -952,7 +952,7 @@ fn a_flat_volume_is_said_to_render_as_background() {
     for (name, needle) in [
         (
             "slice.nrrd",
-            "slice.nrrd: 24x16x1 voxels, one voxel thick along z: rays cross no volume, the picture is background (`raycaster slice` shows the plane)",
+            "slice.nrrd: 24x16x1 voxels, one voxel thick along z: rays cross it in no depth, and this mode accumulates nothing there (the picture is background); --mode mip, or `raycaster slice`, shows it",
         ),
         (
             "line.nrrd",
@@ -971,7 +971,23 @@ fn a_flat_volume_is_said_to_render_as_background() {
             stderr(&out)
         );
     }
-    // Two voxels give depth: no warning.
+    // A projection shows the plane: no warning; two voxels give depth: none.
+    let out = raycaster(
+        &[
+            "render",
+            "slice.nrrd",
+            "--mode",
+            "mip",
+            "-o",
+            "out.png",
+            "--force",
+            "--size",
+            "32",
+        ],
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(!stderr(&out).contains("thick"), "{}", stderr(&out));
     let out = raycaster(
         &[
             "render",

@@ -115,12 +115,18 @@ impl Histogram {
         let value = |s: f64| units.format(units.value(s));
         let stored = |s: u16| value(f64::from(s));
         let zero = self.counts.first().copied().unwrap_or(0);
+        // A negative scale (a NIfTI slope of −1) turns the stored order
+        // around: percentiles, ranges and bars are said in the values' order.
+        let flip = units.scale < 0.0;
+        let order = |a: u16, b: u16| if flip { [b, a] } else { [a, b] };
+        // (The values' 1st percentile is the stored samples' 99th, flipped.)
+        let [p1, p99] = order(self.percentile(0.01), self.percentile(0.99));
         let mut s = format!(
             "histogram   mean {}, p1 {}, median {}, p99 {}, {} {:.1} %\n",
             units.format((units.value(self.mean()) * 100.0).round() / 100.0),
-            stored(self.percentile(0.01)),
+            stored(p1),
             stored(self.percentile(0.5)),
-            stored(self.percentile(0.99)),
+            stored(p99),
             if units.is_identity() {
                 "zero".to_string()
             } else {
@@ -130,13 +136,15 @@ impl Histogram {
         );
         let bins = self.over_data(16);
         let [lo, hi] = self.value_range();
+        let [first, last] = order(lo, hi);
+        let [type_first, type_last] = order(0, max_value);
         s += &format!(
             "            {} over the values present, {} to {} (of {} to {}), bars on a log scale\n",
             crate::text::counted(bins.len() as u64, "bin"),
-            stored(lo),
-            stored(hi),
-            stored(0),
-            stored(max_value)
+            stored(first),
+            stored(last),
+            stored(type_first),
+            stored(type_last)
         );
         let peak = bins.iter().map(|b| b.1).max().unwrap_or(1).max(1) as f64;
         let plain = ValueUnits {
@@ -147,17 +155,26 @@ impl Histogram {
         let width = bins.get(1).map_or(1, |b| b.0 - bins[0].0);
         let resolution = f64::from(width) * units.scale.abs();
         let label = |v: u16| plain.format_resolved(plain.value(f64::from(v)), resolution);
-        for (i, &(first, c)) in bins.iter().enumerate() {
-            let last = bins.get(i + 1).map_or(hi, |next| next.0 - 1);
-            // Log scale: a few voxels of a rare value still show.
-            let bar = ((c as f64).ln_1p() / peak.ln_1p() * 40.0).round() as usize;
-            s += &format!(
-                "  {:>7}..{:<7} {c:>12} {}\n",
-                label(first),
-                label(last),
-                "#".repeat(bar)
-            );
+        let mut lines: Vec<String> = bins
+            .iter()
+            .enumerate()
+            .map(|(i, &(first, c))| {
+                let last = bins.get(i + 1).map_or(hi, |next| next.0 - 1);
+                let [from, to] = order(first, last);
+                // Log scale: a few voxels of a rare value still show.
+                let bar = ((c as f64).ln_1p() / peak.ln_1p() * 40.0).round() as usize;
+                format!(
+                    "  {:>7}..{:<7} {c:>12} {}\n",
+                    label(from),
+                    label(to),
+                    "#".repeat(bar)
+                )
+            })
+            .collect();
+        if flip {
+            lines.reverse();
         }
+        s.extend(lines);
         s
     }
 }
@@ -180,6 +197,36 @@ mod tests {
         assert_eq!(h.coarse(2, 255), vec![99, 1]);
         assert_eq!(h.value_range(), [0, 200]);
         assert_eq!(h.over_data(2), vec![(0, 99), (101, 1)]);
+    }
+
+    #[test]
+    fn a_negative_scale_is_said_in_the_values_order() {
+        // value = 10 − stored (a NIfTI slope of −1): stored 0..=99 are 10..=−89.
+        let counts: Vec<u64> = (0..=99u64).map(|v| 1 + v % 3).collect();
+        let h = Histogram::from_counts(counts);
+        let units = ValueUnits {
+            scale: -1.0,
+            offset: 10.0,
+            unit: String::new(),
+        };
+        let text = h.summary(255, &units);
+        assert!(text.contains(", -89 to 10 (of -245 to 10)"), "{text}");
+        let p1 = text.split("p1 ").nth(1).unwrap().split(',').next().unwrap();
+        let p99 = text
+            .split("p99 ")
+            .nth(1)
+            .unwrap()
+            .split(',')
+            .next()
+            .unwrap();
+        assert!(
+            p1.parse::<f64>().unwrap() < p99.parse::<f64>().unwrap(),
+            "{text}"
+        );
+        // Bars from the smallest value up.
+        let bars: Vec<&str> = text.lines().skip(2).collect();
+        assert!(bars[0].trim_start().starts_with("-89.."), "{text}");
+        assert!(bars.last().unwrap().contains("..10 "), "{text}");
     }
 
     #[test]

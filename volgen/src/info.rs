@@ -63,7 +63,11 @@ pub fn run(a: InfoArgs) -> anyhow::Result<()> {
         println!("orientation {}", orientation.describe());
     }
     let units = h.value_units();
-    let value = |s: u16| units.format(units.value(f64::from(s)));
+    // Two stored samples' values, smaller first.
+    let ordered = |a: u16, b: u16| {
+        let (x, y) = (units.value(f64::from(a)), units.value(f64::from(b)));
+        [x.min(y), x.max(y)].map(|v| units.format(v))
+    };
     if !units.is_identity() {
         println!("units       {}", units.describe());
     }
@@ -100,7 +104,9 @@ pub fn run(a: InfoArgs) -> anyhow::Result<()> {
     let constant = all.iter().filter(|r| r[0] == r[1]).count();
     let mean_width =
         all.iter().map(|r| f64::from(r[1] - r[0])).sum::<f64>() / all.len().max(1) as f64;
-    println!("values      min {}, max {}", value(lo), value(hi));
+    // (In the values' order: a negative scale turns the stored order around.)
+    let [min, max] = ordered(lo, hi);
+    println!("values      min {min}, max {max}");
     println!(
         "brick stats {zero} all-zero ({:.1} %), {constant} constant ({:.1} %), mean value range {mean_width:.1}",
         100.0 * zero as f64 / all.len() as f64,
@@ -119,13 +125,12 @@ pub fn run(a: InfoArgs) -> anyhow::Result<()> {
         for k in 1..volume.level_count() {
             let level = volume.level(k);
             let [lo, hi] = level.ranges().overall();
+            let [min, max] = ordered(lo, hi);
             println!(
-                "  level {k}   {} spacing {}, {} bytes, values {} to {}",
+                "  level {k}   {} spacing {}, {} bytes, values {min} to {max}",
                 describe_size(level.dims()),
                 describe_spacing(level.spacing()),
                 level.data_bytes(),
-                value(lo),
-                value(hi)
             );
         }
     } else if !raycaster::volume::level_dims(h.dims).is_empty() {

@@ -114,21 +114,23 @@ pub fn step_past_volume(step: f32, diagonal: f32) -> Option<String> {
     })
 }
 
-/// What to say of a volume of `dims` voxels that is one voxel thick along an
-/// axis (a 2D image, a single slice, a line): the sampled box has no depth
-/// there, so rays cross no volume and a frame is background. `None` for
-/// volumes with depth on every axis.
-pub fn flat_volume(dims: [u32; 3]) -> Option<String> {
+/// What to say of a frame of `settings` over a volume of `dims` voxels that
+/// is one voxel thick along an axis (a 2D image, a single slice, a line): its
+/// sampled box has no depth there, so emission–absorption (DVR, Sabella,
+/// two-level scenes) accumulates nothing and the picture is background; the
+/// projections (MIP, average, X-ray, first hit) show it. `None` otherwise.
+pub fn flat_volume(dims: [u32; 3], settings: &RenderSettings) -> Option<String> {
+    let absorbs = settings.segments.is_some() || matches!(settings.mode, Mode::Dvr | Mode::Sabella);
     let flat: Vec<&str> = ["x", "y", "z"]
         .into_iter()
         .zip(dims)
         .filter(|&(_, d)| d < 2)
         .map(|(axis, _)| axis)
         .collect();
-    (!flat.is_empty()).then(|| {
+    (absorbs && !flat.is_empty()).then(|| {
         let [x, y, z] = dims;
         format!(
-            "{x}x{y}x{z} voxels, one voxel thick along {}: rays cross no volume, the picture is background (`raycaster slice` shows the plane)",
+            "{x}x{y}x{z} voxels, one voxel thick along {}: rays cross it in no depth, and this mode accumulates nothing there (the picture is background); --mode mip, or `raycaster slice`, shows it",
             flat.join(" and ")
         )
     })
