@@ -27,7 +27,8 @@ pub struct ConvertOptions {
     pub window: Option<(f32, f32)>,
     /// The input holds object ids (a segmentation): the output is a label
     /// volume (u8 ids, never interpolated), its values copied (their whole
-    /// part); values beyond 0..=255, NaN or infinite ones are refused.
+    /// part, toward zero); values whose whole part lies beyond 0..=255, NaN
+    /// or infinite ones are refused.
     pub labels: bool,
 }
 
@@ -268,7 +269,10 @@ fn label_values(input: &Input, job: &Job) -> Result<ValueMap, VolumeError> {
             refuse(non_finite_count(range.non_finite, voxels))
         }
         None => refuse("it holds no finite value".into()),
-        Some((lo, hi)) if lo < 0.0 || hi >= 256.0 => {
+        // (Fractions are cut toward zero, at both ends: −0.5 is id 0 as
+        // 255.5 is 255.)
+        Some((lo, hi)) if lo <= -1.0 || hi >= 256.0 => {
+            let [lo, hi] = [lo, hi].map(crate::volume::number_text);
             refuse(format!("its values span {lo} to {hi}"))
         }
         Some(_) => Ok(ValueMap::Copy),

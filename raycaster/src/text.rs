@@ -47,14 +47,16 @@ pub fn toml_error(text: &str, error: &toml::de::Error) -> String {
     }
 }
 
-/// A linear map of stored samples said as people write it: `value = 2 *
-/// stored - 1024` (not `+ -1024`), the sign of the offset as an operator.
+/// A file's declared scaling of its stored samples (a NIfTI slope and
+/// intercept, a DICOM rescale), said as a `.vol` file's value units are
+/// ([`crate::volume::ValueUnits::describe`]): `value = stored × 2 − 1024`.
 pub fn scaling_text(slope: f32, intercept: f32) -> String {
-    if intercept < 0.0 {
-        format!("value = {slope} * stored - {}", -intercept)
-    } else {
-        format!("value = {slope} * stored + {intercept}")
+    crate::volume::ValueUnits {
+        scale: f64::from(slope),
+        offset: f64::from(intercept),
+        unit: String::new(),
     }
+    .describe()
 }
 
 #[cfg(test)]
@@ -103,8 +105,10 @@ mod tests {
 
     #[test]
     fn a_negative_offset_is_said_with_a_minus() {
-        assert_eq!(scaling_text(2.0, -1024.0), "value = 2 * stored - 1024");
-        assert_eq!(scaling_text(0.5, 10.0), "value = 0.5 * stored + 10");
-        assert_eq!(scaling_text(1.0, 0.0), "value = 1 * stored + 0");
+        assert_eq!(scaling_text(2.0, -1024.0), "value = stored × 2 − 1024");
+        assert_eq!(scaling_text(0.5, 10.0), "value = stored × 0.5 + 10");
+        // (f32 numbers as written, not as their f64 widening: 0.001, not
+        // 0.0010000000474974513.)
+        assert_eq!(scaling_text(0.001, -0.25), "value = stored × 0.001 − 0.25");
     }
 }

@@ -93,8 +93,8 @@ pub struct ConvertArgs {
     /// The input is a segmentation (object ids 0 to 255, e.g. from a
     /// segmentation tool's NRRD or NIfTI): write a label volume for
     /// `raycaster render --labels` and scene files' `labels = ...` (u8 ids,
-    /// never interpolated). Values beyond 0..=255 are refused; fractions are
-    /// cut to their whole part.
+    /// never interpolated). Fractions are cut to their whole part (toward
+    /// zero); values whose whole part lies beyond 0..=255 are refused.
     #[arg(long, conflicts_with_all = ["window", "sample_type"])]
     labels: bool,
     /// Output voxel spacing: S or X,Y,Z [default: the input's, or 1].

@@ -159,13 +159,23 @@ impl ValueUnits {
     /// The map as people read it: `value = stored − 32768 (HU)`,
     /// `value = stored × 16 − 1000`.
     pub fn describe(&self) -> String {
+        // A number read from an f32 field (a NIfTI slope) as written there:
+        // the shortest f32 text when the f64 is that f32's widening.
+        let short = |v: f64| {
+            let f = v as f32;
+            if f64::from(f) == v {
+                format!("{f}")
+            } else {
+                format!("{v}")
+            }
+        };
         let mut text = "value = stored".to_string();
         if self.scale != 1.0 {
-            text += &format!(" × {}", self.scale);
+            text += &format!(" × {}", short(self.scale));
         }
         if self.offset != 0.0 {
             let sign = if self.offset < 0.0 { '−' } else { '+' };
-            text += &format!(" {sign} {}", self.offset.abs());
+            text += &format!(" {sign} {}", short(self.offset.abs()));
         }
         if !self.unit.is_empty() {
             text += &format!(" ({})", self.unit);
