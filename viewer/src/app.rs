@@ -27,7 +27,7 @@ use raycaster::slice::Axis;
 use raycaster::source::VolumeSource;
 use raycaster::synth::SceneKind;
 use raycaster::text::counted;
-use raycaster::volume::{Volume, write_file_atomically};
+use raycaster::volume::write_file_atomically;
 use slint::{
     ComponentHandle, Image, ModelRc, Rgba8Pixel, SharedPixelBuffer, SharedString, VecModel,
 };
@@ -2222,9 +2222,19 @@ impl Controller {
     }
 
     fn use_scene(&self, scene: SegmentScene, path: &Path) {
+        // What keeps it from showing is said with it (as the CLI warns).
+        let warnings = {
+            let st = self.state.borrow();
+            let labels = st.current.as_ref().and_then(|c| c.volume.labels.as_deref());
+            scene.warnings(labels)
+        };
         self.state.borrow_mut().scene = Some(scene);
         self.show_objects();
-        self.show_message(&format!("loaded scene {}", path.display()), false);
+        let mut message = format!("loaded scene {}", path.display());
+        for warning in warnings {
+            message += &format!("; warning: {warning}");
+        }
+        self.show_message(&message, false);
         self.request_frame(false);
     }
 
@@ -2238,10 +2248,20 @@ impl Controller {
         self.in_background(
             format!("opening labels {} …", labels.display()),
             move |wake| {
-                // (The volume's error names the file.)
-                let label_volume = Arc::new(Volume::open(&labels).context(
-                    "the scene's label volume (its `labels =`, read beside the scene file)",
-                )?);
+                // (The volume's error names the file; a foreign file or a
+                // volume of values is said as what it is.)
+                let label_volume =
+                    Arc::new(raycaster::source::open_labels(&labels).map_err(|e| {
+                        let advice =
+                            "the scene's label volume (its `labels =`, read beside the scene file)";
+                        match e {
+                            raycaster::source::SourceError::Volume { source, .. } => {
+                                anyhow::Error::new(source).context(advice)
+                            }
+                            e => anyhow::Error::new(e),
+                        }
+                    })?);
+                let warnings = scene.warnings(Some(&label_volume));
                 let front = RenderFront::with_labels(
                     volume.volume.clone(),
                     Some(label_volume.clone()),
@@ -2250,8 +2270,12 @@ impl Controller {
                 )?;
                 let mut volume = volume;
                 volume.labels = Some(label_volume);
+                let mut message = format!("labels {} attached", labels.display());
+                for warning in warnings {
+                    message += &format!("; warning: {warning}");
+                }
                 Ok(Install {
-                    message: format!("labels {} attached", labels.display()),
+                    message,
                     loaded: Loaded { volume, front },
                     new_volume: false,
                     source: None,

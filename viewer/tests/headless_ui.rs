@@ -601,6 +601,22 @@ fn the_viewer_runs_headless() {
         "{message}"
     );
 
+    // A scene whose object's id the labels never hold: said with the scene,
+    // as the CLI warns (the picture was empty without a word).
+    let ghost = dir.path().join("ghost.toml");
+    std::fs::write(
+        &ghost,
+        "labels = \"unused.labels.vol\"\n[[object]]\nid = 9\nname = \"ghost\"\n",
+    )
+    .unwrap();
+    let g = Viewer::new(Source::BuiltIn(SceneKind::Shells, 32), Some(ghost)).unwrap();
+    let message = g.ui().get_message().to_string();
+    assert!(
+        message.contains("loaded scene")
+            && message.contains("warning: object \"ghost\" (id 9) shows nothing"),
+        "{message}"
+    );
+
     // Started on a session whose label volume has another size: the window
     // opens with the error over the built-in scene, as for a session that does
     // not read (before: the viewer exited at start).
