@@ -747,6 +747,23 @@ fn a_file_of_another_kind_is_called_no_volume_not_a_broken_header() {
     let e = open_fails(&p);
     assert!(matches!(e.kind, VolumeErrorKind::GzipUnnamed), "{e:?}");
     assert!(e.to_string().contains("holds gzip-compressed data"), "{e}");
+    // A compressed .vol too (it was "unknown sample order byte 0x72").
+    let p = write(
+        &dir,
+        "packed.vol",
+        &[
+            0x1f, 0x8b, 8, 0, 0, 0, 0, 0, 0, 3, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15,
+            16, 17, 18,
+        ],
+    );
+    let e = open_fails(&p);
+    assert!(e.to_string().contains("gunzip it first"), "{e}");
+    // A few bytes not named .vol: no volume (it was "shorter than the header").
+    let p = write(&dir, "tiny.bin", b"0123456789");
+    assert!(matches!(
+        open_fails(&p).kind,
+        VolumeErrorKind::NotAVolume(_)
+    ));
     // Named .vol, the same bytes are a broken .vol header.
     let p = write(&dir, "broken.VOL", &text);
     assert!(matches!(

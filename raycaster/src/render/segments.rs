@@ -594,7 +594,7 @@ fn local_mode(o: &ObjectFile) -> Result<LocalMode, String> {
         if v.is_finite() && v >= 0.0 {
             Ok(v)
         } else {
-            Err(format!("{name} = {v} must be a non-negative number"))
+            Err(format!("{name} = {v} must be a non-negative finite number"))
         }
     };
     // A parameter of another mode is a mistake (a mode changed, its

@@ -69,7 +69,7 @@ pub enum VolumeErrorKind {
     NotAVolume(HeaderError),
     /// A file not named for a compressed format that holds gzip data.
     #[error(
-        "not a volume file: it holds gzip-compressed data, and its name ends in none of .nii.gz, .nrrd, .nhdr, .mha, .mhd (a compressed NIfTI-1 file is named .nii.gz; NRRD and MetaImage headers name their compression)"
+        "not a volume file: it holds gzip-compressed data (a .vol file is never compressed: gunzip it first; a compressed NIfTI-1 file is named .nii.gz)"
     )]
     GzipUnnamed,
     /// The embedded value-range table is unreadable.

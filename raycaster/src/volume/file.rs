@@ -121,11 +121,12 @@ fn read_header_as(
     let header = Header::parse(&head, claimed_len.unwrap_or(len)).map_err(|e| match e {
         // The first byte that tells formats apart names no .vol layout: a file
         // not named `.vol` is most likely no volume at all (a README, a PNG).
-        // Gzip data (a `.nii.gz` renamed, say): said as such.
-        _ if !has_vol_extension(path) && head.starts_with(&[0x1f, 0x8b]) => {
+        // Gzip data (a `.nii.gz` renamed, a `.vol` compressed): said as such.
+        _ if head.starts_with(&[0x1f, 0x8b]) => {
             VolumeError::new(path, VolumeErrorKind::GzipUnnamed)
         }
-        HeaderError::UnknownOrder(_) if !has_vol_extension(path) => {
+        // (A few bytes not named .vol: no volume either.)
+        HeaderError::UnknownOrder(_) | HeaderError::TooShort { .. } if !has_vol_extension(path) => {
             VolumeError::new(path, VolumeErrorKind::NotAVolume(e))
         }
         e => VolumeError::new(path, VolumeErrorKind::Header(e)),
