@@ -62,11 +62,14 @@ fn main() {
     stop_cleanly_on_signals();
     raycaster::files::guard_mapped_reads("stopped, nothing was written");
     use clap::{CommandFactory, FromArgMatches};
-    // Under mpirun every rank runs this command line: what is wrong with it
-    // is said once, by rank 0 (when ranks were given other command lines,
-    // `mpirun -np 1 A : -np 1 B`, each says its own).
-    let other_rank = launched_as_rank().is_some_and(|(rank, size)| rank > 0 && size > 1)
-        && std::env::var("OMPI_NUM_APP_CTX").map_or(true, |n| n == "1");
+    // Started by mpirun itself with one command line for every rank: what is
+    // wrong with it is said once, by rank 0. (Ranks given other command
+    // lines, `mpirun -np 1 A : -np 1 B`, or started by a script each rank
+    // runs, say their own.)
+    let one_command_line = launched_as_rank().is_some_and(|(_, size)| size > 1)
+        && std::env::var("OMPI_NUM_APP_CTX").map_or(true, |n| n == "1")
+        && started_by_mpirun();
+    let other_rank = one_command_line && launched_as_rank().is_some_and(|(rank, _)| rank > 0);
     let exit = |e: clap::Error| -> ! {
         if other_rank {
             std::process::exit(e.exit_code());
@@ -86,14 +89,16 @@ fn main() {
     }
     if let Command::Render(args) = &cli.command
         && !args.distributed
-        && let Some((_, size @ 2..)) = launched_as_rank()
+        && one_command_line
+        && let Some((_, size)) = launched_as_rank()
     {
-        if !other_rank {
+        // (A warning, not a refusal: a launcher in between can hide a
+        // command line of each rank's own.)
+        if !other_rank && !args.quiet {
             eprintln!(
-                "error: raycaster render runs as {size} processes under mpirun, each rendering the whole frame into the same file: add --distributed to render one frame together (docs/distributed.md), or run it without mpirun"
+                "warning: raycaster render runs as {size} processes under mpirun, each rendering the whole frame: --distributed renders one frame together (docs/distributed.md)"
             );
         }
-        std::process::exit(2);
     }
     let result = match cli.command {
         Command::Render(a) => render::run(*a),
@@ -131,6 +136,19 @@ fn launched_as_rank() -> Option<(u32, u32)> {
         number(["OMPI_COMM_WORLD_RANK", "PMI_RANK"])?,
         number(["OMPI_COMM_WORLD_SIZE", "PMI_SIZE"])?,
     ))
+}
+
+/// Whether this process's parent is an MPI launcher (mpirun, or its daemon
+/// on another node): the command line is the one mpirun was given, not one a
+/// script built for this rank.
+fn started_by_mpirun() -> bool {
+    let parent = std::os::unix::process::parent_id();
+    std::fs::read_to_string(format!("/proc/{parent}/comm")).is_ok_and(|name| {
+        matches!(
+            name.trim(),
+            "mpirun" | "mpiexec" | "orterun" | "orted" | "prterun" | "prted" | "hydra_pmi_proxy"
+        )
+    })
 }
 
 /// Prints `e` the one way the command reports a failure (`error: …`).

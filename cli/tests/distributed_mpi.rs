@@ -387,28 +387,52 @@ fn ranks_of_another_frame_end_the_job_with_one_message() {
 
 /// Every rank runs one command line: what is wrong with it is said once (it
 /// was said by every rank), and a render without `--distributed` under
-/// mpirun is refused (each rank rendered the whole frame into one file).
+/// mpirun is warned of once (each rank renders the whole frame); a script
+/// each rank runs, or ranks given other command lines, speak for themselves.
 #[test]
 fn a_command_line_is_judged_once_under_mpirun() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("b.png");
     let out = out.to_str().unwrap();
-    for (args, needle) in [
-        (
-            &["render", "--distributed", "--bogus", "-o", out][..],
-            "unexpected argument '--bogus'",
-        ),
-        (
-            &["render", "--scene-size", "24", "-o", out],
-            "raycaster render runs as 2 processes under mpirun, each rendering the whole frame into the same file: add --distributed",
-        ),
-    ] {
-        let o = mpirun(2, args);
-        let e = String::from_utf8_lossy(&o.stderr);
-        assert!(!o.status.success(), "{args:?}: {e}");
-        assert_eq!(e.matches("error:").count(), 1, "{args:?}: {e}");
-        assert!(e.contains(needle), "{args:?}: {e}");
-        assert!(!Path::new(out).exists(), "{args:?} wrote an image");
+    let args = ["render", "--distributed", "--bogus", "-o", out];
+    let o = mpirun(2, &args);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{e}");
+    assert_eq!(e.matches("error:").count(), 1, "{e}");
+    assert!(e.contains("unexpected argument '--bogus'"), "{e}");
+    assert!(!Path::new(out).exists(), "an image was written");
+    // Ranks rendering the whole frame each: warned of once.
+    let plain = dir.path().join("plain.png");
+    let o = mpirun(
+        2,
+        &[
+            "render",
+            "--scene-size",
+            "16",
+            "--size",
+            "16",
+            "-o",
+            plain.to_str().unwrap(),
+            "--force",
+        ],
+    );
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{e}");
+    assert_eq!(
+        e.matches("warning: raycaster render runs as 2 processes under mpirun, each rendering the whole frame: --distributed renders one frame together").count(),
+        1,
+        "{e}"
+    );
+    // A script run by every rank, rendering a frame of its own: not refused.
+    let script = format!(
+        "{} render --scene-size 16 --size 16 -q -o {}/frame-$OMPI_COMM_WORLD_RANK.png",
+        binary(),
+        dir.path().display()
+    );
+    let o = mpirun_line(&["-np", "2", "sh", "-c", &script]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for rank in 0..2 {
+        assert!(dir.path().join(format!("frame-{rank}.png")).exists());
     }
     // Ranks given other command lines (`A : B`): the one that is wrong says so.
     let good = ["render", "--distributed", "--scene-size", "24", "-o", out];
