@@ -155,8 +155,7 @@ mod mpi_rank {
             let [x, y, z] = v.dims();
             let [sx, sy, sz] = v.spacing().map(raycaster::volume::number_text);
             format!(
-                "{} is {x}x{y}x{z} {}, spacing {sx} x {sy} x {sz}, {}",
-                v.path().display(),
+                "{x}x{y}x{z} {}, spacing {sx} x {sy} x {sz}, {}",
                 v.sample_type(),
                 raycaster::text::counted(v.level_count() as u64, "level")
             )
@@ -176,15 +175,15 @@ mod mpi_rank {
         let labels = setup.labels.as_ref();
         let settings = &setup.settings;
         let camera = &setup.camera;
+        let size = format!("{}x{}", camera.width(), camera.height());
+        let step = settings.step.to_string();
         // (Part, what this rank says of it, what is compared; a file's path
         // may differ between machines, so it is said, never compared.)
         let parts: Vec<(&str, String, String)> = vec![
             (
                 "volume",
+                format!("{} is {}", volume.path().display(), shape(volume)),
                 shape(volume),
-                shape(volume)
-                    .split_once(" is ")
-                    .map_or(String::new(), |(_, s)| s.to_string()),
             ),
             (
                 "volume's samples",
@@ -194,13 +193,9 @@ mod mpi_rank {
             (
                 "label volume",
                 labels.map_or("none".into(), |l| l.path().display().to_string()),
-                labels.map_or(String::new(), |l| format!("{:?} {}", l.dims(), samples(l))),
+                labels.map_or("none".into(), |l| format!("{:?} {}", l.dims(), samples(l))),
             ),
-            (
-                "image size",
-                format!("{}x{}", camera.width(), camera.height()),
-                String::new(),
-            ),
+            ("image size", size.clone(), size),
             ("camera", String::new(), format!("{camera:?}")),
             (
                 "mode",
@@ -210,7 +205,7 @@ mod mpi_rank {
                     settings.mode, settings.mode_parameters, settings.iso_value
                 ),
             ),
-            ("step", settings.step.to_string(), String::new()),
+            ("step", step.clone(), step),
             (
                 "transfer function",
                 String::new(),
@@ -252,16 +247,9 @@ mod mpi_rank {
         // (DefaultHasher::new has fixed keys: every rank runs this binary.)
         let mine: Vec<u64> = parts
             .iter()
-            .map(|(_, said, compared)| {
+            .map(|(_, _, compared)| {
                 let mut h = DefaultHasher::new();
-                // A path is said, not compared: parts that say one compare
-                // something else.
-                let said_compared = if compared.is_empty() {
-                    said.as_str()
-                } else {
-                    ""
-                };
-                (said_compared, compared).hash(&mut h);
+                compared.hash(&mut h);
                 h.finish()
             })
             .collect();

@@ -66,10 +66,11 @@ fn main() {
     // wrong with it is said once, by rank 0. (Ranks given other command
     // lines, `mpirun -np 1 A : -np 1 B`, or started by a script each rank
     // runs, say their own.)
-    let one_command_line = launched_as_rank().is_some_and(|(_, size)| size > 1)
+    let launched = launched_as_rank();
+    let one_command_line = launched.is_some_and(|(_, size)| size > 1)
         && std::env::var("OMPI_NUM_APP_CTX").map_or(true, |n| n == "1")
         && started_by_mpirun();
-    let other_rank = one_command_line && launched_as_rank().is_some_and(|(rank, _)| rank > 0);
+    let other_rank = one_command_line && launched.is_some_and(|(rank, _)| rank > 0);
     let exit = |e: clap::Error| -> ! {
         if other_rank {
             std::process::exit(e.exit_code());
@@ -90,7 +91,7 @@ fn main() {
     if let Command::Render(args) = &cli.command
         && !args.distributed
         && one_command_line
-        && let Some((_, size)) = launched_as_rank()
+        && let Some((_, size)) = launched
     {
         // (A warning, not a refusal: a launcher in between can hide a
         // command line of each rank's own.)

@@ -858,11 +858,7 @@ fn dark_average_warning(volume: &Volume, dark: &raycaster::render::DarkAverage) 
 
 /// Opens a label volume, checking that it holds labels.
 fn open_labels(path: &Path) -> Result<Volume> {
-    raycaster::source::open_labels(path).map_err(|e| match e {
-        // The volume's own error names its file.
-        raycaster::source::SourceError::Volume { source, .. } => source.into(),
-        e => e.into(),
-    })
+    Ok(raycaster::source::open_labels(path)?)
 }
 
 /// Where the flags say the volume comes from.

@@ -949,6 +949,12 @@ fn a_flat_volume_is_said_to_render_as_background() {
     nrrd("slice.nrrd", [24, 16, 1]);
     nrrd("line.nrrd", [1, 1, 40]);
     nrrd("thin.nrrd", [24, 16, 2]);
+    let render = |file: &str, mode: &str| {
+        let args = ["render", file, "--mode", mode, "-o", "out.png", "--force"];
+        let out = raycaster(&[&args[..], &["--size", "32"]].concat(), dir.path());
+        assert!(out.status.success(), "{file} {mode}: {}", stderr(&out));
+        stderr(&out)
+    };
     for (name, needle) in [
         (
             "slice.nrrd",
@@ -959,47 +965,12 @@ fn a_flat_volume_is_said_to_render_as_background() {
             "line.nrrd: 1x1x40 voxels, one voxel thick along x and y",
         ),
     ] {
-        let out = raycaster(
-            &["render", name, "-o", "out.png", "--force", "--size", "32"],
-            dir.path(),
-        );
-        assert!(out.status.success(), "{name}: {}", stderr(&out));
-        assert_eq!(
-            stderr(&out).matches(needle).count(),
-            1,
-            "{name}: {}",
-            stderr(&out)
-        );
+        let err = render(name, "dvr");
+        assert_eq!(err.matches(needle).count(), 1, "{name}: {err}");
     }
     // A projection shows the plane: no warning; two voxels give depth: none.
-    let out = raycaster(
-        &[
-            "render",
-            "slice.nrrd",
-            "--mode",
-            "mip",
-            "-o",
-            "out.png",
-            "--force",
-            "--size",
-            "32",
-        ],
-        dir.path(),
-    );
-    assert!(out.status.success(), "{}", stderr(&out));
-    assert!(!stderr(&out).contains("thick"), "{}", stderr(&out));
-    let out = raycaster(
-        &[
-            "render",
-            "thin.nrrd",
-            "-o",
-            "out.png",
-            "--force",
-            "--size",
-            "32",
-        ],
-        dir.path(),
-    );
-    assert!(out.status.success(), "{}", stderr(&out));
-    assert!(!stderr(&out).contains("thick"), "{}", stderr(&out));
+    for (name, mode) in [("slice.nrrd", "mip"), ("thin.nrrd", "dvr")] {
+        let err = render(name, mode);
+        assert!(!err.contains("thick"), "{name} {mode}: {err}");
+    }
 }

@@ -407,7 +407,12 @@ pub fn free_space(dir: &Path) -> std::io::Result<u64> {
 /// Refuses to start writing `bytes` into a new file beside `path` when its file
 /// system has less free space (checked up front, so a doomed job fails at once).
 pub fn check_free_space(path: &Path, bytes: u64) -> std::io::Result<()> {
-    let dir = parent_dir(path);
+    check_free_space_in(parent_dir(path), bytes)
+}
+
+/// [`check_free_space`] for `bytes` written into folder `dir` (a temporary
+/// file there).
+pub fn check_free_space_in(dir: &Path, bytes: u64) -> std::io::Result<()> {
     let free = free_space(dir)?;
     if bytes > free {
         return Err(std::io::Error::new(

@@ -11,7 +11,9 @@ use glam::Vec3;
 use crate::import::{DEFAULT_IN_MEMORY_LIMIT, ImportError};
 use crate::render::{Orbit, TransferError, TransferFunction, patient_axes};
 use crate::synth::{SceneKind, synthesize, synthesize_labels};
-use crate::volume::{Access, Content, OpenOptions, SampleType, Volume, VolumeError};
+use crate::volume::{
+    Access, Content, OpenOptions, SampleType, Volume, VolumeError, VolumeErrorKind,
+};
 
 /// Where a volume comes from.
 #[derive(Clone, Debug, PartialEq)]
@@ -61,20 +63,6 @@ pub enum SourceError {
     /// The file holds object ids, not data.
     #[error("{0} is a label volume (object ids), not data: open the data volume and a label scene")]
     LabelsNotData(PathBuf),
-    /// A label volume was asked for and the file is a foreign one (a
-    /// segmentation in NRRD, NIfTI, ...), which is imported as values.
-    #[error(
-        "{}: label volumes are .vol files of object ids; `volgen convert {} --labels -o NAME.labels.vol` makes one of this segmentation",
-        .0.display(),
-        .0.display()
-    )]
-    ForeignLabels(PathBuf),
-    /// A label volume was asked for and the file holds values.
-    #[error(
-        "{}: holds values, not labels: a label volume holds object ids (`volgen convert FILE --labels -o NAME.labels.vol` makes one of a segmentation; `volgen generate --scene shells` writes one beside its volume)",
-        .0.display()
-    )]
-    ValuesNotLabels(PathBuf),
     /// Generating a built-in scene failed.
     #[error("built-in scene: {0}")]
     BuiltIn(VolumeError),
@@ -176,16 +164,16 @@ fn open_file(path: &Path, access: Access) -> Result<(Volume, Option<String>), So
 
 /// Opens the label volume at `path` (a `.vol` of object ids), saying what to
 /// do with a foreign segmentation or a volume of values.
-pub fn open_labels(path: &Path) -> Result<Volume, SourceError> {
+pub fn open_labels(path: &Path) -> Result<Volume, VolumeError> {
+    let refuse = |kind| Err(VolumeError::new(path, kind));
     if crate::import::detect(path).is_some() {
-        return Err(SourceError::ForeignLabels(path.to_path_buf()));
+        return refuse(VolumeErrorKind::ForeignLabels {
+            file: path.display().to_string(),
+        });
     }
-    let labels = Volume::open(path).map_err(|source| SourceError::Volume {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let labels = Volume::open(path)?;
     if labels.content() != Content::Labels {
-        return Err(SourceError::ValuesNotLabels(path.to_path_buf()));
+        return refuse(VolumeErrorKind::ValuesNotLabels);
     }
     Ok(labels)
 }

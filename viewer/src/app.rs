@@ -27,7 +27,7 @@ use raycaster::slice::Axis;
 use raycaster::source::VolumeSource;
 use raycaster::synth::SceneKind;
 use raycaster::text::counted;
-use raycaster::volume::write_file_atomically;
+use raycaster::volume::{VolumeError, VolumeErrorKind, write_file_atomically};
 use slint::{
     ComponentHandle, Image, ModelRc, Rgba8Pixel, SharedPixelBuffer, SharedString, VecModel,
 };
@@ -489,15 +489,29 @@ fn open_session_volume(
         _ => None,
     };
     if let Some(labels) = wanted {
-        let label_volume = raycaster::source::open_labels(&labels).map_err(|e| match e {
-            raycaster::source::SourceError::Volume { source, .. } => anyhow::Error::new(source)
-                .context(format!("cannot open labels {}", labels.display())),
-            e => e.into(),
+        let label_volume = raycaster::source::open_labels(&labels).map_err(|e| {
+            with_labels_context(e, || format!("cannot open labels {}", labels.display()))
         })?;
         volume.labels = Some(Arc::new(label_volume));
     }
     let labels_path = session.labels.clone();
     Ok((session, volume, labels_path))
+}
+
+/// A label volume's error with `context` (what the file was for), unless the
+/// file is no label volume: that refusal names the file and what to do.
+fn with_labels_context(e: VolumeError, context: impl FnOnce() -> String) -> anyhow::Error {
+    match e.kind {
+        VolumeErrorKind::ForeignLabels { .. } | VolumeErrorKind::ValuesNotLabels => e.into(),
+        _ => anyhow::Error::new(e).context(context()),
+    }
+}
+
+/// `message` and a scene's `warnings`, one status line.
+fn with_warnings(message: String, warnings: Vec<String>) -> String {
+    warnings
+        .into_iter()
+        .fold(message, |m, w| format!("{m}; warning: {w}"))
 }
 
 fn init_models(ui: &App) {
@@ -2230,10 +2244,7 @@ impl Controller {
         };
         self.state.borrow_mut().scene = Some(scene);
         self.show_objects();
-        let mut message = format!("loaded scene {}", path.display());
-        for warning in warnings {
-            message += &format!("; warning: {warning}");
-        }
+        let message = with_warnings(format!("loaded scene {}", path.display()), warnings);
         self.show_message(&message, false);
         self.request_frame(false);
     }
@@ -2252,14 +2263,10 @@ impl Controller {
                 // volume of values is said as what it is.)
                 let label_volume =
                     Arc::new(raycaster::source::open_labels(&labels).map_err(|e| {
-                        let advice =
-                            "the scene's label volume (its `labels =`, read beside the scene file)";
-                        match e {
-                            raycaster::source::SourceError::Volume { source, .. } => {
-                                anyhow::Error::new(source).context(advice)
-                            }
-                            e => anyhow::Error::new(e),
-                        }
+                        with_labels_context(e, || {
+                            "the scene's label volume (its `labels =`, read beside the scene file)"
+                                .to_string()
+                        })
                     })?);
                 let warnings = scene.warnings(Some(&label_volume));
                 let front = RenderFront::with_labels(
@@ -2270,10 +2277,8 @@ impl Controller {
                 )?;
                 let mut volume = volume;
                 volume.labels = Some(label_volume);
-                let mut message = format!("labels {} attached", labels.display());
-                for warning in warnings {
-                    message += &format!("; warning: {warning}");
-                }
+                let message =
+                    with_warnings(format!("labels {} attached", labels.display()), warnings);
                 Ok(Install {
                     message,
                     loaded: Loaded { volume, front },

@@ -781,20 +781,15 @@ impl Imported {
             // A write that fails is the scratch folder's, not the input's:
             // said as such (a full disk read as "truncated or corrupt").
             let scratch = |e: std::io::Error| {
-                let said = format!(
-                    "the decompressed samples ({}) go to a temporary file here first: {e}",
-                    crate::files::human_bytes(expected)
-                );
+                let said =
+                    format!("the decompressed samples go to a temporary file here first: {e}");
                 ImportError::new(&dir, std::io::Error::new(e.kind(), said))
             };
-            if let Ok(free) = crate::files::free_space(&dir)
-                && free < expected
+            // (A folder whose free space cannot be read is tried all the same.)
+            if let Err(e) = crate::files::check_free_space_in(&dir, expected)
+                && e.kind() == std::io::ErrorKind::StorageFull
             {
-                let said = format!("{} free", crate::files::human_bytes(free));
-                return Err(scratch(std::io::Error::new(
-                    std::io::ErrorKind::StorageFull,
-                    said,
-                )));
+                return Err(scratch(e));
             }
             let mut tmp = tempfile::tempfile_in(&dir).map_err(|e| ImportError::new(&dir, e))?;
             let mut got = 0u64;

@@ -67,6 +67,20 @@ pub enum VolumeErrorKind {
         "not a volume file: its name ends in none of .vol, .nrrd, .nhdr, .nii, .nii.gz, .hdr, .mha, .mhd, .dcm, and its first bytes are no .vol header: {0} (headerless raw samples convert with `volgen convert FILE --raw XxYxZ -o NAME.vol`)"
     )]
     NotAVolume(HeaderError),
+    /// A label volume was asked for and the file is a foreign one (a
+    /// segmentation in NRRD, NIfTI, ...), which is imported as values.
+    #[error(
+        "label volumes are .vol files of object ids; `volgen convert {file} --labels -o NAME.labels.vol` makes one of this segmentation"
+    )]
+    ForeignLabels {
+        /// The file, as the command names it.
+        file: String,
+    },
+    /// A label volume was asked for and the file holds values.
+    #[error(
+        "holds values, not labels: a label volume holds object ids (`volgen convert FILE --labels -o NAME.labels.vol` makes one of a segmentation; `volgen generate --scene shells` writes one beside its volume)"
+    )]
+    ValuesNotLabels,
     /// A file not named for a compressed format that holds gzip data.
     #[error(
         "not a volume file: it holds gzip-compressed data (a .vol file is never compressed: gunzip it first; a compressed NIfTI-1 file is named .nii.gz)"
