@@ -507,12 +507,32 @@ impl<T: Sample> GatherRay<'_, '_, T> {
         n: usize,
     ) -> Option<usize> {
         let entries = self.table.entries();
+        self.chunk_shaded_with(shade, acc, samples, n, |lanes, j| {
+            entries[lanes.indices[j] as usize]
+        })
+    }
+
+    /// [`Self::chunk_shaded`] with each visible lane's entry (colour and
+    /// step-corrected opacity) given by `entry` from the chunk's lanes and the
+    /// lane: the frame table's at the lane's index, or (a two-level scene
+    /// composited directly) that of the table of the object the lane's value
+    /// belongs to. Lanes visible under `self.table` whose entry is
+    /// transparent composite nothing ("over" adds zeros).
+    #[inline(always)]
+    pub(crate) fn chunk_shaded_with(
+        &self,
+        shade: &GatherShading<'_, '_, T>,
+        acc: &mut Accumulation,
+        samples: &[u32; GATHER_LANES],
+        n: usize,
+        entry: impl Fn(&GradientLanes, usize) -> [f32; 4],
+    ) -> Option<usize> {
         let mut lanes = GradientLanes::default();
         let mut visible = self.visible_gradients(shade.volume, samples, n, &mut lanes);
         if visible == 0 {
             return None;
         }
-        let (indices, gradient) = (&lanes.indices, &lanes.gradient);
+        let gradient = &lanes.gradient;
         // Colours and gradients per channel and axis in lanes, shaded four at
         // a time.
         let mut rgb = LineAligned([[0f32; GATHER_LANES]; 3]);
@@ -520,8 +540,7 @@ impl<T: Sample> GatherRay<'_, '_, T> {
         while bits != 0 {
             let j = bits.trailing_zeros() as usize;
             bits &= bits - 1;
-            let entry = entries[indices[j] as usize];
-            for (channel, value) in rgb.0.iter_mut().zip(entry) {
+            for (channel, value) in rgb.0.iter_mut().zip(entry(&lanes, j)) {
                 channel[j] = value;
             }
         }
@@ -542,7 +561,7 @@ impl<T: Sample> GatherRay<'_, '_, T> {
         while visible != 0 {
             let j = visible.trailing_zeros() as usize;
             visible &= visible - 1;
-            let a = entries[indices[j] as usize][3];
+            let a = entry(&lanes, j)[3];
             let color = [rgb.0[0][j], rgb.0[1][j], rgb.0[2][j]];
             if self.over(acc, (color, a), samples[j], ends_ray) {
                 return Some(j);

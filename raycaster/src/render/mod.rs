@@ -21,6 +21,7 @@ mod frame;
 mod front;
 mod gather;
 mod gather_gradients;
+mod gather_layers;
 mod gather_values;
 mod geometry;
 mod image;

@@ -466,6 +466,18 @@ pub struct TransferTable {
     raw_prefix: Vec<[u32; 2]>,
 }
 
+/// `prefix[i]` = the entries below `i` whose opacity `alpha0` is above 0.
+fn opaque_prefix(alpha0: &[f32]) -> Vec<u32> {
+    let mut prefix = Vec::with_capacity(alpha0.len() + 1);
+    let mut count = 0u32;
+    prefix.push(0);
+    for &a in alpha0 {
+        count += u32::from(a > 0.0);
+        prefix.push(count);
+    }
+    prefix
+}
+
 /// The largest sample type whose raw values get [`TransferTable`]'s
 /// per-value prefix sums: u8 (2 KiB of them; u16's would take 512 KiB).
 const RAW_PREFIX_MAX: u16 = 255;
@@ -491,13 +503,7 @@ impl TransferTable {
             entries.push([r, g, b, corrected_alpha(a, step_ratio)]);
             alpha0.push(a);
         }
-        let mut opaque_prefix = Vec::with_capacity(n + 1);
-        let mut count = 0u32;
-        opaque_prefix.push(0);
-        for &a in &alpha0 {
-            count += u32::from(a > 0.0);
-            opaque_prefix.push(count);
-        }
+        let opaque_prefix = opaque_prefix(&alpha0);
         let gradient = tf.gradient_ramp.map(|[g0, g1]| GradientRamp {
             factor: (0..GRADIENT_BINS)
                 .map(|i| {
@@ -527,14 +533,19 @@ impl TransferTable {
             raw_prefix: Vec::new(),
         };
         if type_max <= RAW_PREFIX_MAX {
-            table.raw_prefix = (0..=type_max)
-                .map(|v| {
-                    let i = table.index(f32::from(v));
-                    [table.opaque_prefix[i], table.opaque_prefix[i + 1]]
-                })
-                .collect();
+            table.raw_prefix = table.raw_prefix_up_to(type_max);
         }
         table
+    }
+
+    /// [`Self::raw_prefix`] for raw values `0..=type_max`.
+    fn raw_prefix_up_to(&self, type_max: u16) -> Vec<[u32; 2]> {
+        (0..=type_max)
+            .map(|v| {
+                let i = self.index(f32::from(v));
+                [self.opaque_prefix[i], self.opaque_prefix[i + 1]]
+            })
+            .collect()
     }
 
     /// This table with a pre-integrated table over (front, back) value pairs for
@@ -551,7 +562,8 @@ impl TransferTable {
     }
 
     /// A table whose entries are visible where an entry of any of `tables`
-    /// is (each entry's opacity the largest of theirs), for a kernel that
+    /// is (each entry's opacity the largest of theirs; transparent over a
+    /// range of values where all are), for a kernel that
     /// asks only which samples some table shows; `None` when they map values
     /// to entries differently (another domain) or there is none.
     pub(crate) fn visible_under_any(tables: &[&TransferTable]) -> Option<TransferTable> {
@@ -570,9 +582,17 @@ impl TransferTable {
             for (u, e) in union.entries.iter_mut().zip(&t.entries) {
                 u[3] = u[3].max(e[3]);
             }
+            for (u, a) in union.alpha0.iter_mut().zip(&t.alpha0) {
+                *u = u.max(*a);
+            }
             for (u, b) in union.visible_bits.iter_mut().zip(&t.visible_bits) {
                 *u |= b;
             }
+        }
+        // Transparent ranges too: transparent under every table.
+        union.opaque_prefix = opaque_prefix(&union.alpha0);
+        if let Some(type_max) = union.raw_prefix.len().checked_sub(1) {
+            union.raw_prefix = union.raw_prefix_up_to(type_max as u16);
         }
         Some(union)
     }
@@ -1212,6 +1232,34 @@ mod tests {
         // u16 tables keep the conversions.
         let tf = TransferFunction::preset("shapes").unwrap();
         assert!(TransferTable::new(&tf, u16::MAX, 0.5).raw_prefix.is_empty());
+    }
+
+    #[test]
+    fn a_table_visible_under_any_is_transparent_where_every_table_is() {
+        for type_max in [255u16, 4095] {
+            let domain = Some([0.0, f32::from(type_max)]);
+            let tables: Vec<TransferTable> = ["shapes", "cloud", "ct-bone"]
+                .into_iter()
+                .map(|name| {
+                    let mut tf = TransferFunction::preset(name).unwrap();
+                    tf.domain = domain;
+                    TransferTable::new(&tf, type_max, 0.5)
+                })
+                .collect();
+            let all: Vec<&TransferTable> = tables.iter().collect();
+            let union = TransferTable::visible_under_any(&all).unwrap();
+            let step = usize::from(type_max / 64).max(1);
+            let mut differ = 0;
+            for lo in (0..=type_max).step_by(step) {
+                for hi in (lo..=type_max).step_by(step) {
+                    let every = tables.iter().all(|t| t.is_transparent(lo, hi));
+                    assert_eq!(union.is_transparent(lo, hi), every, "{type_max} [{lo}, {hi}]");
+                    differ += usize::from(every != tables[0].is_transparent(lo, hi));
+                }
+            }
+            // The first table alone would answer otherwise somewhere.
+            assert!(differ > 0, "{type_max}");
+        }
     }
 
     #[test]

@@ -10,7 +10,8 @@ use std::sync::Arc;
 
 use super::clip::ClipRegion;
 use super::compositor::{Compositor, SamplePoint};
-use super::gather_gradients::march_gradients_every_sample;
+use super::gather_gradients::{march_gradients, march_gradients_every_sample};
+use super::gather_layers::march_shaded_layers;
 use super::gather_values::march_values;
 use super::local::{Accumulation, LocalCompositor};
 use super::optics::over_premultiplied;
@@ -38,10 +39,24 @@ enum SceneKernel {
     /// The same scenes where a table is pre-integrated or the tables map
     /// values differently: the scalar loop.
     Scalar,
+    /// A scene composited directly ([`TwoLevel::direct`]) whose objects read
+    /// each visible sample's gradient: the gradient kernel folding the
+    /// samples visible under any object's table, each with its gradient
+    /// gathered (the others composite nothing).
+    VisibleGradients(Arc<TransferTable>),
+    /// A layer scene composited directly whose objects are shaded DVR with
+    /// 1D tables and no clip regions: the plain DVR gather kernel, each lane
+    /// taking its layer's table entry ([`march_shaded_layers`]), with the
+    /// table visible where any object's is.
+    ShadedLayers(Arc<TransferTable>, Shading),
 }
 
 /// No object: no segment is open.
 pub(crate) const NO_OBJECT: u16 = u16::MAX;
+
+/// The ray's one segment of a scene composited directly
+/// ([`TwoLevel::direct`]): every object's samples fold into it.
+const EVERY_OBJECT: u16 = u16::MAX - 1;
 
 /// A pixel of a two-level frame: the segments composited so far and the open one.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -58,6 +73,16 @@ pub(crate) struct SegmentedState {
     depth: f32,
     /// One past the last sample index folded (skipped samples leave a gap).
     next_index: u32,
+}
+
+impl SegmentedState {
+    /// The ray's one segment of a scene composited directly, which every
+    /// object's samples fold into.
+    #[inline(always)]
+    pub(crate) fn direct_segment(&mut self) -> &mut Accumulation {
+        debug_assert_eq!(self.object, EVERY_OBJECT);
+        &mut self.segment
+    }
 }
 
 impl StateCodec for SegmentedState {
@@ -101,11 +126,25 @@ pub(crate) struct TwoLevel {
     disjoint: bool,
     /// Global compositing.
     global: GlobalMode,
+    /// A table visible where any visible object's is, when their tables map
+    /// values alike: one test of a range for all.
+    visible_under_any: Option<Arc<TransferTable>>,
     /// Every visible object composites by emission–absorption: transparent
     /// samples contribute nothing, so empty space may be skipped.
     all_dvr: bool,
+    /// Every visible object is plain DVR (no pre-integrated table) and the
+    /// segments composite by DVR too: "over" is associative, so compositing
+    /// each segment locally and the segments globally is compositing every
+    /// sample directly with its object's table. The ray keeps one open
+    /// segment ([`EVERY_OBJECT`]) that each object's samples fold into; a
+    /// change of object closes nothing, and transparent samples (of any
+    /// object, or of none) need not be seen.
+    direct: bool,
     /// What marches the scene on a packet level.
     kernel: SceneKernel,
+    /// Per layer id (0: no layer), the table of its visible object, for
+    /// [`SceneKernel::ShadedLayers`] (empty otherwise).
+    layer_tables: Vec<Option<Arc<TransferTable>>>,
     /// Per object id: where the object shows (voxels of the level rendered),
     /// `None` everywhere; empty when no object has a region.
     clips: Vec<Option<ClipRegion>>,
@@ -133,6 +172,7 @@ impl TwoLevel {
         early_termination: Option<f32>,
     ) -> TwoLevel {
         let mut objects = vec![None; 256];
+        let mut object_tables: Vec<Option<Arc<TransferTable>>> = vec![None; 256];
         // An object's function without a domain of its own spans the frame's
         // (the data's fitted values, or `--domain`), as the plain modes' does.
         let spanning = |tf: &TransferFunction| {
@@ -162,9 +202,10 @@ impl TwoLevel {
                 }
             };
             let d = o.transfer.domain.unwrap_or(domain);
+            object_tables[o.id as usize] = Some(table.clone());
             objects[o.id as usize] = Some(LocalCompositor::new(o.mode, table, shading, d));
         }
-        let layers = match &scene.membership {
+        let layers: Option<Vec<[f32; 2]>> = match &scene.membership {
             Membership::Layers(layers) => Some(
                 layers
                     .iter()
@@ -205,13 +246,31 @@ impl TwoLevel {
         }
         let gradients_everywhere = shading.is_some() || tables.iter().any(|(_, t)| t.is_2d());
         let all: Vec<&TransferTable> = tables.iter().map(|(_, t)| &**t).collect();
+        let preintegrated = all.iter().any(|t| t.preintegrated().is_some());
+        let visible_under_any = TransferTable::visible_under_any(&all).map(Arc::new);
+        let direct = all_dvr && scene.global == GlobalMode::Dvr && !preintegrated;
         let kernel = if !(all_dvr && gradients_everywhere) {
             SceneKernel::Values
-        } else if all.iter().any(|t| t.preintegrated().is_some()) {
+        } else if preintegrated {
             SceneKernel::Scalar
         } else {
-            TransferTable::visible_under_any(&all)
-                .map_or(SceneKernel::Scalar, |t| SceneKernel::Gradients(Arc::new(t)))
+            let visible = TransferTable::visible_under_any(&all).map(Arc::new);
+            let layered = layers.is_some() && clips.is_empty() && all.iter().all(|t| !t.is_2d());
+            match (visible, shading) {
+                (None, _) => SceneKernel::Scalar,
+                (Some(t), Some(shading)) if direct && layered => {
+                    SceneKernel::ShadedLayers(t, shading)
+                }
+                (Some(t), _) if direct => SceneKernel::VisibleGradients(t),
+                (Some(t), _) => SceneKernel::Gradients(t),
+            }
+        };
+        let layer_tables = match (&kernel, &layers) {
+            (SceneKernel::ShadedLayers(..), Some(layers)) => {
+                object_tables.truncate(layers.len() + 1);
+                object_tables
+            }
+            _ => Vec::new(),
         };
         TwoLevel {
             clips,
@@ -222,6 +281,9 @@ impl TwoLevel {
             disjoint,
             global: scene.global,
             all_dvr,
+            direct,
+            layer_tables,
+            visible_under_any,
             stop_at: early_termination.unwrap_or(f32::INFINITY),
         }
     }
@@ -277,9 +339,27 @@ impl TwoLevel {
         0
     }
 
+    /// The layer of raw value `v` (tried in layer `hint` first) and the colour
+    /// and step-corrected opacity its object's table gives entry `index`
+    /// (`index(v)`; every table maps values alike); transparent in no layer
+    /// or a hidden object's. For [`SceneKernel::ShadedLayers`].
+    #[inline(always)]
+    pub(crate) fn layer_entry(&self, v: f32, hint: u16, index: usize) -> (u16, [f32; 4]) {
+        let layer = self.layer_of(v, hint);
+        let entry = match self.layer_tables.get(layer as usize) {
+            Some(Some(table)) => table.entries()[index],
+            _ => [0.0; 4],
+        };
+        (layer, entry)
+    }
+
     /// Whether every visible object is transparent over raw values `[lo, hi]`.
+    #[inline]
     pub fn is_transparent(&self, lo: u16, hi: u16) -> bool {
-        self.tables.iter().all(|t| t.is_transparent(lo, hi))
+        match &self.visible_under_any {
+            Some(table) => table.is_transparent(lo, hi),
+            None => self.tables.iter().all(|t| t.is_transparent(lo, hi)),
+        }
     }
 }
 
@@ -290,7 +370,11 @@ impl Compositor for TwoLevel {
         SegmentedState {
             color: [0.0; 3],
             alpha: 0.0,
-            object: NO_OBJECT,
+            object: if self.direct {
+                EVERY_OBJECT
+            } else {
+                NO_OBJECT
+            },
             segment: Accumulation::starting_at(0.0),
             depth: f32::INFINITY,
             next_index: 0,
@@ -299,6 +383,7 @@ impl Compositor for TwoLevel {
 
     /// Empty for every object, when every object composites by emission–absorption
     /// (others see every sample: a skipped run could split or join segments).
+    #[inline]
     fn range_empty(&self, lo: u16, hi: u16) -> bool {
         self.all_dvr && self.is_transparent(lo, hi)
     }
@@ -324,6 +409,15 @@ impl Compositor for TwoLevel {
         {
             id = NO_OBJECT;
         }
+        if st.object == EVERY_OBJECT {
+            // Composited directly: the sample folds into the ray's one
+            // segment with its object's table (plain DVR: it ignores `stop`).
+            if let Some(object) = self.object(id) {
+                object.sample_in_segment(&mut st.segment, s, f32::INFINITY);
+            }
+            st.next_index = s.index + 1;
+            return;
+        }
         if id != st.object {
             self.close(st);
             st.object = id;
@@ -348,6 +442,10 @@ impl Compositor for TwoLevel {
     /// The global opacity, counting the open segment's as if it closed now.
     #[inline]
     fn opacity(&self, st: &SegmentedState) -> f32 {
+        if st.object == EVERY_OBJECT {
+            // Nothing composited globally yet: the segment's is the ray's.
+            return st.segment.alpha;
+        }
         let Some(object) = self.object(st.object) else {
             return st.alpha;
         };
@@ -367,7 +465,10 @@ impl Compositor for TwoLevel {
 
     /// Composites the open segment globally and closes it.
     fn close(&self, st: &mut SegmentedState) {
-        if let Some(object) = self.object(st.object) {
+        if st.object == EVERY_OBJECT {
+            let segment = &st.segment;
+            over_premultiplied(&mut st.color, &mut st.alpha, segment.color, segment.alpha);
+        } else if let Some(object) = self.object(st.object) {
             let [r, g, b, a] = object.resolve(&st.segment);
             match self.global {
                 GlobalMode::Dvr => over_premultiplied(&mut st.color, &mut st.alpha, [r, g, b], a),
@@ -409,6 +510,10 @@ impl Compositor for TwoLevel {
         match &self.kernel {
             SceneKernel::Values => march_values(self, work, level),
             SceneKernel::Gradients(table) => march_gradients_every_sample(self, table, work, level),
+            SceneKernel::VisibleGradients(table) => march_gradients(self, table, work, level),
+            SceneKernel::ShadedLayers(table, shading) => {
+                march_shaded_layers(self, table, *shading, work, level)
+            }
             SceneKernel::Scalar => false,
         }
     }
