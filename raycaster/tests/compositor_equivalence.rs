@@ -271,3 +271,54 @@ fn an_object_without_a_domain_spans_the_frames_domain_values_beyond_it_included(
         }
     }
 }
+
+#[test]
+fn an_object_whose_function_has_a_domain_of_its_own_renders_as_that_function_plain() {
+    // The frame spans the data; the object's function a narrower domain of its
+    // own, as `--tf FILE` of that function alone does. Gradients (shading, the
+    // gradient modes, a 2D function's ramp) are read in the units of the
+    // object's function, as the plain mode reads them (they were the frame's:
+    // 26/255 apart in DVR on a CT scan).
+    let mut checked = 0;
+    for sample_type in [SampleType::U8, SampleType::U16] {
+        let volume = volume(SceneKind::Shapes, sample_type);
+        let data = transfer(SceneKind::Shapes, &volume);
+        let [lo, hi] = data.domain.unwrap();
+        let mut own = data.clone();
+        own.domain = Some([lo + 0.05 * (hi - lo), lo + 0.6 * (hi - lo)]);
+        let mut ramp = own.clone();
+        ramp.gradient_ramp = Some([0.02, 0.3]);
+        for (mode, local) in modes() {
+            for tf in [&own, &ramp] {
+                if tf.gradient_ramp.is_some() && mode != Mode::Dvr {
+                    continue;
+                }
+                let plain = RenderSettings {
+                    mode,
+                    iso_value: ISO,
+                    mode_parameters: parameters(),
+                    early_termination: None,
+                    transfer: tf.clone(),
+                    ..RenderSettings::default()
+                };
+                let two_level = RenderSettings {
+                    segments: Some(one_object(tf, local)),
+                    transfer: data.clone(),
+                    ..plain.clone()
+                };
+                for parallel in [false, true] {
+                    let name = format!(
+                        "own-domain-{}-{sample_type:?}-{}-{parallel}",
+                        mode.name(),
+                        tf.gradient_ramp.is_some()
+                    );
+                    let expected = draw(&volume, &plain, parallel).to_image();
+                    let actual = draw(&volume, &two_level, parallel).to_image();
+                    assert_images_match(&name, &actual, &expected, 1);
+                    checked += 1;
+                }
+            }
+        }
+    }
+    assert_eq!(checked, 2 * 2 * (modes().len() + 1));
+}

@@ -279,7 +279,7 @@ impl FramePlan {
                     type_max,
                     domain,
                     step_ratio,
-                    shading,
+                    settings.shading,
                     settings.preintegrated,
                     volume.volume().level_scale(),
                     settings.early_termination,

@@ -1253,7 +1253,11 @@ mod tests {
             for lo in (0..=type_max).step_by(step) {
                 for hi in (lo..=type_max).step_by(step) {
                     let every = tables.iter().all(|t| t.is_transparent(lo, hi));
-                    assert_eq!(union.is_transparent(lo, hi), every, "{type_max} [{lo}, {hi}]");
+                    assert_eq!(
+                        union.is_transparent(lo, hi),
+                        every,
+                        "{type_max} [{lo}, {hi}]"
+                    );
                     differ += usize::from(every != tables[0].is_transparent(lo, hi));
                 }
             }

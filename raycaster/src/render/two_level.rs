@@ -9,7 +9,7 @@
 use std::sync::Arc;
 
 use super::clip::ClipRegion;
-use super::compositor::{Compositor, SamplePoint};
+use super::compositor::{Compositor, SampleGradient, SamplePoint, SampleSite};
 use super::gather_gradients::{march_gradients, march_gradients_every_sample};
 use super::gather_layers::march_shaded_layers;
 use super::gather_values::march_values;
@@ -142,6 +142,10 @@ pub(crate) struct TwoLevel {
     direct: bool,
     /// What marches the scene on a packet level.
     kernel: SceneKernel,
+    /// Per object id, what its gradients are multiplied by: the frame's domain
+    /// over its function's (1 without a domain of its own); empty when all
+    /// are 1.
+    gradient_factors: Vec<f32>,
     /// Per layer id (0: no layer), the table of its visible object, for
     /// [`SceneKernel::ShadedLayers`] (empty otherwise).
     layer_tables: Vec<Option<Arc<TransferTable>>>,
@@ -156,7 +160,9 @@ pub(crate) struct TwoLevel {
 
 impl TwoLevel {
     /// Prepares `scene` for samples of `type_max` with the data's raw `domain`,
-    /// opacities corrected for `step_ratio` reference steps; `preintegrate` gives
+    /// opacities corrected for `step_ratio` reference steps; `shading` as the
+    /// frame gives it (each object's fade widened to its function's
+    /// quantisation, [`Shading::covering_quantum`]); `preintegrate` gives
     /// the tables of DVR objects pre-integrated segments; objects' clip regions
     /// are moved to a level whose voxels span `level_scale` level-0 voxels;
     /// `early_termination` is the frame's threshold.
@@ -173,6 +179,10 @@ impl TwoLevel {
     ) -> TwoLevel {
         let mut objects = vec![None; 256];
         let mut object_tables: Vec<Option<Arc<TransferTable>>> = vec![None; 256];
+        let mut gradient_factors = vec![1.0f32; 256];
+        // Shading fades in over the data's quantisation at least, in the
+        // units of each object's function.
+        let covering = |[d0, d1]: [f32; 2]| shading.map(|s| s.covering_quantum(1.0 / (d1 - d0)));
         // An object's function without a domain of its own spans the frame's
         // (the data's fitted values, or `--domain`), as the plain modes' does.
         let spanning = |tf: &TransferFunction| {
@@ -202,8 +212,12 @@ impl TwoLevel {
                 }
             };
             let d = o.transfer.domain.unwrap_or(domain);
+            // Gradients come in the frame domain's units; an object whose
+            // function has a domain of its own reads them in its own, as
+            // the plain mode of that function does.
+            gradient_factors[o.id as usize] = (domain[1] - domain[0]) / (d[1] - d[0]);
             object_tables[o.id as usize] = Some(table.clone());
-            objects[o.id as usize] = Some(LocalCompositor::new(o.mode, table, shading, d));
+            objects[o.id as usize] = Some(LocalCompositor::new(o.mode, table, covering(d), d));
         }
         let layers: Option<Vec<[f32; 2]>> = match &scene.membership {
             Membership::Layers(layers) => Some(
@@ -244,6 +258,9 @@ impl TwoLevel {
                 clips[o.id as usize] = Some(o.clip.at_level(level_scale));
             }
         }
+        if gradient_factors.iter().all(|&f| f == 1.0) {
+            gradient_factors.clear();
+        }
         let gradients_everywhere = shading.is_some() || tables.iter().any(|(_, t)| t.is_2d());
         let all: Vec<&TransferTable> = tables.iter().map(|(_, t)| &**t).collect();
         let preintegrated = all.iter().any(|t| t.preintegrated().is_some());
@@ -254,9 +271,11 @@ impl TwoLevel {
         } else if preintegrated {
             SceneKernel::Scalar
         } else {
-            let visible = TransferTable::visible_under_any(&all).map(Arc::new);
-            let layered = layers.is_some() && clips.is_empty() && all.iter().all(|t| !t.is_2d());
-            match (visible, shading) {
+            let layered = layers.is_some()
+                && clips.is_empty()
+                && gradient_factors.is_empty()
+                && all.iter().all(|t| !t.is_2d());
+            match (visible_under_any.clone(), covering(domain)) {
                 (None, _) => SceneKernel::Scalar,
                 (Some(t), Some(shading)) if direct && layered => {
                     SceneKernel::ShadedLayers(t, shading)
@@ -282,6 +301,7 @@ impl TwoLevel {
             global: scene.global,
             all_dvr,
             direct,
+            gradient_factors,
             layer_tables,
             visible_under_any,
             stop_at: early_termination.unwrap_or(f32::INFINITY),
@@ -304,6 +324,26 @@ impl TwoLevel {
     #[inline]
     fn object(&self, id: u16) -> Option<&LocalCompositor> {
         self.objects.get(id as usize).and_then(Option::as_ref)
+    }
+
+    /// Folds sample `s` into `segment` by `object` (of id `id`), its
+    /// gradients in the object's units; `stop` as
+    /// [`LocalCompositor::sample_in_segment`].
+    #[inline(always)]
+    fn fold<T: Sample>(
+        &self,
+        id: u16,
+        object: &LocalCompositor,
+        segment: &mut Accumulation,
+        s: &SamplePoint<'_, T>,
+        stop: f32,
+    ) {
+        match self.gradient_factors.get(id as usize) {
+            Some(&factor) if factor != 1.0 => {
+                fold_rescaled(object, segment, s, stop, factor);
+            }
+            _ => object.sample_in_segment(segment, s, stop),
+        }
     }
 
     /// Whether ids come from a label volume.
@@ -363,6 +403,33 @@ impl TwoLevel {
     }
 }
 
+/// [`TwoLevel::fold`] of an object whose gradients are the frame's times
+/// `factor`: the sample's own gradient (read now: it is a function of the
+/// position, the same bits whichever kernel read it) and those read near it
+/// (pre-integrated pieces) rescaled.
+#[inline(never)]
+fn fold_rescaled<T: Sample>(
+    object: &LocalCompositor,
+    segment: &mut Accumulation,
+    s: &SamplePoint<'_, T>,
+    stop: f32,
+    factor: f32,
+) {
+    let site = SampleSite {
+        gradient_scale: s.site.gradient_scale * factor,
+        ..*s.site
+    };
+    let point = SamplePoint {
+        value: s.value,
+        position: s.position,
+        index: s.index,
+        fraction: s.fraction,
+        gradient: SampleGradient::Known(s.gradient() * factor),
+        site: &site,
+    };
+    object.sample_in_segment(segment, &point, stop);
+}
+
 impl Compositor for TwoLevel {
     type State = SegmentedState;
 
@@ -370,11 +437,7 @@ impl Compositor for TwoLevel {
         SegmentedState {
             color: [0.0; 3],
             alpha: 0.0,
-            object: if self.direct {
-                EVERY_OBJECT
-            } else {
-                NO_OBJECT
-            },
+            object: if self.direct { EVERY_OBJECT } else { NO_OBJECT },
             segment: Accumulation::starting_at(0.0),
             depth: f32::INFINITY,
             next_index: 0,
@@ -413,7 +476,7 @@ impl Compositor for TwoLevel {
             // Composited directly: the sample folds into the ray's one
             // segment with its object's table (plain DVR: it ignores `stop`).
             if let Some(object) = self.object(id) {
-                object.sample_in_segment(&mut st.segment, s, f32::INFINITY);
+                self.fold(id, object, &mut st.segment, s, f32::INFINITY);
             }
             st.next_index = s.index + 1;
             return;
@@ -432,7 +495,8 @@ impl Compositor for TwoLevel {
         }
         st.next_index = s.index + 1;
         if let Some(object) = self.object(id) {
-            object.sample_in_segment(&mut st.segment, s, self.segment_stop(st.alpha));
+            let stop = self.segment_stop(st.alpha);
+            self.fold(id, object, &mut st.segment, s, stop);
             if st.depth.is_infinite() {
                 st.depth = st.segment.depth;
             }
