@@ -2,7 +2,7 @@
 
 mod render_support;
 
-use raycaster::render::{Camera, Mode, Projection, Ray, Vec3, corrected_alpha};
+use raycaster::render::{Camera, Mode, ModeParameters, Projection, Ray, Vec3, corrected_alpha};
 use render_support::*;
 
 /// Orthographic camera looking along +x at the volume's middle.
@@ -34,6 +34,37 @@ fn homogeneous_slab_gives_the_closed_form_opacity() {
         for px in &frame.rgba {
             assert!(
                 (px[3] - expected).abs() < 1e-3,
+                "step {step}: alpha {} expected {expected}",
+                px[3]
+            );
+        }
+    }
+}
+
+#[test]
+fn xray_of_a_homogeneous_slab_sums_its_thickness_at_every_step() {
+    // The slab above: 24 reference steps thick. Each sample weighs the part of
+    // a step it stands for, the ray's last (partial) one too, so the sum is the
+    // thickness times the normalised value whatever the step (a last sample
+    // weighing a whole step added up to 0.7 at step 0.7).
+    let volume = volume_u8([17, 9, 9], [1.5, 1.0, 1.0], |_, _, _| 200);
+    let tf = white_tf(&[(0.0, 1.0), (1.0, 1.0)]);
+    let gain = 0.05;
+    for step in [0.5, 0.3, 0.7, 1.0, 1.7] {
+        let settings = raycaster::render::RenderSettings {
+            step,
+            mode: Mode::XRay,
+            mode_parameters: ModeParameters {
+                xray_gain: Some(gain),
+                ..ModeParameters::default()
+            },
+            ..plain_settings(tf.clone())
+        };
+        let frame = render(&volume, &along_x(&volume, 8), &settings);
+        let expected = 1.0 - (-gain * 200.0 / 255.0 * 24.0f32).exp();
+        for px in &frame.rgba {
+            assert!(
+                (px[3] - expected).abs() < 1e-4,
                 "step {step}: alpha {} expected {expected}",
                 px[3]
             );

@@ -27,10 +27,9 @@ pub(crate) struct Accumulation {
     pub color: [f32; 3],
     /// Opacity.
     pub alpha: f32,
-    /// Maximum (MIP) or sum (average, X-ray) of raw values.
+    /// Maximum (MIP) or sum (average, X-ray: each value times the part of a
+    /// step its sample stands for) of raw values.
     pub value: f32,
-    /// Samples folded into `value`.
-    pub count: u32,
     /// Accumulated importance (importance-aware compositing).
     pub importance: f32,
     /// First-hit depth, `∞` without a hit.
@@ -41,7 +40,8 @@ pub(crate) struct Accumulation {
     pub next_index: u32,
     /// Sabella: the relative depth of the peak value.
     pub peak_depth: f32,
-    /// Sabella: the sum of normalised values.
+    /// Sabella: the sum of normalised values. Average and X-ray: the steps
+    /// folded into `value` (a ray's last sample stands for a part of one).
     pub weight: f32,
     /// Sabella: the sum of normalised values times relative depths.
     pub weighted_depth: f32,
@@ -54,7 +54,6 @@ impl Accumulation {
             color: [0.0; 3],
             alpha: 0.0,
             value,
-            count: 0,
             importance: 0.0,
             depth: f32::INFINITY,
             next_index: 0,
@@ -71,7 +70,7 @@ impl Accumulation {
 }
 
 impl StateCodec for Accumulation {
-    const BYTES: usize = 48;
+    const BYTES: usize = 44;
 
     fn encode(&self, out: &mut Vec<u8>) {
         for v in [
@@ -83,7 +82,6 @@ impl StateCodec for Accumulation {
         ] {
             put_f32(out, v);
         }
-        put_u32(out, self.count);
         put_f32(out, self.importance);
         put_f32(out, self.depth);
         put_u32(out, self.next_index);
@@ -97,7 +95,6 @@ impl StateCodec for Accumulation {
             color: [r.f32(), r.f32(), r.f32()],
             alpha: r.f32(),
             value: r.f32(),
-            count: r.u32(),
             importance: r.f32(),
             depth: r.f32(),
             next_index: r.u32(),
@@ -624,11 +621,12 @@ pub(crate) struct Average {
 }
 
 impl Average {
-    /// Adds raw value `v` to the sum (average and X-ray).
+    /// Adds raw value `v` of a sample standing for `fraction` of a step to
+    /// the sum (average and X-ray).
     #[inline]
-    fn fold(st: &mut Accumulation, v: f32) {
-        st.value += v;
-        st.count += 1;
+    fn fold(st: &mut Accumulation, v: f32, fraction: f32) {
+        st.value += v * fraction;
+        st.weight += fraction;
     }
 }
 
@@ -646,11 +644,12 @@ impl Compositor for Average {
     }
     #[inline]
     fn sample<T: Sample>(&self, st: &mut Accumulation, s: &SamplePoint<'_, T>) {
-        Average::fold(st, s.value);
+        Average::fold(st, s.value, s.fraction);
     }
     fn resolve(&self, st: &Accumulation) -> [f32; 4] {
-        if st.count > 0 {
-            classify_once(&self.table, st.value / st.count as f32)
+        // (A ray's only sample may stand for no part of a step.)
+        if st.weight > 0.0 {
+            classify_once(&self.table, st.value / st.weight)
         } else {
             [0.0; 4]
         }
@@ -680,16 +679,16 @@ impl Compositor for XRay {
     }
     #[inline]
     fn sample<T: Sample>(&self, st: &mut Accumulation, s: &SamplePoint<'_, T>) {
-        Average::fold(st, s.value);
+        Average::fold(st, s.value, s.fraction);
     }
     fn resolve(&self, st: &Accumulation) -> [f32; 4] {
-        if st.count == 0 {
+        if st.weight <= 0.0 {
             return [0.0; 4];
         }
-        let n = st.count as f32;
-        let [r, g, b, _] = self.table.lookup(st.value / n);
+        let steps = st.weight;
+        let [r, g, b, _] = self.table.lookup(st.value / steps);
         let width = self.domain[1] - self.domain[0];
-        let sum = (st.value - n * self.domain[0]) / width * self.table.step_ratio();
+        let sum = (st.value - steps * self.domain[0]) / width * self.table.step_ratio();
         let a = 1.0 - (-self.gain * sum.max(0.0)).exp();
         [r * a, g * a, b * a, a]
     }

@@ -248,7 +248,7 @@ mod tests {
                 let mut acc = Accumulation::starting_at(-0.0);
                 acc.color = [i as f32 * 0.1, f32::MIN_POSITIVE, 1.0];
                 acc.alpha = 0.3;
-                acc.count = i as u32 * 7;
+                acc.weight = i as f32 * 7.0;
                 acc.depth = if i % 2 == 0 { f32::INFINITY } else { 2.5 };
                 acc.next_index = u32::MAX - i as u32;
                 acc.weighted_depth = -(i as f32);
