@@ -154,6 +154,52 @@ fn every_fixture_reads_with_its_dimensions_spacing_and_values() {
 }
 
 #[test]
+fn a_four_dimensional_nrrd_of_one_volume_reads_as_the_volume() {
+    // The u8 fixture rewritten with a leading axis of one sample (as 3D Slicer
+    // writes a volume), and with a trailing time axis of one frame.
+    let dir = tempfile::tempdir().unwrap();
+    let original = std::fs::read(fixtures().join("u8_raw.nrrd")).unwrap();
+    let text = String::from_utf8_lossy(&original);
+    assert!(
+        text.contains("dimension: 3\nsizes: 6 5 4\n") && text.contains("spacings: 0.5 0.75 2\n")
+    );
+    let expected = read_all(&import::open(&fixtures().join("u8_raw.nrrd")).unwrap());
+    for (name, from, to) in [
+        (
+            "leading.nrrd",
+            ["dimension: 3\nsizes: 6 5 4\n", "spacings: 0.5 0.75 2\n"],
+            [
+                "dimension: 4\nsizes: 1 6 5 4\nkinds: list domain domain domain\n",
+                "spacings: nan 0.5 0.75 2\n",
+            ],
+        ),
+        (
+            "trailing.nrrd",
+            ["dimension: 3\nsizes: 6 5 4\n", "spacings: 0.5 0.75 2\n"],
+            ["dimension: 4\nsizes: 6 5 4 1\n", "spacings: 0.5 0.75 2 1\n"],
+        ),
+    ] {
+        let mut bytes = original.clone();
+        for (a, b) in from.iter().zip(to) {
+            let at = bytes
+                .windows(a.len())
+                .position(|w| w == a.as_bytes())
+                .unwrap();
+            bytes.splice(at..at + a.len(), b.bytes());
+        }
+        let path = dir.path().join(name);
+        std::fs::write(&path, &bytes).unwrap();
+        let imported = import::open(&path).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(
+            (imported.dims, imported.spacing),
+            ([6, 5, 4], [0.5, 0.75, 2.0]),
+            "{name}"
+        );
+        assert_eq!(read_all(&imported), expected, "{name}");
+    }
+}
+
+#[test]
 fn open_volume_any_stores_values_as_documented() {
     for &(name, _, ty, _) in FIXTURES {
         let v = import::open_volume_any(&fixtures().join(name), 1 << 20).unwrap();

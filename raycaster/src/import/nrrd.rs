@@ -1,6 +1,7 @@
 //! NRRD (`.nrrd`, detached `.nhdr`): a text header of `field: value` lines.
 //!
-//! Supported: `NRRD0001`..`NRRD0005` magic, `dimension: 3`, types u8, i16, u16 and
+//! Supported: `NRRD0001`..`NRRD0005` magic, `dimension: 3` (or more, the other
+//! axes of one sample each: a 4D file of one volume), types u8, i16, u16 and
 //! f32 under any of their NRRD spellings, `raw` and `gzip` encodings, `endian`,
 //! `sizes`, `spacings` or `space directions` (spacing = length of each direction
 //! vector), `byte skip` (including `-1` for raw data at the end of the file),
@@ -113,6 +114,62 @@ fn split_vectors(s: &str) -> Vec<&str> {
     out
 }
 
+/// The three axes of a NRRD of `sizes` (one per dimension) that make the
+/// volume: all of a 3D file's; of more dimensions, the others must hold one
+/// sample each (a 4D file of one volume, as some tools write), and where
+/// several axes of one sample could be left out, those that are no space
+/// axes are (`none` in `space directions`, a kind other than `domain` or
+/// `space`).
+fn spatial_axes(
+    sizes: &[u64],
+    directions: Option<&str>,
+    kinds: Option<&str>,
+) -> Result<[usize; 3], ImportErrorKind> {
+    let dimension = sizes.len();
+    if dimension == 3 {
+        return Ok([0, 1, 2]);
+    }
+    let extra = dimension - 3;
+    let directions = directions.map(split_vectors);
+    let kinds: Option<Vec<&str>> = kinds.map(|k| k.split_whitespace().collect());
+    let not_space = |axis: usize| {
+        let no_direction = directions
+            .as_ref()
+            .and_then(|d| d.get(axis))
+            .is_some_and(|d| d.eq_ignore_ascii_case("none"));
+        let other_kind = kinds.as_ref().and_then(|k| k.get(axis)).is_some_and(|k| {
+            !["domain", "space"]
+                .iter()
+                .any(|s| k.eq_ignore_ascii_case(s))
+        });
+        no_direction || other_kind
+    };
+    let single: Vec<usize> = (0..dimension).filter(|&a| sizes[a] == 1).collect();
+    let marked: Vec<usize> = single.iter().copied().filter(|&a| not_space(a)).collect();
+    let left_out = if single.len() == extra {
+        single
+    } else if marked.len() == extra {
+        marked
+    } else {
+        let what = match (0..dimension).find(|&a| sizes[a] > 1 && not_space(a)) {
+            Some(a) => format!(
+                "its axis {a} holds {} samples (a series of volumes or vectors)",
+                sizes[a]
+            ),
+            None => format!("its sizes are {sizes:?}"),
+        };
+        return Err(unsupported(
+            F,
+            format!(
+                "dimension {dimension}: {what}; only 3D volumes are read, or files of more \
+                 dimensions whose other axes hold one sample each"
+            ),
+        ));
+    };
+    let kept: Vec<usize> = (0..dimension).filter(|a| !left_out.contains(a)).collect();
+    Ok([kept[0], kept[1], kept[2]])
+}
+
 /// Parses a NRRD header from the start of `bytes` (which may go on into the data).
 ///
 /// A pure function of the bytes: it never panics, whatever they hold.
@@ -182,26 +239,35 @@ pub fn parse_header(bytes: &[u8]) -> Result<NrrdHeader, ImportErrorKind> {
     };
 
     let dimension = need("dimension")?;
-    if dimension != "3" {
-        return Err(unsupported(
-            F,
-            format!("dimension {dimension} (only 3D volumes are read)"),
-        ));
-    }
+    let dimension = match dimension.parse::<usize>() {
+        Ok(d) if (3..=16).contains(&d) => d,
+        _ => {
+            return Err(unsupported(
+                F,
+                format!("dimension {dimension} (only 3D volumes are read)"),
+            ));
+        }
+    };
     let sample = parse_type(need("type")?)?;
-    let sizes = need("sizes")?
+    let all_sizes = need("sizes")?
         .split_whitespace()
         .map(|s| {
             s.parse::<u64>()
                 .map_err(|_| header_error(F, format!("size `{s}` is not a whole number")))
         })
         .collect::<Result<Vec<_>, _>>()?;
-    if sizes.len() != 3 {
+    if all_sizes.len() != dimension {
         return Err(header_error(
             F,
-            format!("`sizes` has {} values for dimension 3", sizes.len()),
+            format!(
+                "`sizes` has {} values for dimension {dimension}",
+                all_sizes.len()
+            ),
         ));
     }
+    // The three axes of the volume; the others hold one sample each.
+    let axes = spatial_axes(&all_sizes, get("space directions"), get("kinds"))?;
+    let sizes = axes.map(|a| all_sizes[a]);
     let dims = check_dims(F, &sizes)?;
     let encoding = match need("encoding")? {
         "raw" => Encoding::Raw,
@@ -229,13 +295,16 @@ pub fn parse_header(bytes: &[u8]) -> Result<NrrdHeader, ImportErrorKind> {
     let mut orientation = None;
     if let Some(s) = get("spacings") {
         let values: Vec<&str> = s.split_whitespace().collect();
-        if values.len() != 3 {
+        if values.len() != dimension {
             return Err(header_error(
                 F,
-                format!("`spacings` has {} values for dimension 3", values.len()),
+                format!(
+                    "`spacings` has {} values for dimension {dimension}",
+                    values.len()
+                ),
             ));
         }
-        for (axis, v) in values.iter().enumerate() {
+        for (axis, v) in axes.map(|a| values[a]).iter().enumerate() {
             if v.eq_ignore_ascii_case("nan") {
                 // NRRD's "no spacing on this axis": a volume renders with its spacing,
                 // so guessing 1 would silently distort it.
@@ -253,17 +322,17 @@ pub fn parse_header(bytes: &[u8]) -> Result<NrrdHeader, ImportErrorKind> {
         }
     } else if let Some(s) = get("space directions") {
         let vectors = split_vectors(s);
-        if vectors.len() != 3 {
+        if vectors.len() != dimension {
             return Err(header_error(
                 F,
                 format!(
-                    "`space directions` has {} entries for dimension 3",
+                    "`space directions` has {} entries for dimension {dimension}",
                     vectors.len()
                 ),
             ));
         }
         let mut steps = Vec::with_capacity(3);
-        for (axis, v) in vectors.iter().enumerate() {
+        for (axis, v) in axes.map(|a| vectors[a]).iter().enumerate() {
             if let Some(v) = parse_vector(v)? {
                 let len = v.iter().map(|c| c * c).sum::<f64>().sqrt();
                 spacing[axis] = check_spacing(F, axis, len)?;
@@ -482,9 +551,66 @@ mod tests {
                 "NaN",
             ),
             ("PNG".to_string(), "magic"),
+            (
+                base.replace("dimension: 3\nsizes: 2 2 2", "dimension: 4\nsizes: 5 2 2 2"),
+                "dimension 4: its sizes are [5, 2, 2, 2]",
+            ),
+            (
+                base.replace(
+                    "dimension: 3\nsizes: 2 2 2",
+                    "dimension: 4\nsizes: 3 2 2 2\nkinds: RGB-color domain domain domain",
+                ),
+                "axis 0 holds 3 samples (a series of volumes or vectors)",
+            ),
+            (
+                base.replace("dimension: 3\nsizes: 2 2 2", "dimension: 4\nsizes: 1 2 1 2"),
+                "dimension 4: its sizes are [1, 2, 1, 2]",
+            ),
+            (base.replace("dimension: 3", "dimension: 2"), "dimension 2"),
         ] {
             let err = parse_header(bad.as_bytes()).unwrap_err().to_string();
             assert!(err.contains(needle), "{bad:?}: {err}");
         }
+    }
+
+    #[test]
+    fn a_four_dimensional_file_of_one_volume_reads_as_its_three_axes() {
+        let base = "NRRD0004\ntype: short\nendian: little\nencoding: raw\nspace: left-posterior-superior\n";
+        let three = parse_header(
+            format!(
+                "{base}dimension: 3\nsizes: 4 5 6\n\
+                 space directions: (0.5,0,0) (0,0.7,0) (0,0,2.5)\nspace origin: (1,2,3)\n\n"
+            )
+            .as_bytes(),
+        )
+        .unwrap();
+        for fields in [
+            // A leading list axis (as 3D Slicer writes), spacings and kinds too.
+            "dimension: 4\nsizes: 1 4 5 6\nkinds: list domain domain domain\n\
+             space directions: none (0.5,0,0) (0,0.7,0) (0,0,2.5)\nspace origin: (1,2,3)\n",
+            // A trailing time axis of one frame.
+            "dimension: 4\nsizes: 4 5 6 1\n\
+             space directions: (0.5,0,0) (0,0.7,0) (0,0,2.5) none\nspace origin: (1,2,3)\n",
+            // A flat volume: of the two axes of one sample, the one that is no space axis goes.
+            "dimension: 4\nsizes: 4 1 6 1\nkinds: domain domain domain time\n\
+             space directions: (0.5,0,0) (0,0.7,0) (0,0,2.5) none\nspace origin: (1,2,3)\n",
+        ] {
+            let h = parse_header(format!("{base}{fields}\n").as_bytes()).unwrap();
+            if fields.contains("4 1 6 1") {
+                assert_eq!(h.dims, [4, 1, 6], "{fields}");
+                continue;
+            }
+            assert_eq!(h.dims, three.dims, "{fields}");
+            assert_eq!(h.spacing, three.spacing, "{fields}");
+            assert_eq!(h.orientation, three.orientation, "{fields}");
+        }
+        let spacings = parse_header(
+            format!("{base}dimension: 4\nsizes: 1 4 5 6\nspacings: nan 0.5 0.7 2.5\n\n").as_bytes(),
+        )
+        .unwrap();
+        assert_eq!(
+            (spacings.dims, spacings.spacing),
+            ([4, 5, 6], [0.5, 0.7, 2.5])
+        );
     }
 }
