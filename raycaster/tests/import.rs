@@ -294,6 +294,29 @@ fn a_volume_over_the_memory_limit_is_refused_with_the_convert_hint() {
     );
 }
 
+#[test]
+fn a_nrrd_or_metaimage_file_compressed_whole_is_said_so() {
+    use std::io::Write;
+    let dir = tempfile::tempdir().unwrap();
+    for (fixture, name, how) in [
+        ("u8_raw.nrrd", "scan.nrrd", "encoding: gzip"),
+        ("u8.mha", "scan.mha", "CompressedData = True"),
+    ] {
+        let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+        gz.write_all(&std::fs::read(fixtures().join(fixture)).unwrap())
+            .unwrap();
+        let path = dir.path().join(name);
+        std::fs::write(&path, gz.finish().unwrap()).unwrap();
+        let err = import_error(&path);
+        assert!(
+            err.contains("the whole file is gzip-compressed")
+                && err.contains(how)
+                && err.contains("gunzip it first"),
+            "{err}"
+        );
+    }
+}
+
 /// Copies fixture `name` (and its data file) into `dir`, returning the copy's path.
 fn copy_fixture(dir: &Path, name: &str, data: Option<&str>) -> PathBuf {
     for n in std::iter::once(name).chain(data) {

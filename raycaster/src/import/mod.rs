@@ -200,6 +200,18 @@ pub enum ImportErrorKind {
         "not a known volume format (expected .vol, .nrrd, .nhdr, .nii, .nii.gz, .hdr, .mha, .mhd, or a DICOM folder or .dcm file)"
     )]
     UnknownFormat,
+    /// A NRRD or MetaImage file compressed as a whole (a `.nrrd.gz`
+    /// renamed): those formats compress their samples only.
+    #[error(
+        "the whole file is gzip-compressed: a {format} file compresses only its samples \
+         ({how}); gunzip it first"
+    )]
+    CompressedWhole {
+        /// The format its name gives.
+        format: &'static str,
+        /// How the format compresses its samples.
+        how: &'static str,
+    },
     /// A file opened as a DICOM slice (a `.dcm` file) is not DICOM.
     #[error("not a DICOM file (it has no DICM marker at byte 128)")]
     NotDicom,
@@ -498,13 +510,37 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
 /// Parses `path` without checking the spacing ratio (`volgen convert --spacing`
 /// replaces a broken spacing).
 pub fn open_unchecked(path: &Path) -> Result<Imported, ImportError> {
-    match detect(path) {
+    let format = detect(path);
+    let how = match format {
+        Some(ImportFormat::Nrrd) => Some("`encoding: gzip` in its header"),
+        Some(ImportFormat::MetaImage) => Some("`CompressedData = True` in its header"),
+        _ => None,
+    };
+    if let (Some(format), Some(how)) = (format, how)
+        && starts_with_gzip_magic(path)
+    {
+        let kind = ImportErrorKind::CompressedWhole {
+            format: format.name(),
+            how,
+        };
+        return Err(ImportError::new(path, kind));
+    }
+    match format {
         Some(ImportFormat::Nrrd) => nrrd::open(path),
         Some(ImportFormat::Nifti) => nifti::open(path),
         Some(ImportFormat::MetaImage) => metaimage::open(path),
         Some(ImportFormat::Dicom) => dicom::open(path),
         None => Err(ImportError::new(path, ImportErrorKind::UnknownFormat)),
     }
+}
+
+/// Whether the file at `path` starts with gzip's magic bytes (unreadable
+/// files do not: their error comes from the reader).
+fn starts_with_gzip_magic(path: &Path) -> bool {
+    let mut magic = [0u8; 2];
+    crate::files::open_regular(path)
+        .and_then(|f| f.take(2).read(&mut magic))
+        .is_ok_and(|n| n == 2 && magic == [0x1f, 0x8b])
 }
 
 impl Imported {
