@@ -30,11 +30,11 @@ enum SceneKernel {
     /// cache where an object asks for one.
     Values,
     /// Every visible object is DVR that reads each visible sample's gradient
-    /// (shaded, or a 2D function), so the cell cache reads each value's
-    /// corners anyway and gathered values alone only add (`shapes-layers10`:
-    /// 0.249 s against 0.214 s for the scalar loop): the gradient kernel
-    /// folding every sample, with a table visible where any object's is
-    /// (0.202 s).
+    /// (shaded, or a 2D function), and segments composite by maximum (not
+    /// [`TwoLevel::direct`]), so the cell cache reads each value's corners
+    /// anyway and gathered values alone only add (`shapes-layers10`: 0.249 s
+    /// against 0.214 s for the scalar loop): the gradient kernel folding every
+    /// sample, with a table visible where any object's is (0.202 s).
     Gradients(Arc<TransferTable>),
     /// The same scenes where a table is pre-integrated or the tables map
     /// values differently: the scalar loop.
