@@ -115,53 +115,90 @@ fn split_vectors(s: &str) -> Vec<&str> {
 }
 
 /// The three axes of a NRRD of `sizes` (one per dimension) that make the
-/// volume: all of a 3D file's; of more dimensions, the others must hold one
-/// sample each (a 4D file of one volume, as some tools write), and where
-/// several axes of one sample could be left out, those that are no space
-/// axes are (`none` in `space directions`, a kind other than `domain` or
-/// `space`).
+/// volume. An axis whose `kinds` entry is not a space kind (`domain`,
+/// `space`, or unknown), or, without kinds, whose `space directions` entry is
+/// `none`, is no space axis: it must hold one sample (a channel, vector or
+/// time axis of more is refused, naming it). A file of more than three
+/// dimensions leaves out such axes, then axes of one sample when exactly
+/// enough of those are left (a 4D file of one volume, as some tools write);
+/// which to leave out must be clear.
 fn spatial_axes(
     sizes: &[u64],
     directions: Option<&str>,
     kinds: Option<&str>,
 ) -> Result<[usize; 3], ImportErrorKind> {
     let dimension = sizes.len();
-    if dimension == 3 {
-        return Ok([0, 1, 2]);
-    }
-    let extra = dimension - 3;
     let directions = directions.map(split_vectors);
     let kinds: Option<Vec<&str>> = kinds.map(|k| k.split_whitespace().collect());
-    let not_space = |axis: usize| {
-        let no_direction = directions
-            .as_ref()
-            .and_then(|d| d.get(axis))
-            .is_some_and(|d| d.eq_ignore_ascii_case("none"));
-        let other_kind = kinds.as_ref().and_then(|k| k.get(axis)).is_some_and(|k| {
-            !["domain", "space"]
+    if let Some(kinds) = kinds.as_ref().filter(|k| k.len() != dimension) {
+        return Err(header_error(
+            F,
+            format!(
+                "`kinds` has {} entries for dimension {dimension}",
+                kinds.len()
+            ),
+        ));
+    }
+    // Why an axis is no space axis, if it is none.
+    let not_space = |axis: usize| -> Option<String> {
+        if let Some(kinds) = &kinds {
+            let kind = kinds.get(axis)?;
+            let spatial = ["domain", "space", "???", "none"]
                 .iter()
-                .any(|s| k.eq_ignore_ascii_case(s))
-        });
-        no_direction || other_kind
+                .any(|s| kind.eq_ignore_ascii_case(s));
+            return (!spatial).then(|| format!("of kind `{kind}`"));
+        }
+        let direction = directions.as_ref()?.get(axis)?;
+        direction
+            .eq_ignore_ascii_case("none")
+            .then(|| "without a space direction (`none`)".to_string())
     };
-    let single: Vec<usize> = (0..dimension).filter(|&a| sizes[a] == 1).collect();
-    let marked: Vec<usize> = single.iter().copied().filter(|&a| not_space(a)).collect();
-    let left_out = if single.len() == extra {
-        single
+    if let Some((axis, why)) = (0..dimension)
+        .filter(|&a| sizes[a] > 1)
+        .find_map(|a| not_space(a).map(|why| (a, why)))
+    {
+        return Err(unsupported(
+            F,
+            format!(
+                "axis {axis} {why} holds {} samples (channels, vectors or a series of \
+                 volumes); only one volume of single values is read",
+                sizes[axis]
+            ),
+        ));
+    }
+    let marked: Vec<usize> = (0..dimension).filter(|&a| not_space(a).is_some()).collect();
+    let single: Vec<usize> = (0..dimension)
+        .filter(|&a| sizes[a] == 1 && !marked.contains(&a))
+        .collect();
+    let extra = dimension - 3;
+    let left_out: Vec<usize> = if marked.len() > extra {
+        return Err(unsupported(
+            F,
+            format!(
+                "of its {dimension} axes only {} are space axes (axes {marked:?} are not): \
+                 not a 3D volume",
+                dimension - marked.len()
+            ),
+        ));
     } else if marked.len() == extra {
         marked
+    } else if marked.len() + single.len() == extra {
+        marked.into_iter().chain(single).collect()
     } else {
-        let what = match (0..dimension).find(|&a| sizes[a] > 1 && not_space(a)) {
-            Some(a) => format!(
-                "its axis {a} holds {} samples (a series of volumes or vectors)",
-                sizes[a]
-            ),
-            None => format!("its sizes are {sizes:?}"),
+        let unclear = if single.len() > 1 {
+            format!(
+                "axes {single:?} hold one sample each and {} of them could be left out: mark \
+                 the axes that are no space axes (`kinds: list` or `time`, or `none` in \
+                 `space directions`)",
+                extra - marked.len()
+            )
+        } else {
+            format!("its sizes are {sizes:?}")
         };
         return Err(unsupported(
             F,
             format!(
-                "dimension {dimension}: {what}; only 3D volumes are read, or files of more \
+                "dimension {dimension}: {unclear}; only 3D volumes are read, or files of more \
                  dimensions whose other axes hold one sample each"
             ),
         ));
@@ -304,7 +341,9 @@ pub fn parse_header(bytes: &[u8]) -> Result<NrrdHeader, ImportErrorKind> {
                 ),
             ));
         }
-        for (axis, v) in axes.map(|a| values[a]).iter().enumerate() {
+        // (Axes are named as the file numbers them.)
+        for (i, axis) in axes.into_iter().enumerate() {
+            let v = values[axis];
             if v.eq_ignore_ascii_case("nan") {
                 // NRRD's "no spacing on this axis": a volume renders with its spacing,
                 // so guessing 1 would silently distort it.
@@ -318,7 +357,7 @@ pub fn parse_header(bytes: &[u8]) -> Result<NrrdHeader, ImportErrorKind> {
             let v = v
                 .parse::<f64>()
                 .map_err(|_| header_error(F, format!("spacing `{v}` is not a number")))?;
-            spacing[axis] = check_spacing(F, axis, v)?;
+            spacing[i] = check_spacing(F, axis, v)?;
         }
     } else if let Some(s) = get("space directions") {
         let vectors = split_vectors(s);
@@ -332,10 +371,10 @@ pub fn parse_header(bytes: &[u8]) -> Result<NrrdHeader, ImportErrorKind> {
             ));
         }
         let mut steps = Vec::with_capacity(3);
-        for (axis, v) in axes.map(|a| vectors[a]).iter().enumerate() {
-            if let Some(v) = parse_vector(v)? {
+        for (i, axis) in axes.into_iter().enumerate() {
+            if let Some(v) = parse_vector(vectors[axis])? {
                 let len = v.iter().map(|c| c * c).sum::<f64>().sqrt();
-                spacing[axis] = check_spacing(F, axis, len)?;
+                spacing[i] = check_spacing(F, axis, len)?;
                 steps.extend(<[f64; 3]>::try_from(v).ok());
             }
         }
@@ -560,13 +599,56 @@ mod tests {
                     "dimension: 3\nsizes: 2 2 2",
                     "dimension: 4\nsizes: 3 2 2 2\nkinds: RGB-color domain domain domain",
                 ),
-                "axis 0 holds 3 samples (a series of volumes or vectors)",
+                "axis 0 of kind `RGB-color` holds 3 samples",
+            ),
+            // One slice over time: the time axis stays refused, not read as z.
+            (
+                base.replace(
+                    "dimension: 3\nsizes: 2 2 2",
+                    "dimension: 4\nsizes: 6 5 1 4\nkinds: domain domain domain time",
+                ),
+                "axis 3 of kind `time` holds 4 samples",
+            ),
+            (
+                base.replace(
+                    "dimension: 3\nsizes: 2 2 2",
+                    "dimension: 4\nsizes: 3 8 6 1\n\
+                     space directions: none (0.5,0,0) (0,0.5,0) (0,0,1)",
+                ),
+                "axis 0 without a space direction (`none`) holds 3 samples",
+            ),
+            // A 2D colour image in three dimensions.
+            (
+                base.replace(
+                    "sizes: 2 2 2",
+                    "sizes: 3 8 6\nkinds: RGB-color domain domain",
+                ),
+                "axis 0 of kind `RGB-color` holds 3 samples",
+            ),
+            (
+                base.replace(
+                    "dimension: 3\nsizes: 2 2 2",
+                    "dimension: 4\nsizes: 1 6 5 1\nkinds: list domain domain time",
+                ),
+                "only 2 are space axes (axes [0, 3] are not)",
+            ),
+            (
+                base.replace(
+                    "dimension: 3\nsizes: 2 2 2",
+                    "dimension: 4\nsizes: 1 6 5 4\nkinds: list domain domain domain\n\
+                     spacings: nan 0.5 0 2",
+                ),
+                "spacing 0 on axis 2",
             ),
             (
                 base.replace("dimension: 3\nsizes: 2 2 2", "dimension: 4\nsizes: 1 2 1 2"),
-                "dimension 4: its sizes are [1, 2, 1, 2]",
+                "axes [0, 2] hold one sample each and 1 of them could be left out",
             ),
             (base.replace("dimension: 3", "dimension: 2"), "dimension 2"),
+            (
+                base.replace("sizes: 2 2 2", "sizes: 2 2 2\nkinds: domain domain"),
+                "`kinds` has 2 entries for dimension 3",
+            ),
         ] {
             let err = parse_header(bad.as_bytes()).unwrap_err().to_string();
             assert!(err.contains(needle), "{bad:?}: {err}");
