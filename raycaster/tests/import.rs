@@ -317,6 +317,54 @@ fn a_nrrd_or_metaimage_file_compressed_whole_is_said_so() {
     }
 }
 
+#[test]
+fn compressed_samples_are_read_with_either_header_and_named_when_called_raw() {
+    use std::io::Write;
+    let dir = tempfile::tempdir().unwrap();
+    let fixture = std::fs::read(fixtures().join("u8.mha")).unwrap();
+    let expected = read_all(&import::open(&fixtures().join("u8.mha")).unwrap());
+    let end = b"ElementDataFile = LOCAL\n";
+    let at = fixture
+        .windows(end.len())
+        .position(|w| w == end)
+        .map(|i| i + end.len())
+        .unwrap_or_else(|| panic!("u8.mha ends its header with ElementDataFile = LOCAL"));
+    let (header, samples) = fixture.split_at(at);
+    let header = String::from_utf8(header.to_vec()).unwrap();
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    gz.write_all(samples).unwrap();
+    let gz = gz.finish().unwrap();
+    // MetaImage's compressed data with a gzip header (as ITK reads it).
+    let compressed = header.replace(
+        "CompressedData = False\n",
+        &format!("CompressedData = True\nCompressedDataSize = {}\n", gz.len()),
+    );
+    let path = dir.path().join("gzip-payload.mha");
+    std::fs::write(&path, [compressed.as_bytes(), &gz].concat()).unwrap();
+    assert_eq!(read_all(&import::open(&path).unwrap()), expected);
+    // Gzip samples under a header that calls them raw: said so, with the fix.
+    let path = dir.path().join("called-raw.mha");
+    std::fs::write(&path, [header.as_bytes(), &gz].concat()).unwrap();
+    let err = import_error(&path);
+    assert!(
+        err.contains("the samples are gzip-compressed but the header says they are raw")
+            && err.contains("`CompressedData = True`"),
+        "{err}"
+    );
+    let raw = fixtures().join("u8_raw.nrrd");
+    let nrrd = std::fs::read(&raw).unwrap();
+    let header_end = nrrd.windows(2).position(|w| w == b"\n\n").unwrap() + 2;
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    gz.write_all(&nrrd[header_end..]).unwrap();
+    let path = dir.path().join("called-raw.nrrd");
+    std::fs::write(&path, [&nrrd[..header_end], &gz.finish().unwrap()].concat()).unwrap();
+    let err = import_error(&path);
+    assert!(
+        err.contains("write `encoding: gzip` in the header"),
+        "{err}"
+    );
+}
+
 /// Copies fixture `name` (and its data file) into `dir`, returning the copy's path.
 fn copy_fixture(dir: &Path, name: &str, data: Option<&str>) -> PathBuf {
     for n in std::iter::once(name).chain(data) {

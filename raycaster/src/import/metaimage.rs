@@ -109,6 +109,10 @@ pub fn parse_header(bytes: &[u8]) -> Result<MetaHeader, ImportErrorKind> {
         if key.is_empty() || !key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
             return Err(header_error(F, format!("`{key}` is not a MetaImage key")));
         }
+        if fields.iter().any(|(k, _)| k.eq_ignore_ascii_case(&key)) {
+            // Which would count? Readers differ: said, not guessed.
+            return Err(header_error(F, format!("the key `{key}` is given twice")));
+        }
         let done = key.eq_ignore_ascii_case("ElementDataFile");
         fields.push((key, value.trim().to_string()));
         if done {
@@ -352,6 +356,10 @@ mod tests {
                 "Maybe",
             ),
             ("garbage".to_string(), "Key = Value"),
+            (
+                BASE.replace("NDims = 3", "NDims = 3\nelementspacing = 1 1 1"),
+                "the key `ElementSpacing` is given twice",
+            ),
         ] {
             let err = parse_header(bad.as_bytes()).unwrap_err().to_string();
             assert!(err.contains(needle), "{bad:?}: {err}");

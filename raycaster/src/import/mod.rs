@@ -212,6 +212,15 @@ pub enum ImportErrorKind {
         /// How the format compresses its samples.
         how: &'static str,
     },
+    /// Samples the header calls raw that are gzip-compressed.
+    #[error(
+        "the samples are gzip-compressed but the header says they are raw: write {how} in \
+         the header, or gunzip the data"
+    )]
+    CompressedRaw {
+        /// The header field that says the samples are compressed.
+        how: &'static str,
+    },
     /// A file opened as a DICOM slice (a `.dcm` file) is not DICOM.
     #[error("not a DICOM file (it has no DICM marker at byte 128)")]
     NotDicom,
@@ -517,7 +526,7 @@ pub fn open_unchecked(path: &Path) -> Result<Imported, ImportError> {
         _ => None,
     };
     if let (Some(format), Some(how)) = (format, how)
-        && starts_with_gzip_magic(path)
+        && gzip_magic_at(path, 0)
     {
         let kind = ImportErrorKind::CompressedWhole {
             format: format.name(),
@@ -534,12 +543,16 @@ pub fn open_unchecked(path: &Path) -> Result<Imported, ImportError> {
     }
 }
 
-/// Whether the file at `path` starts with gzip's magic bytes (unreadable
-/// files do not: their error comes from the reader).
-fn starts_with_gzip_magic(path: &Path) -> bool {
+/// Whether the file at `path` holds gzip's magic bytes at byte `offset`
+/// (unreadable files do not: their error comes from the reader).
+fn gzip_magic_at(path: &Path, offset: u64) -> bool {
+    use std::io::{Seek, SeekFrom};
     let mut magic = [0u8; 2];
     crate::files::open_regular(path)
-        .and_then(|f| f.take(2).read(&mut magic))
+        .and_then(|mut f| {
+            f.seek(SeekFrom::Start(offset))?;
+            f.take(2).read(&mut magic)
+        })
         .is_ok_and(|n| n == 2 && magic == [0x1f, 0x8b])
 }
 
@@ -655,6 +668,18 @@ impl Imported {
         if actual == expected {
             return Ok(());
         }
+        // Compressed samples the header calls raw: their size says nothing.
+        let how = match self.format {
+            ImportFormat::Nrrd => Some("`encoding: gzip`"),
+            ImportFormat::MetaImage => Some("`CompressedData = True`"),
+            _ => None,
+        };
+        if let Some(how) = how
+            && gzip_magic_at(&self.data_path, self.data_offset)
+        {
+            let kind = ImportErrorKind::CompressedRaw { how };
+            return Err(ImportError::new(&self.data_path, kind));
+        }
         let what = match self.data_offset {
             0 => "the data file".into(),
             start => format!(
@@ -731,10 +756,16 @@ impl Imported {
         let at_data = |e: std::io::Error| ImportError::new(&self.data_path, e);
         file.seek(SeekFrom::Start(self.data_offset))
             .map_err(at_data)?;
-        let reader = std::io::BufReader::with_capacity(1 << 20, file);
-        let mut stream: Box<dyn Read> = match self.encoding {
-            Encoding::Gzip => Box::new(flate2::read::MultiGzDecoder::new(reader)),
-            _ => Box::new(flate2::read::ZlibDecoder::new(reader)),
+        let mut reader = std::io::BufReader::with_capacity(1 << 20, file);
+        // MetaImage's zlib data may come with a gzip header, as ITK reads it.
+        let gzip = self.encoding == Encoding::Gzip
+            || std::io::BufRead::fill_buf(&mut reader)
+                .map_err(at_data)?
+                .starts_with(&[0x1f, 0x8b]);
+        let mut stream: Box<dyn Read> = if gzip {
+            Box::new(flate2::read::MultiGzDecoder::new(reader))
+        } else {
+            Box::new(flate2::read::ZlibDecoder::new(reader))
         };
         let compressed =
             |e: std::io::Error| ImportError::new(&self.data_path, ImportErrorKind::Compressed(e));

@@ -265,6 +265,10 @@ pub fn parse_header(bytes: &[u8]) -> Result<NrrdHeader, ImportErrorKind> {
         // `data file: LIST`: the lines after it are file names, not fields
         // (refused below as a list of files).
         let list = (key == "data file" || key == "datafile") && value.starts_with("LIST");
+        if fields.contains_key(&key) {
+            // Which would count? Readers differ (teem refuses it): said, not guessed.
+            return Err(header_error(F, format!("the field `{key}` is given twice")));
+        }
         fields.insert(key, value);
         if list {
             break;
@@ -645,6 +649,13 @@ mod tests {
                 "axes [0, 2] hold one sample each and 1 of them could be left out",
             ),
             (base.replace("dimension: 3", "dimension: 2"), "dimension 2"),
+            (
+                base.replace(
+                    "sizes: 2 2 2",
+                    "sizes: 2 2 2\nspacings: 1 1 1\nspacings: 2 2 2",
+                ),
+                "the field `spacings` is given twice",
+            ),
             (
                 base.replace("sizes: 2 2 2", "sizes: 2 2 2\nkinds: domain domain"),
                 "`kinds` has 2 entries for dimension 3",
