@@ -14,6 +14,7 @@
 //! module), which the fuzz targets and the no-panic tests drive directly.
 
 pub mod dicom;
+mod gzip;
 pub mod metaimage;
 pub mod nifti;
 pub mod nrrd;
@@ -763,7 +764,7 @@ impl Imported {
                 .map_err(at_data)?
                 .starts_with(&[0x1f, 0x8b]);
         let mut stream: Box<dyn Read> = if gzip {
-            Box::new(flate2::read::MultiGzDecoder::new(reader))
+            Box::new(gzip::GzipMembers::new(reader))
         } else {
             Box::new(flate2::read::ZlibDecoder::new(reader))
         };

@@ -298,7 +298,7 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
     let file = crate::files::open_regular(path).map_err(|e| at(e.into()))?;
     let mut head = Vec::with_capacity(HEADER_LEN);
     let read = if gz {
-        flate2::read::MultiGzDecoder::new(file)
+        super::gzip::GzipMembers::new(std::io::BufReader::new(file))
             .take(HEADER_LEN as u64)
             .read_to_end(&mut head)
             .map_err(|e| at(ImportErrorKind::Compressed(e)))
