@@ -846,12 +846,15 @@ impl Imported {
             Ok((RawData::Memory(buf), got))
         } else {
             let dir = scratch_dir.map_or_else(std::env::temp_dir, Path::to_path_buf);
-            // A write that fails is the scratch folder's, not the input's:
-            // said as such (a full disk read as "truncated or corrupt").
+            // A write that fails is the scratch folder's, not the input's
+            // data: said as such (a full disk read as "truncated or
+            // corrupt"), naming both.
             let scratch = |e: std::io::Error| {
-                let said =
-                    format!("the decompressed samples go to a temporary file here first: {e}");
-                ImportError::new(&dir, std::io::Error::new(e.kind(), said))
+                let said = format!(
+                    "its decompressed samples go to a temporary file in {} first: {e}",
+                    dir.display()
+                );
+                ImportError::new(&self.data_path, std::io::Error::new(e.kind(), said))
             };
             // (A folder whose free space cannot be read is tried all the same.)
             if let Err(e) = crate::files::check_free_space_in(&dir, expected)

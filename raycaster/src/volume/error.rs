@@ -83,7 +83,7 @@ pub enum VolumeErrorKind {
     ValuesNotLabels,
     /// A file not named for a compressed format that holds gzip data.
     #[error(
-        "not a volume file: it holds gzip-compressed data (a .vol file is never compressed: gunzip it first; a compressed NIfTI-1 file is named .nii.gz)"
+        "not a volume file: it holds gzip-compressed data; gunzip it first (.vol, NRRD and MetaImage files are never compressed as a whole; a compressed NIfTI-1 file is named .nii.gz)"
     )]
     GzipUnnamed,
     /// The embedded value-range table is unreadable.
