@@ -965,12 +965,23 @@ fn a_flat_volume_is_said_to_render_as_background() {
             "line.nrrd: 1x1x40 voxels, one voxel thick along x and y",
         ),
     ] {
-        let err = render(name, "dvr");
-        assert_eq!(err.matches(needle).count(), 1, "{name}: {err}");
+        for mode in ["dvr", "xray"] {
+            let err = render(name, mode);
+            assert_eq!(err.matches(needle).count(), 1, "{name} {mode}: {err}");
+        }
     }
-    // A projection shows the plane: no warning; two voxels give depth: none.
-    for (name, mode) in [("slice.nrrd", "mip"), ("thin.nrrd", "dvr")] {
+    // The maximum and the mean show the plane: no warning, and a picture (the
+    // mean of a ray of no depth is its one sample's value: it was 0/0, black);
+    // two voxels give depth: none.
+    for (name, mode) in [
+        ("slice.nrrd", "mip"),
+        ("slice.nrrd", "average"),
+        ("thin.nrrd", "dvr"),
+    ] {
         let err = render(name, mode);
         assert!(!err.contains("thick"), "{name} {mode}: {err}");
+        let image = RgbImage::load_png(&dir.path().join("out.png")).unwrap();
+        let brightest = image.data().iter().copied().max().unwrap();
+        assert!(brightest > 100, "{name} {mode}: brightest {brightest}");
     }
 }

@@ -620,13 +620,20 @@ pub(crate) struct Average {
     table: Arc<TransferTable>,
 }
 
+/// The weight of a sample standing for no part of a step (the one sample of a
+/// ray crossing a volume one voxel thick: no depth): a power of two, so that
+/// such a ray's mean is its value to the bit, and too small to move any other
+/// ray's sum.
+const NO_STEP_WEIGHT: f32 = f32::EPSILON;
+
 impl Average {
     /// Adds raw value `v` of a sample standing for `fraction` of a step to
     /// the sum (average and X-ray).
     #[inline]
     fn fold(st: &mut Accumulation, v: f32, fraction: f32) {
-        st.value += v * fraction;
-        st.weight += fraction;
+        let weight = fraction.max(NO_STEP_WEIGHT);
+        st.value += v * weight;
+        st.weight += weight;
     }
 }
 

@@ -129,9 +129,6 @@ pub(crate) struct TwoLevel {
     /// A table visible where any visible object's is, when their tables map
     /// values alike: one test of a range for all.
     visible_under_any: Option<Arc<TransferTable>>,
-    /// Every visible object composites by emission–absorption: transparent
-    /// samples contribute nothing, so empty space may be skipped.
-    all_dvr: bool,
     /// Every visible object is plain DVR (no pre-integrated table) and the
     /// segments composite by DVR too: "over" is associative, so compositing
     /// each segment locally and the segments globally is compositing every
@@ -299,7 +296,6 @@ impl TwoLevel {
             layers,
             disjoint,
             global: scene.global,
-            all_dvr,
             direct,
             gradient_factors,
             layer_tables,
@@ -444,11 +440,16 @@ impl Compositor for TwoLevel {
         }
     }
 
-    /// Empty for every object, when every object composites by emission–absorption
-    /// (others see every sample: a skipped run could split or join segments).
+    /// Empty for every object, when the scene is composited directly
+    /// ([`TwoLevel::direct`]: transparent samples change nothing). Otherwise
+    /// every sample is seen: a skipped run could join two segments that a
+    /// sample of no object (or another object) between them splits (under
+    /// `global = "mip"` the pair's maximum differs from the whole's), or have
+    /// a pre-integrated step after it composited with the next object's
+    /// table, so the picture would change with the brick and cell layout.
     #[inline]
     fn range_empty(&self, lo: u16, hi: u16) -> bool {
-        self.all_dvr && self.is_transparent(lo, hi)
+        self.direct && self.is_transparent(lo, hi)
     }
 
     /// When a DVR object's table is pre-integrated.
