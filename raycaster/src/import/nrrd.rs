@@ -232,12 +232,29 @@ pub fn parse_header(bytes: &[u8]) -> Result<NrrdHeader, ImportErrorKind> {
             header_len = Some(pos);
             break;
         }
-        let line = std::str::from_utf8(line)
-            .map_err(|_| header_error(F, format!("header line {} is not text", lines.len() + 1)))?;
-        lines.push(line);
+        match std::str::from_utf8(line) {
+            Ok(line) => lines.push(line),
+            // Comments and key/value pairs, skipped below, may hold any bytes
+            // (a name in Latin-1), as teem reads them.
+            Err(_) if line.starts_with(b"#") || line.windows(2).any(|w| w == b":=") => {}
+            Err(_) => {
+                let n = lines.len() + 1;
+                return Err(header_error(F, format!("header line {n} is not text")));
+            }
+        }
         if end >= bytes.len() {
             break;
         }
+    }
+    if header_len.is_none() && pos >= MAX_HEADER_BYTES {
+        return Err(header_error(
+            F,
+            format!(
+                "no blank line ends the header within its first {} (a NRRD header is text of \
+                 a few hundred bytes)",
+                crate::text::counted(MAX_HEADER_BYTES as u64, "byte")
+            ),
+        ));
     }
     let magic = lines.first().copied().unwrap_or_default();
     match magic
@@ -650,6 +667,14 @@ mod tests {
             ),
             (base.replace("dimension: 3", "dimension: 2"), "dimension 2"),
             (
+                format!(
+                    "{}\n{}",
+                    base.trim_end(),
+                    "# x\n".repeat(MAX_HEADER_BYTES / 4 + 1)
+                ),
+                "no blank line ends the header within its first 1048576 bytes",
+            ),
+            (
                 base.replace(
                     "sizes: 2 2 2",
                     "sizes: 2 2 2\nspacings: 1 1 1\nspacings: 2 2 2",
@@ -664,6 +689,16 @@ mod tests {
             let err = parse_header(bad.as_bytes()).unwrap_err().to_string();
             assert!(err.contains(needle), "{bad:?}: {err}");
         }
+    }
+
+    #[test]
+    fn comments_and_key_value_pairs_may_hold_any_bytes() {
+        let text = b"NRRD0004\n# patient: M\xfcller\nname:=M\xfcller\ntype: uchar\ndimension: 3\n\
+                     sizes: 2 2 2\nencoding: raw\n\n";
+        assert_eq!(parse_header(text).unwrap().dims, [2, 2, 2]);
+        let field = b"NRRD0004\ntype: uchar\ncontent: M\xfcller\n\n";
+        let err = parse_header(field).unwrap_err().to_string();
+        assert!(err.contains("header line 3 is not text"), "{err}");
     }
 
     #[test]
