@@ -1,7 +1,8 @@
 //! MetaImage (`.mha` with attached data, `.mhd` + a detached data file): a text
 //! header of `Key = Value` lines ending with `ElementDataFile`.
 //!
-//! Supported: `NDims = 3`, `DimSize`, `ElementType` `MET_UCHAR`, `MET_SHORT`,
+//! Supported: `NDims = 3` (or more, the further dimensions of one sample each),
+//! `DimSize`, `ElementType` `MET_UCHAR`, `MET_SHORT`,
 //! `MET_USHORT`, `MET_FLOAT`, one channel, `ElementSpacing` (or `ElementSize`),
 //! `BinaryDataByteOrderMSB`/`ElementByteOrderMSB`, `CompressedData` (zlib),
 //! `HeaderSize` (bytes to skip in a detached file, `-1` = data at its end), and
@@ -138,20 +139,34 @@ pub fn parse_header(bytes: &[u8]) -> Result<MetaHeader, ImportErrorKind> {
         ));
     }
     let ndims = need("NDims")?;
-    if ndims != "3" {
-        return Err(unsupported(
-            F,
-            format!("NDims {ndims} (only 3D volumes are read)"),
-        ));
-    }
+    // More dimensions (ITK's 4D images) are read when the others hold one
+    // sample each: a volume at one time.
+    let n = match ndims.parse::<usize>() {
+        Ok(n) if (3..=16).contains(&n) => n,
+        _ => {
+            return Err(unsupported(
+                F,
+                format!("NDims {ndims} (only 3D volumes are read)"),
+            ));
+        }
+    };
     let sizes = parse_numbers("DimSize", need("DimSize")?)?;
-    if sizes.len() != 3 || sizes.iter().any(|s| s.fract() != 0.0 || *s < 0.0) {
+    if sizes.len() != n || sizes.iter().any(|s| s.fract() != 0.0 || *s < 0.0) {
         return Err(header_error(
             F,
-            format!("DimSize `{}` is not three whole numbers", need("DimSize")?),
+            format!("DimSize `{}` is not {n} whole numbers", need("DimSize")?),
         ));
     }
-    let dims = check_dims(F, &sizes.iter().map(|&s| s as u64).collect::<Vec<_>>())?;
+    if let Some((axis, size)) = sizes.iter().enumerate().skip(3).find(|(_, s)| **s != 1.0) {
+        return Err(unsupported(
+            F,
+            format!(
+                "NDims {n}: dimension {axis} holds {size} samples (a series of volumes); only \
+                 3D volumes are read, or files whose further dimensions hold one sample each"
+            ),
+        ));
+    }
+    let dims = check_dims(F, &sizes[..3].iter().map(|&s| s as u64).collect::<Vec<_>>())?;
     let sample = match need("ElementType")? {
         "MET_UCHAR" => RawType::U8,
         "MET_SHORT" => RawType::I16,
@@ -177,20 +192,20 @@ pub fn parse_header(bytes: &[u8]) -> Result<MetaHeader, ImportErrorKind> {
     let mut spacing = [1f32; 3];
     if let Some(v) = get("ElementSpacing").or(get("ElementSize")) {
         let values = parse_numbers("ElementSpacing", v)?;
-        if values.len() != 3 {
+        if values.len() != n {
             return Err(header_error(
                 F,
                 format!(
-                    "ElementSpacing has {} values for 3 dimensions",
+                    "ElementSpacing has {} values for {n} dimensions",
                     values.len()
                 ),
             ));
         }
-        for (axis, &s) in values.iter().enumerate() {
+        for (axis, &s) in values.iter().take(3).enumerate() {
             spacing[axis] = check_spacing(F, axis, s)?;
         }
     }
-    let orientation = orientation(&get, spacing)?;
+    let orientation = orientation(&get, spacing, n)?;
     let msb = match get("BinaryDataByteOrderMSB").or(get("ElementByteOrderMSB")) {
         Some(v) => parse_bool("BinaryDataByteOrderMSB", v)?,
         None => false,
@@ -289,6 +304,7 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
 fn orientation<'a>(
     get: &dyn Fn(&str) -> Option<&'a str>,
     spacing: [f32; 3],
+    n: usize,
 ) -> Result<Option<Orientation>, ImportErrorKind> {
     let matrix = get("TransformMatrix")
         .or(get("Rotation"))
@@ -297,21 +313,28 @@ fn orientation<'a>(
     if matrix.is_none() && offset.is_none() {
         return Ok(None);
     }
-    let identity = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
     let m = match matrix {
         Some(v) => parse_numbers("TransformMatrix", v)?,
-        None => identity.to_vec(),
+        None => (0..n * n)
+            .map(|i| f64::from(u8::from(i % (n + 1) == 0)))
+            .collect(),
     };
     let o = match offset {
         Some(v) => parse_numbers("Offset", v)?,
-        None => vec![0.0; 3],
+        None => vec![0.0; n],
     };
-    let (Ok(m), Ok(o)) = (<[f64; 9]>::try_from(m), <[f64; 3]>::try_from(o)) else {
+    if m.len() != n * n || o.len() != n {
         return Err(header_error(
             F,
-            "TransformMatrix needs 9 numbers and Offset 3 for 3 dimensions",
+            format!(
+                "TransformMatrix needs {} numbers and Offset {n} for {n} dimensions",
+                n * n
+            ),
         ));
-    };
+    }
+    // The space part: the first three axes' first three components.
+    let m: [f64; 9] = std::array::from_fn(|i| m[n * (i / 3) + i % 3]);
+    let o = [o[0], o[1], o[2]];
     let steps = std::array::from_fn(|axis| {
         std::array::from_fn(|c| m[3 * axis + c] * f64::from(spacing[axis]))
     });
@@ -339,10 +362,43 @@ mod tests {
     }
 
     #[test]
+    fn a_four_dimensional_image_of_one_time_reads_as_its_volume() {
+        let oriented = BASE
+            .replace(
+                "TransformMatrix = 1 0 0 0 1 0 0 0 1",
+                "TransformMatrix = 0 1 0 -1 0 0 0 0 1",
+            )
+            .replace("Offset = 0 0 0", "Offset = 3 4 5");
+        let three = parse_header(oriented.as_bytes()).unwrap();
+        let four = oriented
+            .replace("NDims = 3", "NDims = 4")
+            .replace(
+                "TransformMatrix = 0 1 0 -1 0 0 0 0 1",
+                "TransformMatrix = 0 1 0 0 -1 0 0 0 0 0 1 0 0 0 0 1",
+            )
+            .replace("Offset = 3 4 5", "Offset = 3 4 5 0")
+            .replace("ElementSpacing = 0.5 1 2", "ElementSpacing = 0.5 1 2 1")
+            .replace("DimSize = 4 3 2", "DimSize = 4 3 2 1");
+        let h = parse_header(four.as_bytes()).unwrap();
+        assert!(three.orientation.is_some());
+        assert_eq!(
+            (h.dims, h.spacing, h.orientation),
+            (three.dims, three.spacing, three.orientation)
+        );
+        assert_eq!(h.header_len, four.len() - 4);
+    }
+
+    #[test]
     fn rejects_what_it_cannot_read_with_a_reason() {
         for (bad, needle) in [
             (BASE.replace("MET_SHORT", "MET_DOUBLE"), "MET_DOUBLE"),
             (BASE.replace("NDims = 3", "NDims = 2"), "NDims 2"),
+            (
+                BASE.replace("NDims = 3", "NDims = 4")
+                    .replace("DimSize = 4 3 2", "DimSize = 4 3 2 5")
+                    .replace("ElementSpacing = 0.5 1 2", "ElementSpacing = 0.5 1 2 1"),
+                "dimension 3 holds 5 samples",
+            ),
             (BASE.replace("DimSize = 4 3 2", "DimSize = 4 3"), "DimSize"),
             (BASE.replace("DimSize = 4 3 2", "DimSize = 4 0 2"), "size 0"),
             (BASE.replace("0.5 1 2", "0.5 nan 2"), "spacing NaN"),
