@@ -286,6 +286,15 @@ fn gradient_modes_in_packets_equal_the_scalar_kernel_bit_for_bit_on_every_level(
 fn two_level_scenes_in_packets_equal_the_scalar_kernel_bit_for_bit_on_every_level() {
     let levels = packet_levels();
     let dir = tempfile::tempdir().unwrap();
+    // Three layers of DVR objects of two functions, with `global` and the
+    // second object's `clip` lines.
+    let three_dvr_layers = |global: &str, clip: &str| {
+        format!(
+            "layers = [[0.0, 0.3], [0.3, 0.55], [0.55, 1.0]]\n{global}\
+             [[object]]\ntf = \"cloud\"\n[[object]]\ntf = \"shapes\"\n{clip}\
+             [[object]]\ntf = \"shapes\"\n"
+        )
+    };
     let scenes = [
         // Every local mode, one per layer.
         r#"layers = [[0.0, 0.12], [0.12, 0.3], [0.3, 0.45], [0.45, 0.6], [0.6, 0.75], [0.75, 0.9], [0.9, 1.0]]
@@ -312,46 +321,23 @@ mode = "dvr"
 [[object]]
 tf = "shapes"
 mode = "first-hit"
-"#,
+"#
+        .to_string(),
         // DVR objects only, of two functions (transparent layers skipped):
-        // the gradient kernel folding every sample when shaded, the value
-        // kernel when not.
-        r#"layers = [[0.0, 0.3], [0.3, 0.55], [0.55, 1.0]]
-global = "dvr"
-[[object]]
-tf = "cloud"
-[[object]]
-tf = "shapes"
-[[object]]
-tf = "shapes"
-"#,
+        // composited directly, the DVR kernel with the layers' entries when
+        // shaded, the value kernel when not.
+        three_dvr_layers("global = \"dvr\"\n", ""),
         // The same, composited by maximum: segments, not one direct
         // accumulation (the gradient kernel folding every sample).
-        r#"layers = [[0.0, 0.3], [0.3, 0.55], [0.55, 1.0]]
-global = "mip"
-[[object]]
-tf = "cloud"
-[[object]]
-tf = "shapes"
-[[object]]
-tf = "shapes"
-"#,
+        three_dvr_layers("global = \"mip\"\n", ""),
         // Composited directly, an object clipped to half the volume: the
         // gradient kernel folding the visible samples through the scene.
-        r#"layers = [[0.0, 0.3], [0.3, 0.55], [0.55, 1.0]]
-[[object]]
-tf = "cloud"
-[[object]]
-tf = "shapes"
-clip = [[20, 20, 20, 1, 0, 0]]
-[[object]]
-tf = "shapes"
-"#,
+        three_dvr_layers("", "clip = [[20, 20, 20, 1, 0, 0]]\n"),
     ];
     let mut frames = 0;
     let kind = SceneKind::Shapes;
     for_each_layout(dir.path(), kind, 40, |layout, prepared, camera| {
-        for (round, text) in scenes.into_iter().enumerate() {
+        for (round, text) in scenes.iter().enumerate() {
             let scene = SegmentScene::parse(text, dir.path()).unwrap();
             let combinations = [
                 (true, true, false),
