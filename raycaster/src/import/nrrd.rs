@@ -233,6 +233,20 @@ pub fn parse_header(bytes: &[u8]) -> Result<NrrdHeader, ImportErrorKind> {
             break;
         }
         match std::str::from_utf8(line) {
+            // A control character would be invisible in messages naming the value.
+            Ok(text)
+                if !line.starts_with(b"#") && text.chars().any(|c| c.is_control() && c != '\t') =>
+            {
+                let n = lines.len() + 1;
+                let c = text
+                    .chars()
+                    .find(|c| c.is_control() && *c != '\t')
+                    .unwrap_or('\0');
+                return Err(header_error(
+                    F,
+                    format!("header line {n} holds a control character ({c:?})"),
+                ));
+            }
             Ok(line) => lines.push(line),
             // Comments and key/value pairs, skipped below, may hold any bytes
             // (a name in Latin-1), as teem reads them.
@@ -666,6 +680,10 @@ mod tests {
                 "axes [0, 2] hold one sample each and 1 of them could be left out",
             ),
             (base.replace("dimension: 3", "dimension: 2"), "dimension 2"),
+            (
+                base.replace("type: uchar", "type: uchar\0"),
+                "header line 2 holds a control character ('\\0')",
+            ),
             (
                 format!(
                     "{}\n{}",
