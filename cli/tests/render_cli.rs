@@ -965,7 +965,7 @@ fn a_flat_volume_is_said_to_render_as_background() {
             "line.nrrd: 1x1x40 voxels, one voxel thick along x and y",
         ),
     ] {
-        for mode in ["dvr", "xray"] {
+        for mode in ["dvr", "xray", "importance", "context", "silhouette"] {
             let err = render(name, mode);
             assert_eq!(err.matches(needle).count(), 1, "{name} {mode}: {err}");
         }

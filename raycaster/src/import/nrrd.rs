@@ -153,6 +153,25 @@ fn spatial_axes(
             .eq_ignore_ascii_case("none")
             .then(|| "without a space direction (`none`)".to_string())
     };
+    // Kinds and directions that disagree: a space axis without a direction.
+    if let (Some(kinds), Some(directions)) = (&kinds, &directions)
+        && let Some(axis) = (0..dimension).find(|&a| {
+            sizes[a] > 1
+                && not_space(a).is_none()
+                && directions
+                    .get(a)
+                    .is_some_and(|d| d.eq_ignore_ascii_case("none"))
+        })
+    {
+        return Err(header_error(
+            F,
+            format!(
+                "axis {axis} is a space axis by its kind `{}` but has no space direction \
+                 (`none`)",
+                kinds[axis]
+            ),
+        ));
+    }
     if let Some((axis, why)) = (0..dimension)
         .filter(|&a| sizes[a] > 1)
         .find_map(|a| not_space(a).map(|why| (a, why)))
@@ -680,6 +699,14 @@ mod tests {
                 "axes [0, 2] hold one sample each and 1 of them could be left out",
             ),
             (base.replace("dimension: 3", "dimension: 2"), "dimension 2"),
+            (
+                base.replace(
+                    "dimension: 3\nsizes: 2 2 2",
+                    "dimension: 4\nsizes: 3 6 5 4\nkinds: list domain domain domain\n\
+                     space directions: (1,0,0) none (0,1,0) (0,0,1)",
+                ),
+                "axis 1 is a space axis by its kind `domain` but has no space direction",
+            ),
             (
                 base.replace("type: uchar", "type: uchar\0"),
                 "header line 2 holds a control character ('\\0')",

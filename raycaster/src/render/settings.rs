@@ -116,13 +116,13 @@ pub fn step_past_volume(step: f32, diagonal: f32) -> Option<String> {
 
 /// What to say of a frame of `settings` over a volume of `dims` voxels that
 /// is one voxel thick along an axis (a 2D image, a single slice, a line): its
-/// sampled box has no depth there, so emission–absorption and sums along the
-/// ray (DVR, Sabella, X-ray, two-level scenes) accumulate nothing and the
-/// picture is background; MIP, average and first hit show it. `None`
-/// otherwise.
+/// sampled box has no depth there, so the modes that accumulate along the ray
+/// (DVR and its importance-aware, context-preserving and silhouette forms,
+/// Sabella, X-ray, two-level scenes) accumulate nothing and the picture is
+/// background; MIP, average and first hit show it. `None` otherwise.
 pub fn flat_volume(dims: [u32; 3], settings: &RenderSettings) -> Option<String> {
     let absorbs = settings.segments.is_some()
-        || matches!(settings.mode, Mode::Dvr | Mode::Sabella | Mode::XRay);
+        || !matches!(settings.mode, Mode::Mip | Mode::Average | Mode::FirstHit);
     let flat: Vec<&str> = ["x", "y", "z"]
         .into_iter()
         .zip(dims)
