@@ -268,8 +268,11 @@ pub fn parse_header(bytes: &[u8]) -> Result<NrrdHeader, ImportErrorKind> {
             }
             Ok(line) => lines.push(line),
             // Comments and key/value pairs, skipped below, may hold any bytes
-            // (a name in Latin-1), as teem reads them.
-            Err(_) if line.starts_with(b"#") || line.windows(2).any(|w| w == b":=") => {}
+            // (a name in Latin-1), as teem reads them: kept as an empty
+            // comment, so that lines keep their numbers.
+            Err(_) if line.starts_with(b"#") || line.windows(2).any(|w| w == b":=") => {
+                lines.push("#");
+            }
             Err(_) => {
                 let n = lines.len() + 1;
                 return Err(header_error(F, format!("header line {n} is not text")));
@@ -741,6 +744,9 @@ mod tests {
         let text = b"NRRD0004\n# patient: M\xfcller\nname:=M\xfcller\ntype: uchar\ndimension: 3\n\
                      sizes: 2 2 2\nencoding: raw\n\n";
         assert_eq!(parse_header(text).unwrap().dims, [2, 2, 2]);
+        let after = b"NRRD0004\n# M\xfcller\ntype: uchar\nbad line\n\n";
+        let err = parse_header(after).unwrap_err().to_string();
+        assert!(err.contains("line 4 `bad line`"), "{err}");
         let field = b"NRRD0004\ntype: uchar\ncontent: M\xfcller\n\n";
         let err = parse_header(field).unwrap_err().to_string();
         assert!(err.contains("header line 3 is not text"), "{err}");

@@ -622,8 +622,9 @@ pub(crate) struct Average {
 
 /// The weight of a sample standing for no part of a step (the one sample of a
 /// ray crossing a volume one voxel thick: no depth): a power of two, so that
-/// such a ray's mean is its value to the bit, and too small to move any other
-/// ray's sum.
+/// such a ray's mean is its value to the bit, and too small to matter beside a
+/// ray's other samples (a last sample of no step is otherwise rare: a ray
+/// whose length is a whole number of steps).
 const NO_STEP_WEIGHT: f32 = f32::EPSILON;
 
 impl Average {
