@@ -2,7 +2,17 @@
 //! after the last (the padding of a block written to tape or a fixed-size
 //! record) ending the data rather than failing as a member that is not one.
 
-use std::io::{BufRead, Read};
+use std::io::{BufRead, Read, Seek, SeekFrom};
+use std::path::Path;
+
+/// Whether the file at `path` holds gzip's magic bytes at byte `offset`.
+pub(crate) fn gzip_magic_at(path: &Path, offset: u64) -> std::io::Result<bool> {
+    let mut file = crate::files::open_regular(path)?;
+    file.seek(SeekFrom::Start(offset))?;
+    let mut magic = [0u8; 2];
+    let n = file.take(2).read(&mut magic)?;
+    Ok(n == 2 && magic == [0x1f, 0x8b])
+}
 
 /// The decompressed bytes of the gzip members in `R`.
 pub(crate) struct GzipMembers<R: BufRead> {

@@ -527,7 +527,8 @@ pub fn open_unchecked(path: &Path) -> Result<Imported, ImportError> {
         _ => None,
     };
     if let (Some(format), Some(how)) = (format, how)
-        && gzip_magic_at(path, 0)
+        // (Unreadable files are not: their error comes from the reader.)
+        && gzip::gzip_magic_at(path, 0).unwrap_or(false)
     {
         let kind = ImportErrorKind::CompressedWhole {
             format: format.name(),
@@ -542,19 +543,6 @@ pub fn open_unchecked(path: &Path) -> Result<Imported, ImportError> {
         Some(ImportFormat::Dicom) => dicom::open(path),
         None => Err(ImportError::new(path, ImportErrorKind::UnknownFormat)),
     }
-}
-
-/// Whether the file at `path` holds gzip's magic bytes at byte `offset`
-/// (unreadable files do not: their error comes from the reader).
-fn gzip_magic_at(path: &Path, offset: u64) -> bool {
-    use std::io::{Seek, SeekFrom};
-    let mut magic = [0u8; 2];
-    crate::files::open_regular(path)
-        .and_then(|mut f| {
-            f.seek(SeekFrom::Start(offset))?;
-            f.take(2).read(&mut magic)
-        })
-        .is_ok_and(|n| n == 2 && magic == [0x1f, 0x8b])
 }
 
 impl Imported {
@@ -676,7 +664,7 @@ impl Imported {
             _ => None,
         };
         if let Some(how) = how
-            && gzip_magic_at(&self.data_path, self.data_offset)
+            && gzip::gzip_magic_at(&self.data_path, self.data_offset).unwrap_or(false)
         {
             let kind = ImportErrorKind::CompressedRaw { how };
             return Err(ImportError::new(&self.data_path, kind));

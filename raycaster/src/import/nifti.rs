@@ -15,6 +15,7 @@
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
+use super::gzip::gzip_magic_at;
 use super::{
     Encoding, ImportError, ImportErrorKind, ImportFormat, Imported, check_dims, check_spacing,
     header_error, unsupported,
@@ -284,17 +285,10 @@ fn orientation(
     Ok(Some(orientation))
 }
 
-/// Whether `path` names a gzip-compressed file (by its first two bytes).
-fn is_gzip(path: &Path) -> std::io::Result<bool> {
-    let mut magic = [0u8; 2];
-    let n = crate::files::open_regular(path)?.take(2).read(&mut magic)?;
-    Ok(n == 2 && magic == [0x1f, 0x8b])
-}
-
 /// Parses the NIfTI-1 file at `path` (`.nii`, `.nii.gz`, or the `.hdr` of a pair).
 pub fn open(path: &Path) -> Result<Imported, ImportError> {
     let at = |e: ImportErrorKind| ImportError::new(path, e);
-    let gz = is_gzip(path).map_err(|e| at(e.into()))?;
+    let gz = gzip_magic_at(path, 0).map_err(|e| at(e.into()))?;
     let file = crate::files::open_regular(path).map_err(|e| at(e.into()))?;
     let mut head = Vec::with_capacity(HEADER_LEN);
     let read = if gz {
@@ -328,7 +322,7 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
     let encoding = if !h.single_file {
         // (A missing .img is said as the header's data file, as NRRD's and
         // MetaImage's are.)
-        if is_gzip(&data_path).map_err(|e| super::data_file_error(path, &data_path, e))? {
+        if gzip_magic_at(&data_path, 0).map_err(|e| super::data_file_error(path, &data_path, e))? {
             Encoding::Gzip
         } else {
             Encoding::Raw
