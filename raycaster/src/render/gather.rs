@@ -534,15 +534,15 @@ impl<T: Sample> GatherRay<'_, '_, T> {
         }
         let gradient = &lanes.gradient;
         // Colours and gradients per channel and axis in lanes, shaded four at
-        // a time.
+        // a time; each lane's entry is asked once (opacities kept for "over").
         let mut rgb = LineAligned([[0f32; GATHER_LANES]; 3]);
+        let mut alpha = LineAligned([0f32; GATHER_LANES]);
         let mut bits = visible;
         while bits != 0 {
             let j = bits.trailing_zeros() as usize;
             bits &= bits - 1;
-            for (channel, value) in rgb.0.iter_mut().zip(entry(&lanes, j)) {
-                channel[j] = value;
-            }
+            let [r, g, b, a] = entry(&lanes, j);
+            (rgb.0[0][j], rgb.0[1][j], rgb.0[2][j], alpha.0[j]) = (r, g, b, a);
         }
         let scale = shade.gradient_scale.to_array();
         #[cfg(target_arch = "x86_64")]
@@ -561,9 +561,8 @@ impl<T: Sample> GatherRay<'_, '_, T> {
         while visible != 0 {
             let j = visible.trailing_zeros() as usize;
             visible &= visible - 1;
-            let a = entry(&lanes, j)[3];
             let color = [rgb.0[0][j], rgb.0[1][j], rgb.0[2][j]];
-            if self.over(acc, (color, a), samples[j], ends_ray) {
+            if self.over(acc, (color, alpha.0[j]), samples[j], ends_ray) {
                 return Some(j);
             }
         }
