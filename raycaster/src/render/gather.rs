@@ -43,6 +43,7 @@ use super::compositor::Compositor;
 use super::local::Accumulation;
 use super::march::{RunMarcher, march_each_run};
 use super::optics::{over, over_sample, whole_exponent};
+use super::packet::PacketWork;
 use super::pixel::SamplePositions;
 use super::runs::SampleRuns;
 use super::sampler::{BrickSampler, CornerDifferences, VolumeSampler, gradient_from_differences};
@@ -332,6 +333,17 @@ pub(crate) struct GatherShading<'v, 'a, T: Sample> {
     pub gradient_scale: Vec3,
     /// Reads anywhere in the volume (gradients at the brick's faces).
     pub volume: &'v VolumeSampler<'a, T>,
+}
+
+impl<'v, 'a, T: Sample> GatherShading<'v, 'a, T> {
+    /// `shading` of the samples of `work`'s task.
+    pub(crate) fn of_task<S>(shading: Shading, work: &PacketWork<'v, 'a, T, S>) -> Self {
+        GatherShading {
+            shading,
+            gradient_scale: work.plan.gradient_scale,
+            volume: work.volume,
+        }
+    }
 }
 
 /// A [`ChunkFolder`] as the marcher of a ray's visit: eight samples per

@@ -73,11 +73,7 @@ fn march_layers_in_chunks<T: Sample>(
     work: &mut PacketWork<'_, '_, T, SegmentedState>,
     gather: &GatherBrick<'_>,
 ) {
-    let shade = GatherShading {
-        shading,
-        gradient_scale: work.plan.gradient_scale,
-        volume: work.volume,
-    };
+    let shade = GatherShading::of_task(shading, work);
     work.for_each_visit(
         #[inline(always)]
         |visit, item, state, counters| {

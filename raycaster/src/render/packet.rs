@@ -213,11 +213,7 @@ fn march_dvr_chunks<T: Sample>(
     } else {
         None
     };
-    let gather_shading = dvr.shading.map(|shading| GatherShading {
-        shading,
-        gradient_scale: work.plan.gradient_scale,
-        volume: work.volume,
-    });
+    let gather_shading = dvr.shading.map(|s| GatherShading::of_task(s, work));
     work.for_each_visit(
         #[inline(always)]
         |visit, item, state, counters| {
