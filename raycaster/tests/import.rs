@@ -365,6 +365,56 @@ fn compressed_samples_are_read_with_either_header_and_named_when_called_raw() {
     );
 }
 
+#[test]
+fn a_zlib_stream_must_end_the_file_and_be_as_long_as_compressed_data_size_says() {
+    let dir = tempfile::tempdir().unwrap();
+    let fixture = std::fs::read(fixtures().join("u16_zlib.mha")).unwrap();
+    let end = b"ElementDataFile = LOCAL\n";
+    let at = fixture
+        .windows(end.len())
+        .position(|w| w == end)
+        .map(|i| i + end.len())
+        .unwrap();
+    let (header, stream) = fixture.split_at(at);
+    let header = String::from_utf8(header.to_vec()).unwrap();
+    let size = format!("CompressedDataSize = {}\n", stream.len());
+    assert!(
+        header.contains(&size),
+        "the fixture gives its stream's length"
+    );
+    let write = |name: &str, header: &str, tail: &[u8]| {
+        let path = dir.path().join(name);
+        std::fs::write(&path, [header.as_bytes(), stream, tail].concat()).unwrap();
+        path
+    };
+    // As written, and without the size: read.
+    let expected = read_all(&import::open(&fixtures().join("u16_zlib.mha")).unwrap());
+    let unsized_ = write("unsized.mha", &header.replace(&size, ""), b"");
+    assert_eq!(read_all(&import::open(&unsized_).unwrap()), expected);
+    // Bytes after the stream (they were ignored).
+    let path = write("trailing.mha", &header, b"another file's bytes");
+    let err = import_error(&path);
+    assert!(
+        err.contains("20 bytes follow the zlib stream of the samples")
+            && err.contains(&format!("ends after {} bytes", stream.len())),
+        "{err}"
+    );
+    // A size that lies (it was not checked).
+    let lying = header.replace(
+        &size,
+        &format!("CompressedDataSize = {}\n", stream.len() + 7),
+    );
+    let err = import_error(&write("lying.mha", &lying, b""));
+    assert!(
+        err.contains(&format!("CompressedDataSize is {}", stream.len() + 7))
+            && err.contains(&format!("is {} bytes long", stream.len())),
+        "{err}"
+    );
+    let bad = header.replace(&size, "CompressedDataSize = many\n");
+    let err = import_error(&write("bad.mha", &bad, b""));
+    assert!(err.contains("CompressedDataSize `many`"), "{err}");
+}
+
 /// Copies fixture `name` (and its data file) into `dir`, returning the copy's path.
 fn copy_fixture(dir: &Path, name: &str, data: Option<&str>) -> PathBuf {
     for n in std::iter::once(name).chain(data) {

@@ -473,6 +473,7 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
         data_path: dir,
         data_offset: 0,
         skip_after_decode: 0,
+        compressed_size: None,
         encoding: Encoding::Slices,
         scaling: first.scaling,
         unit: first.unit.clone(),

@@ -48,6 +48,8 @@ pub struct MetaHeader {
     pub endian: Endian,
     /// Whether the data is a zlib stream.
     pub compressed: bool,
+    /// `CompressedDataSize` of compressed data: the stream's length in bytes.
+    pub compressed_size: Option<u64>,
     /// Where the samples are.
     pub data_file: DataFile,
     /// `HeaderSize` of a detached file: `Some(n)` bytes to skip, `None` for `-1`.
@@ -219,6 +221,15 @@ pub fn parse_header(bytes: &[u8]) -> Result<MetaHeader, ImportErrorKind> {
         Some(v) => parse_bool("CompressedData", v)?,
         None => false,
     };
+    let compressed_size = match get("CompressedDataSize") {
+        Some(v) if compressed => Some(v.parse::<u64>().map_err(|_| {
+            header_error(
+                F,
+                format!("CompressedDataSize `{v}` is not a whole number of bytes"),
+            )
+        })?),
+        _ => None,
+    };
     let data_file = match need("ElementDataFile")? {
         "LOCAL" | "Local" | "local" => DataFile::Local,
         f if f.starts_with("LIST") || f.split_whitespace().count() > 1 || f.contains('%') => {
@@ -248,6 +259,7 @@ pub fn parse_header(bytes: &[u8]) -> Result<MetaHeader, ImportErrorKind> {
         sample,
         endian: if msb { Endian::Big } else { Endian::Little },
         compressed,
+        compressed_size,
         data_file,
         header_size,
         header_len: header_len.unwrap_or(bytes.len()),
@@ -286,6 +298,7 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
         data_path,
         data_offset,
         skip_after_decode: 0,
+        compressed_size: h.compressed_size,
         encoding: if h.compressed {
             Encoding::Zlib
         } else {

@@ -18,6 +18,7 @@ mod gzip;
 pub mod metaimage;
 pub mod nifti;
 pub mod nrrd;
+mod zlib;
 
 use std::fs::File;
 use std::io::{Read, Write};
@@ -105,6 +106,9 @@ pub struct Imported {
     pub skip_after_decode: u64,
     /// Raw or compressed.
     pub encoding: Encoding,
+    /// The compressed stream's length in bytes where the header gives it
+    /// (MetaImage `CompressedDataSize`): checked when the stream is read.
+    pub compressed_size: Option<u64>,
     /// The linear value scaling the file declares (`value = slope · stored +
     /// intercept`): samples are converted unscaled and the scaling is kept as the
     /// volume's [`ValueUnits`], so values are given and shown in the file's units.
@@ -196,6 +200,38 @@ pub enum ImportErrorKind {
     /// A gzip or zlib stream is corrupt or ends early.
     #[error("the compressed data is truncated or corrupt ({0})")]
     Compressed(std::io::Error),
+    /// Bytes follow the zlib stream that holds the samples.
+    #[error(
+        "{}{} follow the zlib stream of the samples, which ends after {}{}",
+        if *at_least { "at least " } else { "" },
+        crate::text::counted(*extra, "byte"),
+        crate::text::counted(*stream, "byte"),
+        match declared {
+            Some(d) if d != stream => format!(" (CompressedDataSize says {d})"),
+            _ => String::new(),
+        }
+    )]
+    AfterStream {
+        /// The stream's length in bytes.
+        stream: u64,
+        /// Bytes after it.
+        extra: u64,
+        /// Whether `extra` is a lower bound (the rest was not counted).
+        at_least: bool,
+        /// The length the header gives, if any.
+        declared: Option<u64>,
+    },
+    /// The zlib stream's length is not the header's `CompressedDataSize`.
+    #[error(
+        "CompressedDataSize is {declared}, but the zlib stream of the samples is {} long",
+        crate::text::counted(*actual, "byte")
+    )]
+    CompressedSize {
+        /// The length the header gives.
+        declared: u64,
+        /// The stream's length.
+        actual: u64,
+    },
     /// The file's extension and first bytes match no known format.
     #[error(
         "not a known volume format (expected .vol, .nrrd, .nhdr, .nii, .nii.gz, .hdr, .mha, .mhd, or a DICOM folder or .dcm file)"
@@ -754,10 +790,20 @@ impl Imported {
         let mut stream: Box<dyn Read> = if gzip {
             Box::new(gzip::GzipMembers::new(reader))
         } else {
-            Box::new(flate2::read::ZlibDecoder::new(reader))
+            Box::new(zlib::ZlibData::new(reader, self.compressed_size))
         };
-        let compressed =
-            |e: std::io::Error| ImportError::new(&self.data_path, ImportErrorKind::Compressed(e));
+        let compressed = |e: std::io::Error| {
+            // The stream's own findings are said as they are, not as corrupt data.
+            let kind = if e.get_ref().is_some_and(|i| i.is::<ImportErrorKind>()) {
+                match e.into_inner().map(|i| i.downcast::<ImportErrorKind>()) {
+                    Some(Ok(kind)) => *kind,
+                    _ => unreachable!("checked to be an ImportErrorKind"),
+                }
+            } else {
+                ImportErrorKind::Compressed(e)
+            };
+            ImportError::new(&self.data_path, kind)
+        };
         let skipped = std::io::copy(
             &mut (&mut stream).take(self.skip_after_decode),
             &mut std::io::sink(),

@@ -346,6 +346,7 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
         data_path,
         data_offset,
         skip_after_decode,
+        compressed_size: None,
         encoding,
         scaling: h.scaling,
         unit: String::new(),

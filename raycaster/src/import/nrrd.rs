@@ -548,6 +548,7 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
         data_path,
         data_offset,
         skip_after_decode,
+        compressed_size: None,
         encoding: h.encoding,
         scaling: None,
         unit: String::new(),
