@@ -255,8 +255,7 @@ pub struct RenderArgs {
     /// function (with hardware gathers on `avx2` and `avx512`), and on `avx2`
     /// and `avx512` DVR with a 2D function, the `mip`, `average`, `xray`,
     /// `first-hit`, `sabella`, `importance`, `context` and `silhouette` modes
-    /// and two-level scenes (`--segments`; those of shaded DVR objects only
-    /// when their functions share a domain); other frames (pre-integrated
+    /// and two-level scenes (`--segments`); other frames (pre-integrated
     /// DVR) use the scalar kernel. `auto`:
     /// `avx2` where the CPU has it (DVR unshaded 1.6–2.3×, shaded 1.2–1.6× the
     /// scalar kernel's speed; docs/benchmarks.md), else `scalar`; with

@@ -7,8 +7,8 @@ mod render_support;
 
 use raycaster::render::{
     Counters, ImportanceSource, Light, Mode, ModeParameters, ParallelOptions, RenderSettings,
-    RenderVolume, SegmentScene, Shading, SimdLevel, Vec3, render_parallel, render_sequential,
-    simd_levels,
+    RenderVolume, SegmentScene, Shading, SimdLevel, TransferFunction, Vec3, render_parallel,
+    render_sequential, simd_levels,
 };
 use raycaster::synth::SceneKind;
 use raycaster::volume::{Access, Layout, SampleType};
@@ -295,6 +295,26 @@ fn two_level_scenes_in_packets_equal_the_scalar_kernel_bit_for_bit_on_every_leve
              [[object]]\ntf = \"shapes\"\n"
         )
     };
+    // Two functions over parts of the stored values (`domain` in stored
+    // values: a file per sample type, the scenes' values spanning their type),
+    // in three layers.
+    for (type_max, suffix) in [(255.0f32, "u8"), (65535.0, "u16")] {
+        for (name, preset, [d0, d1]) in [
+            ("low", "cloud", [0.0f32, 0.4]),
+            ("high", "shapes", [0.25, 0.9]),
+        ] {
+            let mut tf = TransferFunction::preset(preset).unwrap();
+            tf.domain = Some([d0 * type_max, d1 * type_max]);
+            std::fs::write(dir.path().join(format!("{name}-{suffix}.tf")), tf.to_text()).unwrap();
+        }
+    }
+    let own_domains = |global: &str| {
+        format!(
+            "layers = [[0.0, 0.3], [0.3, 0.55], [0.55, 1.0]]\n{global}\
+             [[object]]\ntf = \"low-TYPE.tf\"\n[[object]]\ntf = \"high-TYPE.tf\"\n\
+             [[object]]\ntf = \"low-TYPE.tf\"\n"
+        )
+    };
     let scenes = [
         // Every local mode, one per layer.
         r#"layers = [[0.0, 0.12], [0.12, 0.3], [0.3, 0.45], [0.45, 0.6], [0.6, 0.75], [0.75, 0.9], [0.9, 1.0]]
@@ -333,12 +353,20 @@ mode = "first-hit"
         // Composited directly, an object clipped to half the volume: the
         // gradient kernel folding the visible samples through the scene.
         three_dvr_layers("", "clip = [[20, 20, 20, 1, 0, 0]]\n"),
+        // Objects whose functions have domains of their own (their tables
+        // map values to entries differently): the gradient kernel with a
+        // filter visible wherever any of them may be (the scalar loop
+        // before), composited directly and by maximum.
+        own_domains("global = \"dvr\"\n"),
+        own_domains("global = \"mip\"\n"),
     ];
     let mut frames = 0;
     let kind = SceneKind::Shapes;
     for_each_layout(dir.path(), kind, 40, |layout, prepared, camera| {
         for (round, text) in scenes.iter().enumerate() {
-            let scene = SegmentScene::parse(text, dir.path()).unwrap();
+            let suffix = if layout.contains("U16") { "u16" } else { "u8" };
+            let text = text.replace("TYPE", suffix);
+            let scene = SegmentScene::parse(&text, dir.path()).unwrap();
             let combinations = [
                 (true, true, false),
                 (false, true, true),
@@ -376,7 +404,7 @@ mode = "first-hit"
             }
         }
     });
-    assert_eq!(frames, 60 * levels.len());
+    assert_eq!(frames, 90 * levels.len());
 }
 
 /// The sequential renderer (the scalar loop: the oracle) against the parallel

@@ -466,6 +466,15 @@ pub struct TransferTable {
     raw_prefix: Vec<[u32; 2]>,
 }
 
+/// Bit `i % 32` of word `i / 32`: whether `entries[i]`'s opacity is above 0.
+fn visible_bits(entries: &[[f32; 4]]) -> [u32; TABLE_SIZE / 32] {
+    let mut bits = [0u32; TABLE_SIZE / 32];
+    for (i, entry) in entries.iter().enumerate().take(TABLE_SIZE) {
+        bits[i / 32] |= u32::from(entry[3] > 0.0) << (i % 32);
+    }
+    bits
+}
+
 /// `prefix[i]` = the entries below `i` whose opacity `alpha0` is above 0.
 fn opaque_prefix(alpha0: &[f32]) -> Vec<u32> {
     let mut prefix = Vec::with_capacity(alpha0.len() + 1);
@@ -516,10 +525,7 @@ impl TransferTable {
                 .collect(),
             scale: (GRADIENT_BINS - 1) as f32 / GRADIENT_RANGE,
         });
-        let mut visible_bits = [0u32; TABLE_SIZE / 32];
-        for (i, entry) in entries.iter().enumerate() {
-            visible_bits[i / 32] |= u32::from(entry[3] > 0.0) << (i % 32);
-        }
+        let visible_bits = visible_bits(&entries);
         let mut table = TransferTable {
             entries,
             alpha0,
@@ -590,6 +596,75 @@ impl TransferTable {
             }
         }
         // Transparent ranges too: transparent under every table.
+        union.opaque_prefix = opaque_prefix(&union.alpha0);
+        if let Some(type_max) = union.raw_prefix.len().checked_sub(1) {
+            union.raw_prefix = union.raw_prefix_up_to(type_max as u16);
+        }
+        Some(union)
+    }
+
+    /// A table visible wherever a value may be visible under one of `tables`,
+    /// which may map values to entries differently (objects whose functions
+    /// have domains of their own): its map covers all of theirs, and each of
+    /// its entries is visible when an entry of any table that the entry's
+    /// values read, or the entry beside it either way (against rounding), is.
+    /// [`Self::visible_under_any`] where they share a map. A filter for kernels
+    /// that fold the samples it shows with each object's own table; not exact
+    /// otherwise (it may show more), so not for range emptiness. `None` without
+    /// tables or with a map that is not finite and increasing.
+    pub(crate) fn visible_somewhere_under_any(tables: &[&TransferTable]) -> Option<TransferTable> {
+        if let Some(exact) = Self::visible_under_any(tables) {
+            return Some(exact);
+        }
+        let first = tables.first()?;
+        let last = (TABLE_SIZE - 1) as f32;
+        let increasing = |t: &&TransferTable| {
+            t.entries.len() == TABLE_SIZE && t.scale.is_finite() && t.scale > 0.0
+        };
+        if !tables.iter().all(increasing) {
+            return None;
+        }
+        let lo = tables
+            .iter()
+            .map(|t| t.offset)
+            .fold(f32::INFINITY, f32::min);
+        let hi = tables
+            .iter()
+            .map(|t| t.offset + last / t.scale)
+            .fold(f32::NEG_INFINITY, f32::max);
+        if !(lo.is_finite() && hi.is_finite() && hi > lo) {
+            return None;
+        }
+        let scale = last / (hi - lo);
+        let mut union = TransferTable::clone(first);
+        union.preintegrated = None;
+        union.offset = lo;
+        union.scale = scale;
+        for u in 0..TABLE_SIZE {
+            // The values entry `u` reads: `index` rounds to the nearest entry,
+            // and clamps below the first and above the last.
+            let from = if u == 0 {
+                f32::NEG_INFINITY
+            } else {
+                lo + (u as f32 - 0.5) / scale
+            };
+            let to = if u == TABLE_SIZE - 1 {
+                f32::INFINITY
+            } else {
+                lo + (u as f32 + 0.5) / scale
+            };
+            let (mut corrected, mut alpha0) = (0.0f32, 0.0f32);
+            for t in tables {
+                let (i0, i1) = (t.index(from).saturating_sub(1), t.index(to) + 1);
+                for i in i0..=i1.min(TABLE_SIZE - 1) {
+                    corrected = corrected.max(t.entries[i][3]);
+                    alpha0 = alpha0.max(t.alpha0[i]);
+                }
+            }
+            union.entries[u][3] = corrected;
+            union.alpha0[u] = alpha0;
+        }
+        union.visible_bits = visible_bits(&union.entries);
         union.opaque_prefix = opaque_prefix(&union.alpha0);
         if let Some(type_max) = union.raw_prefix.len().checked_sub(1) {
             union.raw_prefix = union.raw_prefix_up_to(type_max as u16);
@@ -1581,6 +1656,52 @@ mod tests {
         let c = TransferTable::new(&tf, 255, 0.7);
         assert!(TransferTable::visible_under_any(&[&a, &c]).is_none());
         assert!(TransferTable::visible_under_any(&[]).is_none());
+        assert!(TransferTable::visible_somewhere_under_any(&[]).is_none());
+    }
+
+    #[test]
+    fn a_filter_over_tables_of_other_domains_shows_every_value_any_of_them_shows() {
+        let visible = |t: &TransferTable, v: f32| t.entries()[t.index(v)][3] > 0.0;
+        for (type_max, domains) in [
+            (255u16, [[10.0f32, 200.0], [60.0, 90.0], [0.0, 255.0]]),
+            (
+                65535,
+                [[1000.0, 2400.0], [2300.0, 2310.0], [-500.0, 70000.0]],
+            ),
+        ] {
+            let tables: Vec<TransferTable> = ["shapes", "ct-bone", "cloud"]
+                .into_iter()
+                .zip(domains)
+                .map(|(name, domain)| {
+                    let mut tf = TransferFunction::preset(name).unwrap();
+                    tf.domain = Some(domain);
+                    TransferTable::new(&tf, type_max, 0.7)
+                })
+                .collect();
+            for n in [2, 3] {
+                let all: Vec<&TransferTable> = tables[..n].iter().collect();
+                assert!(TransferTable::visible_under_any(&all).is_none());
+                let filter = TransferTable::visible_somewhere_under_any(&all).unwrap();
+                let (mut shown, mut hidden) = (0, 0);
+                // Values between the raw ones too (trilinear samples), and
+                // beyond the type's range.
+                let top = f32::from(type_max);
+                let count = 200_000;
+                for i in 0..=count {
+                    let v = -0.1 * top + 1.2 * top * i as f32 / count as f32;
+                    let any = all.iter().any(|t| visible(t, v));
+                    assert!(!any || visible(&filter, v), "{type_max} {n} value {v}");
+                    shown += usize::from(any);
+                    hidden += usize::from(!visible(&filter, v));
+                }
+                // It filters: values no table shows are left out somewhere.
+                assert!(shown > 0 && hidden > 0, "{type_max} {n}: {shown} {hidden}");
+                for v in [f32::NAN, f32::NEG_INFINITY, f32::INFINITY] {
+                    let any = all.iter().any(|t| visible(t, v));
+                    assert!(!any || visible(&filter, v), "{v}");
+                }
+            }
+        }
     }
 
     #[test]

@@ -262,6 +262,12 @@ impl TwoLevel {
         let all: Vec<&TransferTable> = tables.iter().map(|(_, t)| &**t).collect();
         let preintegrated = all.iter().any(|t| t.preintegrated().is_some());
         let visible_under_any = TransferTable::visible_under_any(&all).map(Arc::new);
+        // The kernels' filter: exact where the tables share a map, else a
+        // superset (objects with domains of their own).
+        let filter = match &visible_under_any {
+            Some(exact) => Some(Arc::clone(exact)),
+            None => TransferTable::visible_somewhere_under_any(&all).map(Arc::new),
+        };
         let direct = all_dvr && scene.global == GlobalMode::Dvr && !preintegrated;
         let kernel = if !(all_dvr && gradients_everywhere) {
             SceneKernel::Values
@@ -272,7 +278,10 @@ impl TwoLevel {
                 && clips.is_empty()
                 && gradient_factors.is_empty()
                 && all.iter().all(|t| !t.is_2d());
-            match (visible_under_any.clone(), covering(domain)) {
+            // (The layer kernel reads each layer's table at the filter's
+            // entries: the maps must be one.)
+            let layered = layered && visible_under_any.is_some();
+            match (filter, covering(domain)) {
                 (None, _) => SceneKernel::Scalar,
                 (Some(t), Some(shading)) if direct && layered => {
                     SceneKernel::ShadedLayers(t, shading)
