@@ -545,18 +545,20 @@ pub fn run(args: RenderArgs) -> Result<()> {
             progress_after(&args),
         )?
     };
-    // Planes (and a crop box) that together keep nothing in view, where no
-    // single plane does (that one is said before rendering).
+    // Planes (and a crop box) that together keep nothing, where no single
+    // plane does (that one is said before rendering). (A frame without rays
+    // may also be one whose transfer function shows nothing: no brick is
+    // marched, and no ray made.)
     let clip = &setup.settings.clip;
+    let sampled = setup.volume.sampled_box();
     if frame.stats.counters.rays == 0
         && !clip.is_empty()
-        && clip
-            .plane_keeping_nothing(setup.volume.sampled_box())
-            .is_none()
+        && clip.plane_keeping_nothing(sampled).is_none()
+        && clip.keeps_nothing_of(sampled)
         && !args.quiet
     {
         eprintln!(
-            "warning: the crop box and clipping planes together keep nothing of {} in view: the picture is background (each plane keeps the side its normal points into)",
+            "warning: the crop box and clipping planes together keep nothing of {}: the picture is background (each plane keeps the side its normal points into)",
             setup.volume.path().display()
         );
     }
@@ -649,7 +651,14 @@ impl Setup {
                     .clip
                     .check_overlaps(volume.sampled_box(), 1.0)
                 {
-                    bail!("{}: `crop`: {e}", path.display());
+                    bail!("{}: `[clip] crop`: {e}", path.display());
+                }
+                if let Some(warning) = session.settings.transfer.domain.and_then(|[a, b]| {
+                    let said = format!("{}: `[transfer] domain = [{a}, {b}]`", path.display());
+                    stored_domain_warning(&said, [a, b], &volume, None)
+                }) && !args.quiet
+                {
+                    eprintln!("{warning}");
                 }
                 if let (Some(warning), LevelChoice::Fixed(k)) =
                     (level_warning(session.level, &volume), session.level)
@@ -1294,6 +1303,19 @@ fn domain_warning(domain: WindowArg, volume: &Volume) -> Option<String> {
 /// The warning for a transfer-function file `name` whose `domain` (stored
 /// values) lies outside the data's stored values.
 fn file_domain_warning(name: &str, [a, b]: [f32; 2], volume: &Volume) -> Option<String> {
+    let said = format!("{name}: `domain {a} {b}`");
+    stored_domain_warning(&said, [a, b], volume, Some("--domain LO,HI takes those"))
+}
+
+/// The warning for a domain in stored values, `said` as its file writes it,
+/// that lies outside the data's stored values; for data with units, says the
+/// data's range in them, `and` added.
+fn stored_domain_warning(
+    said: &str,
+    [a, b]: [f32; 2],
+    volume: &Volume,
+    and: Option<&str>,
+) -> Option<String> {
     let [lo, hi] = volume.ranges().overall().map(f32::from);
     if b >= lo && a <= hi {
         return None;
@@ -1303,10 +1325,11 @@ fn file_domain_warning(name: &str, [a, b]: [f32; 2], volume: &Volume) -> Option<
         String::new()
     } else {
         let [ulo, uhi] = [lo, hi].map(|v| units.format(units.value(f64::from(v))));
-        format!(" (in the file's units the data span {ulo} to {uhi}: --domain LO,HI takes those)")
+        let and = and.map(|a| format!(": {a}")).unwrap_or_default();
+        format!(" (in the file's units the data span {ulo} to {uhi}{and})")
     };
     Some(format!(
-        "warning: {name}: `domain {a} {b}` is in stored sample values and lies outside the data's, {lo} to {hi}; the image will be empty or flat{hint}"
+        "warning: {said} is in stored sample values and lies outside the data's, {lo} to {hi}; the image will be empty or flat{hint}"
     ))
 }
 

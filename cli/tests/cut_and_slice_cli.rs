@@ -584,11 +584,25 @@ fn a_plane_that_keeps_nothing_is_warned_of() {
     // (it rendered background without a word); overlapping halves are not.
     let said = run_planes(&["16,0,0,1,0,0", "12,0,0,-1,0,0"]);
     assert_eq!(
-        said.matches("warning: the crop box and clipping planes together keep nothing of built-in shapes scene 32³ in view").count(),
+        said.matches("warning: the crop box and clipping planes together keep nothing of built-in shapes scene 32³: the picture is background").count(),
         1,
         "{said}"
     );
     assert!(!run_planes(&["12,0,0,1,0,0", "16,0,0,-1,0,0"]).contains("warning"));
+    // A frame the transfer function leaves empty (a domain above the data:
+    // no brick marched, no ray made) is not blamed on the planes.
+    let mut args = vec![
+        "render",
+        "--scene-size",
+        "32",
+        "--size",
+        "24x24",
+        "-o",
+        "p.png",
+    ];
+    args.extend(["--force", "--clip", "16,0,0,1,0,0", "--domain", "300,400"]);
+    let said = stderr(&raycaster(&args, dir.path()));
+    assert!(!said.contains("clipping planes"), "{said}");
 }
 
 #[test]

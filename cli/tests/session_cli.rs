@@ -235,6 +235,32 @@ fn a_session_level_past_the_coarsest_or_a_step_past_the_volume_is_warned_of() {
     );
 }
 
+/// A session's domain beside the data's values is warned of, as `--domain`
+/// is; with a clipping plane, the empty picture is not blamed on the plane.
+#[test]
+fn a_session_domain_outside_the_data_is_warned_of_and_not_blamed_on_its_planes() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut high = session(Mode::Dvr);
+    high.settings.transfer.domain = Some([300.0, 400.0]);
+    high.settings.clip.planes = vec![raycaster::render::ClipPlane {
+        point: Vec3::splat(20.0),
+        normal: Vec3::X,
+    }];
+    high.save(&dir.path().join("high.toml")).unwrap();
+    let run = raycaster(
+        &["render", "--session", "high.toml", "-o", "h.png"],
+        dir.path(),
+    );
+    assert!(run.status.success(), "{}", stderr(&run));
+    let said = stderr(&run);
+    assert_eq!(
+        said.matches("warning: high.toml: `[transfer] domain = [300, 400]` is in stored sample values and lies outside the data's, 0 to 254").count(),
+        1,
+        "{said}"
+    );
+    assert!(!said.contains("clipping planes"), "{said}");
+}
+
 #[test]
 fn bad_sessions_are_refused_by_field() {
     let dir = tempfile::tempdir().unwrap();

@@ -213,6 +213,53 @@ impl ClipRegion {
         let [lo, hi] = sampled.map(Vec3::from);
         self.planes.iter().copied().find(|p| p.cuts_away(lo, hi))
     }
+
+    /// Whether the region keeps nothing of the box the volume samples
+    /// (`sampled`, as for [`Self::plane_keeping_nothing`]): the box, the crop
+    /// box and the planes' half-spaces have no point in common, by more than
+    /// a rounding margin. (They are convex: a common part has a corner where
+    /// three of their faces meet, so the corners are what is tried.)
+    pub fn keeps_nothing_of(&self, sampled: [[f32; 3]; 2]) -> bool {
+        let [mut lo, mut hi] = sampled.map(Vec3::from);
+        if let Some(crop) = &self.crop {
+            lo = lo.max(crop.lo);
+            hi = hi.min(crop.hi);
+        }
+        if (lo - hi).max_element() > CUT_MARGIN {
+            return true;
+        }
+        // Every face as `n·p ≥ c` with a unit normal `n`.
+        let mut faces: Vec<(Vec3, f32)> = Vec::with_capacity(6 + self.planes.len());
+        for axis in 0..3 {
+            let n = Vec3::AXES[axis];
+            faces.push((n, lo[axis]));
+            faces.push((-n, -hi[axis]));
+        }
+        for p in &self.planes {
+            let n = p.normal.normalize_or_zero();
+            faces.push((n, n.dot(p.point)));
+        }
+        let kept = |q: Vec3| faces.iter().all(|&(n, c)| n.dot(q) - c >= -CUT_MARGIN);
+        let f = faces.len();
+        for i in 0..f {
+            for j in i + 1..f {
+                for k in j + 1..f {
+                    let ([a, b, c], rhs) = (
+                        [faces[i].0, faces[j].0, faces[k].0],
+                        Vec3::new(faces[i].1, faces[j].1, faces[k].1),
+                    );
+                    let m = glam::Mat3::from_cols(a, b, c).transpose();
+                    if m.determinant().abs() < 1e-6 {
+                        continue;
+                    }
+                    if kept(m.inverse() * rhs) {
+                        return false;
+                    }
+                }
+            }
+        }
+        true
+    }
 }
 
 impl ClipPlane {
@@ -235,6 +282,64 @@ mod tests {
             origin: Vec3::new(-10.0, 2.0, 2.0),
             direction: Vec3::X,
         }
+    }
+
+    #[test]
+    fn a_region_keeps_nothing_only_where_box_crop_and_planes_share_no_point() {
+        let sampled = [[0.0, 0.0, 0.0], [63.0, 63.0, 63.0]];
+        let plane = |point: [f32; 3], normal: [f32; 3]| ClipPlane {
+            point: Vec3::from(point),
+            normal: Vec3::from(normal),
+        };
+        let region = |crop: Option<([f32; 3], [f32; 3])>, planes: Vec<ClipPlane>| ClipRegion {
+            crop: crop.map(|(lo, hi)| CropBox {
+                lo: Vec3::from(lo),
+                hi: Vec3::from(hi),
+            }),
+            planes,
+        };
+        // Each plane keeps half; together, opposite sides of two parallel
+        // planes keep nothing, and with a gap between them something.
+        let apart = region(
+            None,
+            vec![
+                plane([40.0; 3], [1.0, 0.0, 0.0]),
+                plane([20.0; 3], [-1.0, 0.0, 0.0]),
+            ],
+        );
+        assert!(apart.plane_keeping_nothing(sampled).is_none());
+        assert!(apart.keeps_nothing_of(sampled));
+        let gap = region(
+            None,
+            vec![
+                plane([20.0; 3], [1.0, 0.0, 0.0]),
+                plane([40.0; 3], [-1.0, 0.0, 0.0]),
+            ],
+        );
+        assert!(!gap.keeps_nothing_of(sampled));
+        // A crop box beside an oblique plane's kept side, and inside it.
+        let diagonal = plane([32.0; 3], [1.0, 1.0, 1.0]);
+        let low_corner = region(Some(([0.0; 3], [10.0; 3])), vec![diagonal]);
+        assert!(low_corner.plane_keeping_nothing(sampled).is_none());
+        assert!(low_corner.keeps_nothing_of(sampled));
+        let high_corner = region(Some(([50.0; 3], [63.0; 3])), vec![diagonal]);
+        assert!(!high_corner.keeps_nothing_of(sampled));
+        // Three oblique planes meeting beyond the box's corner keep only that
+        // corner's neighbourhood; pushed past it, nothing.
+        let corner = |at: f32| {
+            region(
+                None,
+                vec![
+                    plane([at, 0.0, 0.0], [1.0, 0.2, 0.0]),
+                    plane([0.0, at, 0.0], [0.0, 1.0, 0.2]),
+                    plane([0.0, 0.0, at], [0.2, 0.0, 1.0]),
+                ],
+            )
+        };
+        assert!(!corner(60.0).keeps_nothing_of(sampled));
+        assert!(corner(80.0).keeps_nothing_of(sampled));
+        // Nothing cut: the whole box.
+        assert!(!ClipRegion::default().keeps_nothing_of(sampled));
     }
 
     #[test]
