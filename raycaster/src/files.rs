@@ -9,7 +9,7 @@
 use std::fs::File;
 use std::io::Read;
 use std::os::unix::fs::{FileTypeExt, OpenOptionsExt};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// What kind of non-regular file `meta` describes, for messages.
 fn kind_of(meta: &std::fs::Metadata) -> &'static str {
@@ -318,6 +318,69 @@ pub fn parent_dir(path: &Path) -> &Path {
         .unwrap_or(Path::new("."))
 }
 
+/// How a file in folder `dir` names `held`, a path as this process holds it
+/// (absolute, or relative to the working directory, as `dir` is): relative to
+/// `dir` where that reaches the same file, so that the two can move together,
+/// else absolute. (Session and scene files read their relative paths from
+/// their own folder.)
+pub fn path_for_file_in(dir: &Path, held: &Path) -> PathBuf {
+    match std::env::current_dir() {
+        Ok(cwd) => path_for_file_in_from(&cwd, dir, held),
+        Err(_) => held.to_path_buf(),
+    }
+}
+
+/// [`path_for_file_in`] with `cwd` as the working directory.
+fn path_for_file_in_from(cwd: &Path, dir: &Path, held: &Path) -> PathBuf {
+    if held.is_absolute() {
+        return held.to_path_buf();
+    }
+    let (target, base) = (cwd.join(held), cwd.join(dir));
+    let (normal_target, normal_base) = (lexically_normal(&target), lexically_normal(&base));
+    let common = normal_target
+        .components()
+        .zip(normal_base.components())
+        .take_while(|(a, b)| a == b)
+        .count();
+    let mut relative = PathBuf::new();
+    for _ in normal_base.components().skip(common) {
+        relative.push("..");
+    }
+    for c in normal_target.components().skip(common) {
+        relative.push(c);
+    }
+    // Through a symbolic link `..` leads elsewhere than the lexical parent:
+    // the relative form only where it reaches the file itself.
+    match (
+        std::fs::canonicalize(base.join(&relative)),
+        std::fs::canonicalize(&target),
+    ) {
+        (Ok(a), Ok(b)) if a == b => relative,
+        _ => target,
+    }
+}
+
+/// `path` with `.` left out and each `..` taking the component before it
+/// away (at the root it stays the root).
+fn lexically_normal(path: &Path) -> PathBuf {
+    use std::path::Component;
+    let mut out = PathBuf::new();
+    for c in path.components() {
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir => {
+                if matches!(out.components().next_back(), Some(Component::Normal(_))) {
+                    out.pop();
+                } else if !out.has_root() {
+                    out.push("..");
+                }
+            }
+            other => out.push(other),
+        }
+    }
+    out
+}
+
 /// The error without the temporary file's name `tempfile` adds ("… at path
 /// .a.vol.1234.Xy7.partial"): users know the target, not our scratch names.
 fn without_temp_path(e: std::io::Error) -> std::io::Error {
@@ -447,6 +510,39 @@ pub fn human_bytes(n: u64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_path_is_named_from_another_folder_relative_where_that_reaches_it() {
+        let root = tempfile::tempdir().unwrap();
+        let cwd = root.path().join("work");
+        for d in ["work/v", "s/h", "sub/deep"] {
+            std::fs::create_dir_all(root.path().join(d)).unwrap();
+        }
+        std::fs::write(root.path().join("shapes.vol"), b"x").unwrap();
+        std::fs::write(cwd.join("v/a.vol"), b"x").unwrap();
+        let named =
+            |dir: &str, held: &str| path_for_file_in_from(&cwd, Path::new(dir), Path::new(held));
+        // Held as the viewer holds a session's path: its folder joined.
+        assert_eq!(
+            named("../sub/deep", "../s/h/../../shapes.vol"),
+            Path::new("../../shapes.vol")
+        );
+        assert_eq!(named(".", "v/a.vol"), Path::new("v/a.vol"));
+        assert_eq!(named("", "./v/a.vol"), Path::new("v/a.vol"));
+        assert_eq!(named("v", "v/a.vol"), Path::new("a.vol"));
+        assert_eq!(named("../s/h", "v/a.vol"), Path::new("../../work/v/a.vol"));
+        // Absolute paths stay; a file that is not there is named absolutely.
+        assert_eq!(named("v", "/data/x.vol"), Path::new("/data/x.vol"));
+        assert_eq!(named("v", "gone.vol"), cwd.join("gone.vol"));
+        // Through a link, `..` is the link target's parent: absolute then.
+        std::os::unix::fs::symlink(root.path().join("s/h"), cwd.join("link")).unwrap();
+        let through = named("link", "v/a.vol");
+        assert_eq!(through, cwd.join("v/a.vol"));
+        assert_eq!(
+            std::fs::canonicalize(cwd.join("link").join(&through)).unwrap(),
+            std::fs::canonicalize(cwd.join("v/a.vol")).unwrap()
+        );
+    }
 
     #[test]
     fn a_link_to_a_missing_file_is_an_existing_output() {

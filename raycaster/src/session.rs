@@ -11,7 +11,9 @@
 //!
 //! Floats are written so that they read back to the same `f32` bits, which is
 //! what makes a re-render pixel-identical. Relative paths in a session file are
-//! relative to the file's folder; paths are written as they are held.
+//! relative to the file's folder, and [`Session::save`] writes them so (a path held
+//! relative to the working directory becomes one relative to the saved file's folder,
+//! or absolute).
 //!
 //! ```toml
 //! version = 1
@@ -833,13 +835,33 @@ impl Session {
     }
 
     /// Writes the session to `path` atomically (a temporary file renamed into
-    /// place: never half-written).
+    /// place: never half-written). Its file paths, held relative to the
+    /// working directory, are written as `path`'s folder reaches them
+    /// ([`crate::files::path_for_file_in`]): the file reads back the same
+    /// files wherever it is saved.
     pub fn save(&self, path: &Path) -> Result<(), SessionError> {
-        let text = self.to_toml()?;
+        let text = self
+            .with_paths_for(crate::files::parent_dir(path))
+            .to_toml()?;
         write_file_atomically(path, text.as_bytes()).map_err(|source| SessionError::Write {
             path: path.to_path_buf(),
             source,
         })
+    }
+
+    /// The session with its file paths as a file in folder `dir` names them.
+    fn with_paths_for(&self, dir: &Path) -> Session {
+        let mut session = self.clone();
+        if let VolumeSource::File { path, .. } = &mut session.source {
+            *path = crate::files::path_for_file_in(dir, path);
+        }
+        if let Some(labels) = &mut session.labels {
+            *labels = crate::files::path_for_file_in(dir, labels);
+        }
+        if let Some(scene) = &mut session.settings.segments {
+            *scene = scene.with_paths_for(dir);
+        }
+        session
     }
 
     /// The camera for the session's image size.
@@ -1599,6 +1621,49 @@ mod tests {
             }
         );
         assert_eq!(back.labels, Some(PathBuf::from("/sessions/v.labels.vol")));
+    }
+
+    #[test]
+    fn a_session_saved_in_another_folder_names_its_files_from_there() {
+        let dir = tempfile::tempdir().unwrap();
+        let root = std::fs::canonicalize(dir.path()).unwrap();
+        std::fs::create_dir_all(root.join("data")).unwrap();
+        std::fs::create_dir_all(root.join("s/deep")).unwrap();
+        std::fs::write(root.join("data/v.vol"), b"x").unwrap();
+        std::fs::write(root.join("data/v.labels.vol"), b"x").unwrap();
+        // The paths as the process holds them: relative to its working folder.
+        let cwd = std::env::current_dir().unwrap();
+        let up: PathBuf = cwd.components().skip(1).map(|_| "..").collect();
+        let held = |p: &str| up.join(root.strip_prefix("/").unwrap()).join(p);
+        let mut s = sample();
+        s.source = VolumeSource::File {
+            path: held("data/v.vol"),
+            access: Access::Mapped,
+        };
+        s.labels = Some(held("data/v.labels.vol"));
+        let mut scene = label_scene();
+        scene.membership = Membership::Labels(held("data/v.labels.vol"));
+        s.settings.segments = Some(scene);
+        let path = root.join("s/deep/view.toml");
+        s.save(&path).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.contains("file = \"../../data/v.vol\""), "{text}");
+        assert!(
+            text.contains("labels = \"../../data/v.labels.vol\""),
+            "{text}"
+        );
+        let back = Session::load(&path).unwrap();
+        let VolumeSource::File { path: read, .. } = &back.source else {
+            panic!("a file")
+        };
+        let same = |a: &Path, b: &Path| {
+            std::fs::canonicalize(a).unwrap() == std::fs::canonicalize(b).unwrap()
+        };
+        assert!(same(read, &root.join("data/v.vol")), "{}", read.display());
+        assert!(same(
+            back.labels.as_deref().unwrap(),
+            &root.join("data/v.labels.vol")
+        ));
     }
 
     #[test]

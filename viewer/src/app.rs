@@ -2328,7 +2328,8 @@ impl Controller {
                 }
             })
         };
-        match write_file_atomically(path, scene.to_toml().as_bytes()) {
+        let dir = raycaster::files::parent_dir(path);
+        match write_file_atomically(path, scene.with_paths_for(dir).to_toml().as_bytes()) {
             Ok(()) => self.show_message(&format!("saved scene {}", path.display()), false),
             Err(e) => self.show_message(&format!("cannot save {}: {e}", path.display()), true),
         }

@@ -438,6 +438,17 @@ impl SegmentScene {
         })
     }
 
+    /// The scene with its label volume's path (held relative to the working
+    /// directory) as a file in folder `dir` names it
+    /// ([`crate::files::path_for_file_in`]): what a scene saved there writes.
+    pub fn with_paths_for(&self, dir: &Path) -> SegmentScene {
+        let mut scene = self.clone();
+        if let Membership::Labels(path) = &mut scene.membership {
+            *path = crate::files::path_for_file_in(dir, path);
+        }
+        scene
+    }
+
     /// The scene as a description [`SegmentScene::parse`] reads back to an equal
     /// scene: transfer functions are written inline, a label path as given.
     pub fn to_toml(&self) -> String {
