@@ -110,9 +110,10 @@ const PERCENTILE_SAMPLES: u64 = 1 << 18;
 /// - CT (the file says Hounsfield units, or the values came from i16 and reach
 ///   down to air, ≤ −900): `ct-bone` over −1000..2000 HU;
 /// - other u16 data: `ct-skin` over the 0.5th to 99.5th percentile of the
-///   values, counted on the coarsest pyramid level (or a strided sample of at
-///   most 2^18 voxels of a small volume); a large volume without a pyramid gets
-///   its stored value range (no pass over the data).
+///   values, counted on a strided sample of at most 2^18 voxels of level 0
+///   where it has at most 2^24 voxels, else on the coarsest pyramid level; a
+///   large volume without a pyramid gets its stored value range (no pass over
+///   the data).
 pub fn fit(volume: &Volume) -> DataFit {
     if volume.sample_type() == SampleType::U8 && volume.orientation().is_none() {
         return DataFit {
@@ -158,12 +159,17 @@ pub fn ct_window_misreads(volume: &Volume) -> bool {
     volume.value_units().is_identity() && !looks_like_ct(volume)
 }
 
-/// The 0.5th..99.5th percentile of stored values, from the coarsest pyramid level
-/// or a strided sample of a small volume; `None` when neither is cheap or the
-/// values are flat.
+/// The 0.5th..99.5th percentile of stored values, from a strided sample of
+/// level 0 where that is small, else from the coarsest pyramid level; `None`
+/// when neither is cheap or the values are flat.
+///
+/// Level 0 first: a scan opened directly (read into memory, no pyramid) and
+/// the same scan converted (with a pyramid, whose averaged coarse levels have
+/// narrower tails) then get one domain, and so one first picture.
 fn percentile_domain(volume: &Volume) -> Option<[f32; 2]> {
+    let voxels_of = |v: &Volume| v.dims().iter().map(|&d| u64::from(d)).product::<u64>();
     let source = match volume.level_count() {
-        n if n > 1 => volume.level(n - 1),
+        n if n > 1 && voxels_of(volume) > 64 * PERCENTILE_SAMPLES => volume.level(n - 1),
         _ => volume,
     };
     let [x, y, z] = source.dims();
