@@ -1178,8 +1178,16 @@ fn settings(
     let segments = match &file.scene {
         None => None,
         Some(table) => {
-            let text = toml::to_string(table).map_err(|e| invalid("scene", e.to_string()))?;
-            Some(SegmentScene::parse(&text, base).map_err(SessionError::Scene)?)
+            let mut table = table.clone();
+            // A label scene takes the session's label volume unless it names one.
+            if let Some(labels) = &file.volume.labels
+                && !table.contains_key("labels")
+                && !table.contains_key("layers")
+            {
+                let labels = labels.to_string_lossy().into_owned();
+                table.insert("labels".into(), toml::Value::String(labels));
+            }
+            Some(SegmentScene::from_table(table, base).map_err(SessionError::Scene)?)
         }
     };
     let settings = RenderSettings {
@@ -1867,6 +1875,39 @@ mod tests {
             matches!(e, SessionError::Scene(_)) && e.to_string().contains("sideways"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn a_label_scene_takes_the_sessions_label_volume_and_scene_errors_name_keys_not_lines() {
+        let head = "version = 1\n[volume]\nscene = \"shells\"\nsize = 32\nlabels = \"l.vol\"\n\
+                    [image]\nwidth = 8\nheight = 8\n[camera]\ntarget = [15.5, 15.5, 15.5]\n\
+                    distance = 90.0\nazimuth_rad = 0.0\nelevation_rad = 0.0\nfov = 40.0\n\
+                    [transfer]\npreset = \"shells\"\n";
+        let scene = "[scene]\nglobal = \"dvr\"\n[[scene.object]]\nid = 1\ntf = \"shells\"\n";
+        // (It was refused: "give either labels or layers".)
+        let s = Session::parse(&format!("{head}{scene}"), Path::new("/data")).unwrap();
+        assert_eq!(
+            s.settings.segments.unwrap().membership,
+            Membership::Labels(PathBuf::from("/data/l.vol"))
+        );
+        // A scene's own label volume stays its own.
+        let own = scene.replace(
+            "[[scene.object]]",
+            "labels = \"other.vol\"\n[[scene.object]]",
+        );
+        let s = Session::parse(&format!("{head}{own}"), Path::new("/data")).unwrap();
+        assert_eq!(
+            s.settings.segments.unwrap().membership,
+            Membership::Labels(PathBuf::from("/data/other.vol"))
+        );
+        // A bad key far down the file: named, without the line of a rebuilt
+        // table (it said "line 5").
+        let padding = "# a comment\n".repeat(30);
+        let bad = format!("{head}{padding}{scene}colour = 3\n");
+        let e = Session::parse(&bad, Path::new("/data"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("colour") && !e.contains("line"), "{e}");
     }
 
     #[test]

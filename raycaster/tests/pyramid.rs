@@ -151,7 +151,14 @@ fn a_volume_fits_one_domain_with_and_without_its_pyramid() {
     );
     let values = pattern(DIMS, 4000, false);
     let path = dir.path().join("p.vol");
-    write(&path, &header, &values, &WriteOptions::default(), &Job::silent()).unwrap();
+    write(
+        &path,
+        &header,
+        &values,
+        &WriteOptions::default(),
+        &Job::silent(),
+    )
+    .unwrap();
     let file = Volume::open(&path).unwrap();
     assert!(file.level_count() > 1, "the file has a pyramid");
     let linear = Header {

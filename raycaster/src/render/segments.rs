@@ -311,6 +311,20 @@ impl SegmentScene {
         let text = crate::text::without_bom(text);
         let file: SceneFile = toml::from_str(text)
             .map_err(|e| SceneError::Syntax(crate::text::toml_error(text, &e)))?;
+        Self::from_file(file, base)
+    }
+
+    /// [`Self::parse`] of a scene already read as a TOML table (a session's
+    /// `[scene]`): what is wrong in it is said by key, without a line (the
+    /// table's lines are not the file's).
+    pub fn from_table(table: toml::Table, base: &Path) -> Result<SegmentScene, SceneError> {
+        let file = SceneFile::deserialize(toml::Value::Table(table))
+            .map_err(|e| SceneError::Syntax(e.message().trim().replace('\n', " ")))?;
+        Self::from_file(file, base)
+    }
+
+    /// The scene `file` describes, its relative paths joined to `base`.
+    fn from_file(file: SceneFile, base: &Path) -> Result<SegmentScene, SceneError> {
         let membership = match (file.labels, file.layers) {
             (Some(labels), None) => {
                 if labels.as_os_str().is_empty() {
