@@ -473,6 +473,49 @@ fn check_version(version: Option<i64>) -> Result<(), SessionError> {
 /// The tables every session has.
 const REQUIRED_TABLES: [&str; 4] = ["volume", "image", "camera", "transfer"];
 
+/// Refuses a number no 32-bit float holds (a session's numbers are `f32`s:
+/// `1e300` would read as infinity, `1e-300` as 0, and be said as those),
+/// naming its key.
+fn check_float_range(text: &str) -> Result<(), SessionError> {
+    fn walk(key: &str, value: &toml::Value) -> Result<(), SessionError> {
+        match value {
+            toml::Value::Float(v) if v.is_finite() => {
+                let narrowed = *v as f32;
+                if narrowed.is_infinite() {
+                    return Err(invalid(
+                        key,
+                        format!(
+                            "{v:e} is too large (a 32-bit float holds up to {:e})",
+                            f32::MAX
+                        ),
+                    ));
+                }
+                if narrowed == 0.0 && *v != 0.0 {
+                    return Err(invalid(
+                        key,
+                        format!("{v:e} is too small (a 32-bit float reads it as 0)"),
+                    ));
+                }
+                Ok(())
+            }
+            toml::Value::Table(t) => t.iter().try_for_each(|(k, v)| {
+                let key = if key.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{key}.{k}")
+                };
+                walk(&key, v)
+            }),
+            toml::Value::Array(a) => a.iter().try_for_each(|v| walk(key, v)),
+            _ => Ok(()),
+        }
+    }
+    match text.parse::<toml::Table>() {
+        Ok(table) => walk("", &toml::Value::Table(table)),
+        Err(_) => Ok(()),
+    }
+}
+
 /// The session's outline, when the field-by-field reading finds a field
 /// missing: a version this raycaster reads, and the tables every session has,
 /// each said by name (the reading reports a missing table as TOML's "missing
@@ -589,6 +632,7 @@ impl Session {
             }
         };
         check_version(file.version.map(i64::from))?;
+        check_float_range(text)?;
         let source = volume_source(&file.volume, base)?;
         let labels = match &file.volume.labels {
             Some(p) => Some(path_field("volume.labels", p.clone(), base)?),
@@ -1795,6 +1839,9 @@ mod tests {
             ("volume", "size = 1", "volume.size"),
             ("volume", "file = \"a.vol\"", "volume"),
             ("transfer", "domain = [5.0, 1.0]", "transfer.domain"),
+            ("render", "step = 1e300", "render.step"),
+            ("render", "step = 1e-300", "render.step"),
+            ("camera", "target = [1.0, 2.0, -1e300]", "camera.target"),
             ("transfer", "points = []", "transfer.points"),
             (
                 "transfer",
@@ -1818,6 +1865,14 @@ mod tests {
                 }
                 other => panic!("{table}: {line}: {other:?}"),
             }
+        }
+        // Numbers beyond an f32 are said as written (they were "inf" and "0").
+        for (line, said) in [
+            ("step = 1e300", "1e300 is too large"),
+            ("step = 1e-300", "1e-300 is too small"),
+        ] {
+            let e = with("render", line).unwrap_err().to_string();
+            assert!(e.contains(said), "{e}");
         }
         for (table, line, word) in [
             ("render", "stpe = 0.5", "stpe"),
