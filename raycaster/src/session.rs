@@ -597,21 +597,20 @@ impl Session {
     /// [`Self::parse`], checking that the volume and label files exist.
     fn parse_and_check(text: &str, base: &Path) -> Result<Session, SessionError> {
         let session = Session::parse(text, base)?;
-        if let VolumeSource::File { path, .. } = &session.source
-            && !path.exists()
-        {
-            return Err(invalid(
-                "volume.file",
+        // Said as the system says it (a loop of links is not a missing file).
+        let reachable = |field: &str, path: &Path| match std::fs::metadata(path) {
+            Ok(_) => Ok(()),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Err(invalid(
+                field,
                 format!("{}: no such file or folder", path.display()),
-            ));
+            )),
+            Err(e) => Err(invalid(field, format!("{}: {e}", path.display()))),
+        };
+        if let VolumeSource::File { path, .. } = &session.source {
+            reachable("volume.file", path)?;
         }
-        if let Some(labels) = &session.labels
-            && !labels.exists()
-        {
-            return Err(invalid(
-                "volume.labels",
-                format!("{}: no such file", labels.display()),
-            ));
+        if let Some(labels) = &session.labels {
+            reachable("volume.labels", labels)?;
         }
         Ok(session)
     }
@@ -1740,6 +1739,20 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("none.toml"), "{e}");
+        // A loop of links is said as one, not as a missing file.
+        let (a, b) = (dir.path().join("a.vol"), dir.path().join("b.vol"));
+        std::os::unix::fs::symlink(&b, &a).unwrap();
+        std::os::unix::fs::symlink(&a, &b).unwrap();
+        f.source = VolumeSource::File {
+            path: a,
+            access: Access::Mapped,
+        };
+        f.save(&path).unwrap();
+        let e = Session::load(&path).unwrap_err().to_string();
+        assert!(
+            e.contains("symbolic links") && !e.contains("no such"),
+            "{e}"
+        );
         let mut c = sample();
         c.settings.mode_parameters.sabella = SabellaOutput::Channels;
         assert!(c.save(&path).is_err(), "raw channels are refused");

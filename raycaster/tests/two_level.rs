@@ -440,3 +440,34 @@ fn a_label_scene_without_labels_or_with_wrong_labels_is_an_error() {
             .is_ok()
     );
 }
+
+/// A scene object's crop box outside the volume is refused naming the object,
+/// as the frame's own is (it hid the object without a word).
+#[test]
+fn an_object_cropped_outside_the_volume_is_refused_by_name() {
+    let volume = scene_volume(SceneKind::Shapes, 24);
+    let prepared = RenderVolume::new(&volume, None).unwrap();
+    let camera = default_camera(&volume, 16);
+    let mut scene = layers_scene(vec![[0.0, 0.5], [0.5, 1.0]], |_| {
+        (TransferFunction::preset("shapes").unwrap(), LocalMode::Dvr)
+    });
+    scene.objects[1].clip.crop = Some(raycaster::render::CropBox {
+        lo: Vec3::splat(40.0),
+        hi: Vec3::splat(50.0),
+    });
+    let settings = with_segments(&RenderSettings::default(), scene.clone());
+    let e = render_sequential(&prepared, &camera, &settings)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("scene object \"layer 1\"") && e.contains("outside"),
+        "{e}"
+    );
+    // Inside, it renders.
+    scene.objects[1].clip.crop = Some(raycaster::render::CropBox {
+        lo: Vec3::splat(4.0),
+        hi: Vec3::splat(20.0),
+    });
+    let settings = with_segments(&RenderSettings::default(), scene);
+    assert!(render_sequential(&prepared, &camera, &settings).is_ok());
+}

@@ -17,6 +17,14 @@ pub enum RenderError {
     /// A logical brick side below 2.
     #[error("brick side {0} is too small (at least 2)")]
     BrickSide(u32),
+    /// A two-level scene object's crop box or planes are wrong.
+    #[error("scene object {object:?}: {source}")]
+    ObjectClip {
+        /// The object's name.
+        object: String,
+        /// What is wrong.
+        source: Box<RenderError>,
+    },
     /// A logical brick that does not tile the file's bricks.
     #[error(
         "brick side {side} does not tile the file's bricks of side {file_side}: bricks share a voxel with their neighbours, so a sub-brick of side s advances s−1 voxels, and s−1 must divide {}; sides that tile them are {}",

@@ -245,10 +245,23 @@ impl FramePlan {
         if !(0.0..=1.0).contains(&settings.iso_value) {
             return Err(RenderError::IsoValue(settings.iso_value));
         }
+        let (sampled, scale) = (volume.volume().sampled_box(), volume.volume().level_scale());
         settings.clip.validate()?;
-        settings
-            .clip
-            .check_overlaps(volume.volume().sampled_box(), volume.volume().level_scale())?;
+        settings.clip.check_overlaps(sampled, scale)?;
+        // A scene object's own cut is checked alike (one outside the volume
+        // hid its object without a word).
+        for o in settings.segments.iter().flat_map(|s| &s.objects) {
+            let checked = o
+                .clip
+                .validate()
+                .and_then(|()| o.clip.check_overlaps(sampled, scale));
+            if let Err(e) = checked {
+                return Err(RenderError::ObjectClip {
+                    object: o.name.clone(),
+                    source: Box::new(e),
+                });
+            }
+        }
         let simd = match settings.simd {
             None => SimdLevel::automatic(),
             Some(level) if level.is_available() => level,
