@@ -1277,7 +1277,11 @@ impl Controller {
             return region.clone();
         }
         let (dims, spacing) = st.volume_shape();
-        let mut region = values.region(dims, spacing);
+        let mut region = match &st.cut_restored {
+            // The controls that did not move keep the session's values.
+            Some((before, restored)) => values.region_after(before, restored, dims, spacing),
+            None => values.region(dims, spacing),
+        };
         region
             .planes
             .extend(st.fixed.clip.planes.iter().skip(1).copied());
@@ -1301,15 +1305,20 @@ impl Controller {
                 .is_some()
         });
         drop(st);
+        // Rounded as shown, without a sign on zero ("-0.00").
+        let shown = |v: f32, digits: i32| {
+            let scale = 10f32.powi(digits);
+            (v * scale).round() / scale + 0.0
+        };
         let text = match region.planes.first() {
             Some(p) => format!(
                 "plane through ({:.0}, {:.0}, {:.0}), normal ({:.2}, {:.2}, {:.2}) (voxels){}",
-                p.point.x,
-                p.point.y,
-                p.point.z,
-                p.normal.x,
-                p.normal.y,
-                p.normal.z,
+                shown(p.point.x, 0),
+                shown(p.point.y, 0),
+                shown(p.point.z, 0),
+                shown(p.normal.x, 2),
+                shown(p.normal.y, 2),
+                shown(p.normal.z, 2),
                 if keeps_nothing {
                     ": it keeps nothing of the volume (it keeps the side its normal points into)"
                 } else {

@@ -104,6 +104,62 @@ impl CutValues {
         ClipRegion { crop, planes }
     }
 
+    /// [`Self::region`] after the panel showed `before` for the region `kept`
+    /// (a session's, restored bit for bit): the bounds and the plane whose
+    /// controls did not move keep `kept`'s values (a session's crop at z 0.7
+    /// stays 0.7 when the x slider moves; snapped it became 1), the others
+    /// are the panel's. An axis whose kept and moved bounds would cross takes
+    /// the panel's two.
+    pub(crate) fn region_after(
+        &self,
+        before: &CutValues,
+        kept: &ClipRegion,
+        dims: [u32; 3],
+        spacing: [f32; 3],
+    ) -> ClipRegion {
+        let mut region = self.region(dims, spacing);
+        let last = extent(dims);
+        let kept_crop = kept.crop.unwrap_or(CropBox {
+            lo: Vec3::ZERO,
+            hi: last,
+        });
+        let mut crop = region.crop.unwrap_or(CropBox {
+            lo: Vec3::ZERO,
+            hi: last,
+        });
+        for a in 0..3 {
+            let lo = if self.lo[a] == before.lo[a] {
+                kept_crop.lo[a]
+            } else {
+                crop.lo[a]
+            };
+            let hi = if self.hi[a] == before.hi[a] {
+                kept_crop.hi[a]
+            } else {
+                crop.hi[a]
+            };
+            // (Crossed or met sliders: the panel's rule for them.)
+            if self.lo[a] < self.hi[a] && lo < hi {
+                (crop.lo[a], crop.hi[a]) = (lo, hi);
+            }
+        }
+        region.crop = (crop.lo != Vec3::ZERO || crop.hi != last).then_some(crop);
+        let plane_unmoved = (self.plane, self.offset, self.azimuth, self.elevation)
+            == (
+                before.plane,
+                before.offset,
+                before.azimuth,
+                before.elevation,
+            );
+        if plane_unmoved
+            && let (Some(first), Some(kept_first)) =
+                (region.planes.first_mut(), kept.planes.first())
+        {
+            *first = *kept_first;
+        }
+        region
+    }
+
     /// The panel's values for `region` in a volume of `dims` voxels `spacing`
     /// apart: the crop box as fractions and the region's first plane (others
     /// are not shown), its angles and offset in world space ([`Self::region`]'s
@@ -216,6 +272,55 @@ mod tests {
         assert_eq!(crop.hi, Vec3::new(160.0, 80.0, 10.0));
         assert!(r.planes.is_empty());
         assert_eq!(CutValues::from_region(&r, [161, 161, 11], [1.0; 3]), v);
+    }
+
+    #[test]
+    fn a_moved_slider_leaves_a_restored_sessions_other_bounds_and_plane_as_they_were() {
+        let (dims, spacing) = ([11, 21, 31], [1.0, 1.0, 2.0]);
+        let kept = ClipRegion {
+            crop: Some(CropBox {
+                lo: Vec3::new(0.0, 2.3, 0.7),
+                hi: Vec3::new(10.0, 17.6, 29.2),
+            }),
+            planes: vec![ClipPlane {
+                point: Vec3::new(5.1, 9.7, 14.9),
+                normal: Vec3::new(0.3, -0.2, 0.9),
+            }],
+        };
+        let before = CutValues::from_region(&kept, dims, spacing);
+        // Unmoved: the region itself.
+        let same = before.region_after(&before, &kept, dims, spacing);
+        assert_eq!(same, kept);
+        // The x slider moved: x snaps, y and z and the plane stay.
+        let mut moved = before;
+        moved.lo[0] = 0.5;
+        let after = moved.region_after(&before, &kept, dims, spacing);
+        let crop = after.crop.unwrap();
+        assert_eq!(crop.lo, Vec3::new(5.0, 2.3, 0.7));
+        assert_eq!(crop.hi, kept.crop.unwrap().hi);
+        assert_eq!(after.planes, kept.planes);
+        // The plane moved: the panel's plane, the crop kept.
+        let mut turned = before;
+        turned.azimuth += 10.0;
+        let after = turned.region_after(&before, &kept, dims, spacing);
+        assert_eq!(after.crop, kept.crop);
+        assert_ne!(after.planes, kept.planes);
+        assert_eq!(after.planes, turned.region(dims, spacing).planes);
+        // A moved bound past a kept one: the panel's two.
+        let mut crossed = before;
+        crossed.hi[2] = 0.0;
+        let crop = crossed
+            .region_after(&before, &kept, dims, spacing)
+            .crop
+            .unwrap();
+        let panel = crossed.region(dims, spacing).crop.unwrap();
+        assert_eq!((crop.lo.z, crop.hi.z), (panel.lo.z, panel.hi.z));
+        assert!(
+            crossed
+                .region_after(&before, &kept, dims, spacing)
+                .validate()
+                .is_ok()
+        );
     }
 
     #[test]
