@@ -99,8 +99,9 @@ impl WindowArg {
         };
         raycaster::windows::ct_window_misreads(volume).then(|| {
             format!(
-                "warning: {flag} {}: a CT window in Hounsfield units, and {name} holds stored samples without value units; {flag} LO,HI gives a range in its own values",
-                named.name
+                "warning: {flag} {}: a CT window in Hounsfield units, and {name} {}; {flag} LO,HI gives a range in its own values",
+                named.name,
+                raycaster::windows::not_ct_values(volume)
             )
         })
     }

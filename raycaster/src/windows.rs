@@ -152,11 +152,24 @@ pub fn looks_like_ct(volume: &Volume) -> bool {
 }
 
 /// Whether a named CT window (in Hounsfield units) would window `volume`'s
-/// numbers as something they are not: stored samples without value units
-/// that do not look like CT ([`looks_like_ct`]). Front ends warn of it; the
+/// numbers as something they are not: values that do not look like CT
+/// ([`looks_like_ct`]), stored samples without units or values in units of
+/// their own. Front ends warn of it; the
 /// window then applies to the stored values as they are.
 pub fn ct_window_misreads(volume: &Volume) -> bool {
-    volume.value_units().is_identity() && !looks_like_ct(volume)
+    !looks_like_ct(volume)
+}
+
+/// What a CT window's warning says of `volume`, whose values a CT window
+/// misreads ([`ct_window_misreads`]): stored samples without units, or values
+/// in units of their own (an MR series' DICOM values) that are not
+/// Hounsfield units.
+pub fn not_ct_values(volume: &Volume) -> &'static str {
+    if volume.value_units().is_identity() {
+        "holds stored samples without value units"
+    } else {
+        "does not look like a CT scan (its values are not said to be Hounsfield units and do not reach down to air)"
+    }
 }
 
 /// The 0.5th..99.5th percentile of stored values, from a strided sample of
@@ -242,6 +255,11 @@ mod tests {
         // The same i16 origin without air (an MR scan in i16) is generic.
         let mr = u16_volume(|i| (32768 + (i % 1000)) as u16, Some(from_i16));
         assert_eq!(fit(&mr).kind, DataKind::Generic);
+        // A CT window on it is warned of (values in units of their own that
+        // are not HU: an MR series read from DICOM); not on the CT.
+        assert!(ct_window_misreads(&mr) && !ct_window_misreads(&ct));
+        assert!(not_ct_values(&mr).contains("does not look like a CT scan"));
+        assert!(not_ct_values(&u16_volume(|i| i as u16, None)).contains("without value units"));
         // Generic: 0.5th..99.5th percentiles; a single hot spot is left out.
         let generic = u16_volume(|i| if i == 7 { 60000 } else { (i % 1000) as u16 }, None);
         let f = fit(&generic);

@@ -103,17 +103,22 @@ pub(crate) fn window(index: usize, fitted: [f32; 2], units: &ValueUnits) -> [f32
 }
 
 /// What to say when window choice `index` is a named CT window (in Hounsfield
-/// units) and `volume` holds stored samples without value units that do not
-/// look like CT: the window then applies to the stored values as they are
+/// units) and `volume` holds values that do not look like CT (stored samples
+/// without units, or values in units of their own): the window then applies
+/// to those values as they are
 /// (`raycaster slice --window` warns the same way). `None` otherwise.
 pub(crate) fn named_window_note(index: usize, volume: &Volume) -> Option<String> {
     let named = index.checked_sub(1).and_then(|i| NAMED_WINDOWS.get(i))?;
     raycaster::windows::ct_window_misreads(volume).then(|| {
         let [lo, hi] = named.range();
+        let (holds, values) = if volume.value_units().is_identity() {
+            ("values without units", "stored values")
+        } else {
+            ("values not said to be Hounsfield units (no air in them)", "its values")
+        };
         format!(
-            "the {} window is a CT window in Hounsfield units, and this volume holds values \
-             without units: it shows stored values {lo} to {hi} (right-drag a slice for a \
-             window of its own)",
+            "the {} window is a CT window in Hounsfield units, and this volume holds {holds}: \
+             it shows {values} {lo} to {hi} (right-drag a slice for a window of its own)",
             named.name
         )
     })
