@@ -26,6 +26,7 @@ pub fn parse_size(s: &str) -> Result<[u32; 2], String> {
 
 /// `x,y,z` of finite numbers.
 pub fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
+    list_in_range(s)?;
     let nums = s
         .split(',')
         .map(|p| p.trim().parse::<f32>().ok().filter(|v| v.is_finite()))
@@ -195,6 +196,14 @@ fn parse_in_range(s: &str) -> Result<Option<f32>, String> {
     }
 }
 
+/// The error for the first of the comma-separated numbers of `s` (each
+/// perhaps a percentage) written beyond `f32`'s range ([`parse_in_range`]), so
+/// that a list says it rather than "not a vector".
+fn list_in_range(s: &str) -> Result<(), String> {
+    s.split(',')
+        .try_for_each(|p| parse_in_range(p.trim().trim_end_matches('%')).map(|_| ()))
+}
+
 /// A finite number; one beyond `f32`'s range is refused as too large, not
 /// taken as infinite.
 pub fn parse_finite(s: &str) -> Result<f32, String> {
@@ -294,6 +303,7 @@ fn parse_coord(s: &str) -> Option<Coord> {
 
 /// `--crop X0,Y0,Z0,X1,Y1,Z1`: six coordinates, voxels or percentages.
 pub fn parse_crop(s: &str) -> Result<[Coord; 6], String> {
+    list_in_range(s)?;
     s.split(',')
         .map(parse_coord)
         .collect::<Option<Vec<Coord>>>()
@@ -322,6 +332,7 @@ pub fn parse_clip(s: &str) -> Result<ClipArg, String> {
             "{s:?} is not a clipping plane; expected PX,PY,PZ,NX,NY,NZ: a point (voxels or percentages) and a normal pointing into the part kept (e.g. 50%,50%,50%,0,0,1)"
         )
     };
+    list_in_range(s)?;
     let parts: Vec<&str> = s.split(',').collect();
     if parts.len() != 6 {
         return Err(bad());
@@ -344,6 +355,24 @@ pub fn parse_clip(s: &str) -> Result<ClipArg, String> {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn numbers_beyond_f32_in_lists_are_said_too_large() {
+        use super::{parse_clip, parse_crop, parse_vec3};
+        for e in [
+            parse_clip("0,0,0,1e300,1e300,1").unwrap_err(),
+            parse_crop("0,0,0,1e40%,9,9").unwrap_err(),
+            parse_vec3("1,-1e39,0").unwrap_err(),
+        ] {
+            assert!(e.contains("is too large"), "{e}");
+        }
+        assert!(parse_clip("0,0,0,1e30,1e30,1").is_ok());
+        assert!(
+            parse_clip("0,0,0,inf,0,1")
+                .unwrap_err()
+                .contains("not a clipping plane")
+        );
+    }
+
     #[test]
     fn whole_numbers_are_refused_in_words() {
         use super::{parse_count, parse_index, parse_seed};

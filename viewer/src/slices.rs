@@ -114,7 +114,10 @@ pub(crate) fn named_window_note(index: usize, volume: &Volume) -> Option<String>
         let (holds, values) = if volume.value_units().is_identity() {
             ("values without units", "stored values")
         } else {
-            ("values not said to be Hounsfield units (no air in them)", "its values")
+            (
+                "values not said to be Hounsfield units (no air in them)",
+                "its values",
+            )
         };
         format!(
             "the {} window is a CT window in Hounsfield units, and this volume holds {holds}: \
