@@ -551,8 +551,8 @@ fn a_crop_box_renders_at_every_pyramid_level() {
 #[test]
 fn a_plane_that_keeps_nothing_is_warned_of() {
     let dir = tempfile::tempdir().unwrap();
-    // Renders with one `--clip` per plane given.
-    let run_planes = |planes: &[&str]| {
+    // Renders with one `--clip` per plane given, and flags `extra`.
+    let run_with = |planes: &[&str], extra: &[&str]| {
         let mut args = vec![
             "render",
             "--scene-size",
@@ -566,10 +566,12 @@ fn a_plane_that_keeps_nothing_is_warned_of() {
         for plane in planes {
             args.extend(["--clip", plane]);
         }
+        args.extend(extra);
         let out = raycaster(&args, dir.path());
         assert!(out.status.success(), "{}", stderr(&out));
         stderr(&out)
     };
+    let run_planes = |planes: &[&str]| run_with(planes, &[]);
     let run = |clip: &str| run_planes(&[clip]);
     let said = run("40,0,0,1,0,0");
     assert_eq!(
@@ -591,17 +593,7 @@ fn a_plane_that_keeps_nothing_is_warned_of() {
     assert!(!run_planes(&["12,0,0,1,0,0", "16,0,0,-1,0,0"]).contains("warning"));
     // A frame the transfer function leaves empty (a domain above the data:
     // no brick marched, no ray made) is not blamed on the planes.
-    let mut args = vec![
-        "render",
-        "--scene-size",
-        "32",
-        "--size",
-        "24x24",
-        "-o",
-        "p.png",
-    ];
-    args.extend(["--force", "--clip", "16,0,0,1,0,0", "--domain", "300,400"]);
-    let said = stderr(&raycaster(&args, dir.path()));
+    let said = run_with(&["16,0,0,1,0,0"], &["--domain", "300,400"]);
     assert!(!said.contains("clipping planes"), "{said}");
 }
 
