@@ -98,6 +98,16 @@ fn parse_vector(s: &str) -> Result<Option<Vec<f64>>, ImportErrorKind> {
         .map(Some)
 }
 
+/// A `space directions` vector in the patient's three axes: three
+/// components, or four of a space with time (`…-time`) whose time
+/// component is 0 (a spatial axis; a time axis has no place in the patient).
+fn in_space(v: &[f64]) -> Option<[f64; 3]> {
+    match v {
+        [x, y, z] | [x, y, z, 0.0] => Some([*x, *y, *z]),
+        _ => None,
+    }
+}
+
 /// Splits `space directions: (1,0,0) (0,1,0) none` into its vectors.
 fn split_vectors(s: &str) -> Vec<&str> {
     let mut out = Vec::new();
@@ -432,7 +442,7 @@ pub fn parse_header(bytes: &[u8]) -> Result<NrrdHeader, ImportErrorKind> {
             if let Some(v) = parse_vector(vectors[axis])? {
                 let len = v.iter().map(|c| c * c).sum::<f64>().sqrt();
                 spacing[i] = check_spacing(F, axis, len)?;
-                steps.extend(<[f64; 3]>::try_from(v).ok());
+                steps.extend(in_space(&v));
             }
         }
         // An anatomical space and a direction on every axis place the volume in
@@ -441,7 +451,7 @@ pub fn parse_header(bytes: &[u8]) -> Result<NrrdHeader, ImportErrorKind> {
         if let (Some(space), Ok(steps)) = (space, <[[f64; 3]; 3]>::try_from(steps)) {
             let origin = match get("space origin") {
                 Some(o) => parse_vector(o)?
-                    .and_then(|o| <[f64; 3]>::try_from(o).ok())
+                    .and_then(|o| in_space(&o).or_else(|| o.get(..3)?.try_into().ok()))
                     .ok_or_else(|| header_error(F, format!("space origin `{o}` is not (x,y,z)")))?,
                 None => [0.0; 3],
             };
@@ -600,6 +610,49 @@ mod tests {
                 e.contains("one detached file is read, not lists or patterns"),
                 "{head}: {e}"
             );
+        }
+    }
+
+    #[test]
+    fn a_space_with_time_places_the_volume_as_its_three_patient_axes_do() {
+        let header = |space: &str, dims: &str, sizes: &str, dirs: &str, origin: &str| {
+            format!(
+                "NRRD0005\ntype: uchar\ndimension: {dims}\nspace: {space}\nsizes: {sizes}\n\
+                 space directions: {dirs}\nencoding: raw\nspace origin: {origin}\n\n"
+            )
+        };
+        let three = parse_header(
+            header(
+                "right-anterior-superior",
+                "3",
+                "4 5 6",
+                "(0.5,0,0) (0,0.5,0) (0,0,2)",
+                "(10,20,30)",
+            )
+            .as_bytes(),
+        )
+        .unwrap();
+        assert!(three.orientation.is_some());
+        // (It was read without one: `-time` spaces were not known, and their
+        // vectors have four components.)
+        for (space, dims, sizes, dirs) in [
+            (
+                "right-anterior-superior-time",
+                "3",
+                "4 5 6",
+                "(0.5,0,0,0) (0,0.5,0,0) (0,0,2,0)",
+            ),
+            (
+                "RAST",
+                "4",
+                "4 5 6 1",
+                "(0.5,0,0,0) (0,0.5,0,0) (0,0,2,0) (0,0,0,1)",
+            ),
+        ] {
+            let h =
+                parse_header(header(space, dims, sizes, dirs, "(10,20,30,0)").as_bytes()).unwrap();
+            assert_eq!(h.orientation, three.orientation, "{space}");
+            assert_eq!(h.spacing, three.spacing, "{space}");
         }
     }
 

@@ -41,9 +41,16 @@ impl PatientSpace {
     /// for non-anatomical spaces (`scanner-xyz`, `3D-right-handed`, ...).
     pub fn from_nrrd(name: &str) -> Option<PatientSpace> {
         match name.trim().to_ascii_lowercase().as_str() {
-            "left-posterior-superior" | "lps" => Some(PatientSpace::Lps),
-            "right-anterior-superior" | "ras" => Some(PatientSpace::Ras),
-            "left-anterior-superior" | "las" => Some(PatientSpace::Las),
+            // (With time: the same patient axes, and one of time beside them.)
+            "left-posterior-superior" | "lps" | "left-posterior-superior-time" | "lpst" => {
+                Some(PatientSpace::Lps)
+            }
+            "right-anterior-superior" | "ras" | "right-anterior-superior-time" | "rast" => {
+                Some(PatientSpace::Ras)
+            }
+            "left-anterior-superior" | "las" | "left-anterior-superior-time" | "last" => {
+                Some(PatientSpace::Las)
+            }
             _ => None,
         }
     }
