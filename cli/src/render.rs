@@ -682,6 +682,17 @@ impl Setup {
                 (volume, session)
             }
         };
+        // A scene object cut away whole is refused at full resolution, as the
+        // frame's crop is (at a coarse level its margin let some pass).
+        if let Some(scene) = &session.settings.segments
+            && let Err(e) = scene.check_cuts(volume.sampled_box(), 1.0)
+        {
+            match (&args.session, &args.segments) {
+                (Some(session), _) => bail!("{}: [scene]: {e}", session.display()),
+                (None, Some(scene)) => bail!("{}: {e}", scene.display()),
+                (None, None) => bail!("{e}"),
+            }
+        }
         if let Some(plane) = session
             .settings
             .clip

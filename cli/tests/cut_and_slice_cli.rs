@@ -639,3 +639,53 @@ fn a_slice_of_one_value_is_shown_as_in_the_volume_not_mid_grey() {
     let image = RgbImage::load_png(&d.join("flat.png")).unwrap();
     assert!(image.data().iter().all(|&v| v == 0));
 }
+
+/// A scene object whose crop box lies beside the volume is refused naming it,
+/// at whatever level the frame renders (a coarse level's margin let it pass);
+/// one inside renders.
+#[test]
+fn a_scene_object_cropped_beside_the_volume_is_refused_at_every_level() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write_scene(
+        &d.join("s.vol"),
+        raycaster::synth::SceneKind::Shapes,
+        96,
+        1,
+        raycaster::volume::Format::Extended,
+    );
+    let scene = |crop: &str| {
+        format!(
+            "layers = [[0.0, 0.5], [0.5, 1.0]]\n[[object]]\nname = \"low\"\n\
+             [[object]]\nname = \"high\"\ncrop = {crop}\n"
+        )
+    };
+    std::fs::write(d.join("beside.toml"), scene("[96, 0, 0, 200, 95, 95]")).unwrap();
+    std::fs::write(d.join("inside.toml"), scene("[10, 0, 0, 60, 95, 95]")).unwrap();
+    for level in ["0", "1"] {
+        let args = |scene| {
+            [
+                "render",
+                "s.vol",
+                "--segments",
+                scene,
+                "--level",
+                level,
+                "--size",
+                "32",
+                "-o",
+                "o.png",
+                "--force",
+            ]
+        };
+        let out = raycaster(&args("beside.toml"), d);
+        assert!(!out.status.success(), "level {level}");
+        let said = stderr(&out);
+        assert!(
+            said.contains("beside.toml: scene object \"high\"") && said.contains("outside"),
+            "level {level}: {said}"
+        );
+        let out = raycaster(&args("inside.toml"), d);
+        assert!(out.status.success(), "level {level}: {}", stderr(&out));
+    }
+}

@@ -473,47 +473,10 @@ fn check_version(version: Option<i64>) -> Result<(), SessionError> {
 /// The tables every session has.
 const REQUIRED_TABLES: [&str; 4] = ["volume", "image", "camera", "transfer"];
 
-/// Refuses a number no 32-bit float holds (a session's numbers are `f32`s:
-/// `1e300` would read as infinity, `1e-300` as 0, and be said as those),
-/// naming its key.
+/// Refuses a number no 32-bit float holds, naming its key
+/// ([`crate::text::toml_float_range`]).
 fn check_float_range(text: &str) -> Result<(), SessionError> {
-    fn walk(key: &str, value: &toml::Value) -> Result<(), SessionError> {
-        match value {
-            toml::Value::Float(v) if v.is_finite() => {
-                let narrowed = *v as f32;
-                if narrowed.is_infinite() {
-                    return Err(invalid(
-                        key,
-                        format!(
-                            "{v:e} is too large (a 32-bit float holds up to {:e})",
-                            f32::MAX
-                        ),
-                    ));
-                }
-                if narrowed == 0.0 && *v != 0.0 {
-                    return Err(invalid(
-                        key,
-                        format!("{v:e} is too small (a 32-bit float reads it as 0)"),
-                    ));
-                }
-                Ok(())
-            }
-            toml::Value::Table(t) => t.iter().try_for_each(|(k, v)| {
-                let key = if key.is_empty() {
-                    k.clone()
-                } else {
-                    format!("{key}.{k}")
-                };
-                walk(&key, v)
-            }),
-            toml::Value::Array(a) => a.iter().try_for_each(|v| walk(key, v)),
-            _ => Ok(()),
-        }
-    }
-    match text.parse::<toml::Table>() {
-        Ok(table) => walk("", &toml::Value::Table(table)),
-        Err(_) => Ok(()),
-    }
+    crate::text::toml_float_range(text).map_err(|(key, what)| invalid(&key, what))
 }
 
 /// The session's outline, when the field-by-field reading finds a field
@@ -1853,7 +1816,6 @@ mod tests {
             ("volume", "file = \"a.vol\"", "volume"),
             ("transfer", "domain = [5.0, 1.0]", "transfer.domain"),
             ("render", "step = 1e300", "render.step"),
-            ("render", "step = 1e-300", "render.step"),
             ("camera", "target = [1.0, 2.0, -1e300]", "camera.target"),
             ("transfer", "points = []", "transfer.points"),
             (
@@ -1879,14 +1841,12 @@ mod tests {
                 other => panic!("{table}: {line}: {other:?}"),
             }
         }
-        // Numbers beyond an f32 are said as written (they were "inf" and "0").
-        for (line, said) in [
-            ("step = 1e300", "1e300 is too large"),
-            ("step = 1e-300", "1e-300 is too small"),
-        ] {
-            let e = with("render", line).unwrap_err().to_string();
-            assert!(e.contains(said), "{e}");
-        }
+        // A number beyond an f32 is said as written (it was "inf"); one too
+        // small for it reads as 0, as on the command line.
+        let e = with("render", "step = 1e300").unwrap_err().to_string();
+        assert!(e.contains("1e300 is too large"), "{e}");
+        let e = with("render", "step = 1e-300").unwrap_err().to_string();
+        assert!(e.contains("render.step") && e.contains("0 must be"), "{e}");
         for (table, line, word) in [
             ("render", "stpe = 0.5", "stpe"),
             ("render", "step = \"fine\"", "step"),
@@ -1976,6 +1936,12 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("colour") && !e.contains("line"), "{e}");
+        // A value of the wrong type is quoted with its key.
+        let bad = format!("{head}{padding}{}", scene.replace("id = 1", "id = 300"));
+        let e = Session::parse(&bad, Path::new("/data"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`id = 300`") && !e.contains("line"), "{e}");
     }
 
     #[test]

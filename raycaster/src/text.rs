@@ -20,12 +20,34 @@ pub fn without_bom(text: &str) -> &str {
 /// what`` (the parser's own text quotes the line under a caret, over four
 /// lines; the line is kept, its key is often what the message leaves out).
 pub fn toml_error(text: &str, error: &toml::de::Error) -> String {
-    /// Characters of the quoted line kept.
-    const QUOTED: usize = 60;
     let message = error.message().trim().replace('\n', " ");
-    let Some(span) = error.span() else {
+    let Some((line, column, quoted)) = error_place(text, error) else {
         return message;
     };
+    if quoted.is_empty() {
+        format!("line {line}, column {column}: {message}")
+    } else {
+        format!("line {line}, column {column} (`{quoted}`): {message}")
+    }
+}
+
+/// [`toml_error`] for `text` that is not the user's file (a table read from
+/// one and written again, whose lines are not the file's): the line quoted,
+/// which names the key, without its number.
+pub fn toml_error_unnumbered(text: &str, error: &toml::de::Error) -> String {
+    let message = error.message().trim().replace('\n', " ");
+    match error_place(text, error) {
+        Some((_, _, quoted)) if !quoted.is_empty() => format!("`{quoted}`: {message}"),
+        _ => message,
+    }
+}
+
+/// Where in `text` `error` lies: its line and column (from 1) and the line,
+/// trimmed and cut to 60 characters.
+fn error_place(text: &str, error: &toml::de::Error) -> Option<(usize, usize, String)> {
+    /// Characters of the quoted line kept.
+    const QUOTED: usize = 60;
+    let span = error.span()?;
     let start = span.start.min(text.len());
     let start = (0..=start)
         .rev()
@@ -40,11 +62,7 @@ pub fn toml_error(text: &str, error: &toml::de::Error) -> String {
     } else {
         quoted.to_string()
     };
-    if quoted.is_empty() {
-        format!("line {line}, column {column}: {message}")
-    } else {
-        format!("line {line}, column {column} (`{quoted}`): {message}")
-    }
+    Some((line, column, quoted))
 }
 
 /// A file's declared scaling of its stored samples (a NIfTI slope and
@@ -57,6 +75,38 @@ pub fn scaling_text(slope: f32, intercept: f32) -> String {
         unit: String::new(),
     }
     .describe()
+}
+
+/// The first number of TOML `text` that no 32-bit float holds (they are read
+/// as `f32`s: `1e300` would be infinity, said as "inf"), as its key (dotted)
+/// and what to say of it; `Ok` for text that does not parse (its reader says
+/// why). A number too small for an `f32` reads as 0, as on the command line.
+pub fn toml_float_range(text: &str) -> Result<(), (String, String)> {
+    fn walk(key: &str, value: &toml::Value) -> Result<(), (String, String)> {
+        match value {
+            toml::Value::Float(v) if v.is_finite() && (*v as f32).is_infinite() => Err((
+                key.to_string(),
+                format!(
+                    "{v:e} is too large (a 32-bit float holds up to {:e})",
+                    f32::MAX
+                ),
+            )),
+            toml::Value::Table(t) => t.iter().try_for_each(|(k, v)| {
+                let key = if key.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{key}.{k}")
+                };
+                walk(&key, v)
+            }),
+            toml::Value::Array(a) => a.iter().try_for_each(|v| walk(key, v)),
+            _ => Ok(()),
+        }
+    }
+    match text.parse::<toml::Table>() {
+        Ok(table) => walk("", &toml::Value::Table(table)),
+        Err(_) => Ok(()),
+    }
 }
 
 #[cfg(test)]

@@ -474,6 +474,17 @@ fn open_session_volume(
         Some((source, volume)) if source == session.source => volume,
         _ => loader::open_source(&session.source)?,
     };
+    // A cut that keeps nothing of the volume is refused, the view kept (as
+    // `raycaster render --session` refuses it).
+    let sampled = volume.volume.sampled_box();
+    if let Err(e) = session.settings.clip.check_overlaps(sampled, 1.0) {
+        anyhow::bail!("{}: `[clip] crop`: {e}", path.display());
+    }
+    if let Some(scene) = &session.settings.segments
+        && let Err(e) = scene.check_cuts(sampled, 1.0)
+    {
+        anyhow::bail!("{}: [scene]: {e}", path.display());
+    }
     let scene_labels = session
         .settings
         .segments
@@ -2226,6 +2237,17 @@ impl Controller {
             Ok(scene) => scene,
             Err(e) => return self.show_message(&format!("{e}"), true),
         };
+        // An object cut away whole is refused here, the view kept (as
+        // `raycaster render --segments` refuses it).
+        let sampled = {
+            let st = self.state.borrow();
+            st.current.as_ref().map(|c| c.volume.volume.sampled_box())
+        };
+        if let Some(sampled) = sampled
+            && let Err(e) = scene.check_cuts(sampled, 1.0)
+        {
+            return self.show_message(&format!("{}: {e}", path.display()), true);
+        }
         let labels_path = match &scene.membership {
             Membership::Labels(p) => Some(p.clone()),
             Membership::Layers(_) => None,

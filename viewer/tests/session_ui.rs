@@ -233,6 +233,29 @@ fn sessions_save_render_and_restore_the_picture() {
     let message = v.ui().get_message().to_string();
     assert!(message.contains("render.mode"), "{message}");
     assert_eq!(v.ui().get_mode_index(), 0, "the view stays");
+    // A scene object cropped beside the volume: refused at open, the view
+    // kept (it replaced the view with a black canvas and "cannot render").
+    let beside = dir.path().join("beside.toml");
+    std::fs::write(
+        &beside,
+        std::fs::read_to_string(&path).unwrap()
+            + "\n[scene]\nlayers = [[0.0, 1.0]]\n[[scene.object]]\nname = \"away\"\n\
+               crop = [500.0, 0.0, 0.0, 600.0, 10.0, 10.0]\n",
+    )
+    .unwrap();
+    v.ui().set_message("".into());
+    v.ui().set_message_is_error(false);
+    v.ui().set_session_path(beside.display().to_string().into());
+    element(&v, "App::session-open").invoke_accessible_default_action();
+    let start = Instant::now();
+    while !v.ui().get_message_is_error() {
+        v.pump();
+        assert!(start.elapsed() < Duration::from_secs(30), "no error shown");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let message = v.ui().get_message().to_string();
+    assert!(message.contains("scene object \"away\""), "{message}");
+    assert_eq!(v.ui().get_mode_index(), 0, "the view stays");
     v.ui().set_session_path(path.display().to_string().into());
     element(&v, "App::session-open").invoke_accessible_default_action();
     let start = Instant::now();

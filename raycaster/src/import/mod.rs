@@ -202,9 +202,10 @@ pub enum ImportErrorKind {
     Compressed(std::io::Error),
     /// Bytes follow the zlib stream that holds the samples.
     #[error(
-        "{}{} follow the zlib stream of the samples, which ends after {}{}",
+        "{}{} {} the zlib stream of the samples, which ends after {}{}",
         if *at_least { "at least " } else { "" },
         crate::text::counted(*extra, "byte"),
+        if *extra == 1 { "follows" } else { "follow" },
         crate::text::counted(*stream, "byte"),
         match declared {
             Some(d) if d != stream => format!(" (CompressedDataSize says {d})"),

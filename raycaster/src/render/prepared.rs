@@ -250,17 +250,8 @@ impl FramePlan {
         settings.clip.check_overlaps(sampled, scale)?;
         // A scene object's own cut is checked alike (one outside the volume
         // hid its object without a word).
-        for o in settings.segments.iter().flat_map(|s| &s.objects) {
-            let checked = o
-                .clip
-                .validate()
-                .and_then(|()| o.clip.check_overlaps(sampled, scale));
-            if let Err(e) = checked {
-                return Err(RenderError::ObjectClip {
-                    object: o.name.clone(),
-                    source: Box::new(e),
-                });
-            }
+        if let Some(scene) = &settings.segments {
+            scene.check_cuts(sampled, scale)?;
         }
         let simd = match settings.simd {
             None => SimdLevel::automatic(),

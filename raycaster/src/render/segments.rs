@@ -13,6 +13,7 @@ use glam::Vec3;
 use serde::Deserialize;
 
 use super::clip::{ClipPlane, ClipRegion, CropBox};
+use super::error::RenderError;
 use super::sabella::{SabellaDepth, SabellaMapping, SabellaOutput};
 use super::transfer::{
     ControlPoint, TransferError, TransferFunction, check_domain, check_gradient_ramp,
@@ -311,6 +312,8 @@ impl SegmentScene {
         let text = crate::text::without_bom(text);
         let file: SceneFile = toml::from_str(text)
             .map_err(|e| SceneError::Syntax(crate::text::toml_error(text, &e)))?;
+        crate::text::toml_float_range(text)
+            .map_err(|(key, what)| SceneError::Invalid(format!("`{key}`: {what}")))?;
         Self::from_file(file, base)
     }
 
@@ -318,8 +321,11 @@ impl SegmentScene {
     /// `[scene]`): what is wrong in it is said by key, without a line (the
     /// table's lines are not the file's).
     pub fn from_table(table: toml::Table, base: &Path) -> Result<SegmentScene, SceneError> {
-        let file = SceneFile::deserialize(toml::Value::Table(table))
-            .map_err(|e| SceneError::Syntax(e.message().trim().replace('\n', " ")))?;
+        let text = toml::to_string(&table).map_err(|e| SceneError::Syntax(e.to_string()))?;
+        // Read from the table written again: an error's place in it quotes
+        // the key (its line number would be this text's).
+        let file: SceneFile = toml::from_str(&text)
+            .map_err(|e| SceneError::Syntax(crate::text::toml_error_unnumbered(&text, &e)))?;
         Self::from_file(file, base)
     }
 
@@ -450,6 +456,27 @@ impl SegmentScene {
             objects,
             global,
         })
+    }
+
+    /// Checks each object's crop box and planes against the box a volume
+    /// samples (`sampled`, at a level `scale` times level 0's voxels, as
+    /// [`ClipRegion::check_overlaps`] takes them): an object cut away whole
+    /// (its crop beside the volume) is an error naming it, as the frame's own
+    /// cut is.
+    pub fn check_cuts(&self, sampled: [[f32; 3]; 2], scale: f32) -> Result<(), RenderError> {
+        for o in &self.objects {
+            let checked = o
+                .clip
+                .validate()
+                .and_then(|()| o.clip.check_overlaps(sampled, scale));
+            if let Err(e) = checked {
+                return Err(RenderError::ObjectClip {
+                    object: o.name.clone(),
+                    source: Box::new(e),
+                });
+            }
+        }
+        Ok(())
     }
 
     /// The scene with its label volume's path (held relative to the working
@@ -724,6 +751,22 @@ fn local_mode(o: &ObjectFile) -> Result<LocalMode, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_number_beyond_an_f32_is_said_too_large_by_its_key() {
+        for (text, key) in [
+            ("layers = [[0.0, 1e300]]\n[[object]]\n", "`layers`"),
+            (
+                "layers = [[0.0, 1.0]]\n[[object]]\nmode = \"importance\"\nweight = 1e300\n",
+                "`object.weight`",
+            ),
+        ] {
+            let e = SegmentScene::parse(text, Path::new(""))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(key) && e.contains("1e300 is too large"), "{e}");
+        }
+    }
 
     #[test]
     fn a_parameter_of_another_importance_source_is_named() {
