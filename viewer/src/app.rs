@@ -534,7 +534,6 @@ fn init_models(ui: &App) {
                 .collect::<Vec<_>>(),
         ))
     };
-    ui.set_presets(strings(PRESETS.iter().map(|(n, _)| *n).collect()));
     ui.set_tf_presets(strings(
         PRESETS
             .iter()
@@ -2402,7 +2401,8 @@ fn to_ui_row(r: &ObjectRowData) -> ObjectRow {
         name: r.name.clone().into(),
         visible: r.visible,
         mode_index: r.mode_index as i32,
-        preset_index: r.preset_index.map_or(-1, |i| i as i32),
+        // A function that is no preset (a file's, an edited one): "custom".
+        preset_index: r.preset_index.map_or(PRESETS.len() as i32, |i| i as i32),
         param: r.param,
         param_label: r.param_label.as_str().into(),
         param_min: r.param_min,
@@ -2417,7 +2417,9 @@ fn from_ui_row(r: &ObjectRow) -> ObjectRowData {
         name: r.name.to_string(),
         visible: r.visible,
         mode_index: r.mode_index.max(0) as usize,
-        preset_index: usize::try_from(r.preset_index).ok(),
+        preset_index: usize::try_from(r.preset_index)
+            .ok()
+            .filter(|&i| i < PRESETS.len()),
         param: r.param,
         param_label: r.param_label.to_string(),
         param_min: r.param_min,

@@ -319,6 +319,24 @@ fn the_viewer_runs_headless() {
     let rows = v.ui().get_objects();
     assert_eq!(rows.row_count(), 2);
     assert_ne!(frame(&v).2, plain, "two-level rendering differs");
+    // Objects whose functions come from files (no preset) show "custom" in
+    // their picker (it was empty).
+    v.ui().invoke_load_scene(
+        scenes
+            .join("shapes-windows.toml")
+            .display()
+            .to_string()
+            .into(),
+    );
+    wait_for_frame(&v);
+    let custom = v.ui().get_tf_presets().row_count() as i32 - 1;
+    let windows = v.ui().get_objects();
+    assert_eq!(windows.row_count(), 3);
+    assert!((0..3).all(|i| windows.row_data(i).unwrap().preset_index == custom));
+    v.ui()
+        .invoke_load_scene(scenes.join("shapes-npr.toml").display().to_string().into());
+    wait_for_frame(&v);
+    let rows = v.ui().get_objects();
     let mut row = rows.row_data(1).unwrap();
     row.visible = false;
     v.ui().invoke_object_changed(1, row);
