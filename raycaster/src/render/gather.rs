@@ -471,6 +471,12 @@ impl<T: Sample> ChunkFolder<Accumulation> for GatherRay<'_, '_, T> {
     }
 }
 
+/// Whether [`GatherRay::chunk_shaded_per_lane`] can shade with `shading`:
+/// on x86-64 (the gather kernels' AVX2) with a whole shininess exponent.
+pub(crate) fn shades_per_lane(shading: &Shading) -> bool {
+    cfg!(target_arch = "x86_64") && whole_exponent(shading.shininess).is_some()
+}
+
 impl<T: Sample> GatherRay<'_, '_, T> {
     /// [`Self::chunk`] without shading.
     #[inline(always)]
@@ -539,6 +545,40 @@ impl<T: Sample> GatherRay<'_, '_, T> {
         n: usize,
         entry: impl Fn(&GradientLanes, usize) -> [f32; 4],
     ) -> Option<usize> {
+        self.chunk_shaded_lanes::<false>(shade, acc, samples, n, |lanes, j| {
+            (entry(lanes, j), [1.0, 0.0])
+        })
+    }
+
+    /// [`Self::chunk_shaded_with`] where each visible lane's entry comes with
+    /// its own gradient factor and shading fade rate (`[factor, rate]`: a
+    /// two-level scene's objects whose functions have domains of their own,
+    /// whose gradients `Dvr` reads times the factor and fades in at the
+    /// rate). Only with AVX2 and a whole shininess exponent
+    /// ([`shades_per_lane`]).
+    #[inline(always)]
+    pub(crate) fn chunk_shaded_per_lane(
+        &self,
+        shade: &GatherShading<'_, '_, T>,
+        acc: &mut Accumulation,
+        samples: &[u32; GATHER_LANES],
+        n: usize,
+        entry: impl Fn(&GradientLanes, usize) -> ([f32; 4], [f32; 2]),
+    ) -> Option<usize> {
+        self.chunk_shaded_lanes::<true>(shade, acc, samples, n, entry)
+    }
+
+    /// The shaded chunk, each lane's factor and rate its own when
+    /// `PER_LANE` (else the frame's).
+    #[inline(always)]
+    fn chunk_shaded_lanes<const PER_LANE: bool>(
+        &self,
+        shade: &GatherShading<'_, '_, T>,
+        acc: &mut Accumulation,
+        samples: &[u32; GATHER_LANES],
+        n: usize,
+        entry: impl Fn(&GradientLanes, usize) -> ([f32; 4], [f32; 2]),
+    ) -> Option<usize> {
         let mut lanes = GradientLanes::default();
         let mut visible = self.visible_gradients(shade.volume, samples, n, &mut lanes);
         if visible == 0 {
@@ -549,12 +589,17 @@ impl<T: Sample> GatherRay<'_, '_, T> {
         // a time; each lane's entry is asked once (opacities kept for "over").
         let mut rgb = LineAligned([[0f32; GATHER_LANES]; 3]);
         let mut alpha = LineAligned([0f32; GATHER_LANES]);
+        // Per lane (`PER_LANE`): the gradient factor and the fade rate.
+        let mut looks = LineAligned([[1f32; GATHER_LANES]; 2]);
         let mut bits = visible;
         while bits != 0 {
             let j = bits.trailing_zeros() as usize;
             bits &= bits - 1;
-            let [r, g, b, a] = entry(&lanes, j);
+            let ([r, g, b, a], [factor, rate]) = entry(&lanes, j);
             (rgb.0[0][j], rgb.0[1][j], rgb.0[2][j], alpha.0[j]) = (r, g, b, a);
+            if PER_LANE {
+                (looks.0[0][j], looks.0[1][j]) = (factor, rate);
+            }
         }
         let scale = shade.gradient_scale.to_array();
         #[cfg(target_arch = "x86_64")]
@@ -562,13 +607,25 @@ impl<T: Sample> GatherRay<'_, '_, T> {
             #[allow(unsafe_code)]
             // SAFETY: `GatherBrick::new` checked that this CPU has AVX2.
             unsafe {
-                x86::shade(&shade.shading, n, &mut rgb.0, gradient, scale, self.lights)
+                x86::shade::<PER_LANE>(
+                    &shade.shading,
+                    n,
+                    &mut rgb.0,
+                    gradient,
+                    scale,
+                    self.lights,
+                    &looks.0,
+                )
             };
         } else {
+            assert!(!PER_LANE, "per-lane shading needs a whole exponent");
             self.shade_quads(shade, visible, &mut rgb.0, gradient);
         }
         #[cfg(not(target_arch = "x86_64"))]
-        self.shade_quads(shade, visible, &mut rgb.0, gradient);
+        {
+            assert!(!PER_LANE, "per-lane shading needs AVX2");
+            self.shade_quads(shade, visible, &mut rgb.0, gradient);
+        }
         let ends_ray = samples[n - 1] == self.last_sample;
         while visible != 0 {
             let j = visible.trailing_zeros() as usize;
@@ -809,24 +866,41 @@ mod x86 {
     /// `Shading::shade_lanes` of eight lanes for a whole exponent `n`
     /// (`specular_power` by repeated squaring): the colours `rgb` (per
     /// channel) at the gradients `gradient` (per axis) times `scale`, each lane
-    /// with `Shading::shade`'s operations, so its bits.
+    /// with `Shading::shade`'s operations, so its bits. `PER_LANE`: each
+    /// lane's gradient then times its factor (`looks[0]`) and its fade at its
+    /// rate (`looks[1]`), as a two-level object of a domain of its own
+    /// (`fold_rescaled`) shades; else `shading`'s rate.
     ///
     /// # Safety
     /// The CPU has AVX2.
     #[inline]
     #[target_feature(enable = "avx2")]
-    pub(super) unsafe fn shade(
+    pub(super) unsafe fn shade<const PER_LANE: bool>(
         shading: &Shading,
         n: u32,
         rgb: &mut [[f32; GATHER_LANES]; 3],
         gradient: &[[f32; GATHER_LANES]; 3],
         scale: [f32; 3],
         (to_light, half): (Vec3, Vec3),
+        looks: &[[f32; GATHER_LANES]; 2],
     ) {
         // SAFETY: each array holds eight `f32`s; unaligned loads.
         let load = |v: &[f32; GATHER_LANES]| unsafe { _mm256_loadu_ps(v.as_ptr()) };
         let splat = _mm256_set1_ps;
-        let [gx, gy, gz] = [0, 1, 2].map(|a| _mm256_mul_ps(load(&gradient[a]), splat(scale[a])));
+        let scaled = |a: usize| {
+            let g = _mm256_mul_ps(load(&gradient[a]), splat(scale[a]));
+            if PER_LANE {
+                _mm256_mul_ps(g, load(&looks[0]))
+            } else {
+                g
+            }
+        };
+        let [gx, gy, gz] = [0, 1, 2].map(scaled);
+        let rate = if PER_LANE {
+            load(&looks[1])
+        } else {
+            splat(shading.fade_rate())
+        };
         // `Vec3::length`: `(x·x + y·y) + z·z`, then the root.
         let magnitude = _mm256_sqrt_ps(_mm256_add_ps(
             _mm256_add_ps(_mm256_mul_ps(gx, gx), _mm256_mul_ps(gy, gy)),
@@ -838,7 +912,7 @@ mod x86 {
         let weight = _mm256_min_ps(
             _mm256_mul_ps(
                 _mm256_sub_ps(magnitude, splat(shading.gradient_threshold)),
-                splat(shading.fade_rate()),
+                rate,
             ),
             splat(1.0),
         );

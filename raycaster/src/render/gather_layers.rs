@@ -20,9 +20,10 @@ use super::two_level::{NO_OBJECT, SegmentedState, TwoLevel};
 use crate::volume::Sample;
 
 /// Marches `work`'s rays of layer scene `scene` with `shading`, its samples
-/// visible under `visible` (visible where any object's table is, the tables
-/// mapping values alike) in lanes, when `level` has gathers that can address
-/// the brick: `false` leaves them to the scalar loop.
+/// visible under `visible` (visible where any object's table is, or a
+/// superset where the tables map values apart) in lanes, when `level` has
+/// gathers that can address the brick: `false` leaves them to the scalar
+/// loop.
 pub(crate) fn march_shaded_layers<T: Sample>(
     scene: &TwoLevel,
     visible: &TransferTable,
@@ -121,6 +122,22 @@ impl<T: Sample> ChunkFolder<SegmentedState> for LayerRay<'_, '_, T> {
         // tried first.
         let last = Cell::new(NO_OBJECT);
         let segment = acc.direct_segment();
+        if self.scene.layers_per_lane() {
+            // Objects of domains of their own: each lane's index, gradient
+            // factor and fade.
+            return self.lanes.chunk_shaded_per_lane(
+                self.shade,
+                segment,
+                samples,
+                n,
+                |lanes, j| {
+                    let (layer, entry, look) =
+                        self.scene.layer_entry_own(lanes.values[j], last.get());
+                    last.set(layer);
+                    (entry, look)
+                },
+            );
+        }
         self.lanes
             .chunk_shaded_with(self.shade, segment, samples, n, |lanes, j| {
                 let (layer, entry) =

@@ -10,6 +10,7 @@ use std::sync::Arc;
 
 use super::clip::ClipRegion;
 use super::compositor::{Compositor, SampleGradient, SamplePoint, SampleSite};
+use super::gather::shades_per_lane;
 use super::gather_gradients::{march_gradients, march_gradients_every_sample};
 use super::gather_layers::march_shaded_layers;
 use super::gather_values::march_values;
@@ -47,7 +48,8 @@ enum SceneKernel {
     /// A layer scene composited directly whose objects are shaded DVR with
     /// 1D tables and no clip regions: the plain DVR gather kernel, each lane
     /// taking its layer's table entry ([`march_shaded_layers`]), with the
-    /// table visible where any object's is.
+    /// table visible where any object's is (objects of domains of their own:
+    /// each lane's index, gradient factor and fade its own, `layer_looks`).
     ShadedLayers(Arc<TransferTable>, Shading),
 }
 
@@ -146,6 +148,11 @@ pub(crate) struct TwoLevel {
     /// Per layer id (0: no layer), the table of its visible object, for
     /// [`SceneKernel::ShadedLayers`] (empty otherwise).
     layer_tables: Vec<Option<Arc<TransferTable>>>,
+    /// Per layer id, for [`SceneKernel::ShadedLayers`] of objects whose
+    /// functions have domains of their own: its object's gradient factor and
+    /// shading fade rate (`[factor, rate]`; each lane's entry then read at
+    /// its table's own index). Empty where every object's are the frame's.
+    layer_looks: Vec<[f32; 2]>,
     /// Per object id: where the object shows (voxels of the level rendered),
     /// `None` everywhere; empty when no object has a region.
     clips: Vec<Option<ClipRegion>>,
@@ -177,6 +184,7 @@ impl TwoLevel {
         let mut objects = vec![None; 256];
         let mut object_tables: Vec<Option<Arc<TransferTable>>> = vec![None; 256];
         let mut gradient_factors = vec![1.0f32; 256];
+        let mut looks = vec![[1.0f32, 0.0]; 256];
         // Shading fades in over the data's quantisation at least, in the
         // units of each object's function.
         let covering = |[d0, d1]: [f32; 2]| shading.map(|s| s.covering_quantum(1.0 / (d1 - d0)));
@@ -213,6 +221,10 @@ impl TwoLevel {
             // function has a domain of its own reads them in its own, as
             // the plain mode of that function does.
             gradient_factors[o.id as usize] = (domain[1] - domain[0]) / (d[1] - d[0]);
+            looks[o.id as usize] = [
+                gradient_factors[o.id as usize],
+                covering(d).map_or(0.0, |s| s.fade_rate()),
+            ];
             object_tables[o.id as usize] = Some(table.clone());
             objects[o.id as usize] = Some(LocalCompositor::new(o.mode, table, covering(d), d));
         }
@@ -269,18 +281,18 @@ impl TwoLevel {
             None => TransferTable::visible_somewhere_under_any(&all).map(Arc::new),
         };
         let direct = all_dvr && scene.global == GlobalMode::Dvr && !preintegrated;
+        // Objects' tables map values apart, or their gradients are read
+        // rescaled: the layer kernel takes each lane's own.
+        let per_lane = visible_under_any.is_none() || !gradient_factors.is_empty();
         let kernel = if !(all_dvr && gradients_everywhere) {
             SceneKernel::Values
         } else if preintegrated {
             SceneKernel::Scalar
         } else {
-            let layered = layers.is_some()
-                && clips.is_empty()
-                && gradient_factors.is_empty()
-                && all.iter().all(|t| !t.is_2d());
-            // (The layer kernel reads each layer's table at the filter's
-            // entries: the maps must be one.)
-            let layered = layered && visible_under_any.is_some();
+            let layered = layers.is_some() && clips.is_empty() && all.iter().all(|t| !t.is_2d());
+            // Objects of domains of their own: each lane's table index,
+            // gradient factor and fade its own (AVX2, a whole exponent).
+            let layered = layered && (!per_lane || shading.as_ref().is_some_and(shades_per_lane));
             match (filter, covering(domain)) {
                 (None, _) => SceneKernel::Scalar,
                 (Some(t), Some(shading)) if direct && layered => {
@@ -290,12 +302,13 @@ impl TwoLevel {
                 (Some(t), _) => SceneKernel::Gradients(t),
             }
         };
-        let layer_tables = match (&kernel, &layers) {
+        let (layer_tables, layer_looks) = match (&kernel, &layers) {
             (SceneKernel::ShadedLayers(..), Some(layers)) => {
                 object_tables.truncate(layers.len() + 1);
-                object_tables
+                looks.truncate(layers.len() + 1);
+                (object_tables, if per_lane { looks } else { Vec::new() })
             }
-            _ => Vec::new(),
+            _ => (Vec::new(), Vec::new()),
         };
         TwoLevel {
             clips,
@@ -308,6 +321,7 @@ impl TwoLevel {
             direct,
             gradient_factors,
             layer_tables,
+            layer_looks,
             visible_under_any,
             stop_at: early_termination.unwrap_or(f32::INFINITY),
         }
@@ -396,6 +410,30 @@ impl TwoLevel {
             _ => [0.0; 4],
         };
         (layer, entry)
+    }
+
+    /// [`Self::layer_entry`] of a scene whose objects' functions have
+    /// domains of their own: the entry at the layer's table's own index of
+    /// `v`, with the object's gradient factor and fade rate
+    /// (`layer_looks`; `[1, 0]` in no layer).
+    #[inline(always)]
+    pub(crate) fn layer_entry_own(&self, v: f32, hint: u16) -> (u16, [f32; 4], [f32; 2]) {
+        let layer = self.layer_of(v, hint);
+        match self.layer_tables.get(layer as usize) {
+            Some(Some(table)) => (
+                layer,
+                table.entries()[table.index(v)],
+                self.layer_looks[layer as usize],
+            ),
+            _ => (layer, [0.0; 4], [1.0, 0.0]),
+        }
+    }
+
+    /// Whether [`SceneKernel::ShadedLayers`] takes each lane's index, factor
+    /// and rate ([`Self::layer_entry_own`]).
+    #[inline]
+    pub(crate) fn layers_per_lane(&self) -> bool {
+        !self.layer_looks.is_empty()
     }
 
     /// Whether every visible object is transparent over raw values `[lo, hi]`.
