@@ -1171,13 +1171,15 @@ fn settings(
         (LevelChoice::Auto { .. }, Some(bias)) => LevelChoice::Auto {
             bias: finite("render.lod_bias", bias)?,
         },
-        (LevelChoice::Fixed(_), Some(_)) => {
+        // The neutral bias a session saved with `level = "auto"` writes stays
+        // harmless when the level is edited to a number.
+        (LevelChoice::Fixed(_), Some(bias)) if bias != 0.0 => {
             return Err(invalid(
                 "render.lod_bias",
                 "shifts the automatic level only; it takes `level = \"auto\"`",
             ));
         }
-        (level, None) => level,
+        (level, _) => level,
     };
     let shading = shading(&file.shading)?;
     let clip = clip(&file.clip)?;
@@ -1942,6 +1944,28 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("`id = 300`") && !e.contains("line"), "{e}");
+    }
+
+    #[test]
+    fn a_level_number_keeps_a_neutral_lod_bias_and_refuses_another() {
+        for (bias, read) in [(0.0f32, true), (0.5, false)] {
+            let mut s = sample();
+            s.level = LevelChoice::Auto { bias };
+            let text = s.to_toml().unwrap();
+            assert!(text.contains("level = \"auto\""), "{text}");
+            // The user edits the level to a number.
+            let edited = text.replace("level = \"auto\"", "level = 1");
+            match Session::parse(&edited, Path::new("")) {
+                Ok(back) => {
+                    assert!(read, "bias {bias}");
+                    assert_eq!(back.level, LevelChoice::Fixed(1));
+                }
+                Err(e) => {
+                    assert!(!read, "bias {bias}: {e}");
+                    assert!(e.to_string().contains("render.lod_bias"), "{e}");
+                }
+            }
+        }
     }
 
     #[test]

@@ -178,7 +178,8 @@ impl CutValues {
             let n = (p.normal / spacing).normalize_or_zero();
             if n != Vec3::ZERO {
                 values.plane = true;
-                values.azimuth = n.y.atan2(n.x).to_degrees();
+                // (+ 0: a signed zero picks no side, -180° against 180°.)
+                values.azimuth = (n.y + 0.0).atan2(n.x + 0.0).to_degrees();
                 values.elevation = n.z.clamp(-1.0, 1.0).asin().to_degrees();
                 let size = last * spacing;
                 let from_centre = p.point * spacing - size / 2.0;
@@ -320,6 +321,28 @@ mod tests {
                 .region_after(&before, &kept, dims, spacing)
                 .validate()
                 .is_ok()
+        );
+    }
+
+    #[test]
+    fn a_signed_zero_in_a_normal_moves_no_slider() {
+        let azimuth = |normal: Vec3| {
+            let region = ClipRegion {
+                crop: None,
+                planes: vec![ClipPlane {
+                    point: Vec3::splat(5.0),
+                    normal,
+                }],
+            };
+            CutValues::from_region(&region, [11; 3], [1.0; 3]).azimuth
+        };
+        assert_eq!(
+            azimuth(Vec3::new(-1.0, -0.0, 0.0)),
+            azimuth(Vec3::new(-1.0, 0.0, 0.0))
+        );
+        assert_eq!(
+            azimuth(Vec3::new(-0.0, -0.0, -1.0)),
+            azimuth(Vec3::new(0.0, 0.0, -1.0))
         );
     }
 
