@@ -376,6 +376,11 @@ impl Viewer {
         if let Some(path) = scene {
             ui.set_scene_path(path.display().to_string().into());
             controller.load_scene(&path);
+            // A scene refused at start is said on the terminal too, as a
+            // volume's or session's error is.
+            if ui.get_message_is_error() {
+                eprintln!("viewer: {}", ui.get_message());
+            }
             // The file's error stays in sight, the scene's message after it.
             if let Some(error) = &error {
                 let scene_message = ui.get_message().to_string();
