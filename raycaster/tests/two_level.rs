@@ -477,9 +477,8 @@ fn an_object_cropped_outside_the_volume_is_refused_by_name() {
 /// frames to the bit and the same counts as the scalar loop on every level,
 /// objects with domains of their own (the filter a superset) and a hidden one
 /// included; marched in lanes where the level has gathers. (A layer kernel
-/// taking each lane's label was tried: fewer instructions, 0.27 → 0.32 s at
-/// 256³, since it gathers gradients for every lane the filter shows, label 0's
-/// included; docs/benchmarks.md, twenty-third step.)
+/// taking each lane's label was tried: fewer instructions, but 0.27 → 0.32 s
+/// at 256³; docs/benchmarks.md, twenty-third step.)
 #[test]
 fn shaded_dvr_label_scenes_in_packets_equal_the_scalar_loop_bit_for_bit() {
     use raycaster::render::{SimdLevel, simd_levels};
