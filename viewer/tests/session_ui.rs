@@ -222,15 +222,21 @@ fn sessions_save_render_and_restore_the_picture() {
             .replace("mode = \"sabella\"", "mode = \"glow\""),
     )
     .unwrap();
-    v.ui().set_session_path(bad.display().to_string().into());
-    element(&v, "App::session-open").invoke_accessible_default_action();
-    let start = Instant::now();
-    while !v.ui().get_message_is_error() {
-        v.pump();
-        assert!(start.elapsed() < Duration::from_secs(30), "no error shown");
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    let message = v.ui().get_message().to_string();
+    // Opens session `p`, which must be refused: the error shown.
+    let open_refused = |p: &Path| {
+        v.ui().set_message("".into());
+        v.ui().set_message_is_error(false);
+        v.ui().set_session_path(p.display().to_string().into());
+        element(&v, "App::session-open").invoke_accessible_default_action();
+        let start = Instant::now();
+        while !v.ui().get_message_is_error() {
+            v.pump();
+            assert!(start.elapsed() < Duration::from_secs(30), "no error shown");
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        v.ui().get_message().to_string()
+    };
+    let message = open_refused(&bad);
     assert!(message.contains("render.mode"), "{message}");
     assert_eq!(v.ui().get_mode_index(), 0, "the view stays");
     // A scene object cropped beside the volume: refused at open, the view
@@ -243,17 +249,7 @@ fn sessions_save_render_and_restore_the_picture() {
                crop = [500.0, 0.0, 0.0, 600.0, 10.0, 10.0]\n",
     )
     .unwrap();
-    v.ui().set_message("".into());
-    v.ui().set_message_is_error(false);
-    v.ui().set_session_path(beside.display().to_string().into());
-    element(&v, "App::session-open").invoke_accessible_default_action();
-    let start = Instant::now();
-    while !v.ui().get_message_is_error() {
-        v.pump();
-        assert!(start.elapsed() < Duration::from_secs(30), "no error shown");
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    let message = v.ui().get_message().to_string();
+    let message = open_refused(&beside);
     assert!(message.contains("scene object \"away\""), "{message}");
     assert_eq!(v.ui().get_mode_index(), 0, "the view stays");
     v.ui().set_session_path(path.display().to_string().into());
