@@ -646,12 +646,8 @@ impl Setup {
                 session.settings.simd = args.simd.0;
                 let volume = open_volume(&session.source, args)
                     .with_context(|| format!("{}: the session's `volume`", path.display()))?;
-                if let Err(e) = session
-                    .settings
-                    .clip
-                    .check_overlaps(volume.sampled_box(), 1.0)
-                {
-                    bail!("{}: `[clip] crop`: {e}", path.display());
+                if let Err(e) = session.check_cuts(volume.sampled_box()) {
+                    bail!("{}: {e}", path.display());
                 }
                 if let Some(warning) = session.settings.transfer.domain.and_then(|[a, b]| {
                     let said = format!("{}: `[transfer] domain = [{a}, {b}]`", path.display());
@@ -682,15 +678,15 @@ impl Setup {
                 (volume, session)
             }
         };
-        // A scene object cut away whole is refused at full resolution, as the
-        // frame's crop is (at a coarse level its margin let some pass).
-        if let Some(scene) = &session.settings.segments
+        // A scene file's object cut away whole is refused at full resolution,
+        // as a session's is (at a coarse level its margin let some pass).
+        if args.session.is_none()
+            && let Some(scene) = &session.settings.segments
             && let Err(e) = scene.check_cuts(volume.sampled_box(), 1.0)
         {
-            match (&args.session, &args.segments) {
-                (Some(session), _) => bail!("{}: [scene]: {e}", session.display()),
-                (None, Some(scene)) => bail!("{}: {e}", scene.display()),
-                (None, None) => bail!("{e}"),
+            match &args.segments {
+                Some(file) => bail!("{}: {e}", file.display()),
+                None => bail!("{e}"),
             }
         }
         if let Some(plane) = session

@@ -870,6 +870,23 @@ impl Session {
         session
     }
 
+    /// Checks the session's crop box and planes and those of its scene's
+    /// objects against the box a volume samples at full resolution
+    /// (`sampled`, [`crate::volume::Volume::sampled_box`]): a cut beside the
+    /// volume is an error naming its field, as front ends refuse it before any
+    /// frame (a coarse level's margin lets some pass).
+    pub fn check_cuts(&self, sampled: [[f32; 3]; 2]) -> Result<(), SessionError> {
+        let clip = &self.settings.clip;
+        clip.check_overlaps(sampled, 1.0)
+            .map_err(|e| invalid("clip.crop", e.to_string()))?;
+        if let Some(scene) = &self.settings.segments {
+            scene
+                .check_cuts(sampled, 1.0)
+                .map_err(|e| invalid("scene", e.to_string()))?;
+        }
+        Ok(())
+    }
+
     /// The camera for the session's image size.
     pub fn camera(&self) -> Result<Camera, CameraError> {
         self.camera.camera(self.size[0], self.size[1])

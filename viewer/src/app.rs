@@ -481,14 +481,8 @@ fn open_session_volume(
     };
     // A cut that keeps nothing of the volume is refused, the view kept (as
     // `raycaster render --session` refuses it).
-    let sampled = volume.volume.sampled_box();
-    if let Err(e) = session.settings.clip.check_overlaps(sampled, 1.0) {
-        anyhow::bail!("{}: `[clip] crop`: {e}", path.display());
-    }
-    if let Some(scene) = &session.settings.segments
-        && let Err(e) = scene.check_cuts(sampled, 1.0)
-    {
-        anyhow::bail!("{}: [scene]: {e}", path.display());
+    if let Err(e) = session.check_cuts(volume.volume.sampled_box()) {
+        anyhow::bail!("{}: {e}", path.display());
     }
     let scene_labels = session
         .settings
