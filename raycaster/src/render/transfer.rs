@@ -608,14 +608,12 @@ impl TransferTable {
     /// have domains of their own): its map covers all of theirs, and each of
     /// its entries is visible when an entry of any table that the entry's
     /// values read, or the entry beside it either way (against rounding), is.
-    /// [`Self::visible_under_any`] where they share a map. A filter for kernels
-    /// that fold the samples it shows with each object's own table; not exact
-    /// otherwise (it may show more), so not for range emptiness. `None` without
-    /// tables or with a map that is not finite and increasing.
+    /// For tables that map values apart ([`Self::visible_under_any`] is exact
+    /// where they share one). A filter for kernels that fold the samples it
+    /// shows with each object's own table; not exact (it may show more), so
+    /// not for range emptiness. `None` without tables or with a map that is
+    /// not finite and increasing.
     pub(crate) fn visible_somewhere_under_any(tables: &[&TransferTable]) -> Option<TransferTable> {
-        if let Some(exact) = Self::visible_under_any(tables) {
-            return Some(exact);
-        }
         let first = tables.first()?;
         let last = (TABLE_SIZE - 1) as f32;
         let increasing = |t: &&TransferTable| {
