@@ -832,6 +832,14 @@ fn over_built_in_scene(e: &(dyn std::error::Error + 'static)) -> String {
     )
 }
 
+/// The id of the newest frame asked for when it is a moving frame that has not
+/// ended (its tiles are not shown until it has).
+fn moving_frame_in_flight(st: &State) -> Option<u64> {
+    st.latest
+        .filter(|&(id, moving)| moving && st.ended != Some(id))
+        .map(|(id, _)| id)
+}
+
 /// Whether the newest frame asked for is a full-quality one and has ended: the
 /// frame buffer then holds it whole.
 fn frame_complete(st: &State) -> bool {
@@ -873,6 +881,7 @@ impl Controller {
             ui.set_message(raycaster::errors::one_line(text).into());
             ui.set_message_is_error(error);
         }
+        self.repaint_window();
     }
 
     /// Says that `part` could not be drawn, until it draws again
@@ -1195,7 +1204,10 @@ impl Controller {
     /// in app.slint): after a new volume, the software renderer's partial
     /// repaint sometimes left the text of the volume before on screen (status
     /// and message lines, crop rows; about one open in twenty under Xvfb,
-    /// slint 1.18.1), while the window's state was right.
+    /// slint 1.18.1), while the window's state was right. Once it kept the
+    /// status and message lines of a save (every later message and status
+    /// unseen until a volume was opened), so each message and each
+    /// full-quality frame's status line repaint the window too.
     fn repaint_window(&self) {
         let toggle = |ui: &App| ui.set_repaints(ui.get_repaints().wrapping_add(1));
         if let Some(ui) = self.ui() {
@@ -1726,9 +1738,7 @@ impl Controller {
         let Some(ui) = self.ui() else { return };
         let mut st = self.state.borrow_mut();
         // Pacing: a moving frame in flight finishes; the newest view follows it.
-        let moving_in_flight = st
-            .latest
-            .is_some_and(|(id, was_moving)| was_moving && st.ended != Some(id));
+        let moving_in_flight = moving_frame_in_flight(&st).is_some();
         if moving && moving_in_flight {
             st.pending_move = true;
             st.pending_still = false;
@@ -1923,7 +1933,9 @@ impl Controller {
         if let (Some(ui), Some(status)) = (self.ui(), status) {
             ui.set_status(status.into());
         }
-        if first_done {
+        // (A full-quality frame's status line: the one that stays.)
+        let still_done = latest_done && !self.state.borrow().latest.is_some_and(|(_, m)| m);
+        if first_done || still_done {
             self.repaint_window();
         }
     }
@@ -1935,9 +1947,18 @@ impl Controller {
         let Some(ui) = self.ui() else { return };
         let mut st = self.state.borrow_mut();
         let Some(current) = &st.current else { return };
+        let unfinished_moving = moving_frame_in_flight(&st);
         let (id, tiles, mut pixels) = {
             let fb = current.front.framebuffer().lock();
-            if (fb.frame_id, fb.tiles_written) == st.shown || fb.width == 0 {
+            // A moving frame shows whole, once it has ended: its tiles land
+            // over the last picture, of an older view, which they would tear
+            // (the new view's tiles beside the old one's, in the order they
+            // finish). Full-quality frames fill in over a picture of their own
+            // view (`pending_still`).
+            if (fb.frame_id, fb.tiles_written) == st.shown
+                || fb.width == 0
+                || Some(fb.frame_id) == unfinished_moving
+            {
                 return;
             }
             let pixels = SharedPixelBuffer::<Rgba8Pixel>::clone_from_slice(

@@ -210,6 +210,35 @@ fn the_viewer_runs_headless() {
     assert_eq!(frame(&v).0, w);
     v.ui().set_full_quality_only(false);
 
+    // Moving frames show whole: while one renders, the canvas keeps the last
+    // picture and then shows the new one, never its tiles over the old view
+    // (they tore the picture while dragging). Pumped as fast as the test can,
+    // one render thread (slower frames), over several wheel steps.
+    settle(&v);
+    let threads = v.ui().get_threads();
+    v.ui().set_threads(1);
+    for notch in 0..6 {
+        let mut seen = vec![frame(&v).2];
+        canvas.scroll(0.0, if notch % 2 == 0 { 24.0 } else { -24.0 });
+        let start = Instant::now();
+        while !v.idle() {
+            v.pump();
+            let shown = frame(&v).2;
+            if seen.last() != Some(&shown) {
+                seen.push(shown);
+            }
+            assert!(start.elapsed() < Duration::from_secs(60), "no frame");
+        }
+        assert!(v.last_stats().unwrap().1, "a moving frame");
+        assert_eq!(
+            seen.len(),
+            2,
+            "wheel step {notch}: the canvas showed {} pictures for one moving frame",
+            seen.len()
+        );
+    }
+    v.ui().set_threads(threads);
+
     // 3. Another preset changes the image.
     let (_, _, before_preset) = frame(&v);
     let grayscale = raycaster::render::PRESETS
