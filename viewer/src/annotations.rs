@@ -132,6 +132,11 @@ pub(crate) fn scale_bar(world_per_pixel: f32, width_pixels: u32, unit: &str) -> 
         .find(|&l| l <= most * (1.0 + 1e-9))
         .unwrap_or(decade);
     let digits = (-length.log10().floor()).max(0.0) as usize;
+    // One voxel, not "1 voxels" (units written as symbols stay: "1 mm").
+    let unit = match unit.strip_suffix('s') {
+        Some(one) if length == 1.0 => one,
+        _ => unit,
+    };
     Some(ScaleBar {
         length,
         fraction: (length / view) as f32,
@@ -309,6 +314,11 @@ mod tests {
         assert_eq!(bar.label, "0.5 mm");
         let bar = scale_bar(1.0, 130, "voxels").unwrap(); // at most 32.5
         assert_eq!(bar.label, "20 voxels");
+        let bar = scale_bar(0.01, 500, "voxels").unwrap(); // at most 1.25
+        assert_eq!(bar.label, "1 voxel");
+        assert_eq!(scale_bar(0.01, 500, "units").unwrap().label, "1 unit");
+        assert_eq!(scale_bar(0.01, 500, "mm").unwrap().label, "1 mm");
+        assert_eq!(scale_bar(0.004, 500, "voxels").unwrap().label, "0.5 voxels");
         assert!(scale_bar(0.0, 100, "mm").is_none());
         assert!(scale_bar(f32::NAN, 100, "mm").is_none());
     }

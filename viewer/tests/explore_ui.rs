@@ -163,6 +163,35 @@ fn the_viewer_cuts_slices_and_remembers_files() {
         (48, 48, 48)
     );
 
+    // 0. A box's pick hands the keys back to the canvas: the wheel over the
+    // box then scrolls the panel instead of changing its value (a mode picked,
+    // then the panel scrolled, changed the mode unseen). The preset box (the
+    // search finds the panel's later boxes not).
+    let preset_box = element(&v, "App::preset-box");
+    let preset = v.ui().get_preset_index();
+    preset_box.mock_single_click(PointerEventButton::Left);
+    let (escape, down): (slint::SharedString, slint::SharedString) =
+        (Key::Escape.into(), Key::DownArrow.into());
+    key(&v, &escape);
+    key(&v, &down);
+    assert_eq!(
+        v.ui().get_preset_index(),
+        preset + 1,
+        "the arrow key picked the next preset"
+    );
+    for delta in [-120.0, 120.0, 120.0] {
+        preset_box.scroll(0.0, delta);
+    }
+    assert_eq!(
+        v.ui().get_preset_index(),
+        preset + 1,
+        "the wheel left the preset alone"
+    );
+    v.ui().set_preset_index(preset);
+    v.ui().invoke_preset_selected(preset);
+    settle(&v);
+    assert_eq!(frame(&v), whole);
+
     // 1. Crop: the upper x bound at half keeps voxels 0..=24 of 0..=47.
     v.ui().set_crop_x1(0.5);
     v.ui().invoke_cut_changed(false);
