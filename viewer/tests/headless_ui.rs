@@ -348,6 +348,22 @@ fn the_viewer_runs_headless() {
     let rows = v.ui().get_objects();
     assert_eq!(rows.row_count(), 2);
     assert_ne!(frame(&v).2, plain, "two-level rendering differs");
+    // The objects' functions are their own: the global one's picker and
+    // editor do nothing then, and say so (edits marked it "custom", unused).
+    let preset_box = element(&v, "App::preset-box");
+    assert_eq!(preset_box.accessible_enabled(), Some(false));
+    let (preset, curve) = (
+        v.ui().get_preset_index(),
+        v.session().unwrap().settings.transfer,
+    );
+    element(&v, "App::tf-area").mock_single_click(PointerEventButton::Left);
+    v.pump();
+    assert_eq!(v.ui().get_preset_index(), preset, "not marked custom");
+    assert_eq!(
+        v.session().unwrap().settings.transfer,
+        curve,
+        "a click on the editor adds no point"
+    );
     // Objects whose functions come from files (no preset) show "custom" in
     // their picker (it was empty).
     v.ui().invoke_load_scene(
@@ -426,6 +442,7 @@ fn the_viewer_runs_headless() {
     assert!(!v.ui().get_message_is_error(), "{:?}", v.ui().get_message());
     // The segment scene loaded above described the old volume: cleared, and said.
     assert_eq!(v.ui().get_objects().row_count(), 0);
+    assert_eq!(preset_box.accessible_enabled(), Some(true));
     let message = v.ui().get_message().to_string();
     assert!(
         message.contains("the two-level scene was cleared: it described the previous volume"),
