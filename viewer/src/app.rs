@@ -342,7 +342,13 @@ impl Viewer {
             repaint: slint::Timer::default(),
         });
         ACTIVE.with(|a| *a.borrow_mut() = Rc::downgrade(&controller));
-        let message = first.opened_message(&first.description);
+        // (As *Open session* says it: the session, not its volume.)
+        let message = match &source {
+            Source::Session(path) if session.is_some() => {
+                first.opened_message(&format!("session {}", path.display()))
+            }
+            _ => first.opened_message(&first.description),
+        };
         let recent = match &source {
             Source::File(p) | Source::Session(p) if error.is_none() => Some(p.clone()),
             _ => None,

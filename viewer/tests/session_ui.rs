@@ -190,6 +190,13 @@ fn sessions_save_render_and_restore_the_picture() {
     // 3. A fresh viewer restores the same state and picture.
     let v = viewer(Source::Session(path.clone()));
     assert!(!v.ui().get_message_is_error(), "{:?}", v.ui().get_message());
+    assert!(
+        v.ui()
+            .get_message()
+            .starts_with(&format!("opened session {}", path.display())),
+        "said as Open session says it: {:?}",
+        v.ui().get_message()
+    );
     assert_eq!(v.orbit(), orbit);
     assert_eq!(v.ui().get_mode_index(), sabella);
     assert_eq!(v.ui().get_step_index(), 1);
