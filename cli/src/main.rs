@@ -61,6 +61,7 @@ fn main() {
     restore_sigpipe();
     stop_cleanly_on_signals();
     raycaster::files::guard_mapped_reads("stopped, nothing was written");
+    raycaster::files::fail_writes_past_the_file_size_limit();
     use clap::{CommandFactory, FromArgMatches};
     // Started by mpirun itself with one command line for every rank: what is
     // wrong with it is said once, by rank 0. (Ranks given other command

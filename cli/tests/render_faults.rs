@@ -1587,3 +1587,27 @@ fn bench_outputs_never_replace_each_other_or_its_volume() {
             > 1
     );
 }
+
+/// A PNG past the file-size limit (`ulimit -f`) fails with its error and
+/// leaves no partial file (SIGXFSZ killed the process and left it behind).
+#[test]
+fn the_file_size_limit_fails_the_write_and_leaves_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = Command::new("bash")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -f 20 && exec {} render --scene noise --scene-size 32 --size 1024 -o big.png",
+            env!("CARGO_BIN_EXE_raycaster")
+        ))
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    let said = stderr(&out);
+    assert_eq!(out.status.code(), Some(1), "{said}");
+    assert!(said.contains("File too large"), "{said}");
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+}

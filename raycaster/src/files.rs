@@ -145,6 +145,20 @@ pub fn guard_mapped_reads(consequence: &str) {
     }
 }
 
+/// Makes a write past the file-size limit (`ulimit -f`) fail with its error
+/// ("File too large", EFBIG), said once and its partial output removed like any
+/// failed write, instead of SIGXFSZ killing the process and leaving the
+/// partial file behind.
+///
+/// For programs (the `raycaster`, `volgen` and `viewer` binaries): call once, early.
+#[allow(unsafe_code)] // signal() has no safe wrapper in std
+pub fn fail_writes_past_the_file_size_limit() {
+    // SAFETY: setting a signal's disposition to "ignore"; no handler runs.
+    unsafe {
+        libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+    }
+}
+
 /// Names `path` in the message of [`guard_mapped_reads`]: the file being mapped now.
 pub fn guard_mapped_file(path: &Path) {
     set_sigbus_message(path.display().to_string());

@@ -52,6 +52,7 @@ fn parse_scene(s: &str) -> Result<SceneKind, String> {
 fn main() -> ExitCode {
     // A volume file truncated while mapped: an error line, not a bus error.
     raycaster::files::guard_mapped_reads("the viewer stopped");
+    raycaster::files::fail_writes_past_the_file_size_limit();
     let args = Args::parse();
     let source = match (args.session, args.file) {
         (Some(session), _) => Source::Session(session),

@@ -67,6 +67,7 @@ enum Command {
 fn main() {
     restore_sigpipe();
     raycaster::files::guard_mapped_reads("stopped, nothing was written");
+    raycaster::files::fail_writes_past_the_file_size_limit();
     let cli = Cli::parse();
     if let Some(n) = cli.threads {
         rayon::ThreadPoolBuilder::new()

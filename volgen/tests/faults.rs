@@ -698,3 +698,43 @@ fn info_reads_foreign_files_in_their_own_units() {
     }
     assert!(!out.contains("Some(") && !out.contains("Raw"), "{out}");
 }
+
+/// A write past the file-size limit (`ulimit -f`) fails with its error, said
+/// once, and leaves no partial file (SIGXFSZ killed the process, status 153,
+/// and left its temporary files behind).
+#[test]
+fn the_file_size_limit_fails_the_write_and_leaves_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = volgen(
+        dir.path(),
+        &[
+            "generate",
+            "--size",
+            "200",
+            "--no-pyramid",
+            "-o",
+            "flat.vol",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    for command in ["generate --size 300 -o generated.vol", "pyramid flat.vol"] {
+        let out = Command::new("bash")
+            .arg("-c")
+            .arg(format!(
+                "ulimit -f 40 && exec {} {command}",
+                env!("CARGO_BIN_EXE_volgen")
+            ))
+            .current_dir(dir.path())
+            .output()
+            .unwrap();
+        let said = stderr(&out);
+        assert_eq!(out.status.code(), Some(1), "{command}: {said}");
+        assert!(said.contains("File too large"), "{command}: {said}");
+        assert_eq!(
+            said.matches("error:").count(),
+            1,
+            "{command}: said once: {said}"
+        );
+        assert_eq!(files_in(dir.path()), ["flat.vol"], "{command}");
+    }
+}
