@@ -247,6 +247,30 @@ fn a_damaged_pyramid_or_bytes_after_the_file_are_named_and_the_samples_converted
         "{said}"
     );
     assert!(std::fs::read(d.join("from-cut-table.vol")).unwrap() == copy);
+    // A table offset no cut file has (all bits set): a damaged header, said
+    // with the file's length by info and convert alike, with no advice to run
+    // the convert that refuses it (it said the file had 2^64 − 1 bytes).
+    let mut damaged = whole.clone();
+    damaged[56..64].copy_from_slice(&u64::MAX.to_le_bytes());
+    std::fs::write(d.join("damaged.vol"), &damaged).unwrap();
+    for command in ["info", "convert"] {
+        let o = volgen(
+            d,
+            &[command, "damaged.vol", "-o", "none.vol"][..if command == "info" { 2 } else { 4 }],
+        );
+        assert_eq!(o.status.code(), Some(1), "{command}");
+        assert_eq!(
+            stderr(&o).trim_end(),
+            format!(
+                "error: damaged.vol: invalid header: the value-range table starts at byte {}, far past the samples' end ({}) and the file's ({} bytes): the header is damaged",
+                u64::MAX,
+                header.data_end().unwrap(),
+                whole.len()
+            ),
+            "{command}"
+        );
+    }
+    assert!(!d.join("none.vol").exists());
     // Cut inside the samples: nothing to rescue.
     std::fs::write(d.join("cut-samples.vol"), &whole[..1000]).unwrap();
     let o = volgen(d, &["convert", "cut-samples.vol", "-o", "none.vol"]);

@@ -118,7 +118,13 @@ fn read_header_as(
         };
         return Err(VolumeError::new(path, kind));
     }
-    let header = Header::parse(&head, claimed_len.unwrap_or(len)).map_err(|e| match e {
+    // (A cut file's header that is wrong anyway: said with the file's length.)
+    let parsed = match claimed_len {
+        Some(claimed) => Header::parse(&head, claimed)
+            .map_err(|wrong| Header::parse(&head, len).err().unwrap_or(wrong)),
+        None => Header::parse(&head, len),
+    };
+    let header = parsed.map_err(|e| match e {
         // The first byte that tells formats apart names no .vol layout: a file
         // not named `.vol` is most likely no volume at all (a README, a PNG).
         // Gzip data (a `.nii.gz` renamed, a `.vol` compressed): said as such.

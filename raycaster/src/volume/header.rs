@@ -313,14 +313,23 @@ impl HeaderError {
                 offset,
                 data_end,
                 file_len,
-            } => offset >= file_len && offset >= data_end,
+            } => offset >= file_len && offset >= data_end && within_reach(offset, data_end),
             _ => false,
         }
     }
 }
 
+/// Whether a block after the samples could start at `offset` in a file whose
+/// samples end at `data_end`: the range table and the pyramid (about a seventh
+/// of the samples) together take less than the samples again, and a megabyte
+/// for small files. An offset beyond is a damaged header, not a file cut short.
+fn within_reach(offset: u64, data_end: u64) -> bool {
+    offset <= data_end.saturating_mul(2).saturating_add(1 << 20)
+}
+
 /// The message of a block (range table, pyramid) whose offset is wrong: one
-/// past the file's end most likely means a truncated file.
+/// past the file's end (within reach of the samples) most likely means a
+/// truncated file.
 fn misplaced_block(
     block: &str,
     offset_kind: &str,
@@ -328,9 +337,13 @@ fn misplaced_block(
     data_end: u64,
     file_len: u64,
 ) -> String {
-    if offset >= file_len && offset >= data_end {
+    if offset >= file_len && offset >= data_end && within_reach(offset, data_end) {
         format!(
             "the {block} starts at byte {offset}, past the file's end ({file_len} bytes): the file is cut short (an incomplete copy?) or its header is damaged; the samples before it are whole: `volgen convert` copies them into a new file"
+        )
+    } else if offset >= file_len && offset >= data_end {
+        format!(
+            "the {block} starts at byte {offset}, far past the samples' end ({data_end}) and the file's ({file_len} bytes): the header is damaged"
         )
     } else {
         format!(
