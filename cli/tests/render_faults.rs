@@ -240,6 +240,55 @@ fn a_frame_beyond_the_address_space_limit_is_refused() {
     assert!(!dir.path().join("big.png").exists());
 }
 
+/// A volume larger than the address-space limit is refused with the numbers,
+/// read into memory (`--ram`: the allocation aborted the process, status 134)
+/// or mapped (it said "Cannot allocate memory (os error 12)").
+#[test]
+fn a_volume_beyond_the_address_space_limit_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    // 216 MB of samples, sparse: nothing on disk.
+    let h = Header::new(
+        [600; 3],
+        [1.0; 3],
+        Layout::Linear,
+        SampleType::U8,
+        Content::Scalar,
+        Format::Extended,
+    );
+    let header = h.encode().unwrap();
+    let path = dir.path().join("large.vol");
+    std::fs::write(&path, &header).unwrap();
+    std::fs::File::options()
+        .append(true)
+        .open(&path)
+        .unwrap()
+        .set_len(header.len() as u64 + 600 * 600 * 600)
+        .unwrap();
+    for (flags, said) in [
+        (
+            "--ram",
+            "large.vol: reading it into memory needs 0.2 GB, more than this process can allocate",
+        ),
+        (
+            "",
+            "large.vol: mapping it needs 0.2 GB of address space, more than this process may take",
+        ),
+    ] {
+        let out = Command::new("bash")
+            .arg("-c")
+            .arg(format!(
+                "ulimit -v 200000 && exec {} render large.vol --size 32x32 {flags} -o out.png",
+                env!("CARGO_BIN_EXE_raycaster")
+            ))
+            .current_dir(dir.path())
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(1), "{flags}: {}", stderr(&out));
+        assert!(stderr(&out).contains(said), "{flags}: {}", stderr(&out));
+        assert!(!dir.path().join("out.png").exists());
+    }
+}
+
 /// An elevation past a pole is refused (it was clamped to the pole without a
 /// word), and an --up within a degree of the view direction is warned of
 /// (the picture's roll then follows the small difference).

@@ -33,6 +33,21 @@ pub(crate) enum Storage {
     Ram { words: Vec<u64>, len: usize },
 }
 
+/// A map of `len` bytes refused for want of address space (ENOMEM: an
+/// address-space limit, `ulimit -v`, below the file's size), said so.
+fn without_address_space(e: std::io::Error, len: usize) -> std::io::Error {
+    if e.raw_os_error() != Some(libc::ENOMEM) {
+        return e;
+    }
+    std::io::Error::new(
+        std::io::ErrorKind::OutOfMemory,
+        format!(
+            "mapping it needs {:.1} GB of address space, more than this process may take (an address-space limit, ulimit -v?)",
+            len as f64 / 1e9
+        ),
+    )
+}
+
 impl Storage {
     /// Maps `file` or reads it whole, as `access` says.
     pub(crate) fn open(file: &File, len: u64, access: Access) -> std::io::Result<Storage> {
@@ -51,7 +66,7 @@ impl Storage {
                 // reason the design uses mmap at all (volumes larger than RAM), and
                 // no Rust invariant beyond the bytes' values depends on the content.
                 #[allow(unsafe_code)] // memmap2: mapping a file is unsafe by contract
-                let map = unsafe { Mmap::map(file)? };
+                let map = unsafe { Mmap::map(file) }.map_err(|e| without_address_space(e, len))?;
                 if map.len() < len {
                     return Err(std::io::Error::new(
                         std::io::ErrorKind::UnexpectedEof,
@@ -79,7 +94,8 @@ impl Storage {
         match access {
             // (The whole file counts: its tables lie beyond the region.)
             Access::Mapped => Ok(Storage::Mapped {
-                map: super::pyramid::map_region(file, offset, len)?,
+                map: super::pyramid::map_region(file, offset, len)
+                    .map_err(|e| without_address_space(e, len as usize))?,
                 file: file.try_clone()?,
                 end: file.metadata()?.len().max(offset.saturating_add(len)),
             }),
@@ -104,7 +120,19 @@ impl Storage {
 
     /// `len` bytes of `file` at `offset` read into an 8-byte aligned buffer.
     fn read_into_ram(file: &File, offset: u64, len: usize) -> std::io::Result<Storage> {
-        let mut words = vec![0u64; len.div_ceil(8)];
+        // Refused when the memory is not there (an address-space limit, more
+        // than the machine has): the allocation aborted the process.
+        let mut words: Vec<u64> = Vec::new();
+        words.try_reserve_exact(len.div_ceil(8)).map_err(|_| {
+            std::io::Error::new(
+                std::io::ErrorKind::OutOfMemory,
+                format!(
+                    "reading it into memory needs {:.1} GB, more than this process can allocate; mapped (the default), it needs no such memory",
+                    len as f64 / 1e9
+                ),
+            )
+        })?;
+        words.resize(len.div_ceil(8), 0);
         let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut words);
         file.read_exact_at(&mut bytes[..len], offset)
             .map_err(|e| match e.kind() {
