@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use crate::io::{Input, InputType, WriteOptions, WriteSummary, write_volume};
+use crate::io::{Input, InputType, WriteOptions, WriteSummary, XRegions, write_volume};
 use crate::job::Job;
 use crate::volume::{
     AtPath, Content, Format, Header, Layout, Sample, SampleType, ValueUnits, VolumeError,
@@ -288,9 +288,28 @@ fn copy_slabs<T: Sample>(
     job: &Job,
 ) -> Result<WriteSummary, VolumeError> {
     let map = values.to_sample::<T>();
-    write_volume::<T>(output, header, write, job, |x0, x1, slab| {
-        input.read_slab(x0, x1, &map, slab)
+    // An x-fastest input is staged beside the output first: its slabs read
+    // from the file itself read it whole each (quadratic in its size).
+    let staged = if XRegions::needed(input) {
+        let folder = match output.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => Path::new("."),
+        };
+        Some(XRegions::stage(input, folder, job)?)
+    } else {
+        None
+    };
+    write_volume::<T>(output, header, write, job, |x0, x1, slab| match &staged {
+        Some(regions) => regions.read_slab(input, x0, x1, &map, slab),
+        None => input.read_slab(x0, x1, &map, slab),
     })
+}
+
+/// The voxels a conversion of `input` reads before its samples' pass (an
+/// x-fastest input larger than a few slabs is staged beside the output
+/// first, read once in file order): for progress totals.
+pub fn staging_voxels(input: &Input) -> u64 {
+    XRegions::staged_voxels(input)
 }
 
 #[cfg(test)]

@@ -16,7 +16,7 @@ impl Histogram {
     /// raw inputs of other types are saturated to u16.
     pub fn of_input(input: &Input, job: &Job) -> Result<Histogram, VolumeError> {
         let mut counts = vec![0u64; 1 << 16];
-        input.for_each_slab(8 << 20, &|v| v as u16, job, |slab| {
+        input.for_each_value(8 << 20, &|v| v as u16, job, |slab| {
             for &v in slab {
                 counts[v as usize] += 1;
             }

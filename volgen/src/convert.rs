@@ -256,7 +256,10 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
     } else {
         "convert"
     };
-    let bar = voxel_bar(voxels + extra, what, a.quiet);
+    // (An x-fastest input larger than a few slabs is staged first: one more
+    // pass over its voxels.)
+    let staging = raycaster::convert::staging_voxels(&input);
+    let bar = voxel_bar(voxels + extra + staging, what, a.quiet);
     let on_progress = |n| bar.inc(n);
     let job = Job::silent()
         .with_progress(&on_progress)

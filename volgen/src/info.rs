@@ -222,7 +222,7 @@ fn run_foreign(a: &InfoArgs) -> anyhow::Result<()> {
     let to_value = |v: f32| units.value(f64::from(v)) as f32;
     let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
     let mut non_finite = 0u64;
-    input.for_each_slab(8 << 20, &to_value, &job, |slab| {
+    input.for_each_value(8 << 20, &to_value, &job, |slab| {
         for &v in slab {
             if v.is_finite() {
                 lo = lo.min(v);
@@ -248,7 +248,7 @@ fn run_foreign(a: &InfoArgs) -> anyhow::Result<()> {
     } else {
         span / BINS as f64
     };
-    input.for_each_slab(8 << 20, &to_value, &job, |slab| {
+    input.for_each_value(8 << 20, &to_value, &job, |slab| {
         for &v in slab {
             if v.is_finite() {
                 let i = if width > 0.0 {

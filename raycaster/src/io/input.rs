@@ -325,6 +325,15 @@ impl Input {
         std::iter::once(self.path.as_path()).chain(self.also_reads.iter().map(PathBuf::as_path))
     }
 
+    /// The raw file's description when its x is fastest (most foreign
+    /// formats): slabs of whole x-planes are strided in it.
+    pub(super) fn x_fastest_raw(&self) -> Option<&RawSpec> {
+        match &self.source {
+            Source::Raw(spec) if spec.order == RawOrder::XFastest => Some(spec),
+            _ => None,
+        }
+    }
+
     /// Voxel counts on x, y, z.
     pub fn dims(&self) -> [u32; 3] {
         match &self.source {
@@ -368,7 +377,7 @@ impl Input {
         }
     }
 
-    fn raw_type(&self) -> (RawType, Endian) {
+    pub(super) fn raw_type(&self) -> (RawType, Endian) {
         match &self.source {
             Source::Raw(spec) => (spec.sample, spec.endian),
             Source::Vol(h) => match h.sample_type {
@@ -378,7 +387,7 @@ impl Input {
         }
     }
 
-    fn read_at(&self, buf: &mut [u8], offset: u64) -> Result<(), VolumeError> {
+    pub(super) fn read_at(&self, buf: &mut [u8], offset: u64) -> Result<(), VolumeError> {
         self.file
             .read_exact_at(buf, offset)
             .map_err(|e| match e.kind() {
@@ -551,15 +560,58 @@ impl Input {
         Ok(())
     }
 
+    /// Calls `visit` with `map`ped values of every voxel once, in chunks of at
+    /// most `max_values` values (whole x-planes for bricked `.vol` inputs), in
+    /// whatever order the file holds them: for passes the order does not
+    /// matter to (ranges, histograms). Raw and linear inputs stream in file
+    /// order, one pass over the file (slabs of whole x-planes read an x-fastest
+    /// file whole for every slab). Progress and cancelling as
+    /// [`Self::for_each_slab`].
+    pub fn for_each_value<O: Copy>(
+        &self,
+        max_values: usize,
+        map: &impl Fn(f32) -> O,
+        job: &Job,
+        mut visit: impl FnMut(&[O]),
+    ) -> Result<(), VolumeError> {
+        if let Some(Header {
+            layout: Layout::Bricked { .. },
+            ..
+        }) = self.header()
+        {
+            // Bricks carry padding past the volume's edge: go through slabs.
+            return self.for_each_slab(max_values, map, job, visit);
+        }
+        // Every stored sample is a voxel: stream them in file order.
+        let start = match &self.source {
+            Source::Raw(spec) => spec.skip,
+            Source::Vol(h) => h.data_offset,
+        };
+        let total: u64 = self.dims().iter().map(|&d| u64::from(d)).product();
+        let size = self.raw_type().0.size() as u64;
+        let mut buf = Vec::new();
+        let mut done = 0u64;
+        while done < total {
+            let n = (total - done).min(max_values.max(1) as u64) as usize;
+            buf.resize(n, map(0.0));
+            self.read_contiguous(start + done * size, map, &mut buf)?;
+            visit(&buf);
+            job.advance(n as u64);
+            if job.is_cancelled() {
+                return Err(VolumeError::new(&self.path, VolumeErrorKind::Cancelled));
+            }
+            done += n as u64;
+        }
+        Ok(())
+    }
+
     /// Smallest and largest finite value of the volume (NaN and ±∞ ignored: a
     /// window mapped onto the samples clamps ±∞ to its ends), in one streaming
     /// pass, with the count of values that are not finite.
     pub fn value_range(&self, job: &Job) -> Result<ValueRange, VolumeError> {
-        let dims = self.dims();
-        let plane = dims[1] as usize * dims[2] as usize;
         let mut lo_hi = (f32::INFINITY, f32::NEG_INFINITY);
         let mut non_finite = 0u64;
-        let mut fold = |values: &[f32]| {
+        self.for_each_value(CHUNK_BYTES / 4, &|v| v, job, |values| {
             for &v in values {
                 if !v.is_finite() {
                     non_finite += 1;
@@ -572,37 +624,7 @@ impl Input {
                     lo_hi.1 = v;
                 }
             }
-        };
-        let chunk_values = CHUNK_BYTES / 4;
-        if let Some(Header {
-            layout: Layout::Bricked { .. },
-            ..
-        }) = self.header()
-        {
-            // Bricks carry padding past the volume's edge: go through slabs.
-            self.for_each_slab(chunk_values, &|v| v, job, fold)?;
-        } else {
-            // Every stored sample is a voxel: stream them in file order.
-            let start = match &self.source {
-                Source::Raw(spec) => spec.skip,
-                Source::Vol(h) => h.data_offset,
-            };
-            let total = plane as u64 * u64::from(dims[0]);
-            let size = self.raw_type().0.size() as u64;
-            let mut buf = Vec::new();
-            let mut done = 0u64;
-            while done < total {
-                let n = (total - done).min(chunk_values as u64) as usize;
-                buf.resize(n, 0.0);
-                self.read_contiguous(start + done * size, &|v| v, &mut buf)?;
-                fold(&buf);
-                job.advance(n as u64);
-                if job.is_cancelled() {
-                    return Err(VolumeError::new(&self.path, VolumeErrorKind::Cancelled));
-                }
-                done += n as u64;
-            }
-        }
+        })?;
         let (lo, hi) = lo_hi;
         Ok(ValueRange {
             finite: (lo <= hi).then_some((lo, hi)),

@@ -8,10 +8,12 @@
 mod bytes_read;
 mod decode;
 mod input;
+mod staging;
 mod writer;
 
 pub use bytes_read::process_bytes_read;
 pub use decode::{Endian, RawType};
 pub use input::{Input, InputType, RawData, RawOrder, RawSpec, ValueRange};
+pub(crate) use staging::XRegions;
 pub(crate) use writer::{CellSink, physical_memory, stream_samples};
 pub use writer::{WriteOptions, WriteSummary, write_volume};
