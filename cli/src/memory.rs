@@ -1,5 +1,6 @@
 //! Whether a frame fits the machine's memory: checked before rendering, so a
-//! huge `--size` is an error rather than a process killed for memory.
+//! huge `--size` or a tiny `--brick` is an error rather than a process killed
+//! for memory.
 
 use anyhow::{Result, bail};
 
@@ -15,15 +16,51 @@ const FRAME_BYTES_PER_PIXEL: u64 = 72;
 /// leaves (`ulimit -v`) and what its control group's limit leaves
 /// (`memory.max`); no check where none is known.
 pub fn check_frame(width: u32, height: u32) -> Result<()> {
+    let Some((available, whose)) = least_available() else {
+        return Ok(());
+    };
+    frame_fits(width, height, available, whose)
+}
+
+/// The least of the memory limits [`check_frame`] names, and which it is
+/// (said after the number); `None` where none is known.
+fn least_available() -> Option<(u64, &'static str)> {
     let limits = [
         available_bytes().map(|b| (b, "")),
         address_space_left().map(|b| (b, " under the process's address-space limit (ulimit -v)")),
         cgroup_left().map(|b| (b, " under the control group's memory limit")),
     ];
-    let Some((available, whose)) = limits.into_iter().flatten().min_by_key(|(b, _)| *b) else {
+    limits.into_iter().flatten().min_by_key(|(b, _)| *b)
+}
+
+/// Bytes a frame's plan takes per brick at the least, measured with `--brick
+/// 2` (bricks of step 1; the brick's ranges, cells and schedule, a tile queue
+/// entry): peaks of 16.3 GB for 1200³ (1.72 G bricks: 9.5 bytes each),
+/// 0.81 GB for 384³ (56 M: 14) and 0.42 GB for 256³ (16.6 M: 25). Below the
+/// least of them: a refusal only where the bricks cannot fit.
+const BRICK_BYTES: u64 = 8;
+
+/// Refuses `--brick side` when its `count` bricks take more memory than this
+/// process can have (as [`check_frame`]): the allocation aborted the process.
+pub fn check_bricks(count: u64, side: u32) -> Result<()> {
+    let Some((available, whose)) = least_available() else {
         return Ok(());
     };
-    frame_fits(width, height, available, whose)
+    bricks_fit(count, side, available, whose)
+}
+
+/// [`check_bricks`] against `available` bytes.
+fn bricks_fit(count: u64, side: u32, available: u64, whose: &str) -> Result<()> {
+    let needed = count.saturating_mul(BRICK_BYTES);
+    if needed > available {
+        bail!(
+            "--brick {side} cuts the volume into {:.1} M bricks, whose tables need about {:.1} GB of memory and {:.1} GB are available{whose}; give a larger --brick (16 to 32 render fastest)",
+            count as f64 / 1e6,
+            needed as f64 / 1e9,
+            available as f64 / 1e9
+        );
+    }
+    Ok(())
 }
 
 /// [`check_frame`] against `available` bytes (`whose`: which limit leaves
@@ -105,5 +142,25 @@ mod tests {
         );
         // This machine reports its memory.
         assert!(available_bytes().is_some_and(|b| b > 0));
+    }
+
+    #[test]
+    fn bricks_beyond_the_available_memory_are_refused_with_the_numbers() {
+        let gb = 1_000_000_000;
+        // 1200³ at --brick 2 peaked at 16.3 GB on a machine of 24.
+        let bricks = 1199u64.pow(3);
+        assert!(bricks_fit(bricks, 2, 20 * gb, "").is_ok());
+        let e = bricks_fit(
+            bricks,
+            2,
+            4 * gb,
+            " under the process's address-space limit (ulimit -v)",
+        )
+        .unwrap_err()
+        .to_string();
+        assert_eq!(
+            e,
+            "--brick 2 cuts the volume into 1723.7 M bricks, whose tables need about 13.8 GB of memory and 4.0 GB are available under the process's address-space limit (ulimit -v); give a larger --brick (16 to 32 render fastest)"
+        );
     }
 }

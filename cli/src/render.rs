@@ -973,6 +973,10 @@ fn flags_session(args: &RenderArgs, source: VolumeSource, volume: &Volume) -> Re
             LevelChoice::Fixed(k)
         }
     };
+    if let Some(side) = args.brick {
+        let count = raycaster::volume::BlockGrid::new(volume.dims(), side).block_count();
+        crate::memory::check_bricks(count, side)?;
+    }
     if let Some(warning) = args
         .brick
         .and_then(|side| brick_count_warning(volume.dims(), side))

@@ -289,6 +289,49 @@ fn a_volume_beyond_the_address_space_limit_is_refused() {
     }
 }
 
+/// A `--brick` side whose bricks' tables cannot fit the memory the process
+/// may take is refused with the numbers (the allocation aborted the process,
+/// or the machine ran out of memory).
+#[test]
+fn bricks_beyond_the_address_space_limit_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    // 216 MB of samples, sparse: nothing on disk.
+    let h = Header::new(
+        [600; 3],
+        [1.0; 3],
+        Layout::Linear,
+        SampleType::U8,
+        Content::Scalar,
+        Format::Extended,
+    );
+    let header = h.encode().unwrap();
+    let path = dir.path().join("large.vol");
+    std::fs::write(&path, &header).unwrap();
+    std::fs::File::options()
+        .append(true)
+        .open(&path)
+        .unwrap()
+        .set_len(header.len() as u64 + 600 * 600 * 600)
+        .unwrap();
+    let out = Command::new("bash")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -v 1000000 && exec {} render large.vol --size 32x32 --brick 2 -o out.png",
+            env!("CARGO_BIN_EXE_raycaster")
+        ))
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    let said = stderr(&out);
+    assert_eq!(out.status.code(), Some(1), "{said}");
+    assert!(
+        said.contains("--brick 2 cuts the volume into 214.9 M bricks, whose tables need about 1.7 GB of memory")
+            && said.contains("under the process's address-space limit (ulimit -v)"),
+        "{said}"
+    );
+    assert!(!dir.path().join("out.png").exists());
+}
+
 /// An elevation past a pole is refused (it was clamped to the pole without a
 /// word), and an --up within a degree of the view direction is warned of
 /// (the picture's roll then follows the small difference).
