@@ -975,6 +975,18 @@ fn camera(c: &CameraFile) -> Result<SessionCamera, SessionError> {
             }
             let position = Vec3::from(finite_all("camera.position", position)?);
             let up = Vec3::from(finite_all("camera.up", c.up.unwrap_or([0.0, 0.0, 1.0]))?);
+            if !(position - target).length_squared().is_finite() {
+                return Err(invalid(
+                    "camera.position",
+                    format!(
+                        "[{}] is too far from the target for the view to be computed",
+                        position
+                            .to_array()
+                            .map(crate::volume::number_text)
+                            .join(", ")
+                    ),
+                ));
+            }
             // (Said by field, as `raycaster render` says its flags.)
             match look_at_problem(position, target, up) {
                 None => {}
@@ -1016,6 +1028,16 @@ fn camera(c: &CameraFile) -> Result<SessionCamera, SessionError> {
                 })
             };
             let distance = positive("camera.distance", get("distance", c.distance)?)?;
+            // (Its square, the view's length squared, must be a number.)
+            if !(distance * distance).is_finite() {
+                return Err(invalid(
+                    "camera.distance",
+                    format!(
+                        "{} is too far from the target for the view to be computed; give a distance nearer the volume's size",
+                        crate::volume::number_text(distance)
+                    ),
+                ));
+            }
             let azimuth = finite("camera.azimuth_rad", get("azimuth_rad", c.azimuth_rad)?)?;
             let elevation = finite(
                 "camera.elevation_rad",
@@ -1826,6 +1848,7 @@ mod tests {
             ("render", "level = \"coarse\"", "render.level"),
             ("render", "importance = \"random\"", "render.importance"),
             ("camera", "distance = -3.0", "camera.distance"),
+            ("camera", "distance = 1e30", "camera.distance"),
             ("camera", "fov = 180.0", "camera.fov"),
             ("camera", "azimuth_rad = inf", "camera.azimuth_rad"),
             ("camera", "elevation_rad = 2.0", "camera.elevation_rad"),
