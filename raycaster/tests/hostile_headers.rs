@@ -674,7 +674,6 @@ fn absurd_spacing_and_extent() {
         ([2; 3], 1e-16),
         ([2; 3], 3e38),
         ([2; 3], 2e15),
-        ([20, 2, 2], 1e14),
     ]
     .into_iter()
     .enumerate()
@@ -692,6 +691,24 @@ fn absurd_spacing_and_extent() {
             other => panic!("spacing {value}: got {other:?}"),
         }
     }
+    // A spacing in bounds whose extent is not: said with the extent.
+    let mut raw = RawHeader::extended([20, 2, 2], None, 1);
+    raw.spacing[0] = 1e14;
+    let p = write(&dir, "extent.vol", &raw.file());
+    let e = header_error(&p);
+    assert_eq!(
+        e,
+        HeaderError::HugeExtent {
+            axis: 'x',
+            spacing: 1e14,
+            size: 20
+        }
+    );
+    assert!(
+        e.to_string()
+            .starts_with("spacing on x is 1e14 over 20 voxels: an extent of 2e15, past the most"),
+        "{e}"
+    );
     // Control: the bounds themselves are read.
     for (i, value) in [1e-15f32, 5e14].into_iter().enumerate() {
         let mut raw = RawHeader::extended([2; 3], None, 1);
@@ -961,7 +978,8 @@ fn ranges_offset_past_the_end() {
     let (mut raw, data, table) = file_with_table();
     let data_end = raw.data_end();
     let file_len = data_end + table.len() as u64;
-    for offset in [file_len, file_len + 1, 1 << 40, u64::MAX] {
+    // (2⁶⁴ − 1, where no table fits, is a damaged header: below.)
+    for offset in [file_len, file_len + 1, 1 << 40] {
         raw.ext_mut().ranges_offset = offset;
         let p = write(
             &dir,
@@ -988,6 +1006,13 @@ fn ranges_offset_past_the_end() {
         let said = open_fails(&p).to_string();
         assert!(!said.contains("invalid header"), "{said}");
     }
+    raw.ext_mut().ranges_offset = u64::MAX;
+    let p = write(&dir, "nowhere.vol", &assemble(&raw, &data, &table));
+    let message = header_error(&p).to_string();
+    assert!(
+        message.ends_with("where no value-range table can start: the header is damaged"),
+        "{message}"
+    );
     // No bytes after the samples at all: the table offset cannot be anywhere.
     raw.ext_mut().ranges_offset = data_end;
     let p = write(&dir, "no-tail.vol", &assemble(&raw, &data, &[]));

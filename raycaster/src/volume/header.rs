@@ -193,9 +193,7 @@ pub enum HeaderError {
         value: f32,
     },
     /// Spacing is finite and positive but absurd: outside
-    /// [`MIN_SPACING`]..=[`MAX_SPACING`], or the volume's extent along the axis
-    /// (spacing × size) above [`MAX_SPACING`], where world positions and the
-    /// camera overflow.
+    /// [`MIN_SPACING`]..=[`MAX_SPACING`].
     #[error(
         "spacing on {axis} is {value:e}; a spacing is read from {MIN_SPACING:e} to {MAX_SPACING:e}, with the volume's extent (spacing × size) at most {MAX_SPACING:e}"
     )]
@@ -204,6 +202,20 @@ pub enum HeaderError {
         axis: char,
         /// The spacing found.
         value: f32,
+    },
+    /// The volume's extent along an axis (spacing × size) is above
+    /// [`MAX_SPACING`], where world positions and the camera overflow.
+    #[error(
+        "spacing on {axis} is {spacing:e} over {size} voxels: an extent of {:e}, past the most a volume may span ({MAX_SPACING:e}; world positions and the camera would overflow)",
+        *spacing * *size as f32
+    )]
+    HugeExtent {
+        /// Axis name.
+        axis: char,
+        /// The spacing found.
+        spacing: f32,
+        /// Voxels along the axis.
+        size: u32,
     },
     /// The order byte (24) is not one this reader knows.
     #[error(
@@ -272,7 +284,7 @@ pub enum HeaderError {
         actual: u64,
     },
     /// The range table offset points inside the samples or past the file.
-    #[error("{}", misplaced_block("value-range table", "an", *offset, *data_end, *file_len))]
+    #[error("{}", misplaced_block("value-range table", ("an", 1), *offset, *data_end, *file_len))]
     BadRangesOffset {
         /// The offset in the header.
         offset: u64,
@@ -282,7 +294,7 @@ pub enum HeaderError {
         file_len: u64,
     },
     /// The pyramid offset is outside the bytes after the samples or not 64-aligned.
-    #[error("{}", misplaced_block("resolution pyramid", "a 64-aligned", *offset, *data_end, *file_len))]
+    #[error("{}", misplaced_block("resolution pyramid", ("a 64-aligned", 64), *offset, *data_end, *file_len))]
     BadPyramidOffset {
         /// The offset in the header.
         offset: u64,
@@ -308,42 +320,42 @@ impl HeaderError {
                 offset,
                 data_end,
                 file_len,
-            }
-            | HeaderError::BadPyramidOffset {
+            } => offset >= file_len && offset >= data_end && could_start_a_block(offset, 1),
+            HeaderError::BadPyramidOffset {
                 offset,
                 data_end,
                 file_len,
-            } => offset >= file_len && offset >= data_end && within_reach(offset, data_end),
+            } => offset >= file_len && offset >= data_end && could_start_a_block(offset, 64),
             _ => false,
         }
     }
 }
 
-/// Whether a block after the samples could start at `offset` in a file whose
-/// samples end at `data_end`: the range table and the pyramid (about a seventh
-/// of the samples) together take less than the samples again, and a megabyte
-/// for small files. An offset beyond is a damaged header, not a file cut short.
-fn within_reach(offset: u64, data_end: u64) -> bool {
-    offset <= data_end.saturating_mul(2).saturating_add(1 << 20)
+/// Whether a block (range table, pyramid) could start at `offset` of some
+/// file: a multiple of `align` (the pyramid's 64), with room for its bytes
+/// before 2⁶⁴. Cutting a file short keeps such an offset; one that is not is a
+/// damaged header (a conversion could not rescue the samples either).
+fn could_start_a_block(offset: u64, align: u64) -> bool {
+    offset % align == 0 && offset.checked_add(64).is_some()
 }
 
 /// The message of a block (range table, pyramid) whose offset is wrong: one
-/// past the file's end (within reach of the samples) most likely means a
+/// past the file's end, where a block could start, most likely means a
 /// truncated file.
 fn misplaced_block(
     block: &str,
-    offset_kind: &str,
+    (offset_kind, align): (&str, u64),
     offset: u64,
     data_end: u64,
     file_len: u64,
 ) -> String {
-    if offset >= file_len && offset >= data_end && within_reach(offset, data_end) {
+    if offset >= file_len && offset >= data_end && could_start_a_block(offset, align) {
         format!(
             "the {block} starts at byte {offset}, past the file's end ({file_len} bytes): the file is cut short (an incomplete copy?) or its header is damaged; the samples before it are whole: `volgen convert` copies them into a new file"
         )
     } else if offset >= file_len && offset >= data_end {
         format!(
-            "the {block} starts at byte {offset}, far past the samples' end ({data_end}) and the file's ({file_len} bytes): the header is damaged"
+            "the {block} starts at byte {offset}, past the file's end ({file_len} bytes), where no {block} can start: the header is damaged"
         )
     } else {
         format!(
@@ -450,12 +462,17 @@ impl Header {
                     value: s,
                 });
             }
-            if !(MIN_SPACING..=MAX_SPACING).contains(&s)
-                || f64::from(s) * f64::from(d) > f64::from(MAX_SPACING)
-            {
+            if !(MIN_SPACING..=MAX_SPACING).contains(&s) {
                 return Err(HeaderError::AbsurdSpacing {
                     axis: *axis,
                     value: s,
+                });
+            }
+            if f64::from(s) * f64::from(d) > f64::from(MAX_SPACING) {
+                return Err(HeaderError::HugeExtent {
+                    axis: *axis,
+                    spacing: s,
+                    size: d,
                 });
             }
         }
