@@ -336,7 +336,7 @@ impl HeaderError {
 /// before 2⁶⁴. Cutting a file short keeps such an offset; one that is not is a
 /// damaged header (a conversion could not rescue the samples either).
 fn could_start_a_block(offset: u64, align: u64) -> bool {
-    offset % align == 0 && offset.checked_add(64).is_some()
+    offset.is_multiple_of(align) && offset.checked_add(64).is_some()
 }
 
 /// The message of a block (range table, pyramid) whose offset is wrong: one
