@@ -20,6 +20,12 @@ pub(crate) use wrong_command_line;
 
 /// `N` (a cube) or `XxYxZ`.
 pub fn parse_dims(s: &str) -> Result<[u32; 3], String> {
+    // (Sizes written like spacings, `512,512,128`: said with the form sizes take.)
+    if s.contains(',') {
+        return Err(format!(
+            "`{s}`: sizes are written N or XxYxZ, e.g. 256 or 512x512x128"
+        ));
+    }
     let parts: Vec<&str> = s.split(['x', 'X']).collect();
     let nums = parts
         .iter()
@@ -244,6 +250,10 @@ mod tests {
         assert_eq!(parse_dims("3x4X5"), Ok([3, 4, 5]));
         assert!(parse_dims("0").is_err());
         assert!(parse_dims("2x2").is_err());
+        assert_eq!(
+            parse_dims("20,20,1"),
+            Err("`20,20,1`: sizes are written N or XxYxZ, e.g. 256 or 512x512x128".into())
+        );
         assert!(parse_dims("99999999").is_err());
     }
 

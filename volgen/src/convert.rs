@@ -16,7 +16,7 @@ use crate::args::{
     parse_dims, parse_spacing, parse_window, wrong_command_line,
 };
 use crate::generate::{describe_layout, describe_pyramid, describe_size};
-use crate::output::{check_output, output_name_warning, ray_length_warning};
+use crate::output::{check_output, output_name_warning, padding_warning, ray_length_warning};
 use crate::progress::{CANCEL, voxel_bar};
 
 /// Convert a raw, .vol, NRRD, NIfTI-1, MetaImage file or DICOM series into a .vol file.
@@ -244,6 +244,9 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
         window: a.window.map(|w| w.range),
         labels: a.labels,
     };
+    if let Some(warning) = padding_warning(input.dims(), layout).filter(|_| !a.quiet) {
+        eprintln!("{warning}");
+    }
     let voxels: u64 = input.dims().iter().map(|&d| u64::from(d)).product();
     let extra = if a.no_pyramid {
         0

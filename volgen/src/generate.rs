@@ -18,7 +18,7 @@ use raycaster::volume::{
 use crate::args::{
     FormatArg, LayoutArg, SampleArg, parse_brick, parse_dims, parse_spacing, wrong_command_line,
 };
-use crate::output::{check_output, output_name_warning, ray_length_warning};
+use crate::output::{check_output, output_name_warning, padding_warning, ray_length_warning};
 use crate::progress::{CANCEL, voxel_bar};
 
 /// Synthetic scenes on the command line.
@@ -168,6 +168,9 @@ pub fn run(a: GenerateArgs) -> anyhow::Result<()> {
     );
     header.validate().context("invalid volume description")?;
     if let Some(warning) = ray_length_warning(a.size, a.spacing).filter(|_| !a.quiet) {
+        eprintln!("{warning}");
+    }
+    if let Some(warning) = padding_warning(a.size, layout).filter(|_| !a.quiet) {
         eprintln!("{warning}");
     }
     let voxels: u64 = a.size.iter().map(|&d| u64::from(d)).product();

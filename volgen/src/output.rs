@@ -55,9 +55,45 @@ pub fn ray_length_warning(dims: [u32; 3], spacing: [f32; 3]) -> Option<String> {
     ))
 }
 
+/// A warning for a bricked layout whose padding makes the file several times
+/// its voxels (an axis thinner than a brick: 20000×20000×1 in bricks of 16
+/// stores 16 planes, a 10 GB file for 0.4 GB of voxels), naming the linear
+/// layout; `None` for small files and ordinary paddings.
+pub fn padding_warning(dims: [u32; 3], layout: raycaster::volume::Layout) -> Option<String> {
+    let raycaster::volume::Layout::Bricked { side } = layout else {
+        return None;
+    };
+    let side = u32::from(side);
+    let stored =
+        raycaster::volume::BlockGrid::new(dims, side).block_count() * u64::from(side).pow(3);
+    let voxels: u64 = dims.iter().map(|&d| u64::from(d)).product();
+    (stored > 4 * voxels && stored > 64 << 20).then(|| {
+        let [x, y, z] = dims;
+        format!(
+            "warning: bricks of {side} voxels a side store {:.1} times the volume's {x}x{y}x{z} voxels (an axis thinner than a brick is padded to its side); --layout linear stores them as they are",
+            stored as f64 / voxels as f64
+        )
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn bricks_that_pad_a_thin_volume_many_times_over_are_warned_of() {
+        use raycaster::volume::Layout;
+        let bricked = Layout::Bricked { side: 16 };
+        let warning = padding_warning([20000, 20000, 1], bricked).unwrap();
+        assert!(
+            warning.contains("store 18.2 times the volume's 20000x20000x1 voxels"),
+            "{warning}"
+        );
+        assert_eq!(padding_warning([20000, 20000, 1], Layout::Linear), None);
+        assert_eq!(padding_warning([1024, 1024, 1024], bricked), None);
+        // Small files are not worth a word.
+        assert_eq!(padding_warning([100, 100, 1], bricked), None);
+    }
 
     #[test]
     fn a_long_axis_at_a_lopsided_spacing_is_warned_of_with_a_step_that_renders() {
