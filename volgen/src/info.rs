@@ -134,10 +134,21 @@ pub fn run(a: InfoArgs) -> anyhow::Result<()> {
             );
         }
     } else if !raycaster::volume::level_dims(h.dims).is_empty() {
-        println!(
-            "pyramid     none (`volgen pyramid {}` adds one)",
-            a.file.display()
-        );
+        let sidecar = raycaster::volume::pyramid_sidecar_path(&a.file);
+        // A sidecar that is there but not read: stale (the file changed after
+        // it was built; a damaged one is warned of when the file opens).
+        if sidecar.is_file() && volume.ignored_pyramid().is_none() {
+            println!(
+                "pyramid     none: {} is stale, built before the file last changed (`volgen pyramid {}` builds it again)",
+                sidecar.display(),
+                a.file.display()
+            );
+        } else {
+            println!(
+                "pyramid     none (`volgen pyramid {}` adds one)",
+                a.file.display()
+            );
+        }
     }
     match volume.stored_cells() {
         Some(cells) => {

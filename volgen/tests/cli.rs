@@ -970,6 +970,54 @@ fn a_sidecar_given_for_its_volume_is_named_as_one() {
     }
 }
 
+/// A pyramid sidecar made stale by a change of its file is said so by
+/// `info` (it said "none", as if there were no sidecar), and `volgen
+/// pyramid` builds it again without --force.
+#[test]
+fn a_stale_pyramid_sidecar_is_named_by_info() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let o = volgen(
+        d,
+        &[
+            "generate",
+            "--size",
+            "140",
+            "--no-pyramid",
+            "-o",
+            "s.vol",
+            "-q",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = volgen(d, &["pyramid", "s.vol", "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let pyramid_line = |o: &Output| {
+        String::from_utf8_lossy(&o.stdout)
+            .lines()
+            .find(|l| l.starts_with("pyramid"))
+            .map(str::to_string)
+    };
+    let o = volgen(d, &["info", "s.vol", "--no-histogram"]);
+    assert!(pyramid_line(&o).unwrap().contains("in s.vol.pyramid"));
+    // The file changes (its time: what the sidecar was built for is gone).
+    let file = std::fs::File::options()
+        .append(true)
+        .open(d.join("s.vol"))
+        .unwrap();
+    file.set_modified(std::time::SystemTime::now() + std::time::Duration::from_secs(60))
+        .unwrap();
+    let o = volgen(d, &["info", "s.vol", "--no-histogram"]);
+    assert_eq!(
+        pyramid_line(&o).unwrap(),
+        "pyramid     none: s.vol.pyramid is stale, built before the file last changed (`volgen pyramid s.vol` builds it again)"
+    );
+    let o = volgen(d, &["pyramid", "s.vol", "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = volgen(d, &["info", "s.vol", "--no-histogram"]);
+    assert!(pyramid_line(&o).unwrap().contains("in s.vol.pyramid"));
+}
+
 #[test]
 fn pyramid_checks_its_sidecar_can_be_written_before_any_work() {
     let dir = tempfile::tempdir().unwrap();

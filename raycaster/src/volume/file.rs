@@ -349,6 +349,12 @@ impl Volume {
         self.unused_tail
     }
 
+    /// Why a damaged pyramid sidecar was ignored when the file opened (a
+    /// stale one, built before the file last changed, is ignored silently).
+    pub fn ignored_pyramid(&self) -> Option<&str> {
+        self.ignored_pyramid.as_deref()
+    }
+
     /// What opening the file found that the user should know of, one warning
     /// each: bytes past its last block ([`Self::unused_tail_warning`]), a
     /// damaged pyramid sidecar that was ignored.
