@@ -302,6 +302,13 @@ impl Staged {
         };
         moved.map_err(|e| {
             self.path = Some(e.path);
+            // (Another run may have written it since the check before the work.)
+            if e.error.kind() == std::io::ErrorKind::AlreadyExists {
+                return anyhow::anyhow!(
+                    "{}: already exists (pass --force to replace it)",
+                    target.display()
+                );
+            }
             anyhow::Error::from(e.error).context(format!("{}: cannot write it", target.display()))
         })?;
         for (from, to) in sidecars.iter().zip(Staged::sidecars(target)) {

@@ -211,8 +211,14 @@ pub fn write_volume<T: Sample>(
         tmp.persist(path)
             .map_err(|e| VolumeError::new(path, e.error))?;
     } else {
+        // (Another run may have written it since the check before the work.)
         tmp.persist_noclobber(path)
-            .map_err(|e| VolumeError::new(path, e.error))?;
+            .map_err(|e| match e.error.kind() {
+                std::io::ErrorKind::AlreadyExists => {
+                    VolumeError::new(path, VolumeErrorKind::Exists)
+                }
+                _ => VolumeError::new(path, e.error),
+            })?;
     }
     if header.format == Format::Thesis {
         let meta = std::fs::metadata(path).at(path)?;

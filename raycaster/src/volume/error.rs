@@ -133,7 +133,7 @@ pub enum VolumeErrorKind {
     #[error("{0}")]
     RawSpec(String),
     /// The output exists and overwriting was not allowed.
-    #[error("already exists (overwrite it explicitly)")]
+    #[error("already exists (pass --force to replace it)")]
     Exists,
     /// Output and input are the same file.
     #[error("is both the input and the output")]
