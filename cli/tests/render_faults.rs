@@ -240,13 +240,9 @@ fn a_frame_beyond_the_address_space_limit_is_refused() {
     assert!(!dir.path().join("big.png").exists());
 }
 
-/// A volume larger than the address-space limit is refused with the numbers,
-/// read into memory (`--ram`: the allocation aborted the process, status 134)
-/// or mapped (it said "Cannot allocate memory (os error 12)").
-#[test]
-fn a_volume_beyond_the_address_space_limit_is_refused() {
-    let dir = tempfile::tempdir().unwrap();
-    // 216 MB of samples, sparse: nothing on disk.
+/// Writes a linear 600³ u8 `.vol` at `path` whose 216 MB of samples are a
+/// hole: nothing on disk.
+fn sparse_volume(path: &Path) {
     let h = Header::new(
         [600; 3],
         [1.0; 3],
@@ -256,14 +252,22 @@ fn a_volume_beyond_the_address_space_limit_is_refused() {
         Format::Extended,
     );
     let header = h.encode().unwrap();
-    let path = dir.path().join("large.vol");
-    std::fs::write(&path, &header).unwrap();
+    std::fs::write(path, &header).unwrap();
     std::fs::File::options()
         .append(true)
-        .open(&path)
+        .open(path)
         .unwrap()
         .set_len(header.len() as u64 + 600 * 600 * 600)
         .unwrap();
+}
+
+/// A volume larger than the address-space limit is refused with the numbers,
+/// read into memory (`--ram`: the allocation aborted the process, status 134)
+/// or mapped (it said "Cannot allocate memory (os error 12)").
+#[test]
+fn a_volume_beyond_the_address_space_limit_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    sparse_volume(&dir.path().join("large.vol"));
     for (flags, said) in [
         (
             "--ram",
@@ -295,24 +299,7 @@ fn a_volume_beyond_the_address_space_limit_is_refused() {
 #[test]
 fn bricks_beyond_the_address_space_limit_are_refused() {
     let dir = tempfile::tempdir().unwrap();
-    // 216 MB of samples, sparse: nothing on disk.
-    let h = Header::new(
-        [600; 3],
-        [1.0; 3],
-        Layout::Linear,
-        SampleType::U8,
-        Content::Scalar,
-        Format::Extended,
-    );
-    let header = h.encode().unwrap();
-    let path = dir.path().join("large.vol");
-    std::fs::write(&path, &header).unwrap();
-    std::fs::File::options()
-        .append(true)
-        .open(&path)
-        .unwrap()
-        .set_len(header.len() as u64 + 600 * 600 * 600)
-        .unwrap();
+    sparse_volume(&dir.path().join("large.vol"));
     let out = Command::new("bash")
         .arg("-c")
         .arg(format!(
