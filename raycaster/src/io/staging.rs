@@ -78,16 +78,16 @@ impl XRegions {
         let size = spec.sample.size();
         let width = (region_bytes / (dy * dz * size)).clamp(1, dx);
         let row = dx * size;
-        // Whole z-planes of the input at a time (rows of all x).
-        let planes_z = (region_bytes / (row * dy)).clamp(1, dz);
+        // Rows (all x of one y and z) of the input at a time, in file order.
+        let total_rows = dy * dz;
+        let rows_per_chunk = (region_bytes / row).clamp(1, total_rows);
         let mut chunk = Vec::new();
         let mut pieces = Vec::new();
-        let mut z0 = 0;
-        while z0 < dz {
-            let z1 = (z0 + planes_z).min(dz);
-            let rows = (z1 - z0) * dy;
-            chunk.resize(rows * row, 0);
-            input.read_at(&mut chunk, spec.skip + (z0 * dy * row) as u64)?;
+        let mut r0 = 0;
+        while r0 < total_rows {
+            let r1 = (r0 + rows_per_chunk).min(total_rows);
+            chunk.resize((r1 - r0) * row, 0);
+            input.read_at(&mut chunk, spec.skip + (r0 * row) as u64)?;
             for xa in (0..dx).step_by(width) {
                 let xb = (xa + width).min(dx);
                 let piece = (xb - xa) * size;
@@ -95,16 +95,16 @@ impl XRegions {
                 for r in chunk.chunks_exact(row) {
                     pieces.extend_from_slice(&r[xa * size..xb * size]);
                 }
-                // Region of planes xa..xb: its rows (z, y) after those of
-                // earlier z.
-                let at = xa * dy * dz * size + z0 * dy * piece;
+                // Region of planes xa..xb: its rows in file order, `piece`
+                // bytes each.
+                let at = xa * dy * dz * size + r0 * piece;
                 file.write_all_at(&pieces, at as u64).at(input.path())?;
             }
-            job.advance((rows * dx) as u64);
+            job.advance(((r1 - r0) * dx) as u64);
             if job.is_cancelled() {
                 return Err(VolumeError::new(input.path(), VolumeErrorKind::Cancelled));
             }
-            z0 = z1;
+            r0 = r1;
         }
         Ok(XRegions {
             file,
@@ -160,7 +160,7 @@ mod tests {
     use crate::io::{Endian, RawData, RawOrder, RawSpec, RawType};
 
     /// A staged input reads every slab as the input does: regions of one
-    /// plane to all of them, input read a z-plane or all at once, slabs that
+    /// plane to all of them, input read a row or all at once, slabs that
     /// start and end inside regions, overlap and span several.
     #[test]
     fn staged_slabs_equal_the_inputs_slabs() {
