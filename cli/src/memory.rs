@@ -49,6 +49,26 @@ pub fn check_bricks(count: u64, side: u32) -> Result<()> {
     bricks_fit(count, side, available, whose)
 }
 
+/// Refuses reading a `bytes`-long volume file into memory (`--ram`) when it
+/// does not fit the memory this process can have (as [`check_frame`]), with
+/// a tenth more for the frame and the rest: the allocation that failed
+/// aborted the process, or, refused by the library, named one level only.
+pub fn check_ram(path: &std::path::Path, bytes: u64) -> Result<()> {
+    let Some((available, whose)) = least_available() else {
+        return Ok(());
+    };
+    let needed = bytes.saturating_add(bytes / 10);
+    if needed > available {
+        bail!(
+            "{}: reading it into memory (--ram) needs about {:.1} GB and {:.1} GB are available{whose}; mapped (without --ram), it needs no such memory",
+            path.display(),
+            needed as f64 / 1e9,
+            available as f64 / 1e9
+        );
+    }
+    Ok(())
+}
+
 /// [`check_bricks`] against `available` bytes.
 fn bricks_fit(count: u64, side: u32, available: u64, whose: &str) -> Result<()> {
     let needed = count.saturating_mul(BRICK_BYTES);

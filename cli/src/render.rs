@@ -973,8 +973,19 @@ fn flags_session(args: &RenderArgs, source: VolumeSource, volume: &Volume) -> Re
             LevelChoice::Fixed(k)
         }
     };
-    if let Some(side) = args.brick {
-        let count = raycaster::volume::BlockGrid::new(volume.dims(), side).block_count();
+    // (Counted at the level rendered: a fixed one, or level 0 when there is
+    // no other; an automatic level of a pyramid is chosen per frame, mostly
+    // coarser, and not checked.)
+    let checked_dims = match args.level {
+        LevelChoice::Fixed(k) => Some(
+            volume
+                .level(k.min(volume.level_count() as u32 - 1) as usize)
+                .dims(),
+        ),
+        LevelChoice::Auto { .. } => (volume.level_count() == 1).then(|| volume.dims()),
+    };
+    if let (Some(side), Some(dims)) = (args.brick, checked_dims) {
+        let count = raycaster::volume::BlockGrid::new(dims, side).block_count();
         crate::memory::check_bricks(count, side)?;
     }
     if let Some(warning) = args
@@ -1042,6 +1053,9 @@ fn open_volume(source: &VolumeSource, args: &RenderArgs) -> Result<Volume> {
         }
         VolumeSource::File { path, .. } => {
             let access = if args.ram {
+                if let Ok(meta) = std::fs::metadata(path) {
+                    crate::memory::check_ram(path, meta.len())?;
+                }
                 Access::Ram
             } else {
                 Access::Mapped

@@ -271,7 +271,7 @@ fn a_volume_beyond_the_address_space_limit_is_refused() {
     for (flags, said) in [
         (
             "--ram",
-            "large.vol: reading it into memory needs 0.2 GB, more than this process can allocate",
+            "large.vol: reading it into memory (--ram) needs about 0.2 GB and ",
         ),
         (
             "",
