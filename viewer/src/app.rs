@@ -702,6 +702,24 @@ fn connect(ui: &App, c: &Rc<Controller>) {
         }
     });
     on!(on_settings_changed, |c| c.request_frame(false));
+    // A drop-down's pick: the keys go to the canvas now, and again once the
+    // box's popup has closed (closing it gives the box the focus back, and a
+    // focused box takes the wheel: the first wheel step over it after a pick
+    // changed its value).
+    {
+        let weak = ui.as_weak();
+        ui.on_picked(move || {
+            if let Some(ui) = weak.upgrade() {
+                ui.invoke_focus_canvas();
+            }
+            let weak = weak.clone();
+            slint::Timer::single_shot(std::time::Duration::ZERO, move || {
+                if let Some(ui) = weak.upgrade() {
+                    ui.invoke_focus_canvas();
+                }
+            });
+        });
+    }
     on!(on_load_scene, |c, path| c
         .load_scene(Path::new(path.as_str())));
     on!(on_save_scene, |c, path| c

@@ -179,6 +179,8 @@ fn the_viewer_cuts_slices_and_remembers_files() {
         preset + 1,
         "the arrow key picked the next preset"
     );
+    // (The event loop's next turn: timers due now run.)
+    slint::platform::update_timers_and_animations();
     for delta in [-120.0, 120.0, 120.0] {
         preset_box.scroll(0.0, delta);
     }
@@ -186,6 +188,27 @@ fn the_viewer_cuts_slices_and_remembers_files() {
         v.ui().get_preset_index(),
         preset + 1,
         "the wheel left the preset alone"
+    );
+    // Picked with the mouse from the open list: closing it gave the box the
+    // focus back, and the first wheel step changed the value.
+    preset_box.mock_single_click(PointerEventButton::Left);
+    let names = v.ui().get_tf_presets();
+    let wanted = names.row_data(preset as usize + 2).unwrap();
+    let item = ElementHandle::find_by_accessible_label(v.ui(), &wanted)
+        .find(|e| e.accessible_label().as_deref() == Some(wanted.as_str()))
+        .unwrap_or_else(|| panic!("no list item {wanted}"));
+    item.mock_single_click(PointerEventButton::Left);
+    slint::platform::update_timers_and_animations();
+    assert_eq!(
+        v.ui().get_preset_index(),
+        preset + 2,
+        "picked from the list"
+    );
+    preset_box.scroll(0.0, -120.0);
+    assert_eq!(
+        v.ui().get_preset_index(),
+        preset + 2,
+        "the wheel after a pick from the list left the preset alone"
     );
     v.ui().set_preset_index(preset);
     v.ui().invoke_preset_selected(preset);
