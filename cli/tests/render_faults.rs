@@ -221,15 +221,7 @@ fn near_miss_presets_get_a_suggestion_and_a_missing_file_is_not_a_preset() {
 #[test]
 fn a_frame_beyond_the_address_space_limit_is_refused() {
     let dir = tempfile::tempdir().unwrap();
-    let out = Command::new("bash")
-        .arg("-c")
-        .arg(format!(
-            "ulimit -v 3000000 && exec {} render --size 8192 -o big.png",
-            env!("CARGO_BIN_EXE_raycaster")
-        ))
-        .current_dir(dir.path())
-        .output()
-        .unwrap();
+    let out = render_under_limit(dir.path(), "-v 3000000", "--size 8192 -o big.png");
     assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
     let said = stderr(&out);
     assert!(
@@ -238,6 +230,20 @@ fn a_frame_beyond_the_address_space_limit_is_refused() {
         "{said}"
     );
     assert!(!dir.path().join("big.png").exists());
+}
+
+/// `raycaster render ARGS` in `dir` under the shell limit `limit` (`-v KIB`:
+/// address space, `-f BLOCKS`: file size).
+fn render_under_limit(dir: &Path, limit: &str, args: &str) -> Output {
+    Command::new("bash")
+        .arg("-c")
+        .arg(format!(
+            "ulimit {limit} && exec {} render {args}",
+            env!("CARGO_BIN_EXE_raycaster")
+        ))
+        .current_dir(dir)
+        .output()
+        .unwrap()
 }
 
 /// Writes a linear 600³ u8 `.vol` at `path` whose 216 MB of samples are a
@@ -278,15 +284,11 @@ fn a_volume_beyond_the_address_space_limit_is_refused() {
             "large.vol: mapping it needs 0.2 GB of address space, more than this process may take",
         ),
     ] {
-        let out = Command::new("bash")
-            .arg("-c")
-            .arg(format!(
-                "ulimit -v 200000 && exec {} render large.vol --size 32x32 {flags} -o out.png",
-                env!("CARGO_BIN_EXE_raycaster")
-            ))
-            .current_dir(dir.path())
-            .output()
-            .unwrap();
+        let out = render_under_limit(
+            dir.path(),
+            "-v 200000",
+            &format!("large.vol --size 32x32 {flags} -o out.png"),
+        );
         assert_eq!(out.status.code(), Some(1), "{flags}: {}", stderr(&out));
         assert!(stderr(&out).contains(said), "{flags}: {}", stderr(&out));
         assert!(!dir.path().join("out.png").exists());
@@ -300,15 +302,11 @@ fn a_volume_beyond_the_address_space_limit_is_refused() {
 fn bricks_beyond_the_address_space_limit_are_refused() {
     let dir = tempfile::tempdir().unwrap();
     sparse_volume(&dir.path().join("large.vol"));
-    let out = Command::new("bash")
-        .arg("-c")
-        .arg(format!(
-            "ulimit -v 1000000 && exec {} render large.vol --size 32x32 --brick 2 -o out.png",
-            env!("CARGO_BIN_EXE_raycaster")
-        ))
-        .current_dir(dir.path())
-        .output()
-        .unwrap();
+    let out = render_under_limit(
+        dir.path(),
+        "-v 1000000",
+        "large.vol --size 32x32 --brick 2 -o out.png",
+    );
     let said = stderr(&out);
     assert_eq!(out.status.code(), Some(1), "{said}");
     assert!(
@@ -1672,15 +1670,11 @@ fn bench_outputs_never_replace_each_other_or_its_volume() {
 #[test]
 fn the_file_size_limit_fails_the_write_and_leaves_nothing() {
     let dir = tempfile::tempdir().unwrap();
-    let out = Command::new("bash")
-        .arg("-c")
-        .arg(format!(
-            "ulimit -f 20 && exec {} render --scene noise --scene-size 32 --size 1024 -o big.png",
-            env!("CARGO_BIN_EXE_raycaster")
-        ))
-        .current_dir(dir.path())
-        .output()
-        .unwrap();
+    let out = render_under_limit(
+        dir.path(),
+        "-f 20",
+        "--scene noise --scene-size 32 --size 1024 -o big.png",
+    );
     let said = stderr(&out);
     assert_eq!(out.status.code(), Some(1), "{said}");
     assert!(said.contains("File too large"), "{said}");
