@@ -306,7 +306,7 @@ fn copy_slabs<T: Sample>(
 }
 
 /// The voxels a conversion of `input` reads before its samples' pass (an
-/// x-fastest input larger than a few slabs is staged beside the output
+/// x-fastest input of more than 512 MiB is staged beside the output
 /// first, read once in file order): for progress totals.
 pub fn staging_voxels(input: &Input) -> u64 {
     XRegions::staged_voxels(input)

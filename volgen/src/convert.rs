@@ -259,7 +259,7 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
     } else {
         "convert"
     };
-    // (An x-fastest input larger than a few slabs is staged first: one more
+    // (An x-fastest input of more than 512 MiB is staged first: one more
     // pass over its voxels.)
     let staging = raycaster::convert::staging_voxels(&input);
     let bar = voxel_bar(voxels + extra + staging, what, a.quiet);
