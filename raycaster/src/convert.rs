@@ -291,10 +291,7 @@ fn copy_slabs<T: Sample>(
     // An x-fastest input is staged beside the output first: its slabs read
     // from the file itself read it whole each (quadratic in its size).
     let staged = if XRegions::needed(input) {
-        let folder = match output.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p,
-            _ => Path::new("."),
-        };
+        let folder = crate::files::parent_dir(output);
         Some(XRegions::stage(input, folder, job)?)
     } else {
         None

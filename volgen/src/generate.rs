@@ -304,10 +304,10 @@ impl Staged {
             self.path = Some(e.path);
             // (Another run may have written it since the check before the work.)
             if e.error.kind() == std::io::ErrorKind::AlreadyExists {
-                return anyhow::anyhow!(
-                    "{}: already exists (pass --force to replace it)",
-                    target.display()
-                );
+                return anyhow::Error::from(raycaster::volume::VolumeError::new(
+                    target,
+                    raycaster::volume::VolumeErrorKind::Exists,
+                ));
             }
             anyhow::Error::from(e.error).context(format!("{}: cannot write it", target.display()))
         })?;

@@ -531,6 +531,16 @@ impl Input {
         Ok(())
     }
 
+    /// Reports `n` more values read of this input to `job`; its
+    /// [`VolumeErrorKind::Cancelled`] error when `job` is cancelled.
+    pub(super) fn advance(&self, job: &Job, n: u64) -> Result<(), VolumeError> {
+        job.advance(n);
+        if job.is_cancelled() {
+            return Err(VolumeError::new(&self.path, VolumeErrorKind::Cancelled));
+        }
+        Ok(())
+    }
+
     /// Calls `visit` with `map`ped values of consecutive slabs of whole x-planes, each
     /// of at most `max_values` values (at least one plane), reporting progress to `job`
     /// and stopping with [`VolumeErrorKind::Cancelled`] when it is cancelled.
@@ -551,10 +561,7 @@ impl Input {
             slab.resize((x1 - x0) as usize * plane, map(0.0));
             self.read_slab(x0, x1, map, &mut slab)?;
             visit(&slab);
-            job.advance(slab.len() as u64);
-            if job.is_cancelled() {
-                return Err(VolumeError::new(&self.path, VolumeErrorKind::Cancelled));
-            }
+            self.advance(job, slab.len() as u64)?;
             x0 = x1;
         }
         Ok(())
@@ -596,10 +603,7 @@ impl Input {
             buf.resize(n, map(0.0));
             self.read_contiguous(start + done * size, map, &mut buf)?;
             visit(&buf);
-            job.advance(n as u64);
-            if job.is_cancelled() {
-                return Err(VolumeError::new(&self.path, VolumeErrorKind::Cancelled));
-            }
+            self.advance(job, n as u64)?;
             done += n as u64;
         }
         Ok(())

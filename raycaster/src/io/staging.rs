@@ -17,7 +17,7 @@ use std::path::Path;
 use super::decode::decode_into;
 use super::input::Input;
 use crate::job::Job;
-use crate::volume::{AtPath, VolumeError, VolumeErrorKind};
+use crate::volume::{AtPath, VolumeError};
 
 /// About how many bytes a region holds, and how many bytes of the input are
 /// read at once while staging.
@@ -116,10 +116,7 @@ impl XRegions {
                 let at = xa * dy * dz * size + r0 * piece;
                 file.write_all_at(&pieces, at as u64).map_err(staging)?;
             }
-            job.advance(((r1 - r0) * dx) as u64);
-            if job.is_cancelled() {
-                return Err(VolumeError::new(input.path(), VolumeErrorKind::Cancelled));
-            }
+            input.advance(job, ((r1 - r0) * dx) as u64)?;
             r0 = r1;
         }
         Ok(XRegions {
