@@ -427,6 +427,22 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
     {
         bail!("{}: {problem}", file.display());
     }
+    // What aborted the process (an allocation past the limit) is refused
+    // first, with the numbers, as render does.
+    if args.ram {
+        match &args.file {
+            Some(file) => {
+                if let Ok(meta) = std::fs::metadata(file) {
+                    crate::memory::check_ram(file.display(), meta.len())?;
+                }
+            }
+            None => {
+                let voxels = u64::from(args.volume_size()).pow(3);
+                let bytes = voxels.saturating_mul(args.sample_type.size());
+                crate::memory::check_ram("the generated volume", bytes)?;
+            }
+        }
+    }
     let cases_then = cases(&args);
     let Some(first) = cases_then.first() else {
         bail!(
@@ -475,6 +491,8 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
     // frame's samples (the step, image and view are every case's).
     let mut geometry = None;
     for &side in &args.bricks {
+        let count = raycaster::volume::BlockGrid::new(volume.dims(), side).block_count();
+        crate::memory::check_bricks("--bricks", count, side)?;
         let prepared =
             RenderVolume::new(&volume, Some(side)).with_context(|| format!("--bricks {side}"))?;
         geometry.get_or_insert(*prepared.geometry());

@@ -40,28 +40,29 @@ fn least_available() -> Option<(u64, &'static str)> {
 /// least of them: a refusal only where the bricks cannot fit.
 const BRICK_BYTES: u64 = 8;
 
-/// Refuses `--brick side` when its `count` bricks take more memory than this
-/// process can have (as [`check_frame`]): the allocation aborted the process.
-pub fn check_bricks(count: u64, side: u32) -> Result<()> {
+/// Refuses brick side `side` (given by `flag`: `--brick`, `--bricks`) when
+/// its `count` bricks take more memory than this process can have (as
+/// [`check_frame`]): the allocation aborted the process.
+pub fn check_bricks(flag: &str, count: u64, side: u32) -> Result<()> {
     let Some((available, whose)) = least_available() else {
         return Ok(());
     };
-    bricks_fit(count, side, available, whose)
+    bricks_fit(flag, count, side, available, whose)
 }
 
-/// Refuses reading a `bytes`-long volume file into memory (`--ram`) when it
-/// does not fit the memory this process can have (as [`check_frame`]), with
-/// a tenth more for the frame and the rest: the allocation that failed
-/// aborted the process, or, refused by the library, named one level only.
-pub fn check_ram(path: &std::path::Path, bytes: u64) -> Result<()> {
+/// Refuses reading a `bytes`-long volume file, `what` (its path, said first),
+/// into memory (`--ram`) when it does not fit the memory this process can
+/// have (as [`check_frame`]), with a tenth more for the frame and the rest:
+/// the allocation that failed aborted the process, or, refused by the
+/// library, named one level only.
+pub fn check_ram(what: impl std::fmt::Display, bytes: u64) -> Result<()> {
     let Some((available, whose)) = least_available() else {
         return Ok(());
     };
     let needed = bytes.saturating_add(bytes / 10);
     if needed > available {
         bail!(
-            "{}: reading it into memory (--ram) needs about {:.1} GB and {:.1} GB are available{whose}; mapped (without --ram), it needs no such memory",
-            path.display(),
+            "{what}: reading it into memory (--ram) needs about {:.1} GB and {:.1} GB are available{whose}; mapped (without --ram), it needs no such memory",
             needed as f64 / 1e9,
             available as f64 / 1e9
         );
@@ -70,11 +71,11 @@ pub fn check_ram(path: &std::path::Path, bytes: u64) -> Result<()> {
 }
 
 /// [`check_bricks`] against `available` bytes.
-fn bricks_fit(count: u64, side: u32, available: u64, whose: &str) -> Result<()> {
+fn bricks_fit(flag: &str, count: u64, side: u32, available: u64, whose: &str) -> Result<()> {
     let needed = count.saturating_mul(BRICK_BYTES);
     if needed > available {
         bail!(
-            "--brick {side} cuts the volume into {:.1} M bricks, whose tables need about {:.1} GB of memory and {:.1} GB are available{whose}; give a larger --brick (16 to 32 render fastest)",
+            "{flag} {side} cuts the volume into {:.1} M bricks, whose tables need about {:.1} GB of memory and {:.1} GB are available{whose}; give a larger {flag} (16 to 32 render fastest)",
             count as f64 / 1e6,
             needed as f64 / 1e9,
             available as f64 / 1e9
@@ -169,8 +170,9 @@ mod tests {
         let gb = 1_000_000_000;
         // 1200³ at --brick 2 peaked at 16.3 GB on a machine of 24.
         let bricks = 1199u64.pow(3);
-        assert!(bricks_fit(bricks, 2, 20 * gb, "").is_ok());
+        assert!(bricks_fit("--brick", bricks, 2, 20 * gb, "").is_ok());
         let e = bricks_fit(
+            "--brick",
             bricks,
             2,
             4 * gb,

@@ -986,7 +986,7 @@ fn flags_session(args: &RenderArgs, source: VolumeSource, volume: &Volume) -> Re
     };
     if let (Some(side), Some(dims)) = (args.brick, checked_dims) {
         let count = raycaster::volume::BlockGrid::new(dims, side).block_count();
-        crate::memory::check_bricks(count, side)?;
+        crate::memory::check_bricks("--brick", count, side)?;
     }
     if let Some(warning) = args
         .brick
@@ -1054,7 +1054,7 @@ fn open_volume(source: &VolumeSource, args: &RenderArgs) -> Result<Volume> {
         VolumeSource::File { path, .. } => {
             let access = if args.ram {
                 if let Ok(meta) = std::fs::metadata(path) {
-                    crate::memory::check_ram(path, meta.len())?;
+                    crate::memory::check_ram(path.display(), meta.len())?;
                 }
                 Access::Ram
             } else {

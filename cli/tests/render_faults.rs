@@ -221,7 +221,7 @@ fn near_miss_presets_get_a_suggestion_and_a_missing_file_is_not_a_preset() {
 #[test]
 fn a_frame_beyond_the_address_space_limit_is_refused() {
     let dir = tempfile::tempdir().unwrap();
-    let out = render_under_limit(dir.path(), "-v 3000000", "--size 8192 -o big.png");
+    let out = under_limit(dir.path(), "-v 3000000", "render --size 8192 -o big.png");
     assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
     let said = stderr(&out);
     assert!(
@@ -232,13 +232,13 @@ fn a_frame_beyond_the_address_space_limit_is_refused() {
     assert!(!dir.path().join("big.png").exists());
 }
 
-/// `raycaster render ARGS` in `dir` under the shell limit `limit` (`-v KIB`:
-/// address space, `-f BLOCKS`: file size).
-fn render_under_limit(dir: &Path, limit: &str, args: &str) -> Output {
+/// `raycaster ARGS` (a subcommand and its flags) in `dir` under the shell limit
+/// `limit` (`-v KIB`: address space, `-f BLOCKS`: file size).
+fn under_limit(dir: &Path, limit: &str, args: &str) -> Output {
     Command::new("bash")
         .arg("-c")
         .arg(format!(
-            "ulimit {limit} && exec {} render {args}",
+            "ulimit {limit} && exec {} {args}",
             env!("CARGO_BIN_EXE_raycaster")
         ))
         .current_dir(dir)
@@ -284,10 +284,10 @@ fn a_volume_beyond_the_address_space_limit_is_refused() {
             "large.vol: mapping it needs 0.2 GB of address space, more than this process may take",
         ),
     ] {
-        let out = render_under_limit(
+        let out = under_limit(
             dir.path(),
             "-v 200000",
-            &format!("large.vol --size 32x32 {flags} -o out.png"),
+            &format!("render large.vol --size 32x32 {flags} -o out.png"),
         );
         assert_eq!(out.status.code(), Some(1), "{flags}: {}", stderr(&out));
         assert!(stderr(&out).contains(said), "{flags}: {}", stderr(&out));
@@ -302,10 +302,10 @@ fn a_volume_beyond_the_address_space_limit_is_refused() {
 fn bricks_beyond_the_address_space_limit_are_refused() {
     let dir = tempfile::tempdir().unwrap();
     sparse_volume(&dir.path().join("large.vol"));
-    let out = render_under_limit(
+    let out = under_limit(
         dir.path(),
         "-v 1000000",
-        "large.vol --size 32x32 --brick 2 -o out.png",
+        "render large.vol --size 32x32 --brick 2 -o out.png",
     );
     let said = stderr(&out);
     assert_eq!(out.status.code(), Some(1), "{said}");
@@ -315,6 +315,50 @@ fn bricks_beyond_the_address_space_limit_are_refused() {
         "{said}"
     );
     assert!(!dir.path().join("out.png").exists());
+}
+
+/// `bench` refuses what render refuses under a memory limit: `--ram` of a
+/// volume (a named file or the generated one) larger than the process may
+/// take, and `--bricks` sides whose tables cannot fit (both aborted the
+/// process, status 134). Nothing is generated into the cache folder.
+#[test]
+fn bench_beyond_the_address_space_limit_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    sparse_volume(&dir.path().join("large.vol"));
+    let bench = "bench --image 16x16 --threads 1 --tiles 16 --frames 1 --cache-dir cache";
+    for (limit, flags, said) in [
+        (
+            "-v 200000",
+            "large.vol --ram --bricks 16",
+            "large.vol: reading it into memory (--ram) needs about 0.2 GB and ",
+        ),
+        (
+            "-v 200000",
+            "--volume-size 600 --ram --bricks 16",
+            "the generated volume: reading it into memory (--ram) needs about 0.2 GB and ",
+        ),
+        (
+            "-v 1000000",
+            "large.vol --bricks 16,2",
+            "--bricks 2 cuts the volume into 214.9 M bricks, whose tables need about 1.7 GB of memory",
+        ),
+    ] {
+        let out = under_limit(dir.path(), limit, &format!("{bench} {flags}"));
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(1), "{flags}: {err}");
+        assert!(err.contains(said), "{flags}: {err}");
+        assert!(
+            err.contains("under the process's address-space limit (ulimit -v)"),
+            "{flags}: {err}"
+        );
+        assert_eq!(
+            err.lines().filter(|l| l.starts_with("error")).count(),
+            1,
+            "{err}"
+        );
+        let cached = std::fs::read_dir(dir.path().join("cache")).map_or(0, |d| d.count());
+        assert_eq!(cached, 0, "{flags}");
+    }
 }
 
 /// An elevation past a pole is refused (it was clamped to the pole without a
@@ -1670,10 +1714,10 @@ fn bench_outputs_never_replace_each_other_or_its_volume() {
 #[test]
 fn the_file_size_limit_fails_the_write_and_leaves_nothing() {
     let dir = tempfile::tempdir().unwrap();
-    let out = render_under_limit(
+    let out = under_limit(
         dir.path(),
         "-f 20",
-        "--scene noise --scene-size 32 --size 1024 -o big.png",
+        "render --scene noise --scene-size 32 --size 1024 -o big.png",
     );
     let said = stderr(&out);
     assert_eq!(out.status.code(), Some(1), "{said}");
