@@ -820,6 +820,13 @@ impl Session {
             let text = toml::to_string(&wrapper)
                 .map_err(|e| invalid("scene", format!("cannot embed the scene: {e}")))?;
             out += "\n# The two-level scene (docs/segments.md).\n";
+            if matches!(self.source, VolumeSource::BuiltIn { .. })
+                && self.labels.is_none()
+                && matches!(scene.membership, Membership::Labels(_))
+            {
+                out += "# (The built-in scene brings its own label volume: the scene's\n";
+                out += "# `labels` file is not read while `[volume]` names a built-in scene.)\n";
+            }
             out += &text;
         }
 
@@ -1656,6 +1663,30 @@ mod tests {
         let text = s.to_toml().unwrap();
         assert!(text.contains("[scene]"), "{text}");
         assert_eq!(round_trip(&s), s);
+    }
+
+    /// A label scene over a built-in scene uses the scene's own labels: the
+    /// saved file says that its `labels` path is not read (it named a file
+    /// that does not exist, unexplained), and reads back equal.
+    #[test]
+    fn a_label_scene_of_a_built_in_scene_says_its_labels_file_is_not_read() {
+        let note = "is not read while `[volume]` names a built-in scene";
+        let mut s = sample();
+        assert!(matches!(s.source, VolumeSource::BuiltIn { .. }));
+        s.settings.segments = Some(label_scene());
+        let text = s.to_toml().unwrap();
+        assert!(text.contains(note), "{text}");
+        assert_eq!(round_trip(&s), s);
+        // A label volume of the session's own is read: no note.
+        s.labels = Some(PathBuf::from("/data/v.labels.vol"));
+        assert!(!s.to_toml().unwrap().contains(note));
+        // Nor over a file.
+        s.labels = None;
+        s.source = VolumeSource::File {
+            path: PathBuf::from("/data/v.vol"),
+            access: Access::Mapped,
+        };
+        assert!(!s.to_toml().unwrap().contains(note));
     }
 
     #[test]
