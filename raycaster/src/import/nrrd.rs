@@ -397,19 +397,54 @@ pub fn parse_header(bytes: &[u8]) -> Result<NrrdHeader, ImportErrorKind> {
     };
     let mut spacing = [1f32; 3];
     let mut orientation = None;
-    if let Some(s) = get("spacings") {
-        let values: Vec<&str> = s.split_whitespace().collect();
-        if values.len() != dimension {
-            return Err(header_error(
-                F,
-                format!(
-                    "`spacings` has {} values for dimension {dimension}",
-                    values.len()
-                ),
-            ));
+    // `space directions` place the axes (and give their spacing); `spacings`
+    // give the spacing of axes without a direction. NRRD wants `nan` spacings
+    // on axes with directions: they are not read (a number there lost the
+    // orientation, a `nan` refused the file).
+    let spacings = match get("spacings") {
+        None => None,
+        Some(s) => {
+            let values: Vec<&str> = s.split_whitespace().collect();
+            if values.len() != dimension {
+                return Err(header_error(
+                    F,
+                    format!(
+                        "`spacings` has {} values for dimension {dimension}",
+                        values.len()
+                    ),
+                ));
+            }
+            Some(values)
         }
-        // (Axes are named as the file numbers them.)
-        for (i, axis) in axes.into_iter().enumerate() {
+    };
+    let directions = match get("space directions") {
+        None => None,
+        Some(s) => {
+            let vectors = split_vectors(s);
+            if vectors.len() != dimension {
+                return Err(header_error(
+                    F,
+                    format!(
+                        "`space directions` has {} entries for dimension {dimension}",
+                        vectors.len()
+                    ),
+                ));
+            }
+            Some(vectors)
+        }
+    };
+    let mut steps = Vec::with_capacity(3);
+    // (Axes are named as the file numbers them.)
+    for (i, axis) in axes.into_iter().enumerate() {
+        let direction = match &directions {
+            Some(vectors) => parse_vector(vectors[axis])?,
+            None => None,
+        };
+        if let Some(v) = direction {
+            let len = v.iter().map(|c| c * c).sum::<f64>().sqrt();
+            spacing[i] = check_spacing(F, axis, len)?;
+            steps.extend(in_space(&v));
+        } else if let Some(values) = &spacings {
             let v = values[axis];
             if v.eq_ignore_ascii_case("nan") {
                 // NRRD's "no spacing on this axis": a volume renders with its spacing,
@@ -426,41 +461,22 @@ pub fn parse_header(bytes: &[u8]) -> Result<NrrdHeader, ImportErrorKind> {
                 .map_err(|_| header_error(F, format!("spacing `{v}` is not a number")))?;
             spacing[i] = check_spacing(F, axis, v)?;
         }
-    } else if let Some(s) = get("space directions") {
-        let vectors = split_vectors(s);
-        if vectors.len() != dimension {
-            return Err(header_error(
-                F,
-                format!(
-                    "`space directions` has {} entries for dimension {dimension}",
-                    vectors.len()
-                ),
-            ));
-        }
-        let mut steps = Vec::with_capacity(3);
-        for (i, axis) in axes.into_iter().enumerate() {
-            if let Some(v) = parse_vector(vectors[axis])? {
-                let len = v.iter().map(|c| c * c).sum::<f64>().sqrt();
-                spacing[i] = check_spacing(F, axis, len)?;
-                steps.extend(in_space(&v));
-            }
-        }
-        // An anatomical space and a direction on every axis place the volume in
-        // the patient; `space origin` defaults to 0.
-        let space = get("space").and_then(PatientSpace::from_nrrd);
-        if let (Some(space), Ok(steps)) = (space, <[[f64; 3]; 3]>::try_from(steps)) {
-            let origin = match get("space origin") {
-                Some(o) => parse_vector(o)?
-                    .and_then(|o| in_space(&o).or_else(|| o.get(..3)?.try_into().ok()))
-                    .ok_or_else(|| header_error(F, format!("space origin `{o}` is not (x,y,z)")))?,
-                None => [0.0; 3],
-            };
-            // Directions that make no volume (coplanar) are passed over: the file
-            // opens as it did before orientations were read.
-            orientation = Orientation::from_steps(space, steps, origin)
-                .ok()
-                .map(|(placed, _)| placed);
-        }
+    }
+    // An anatomical space and a direction on every axis place the volume in
+    // the patient; `space origin` defaults to 0.
+    let space = get("space").and_then(PatientSpace::from_nrrd);
+    if let (Some(space), Ok(steps)) = (space, <[[f64; 3]; 3]>::try_from(steps)) {
+        let origin = match get("space origin") {
+            Some(o) => parse_vector(o)?
+                .and_then(|o| in_space(&o).or_else(|| o.get(..3)?.try_into().ok()))
+                .ok_or_else(|| header_error(F, format!("space origin `{o}` is not (x,y,z)")))?,
+            None => [0.0; 3],
+        };
+        // Directions that make no volume (coplanar) are passed over: the file
+        // opens as it did before orientations were read.
+        orientation = Orientation::from_steps(space, steps, origin)
+            .ok()
+            .map(|(placed, _)| placed);
     }
     let data_file = match get("data file").or(get("datafile")) {
         None => DataFile::Attached,
@@ -653,6 +669,37 @@ mod tests {
                 parse_header(header(space, dims, sizes, dirs, "(10,20,30,0)").as_bytes()).unwrap();
             assert_eq!(h.orientation, three.orientation, "{space}");
             assert_eq!(h.spacing, three.spacing, "{space}");
+        }
+    }
+
+    /// `space directions` give the spacing and place the volume even beside
+    /// `spacings` (whose `nan`, as NRRD wants on such axes, refused the file;
+    /// a number there lost the orientation); `spacings` still give the axes
+    /// without a direction.
+    #[test]
+    fn space_directions_win_over_spacings_which_fill_axes_without_one() {
+        let header = |extra: &str, dirs: &str| {
+            format!(
+                "NRRD0005\ntype: uchar\ndimension: 3\nspace: left-posterior-superior\n\
+                 sizes: 4 5 6\nspace directions: {dirs}\n{extra}encoding: raw\n\n"
+            )
+        };
+        let dirs = "(0.5,0,0) (0,0.5,0) (0,0,2.5)";
+        let plain = parse_header(header("", dirs).as_bytes()).unwrap();
+        assert_eq!(plain.spacing, [0.5, 0.5, 2.5]);
+        assert!(plain.orientation.is_some());
+        for spacings in ["spacings: nan nan nan\n", "spacings: 1 1 1\n"] {
+            let h = parse_header(header(spacings, dirs).as_bytes()).unwrap();
+            assert_eq!(h.spacing, plain.spacing, "{spacings}");
+            assert_eq!(h.orientation, plain.orientation, "{spacings}");
+        }
+        // An axis without a direction takes its spacing from `spacings`.
+        let h =
+            parse_header(header("spacings: nan 0.7 nan\n", "(0.5,0,0) none (0,0,2.5)").as_bytes());
+        // (A `none` among three spatial axes: whether the file opens is the
+        // axis rules' business; where it does, the spacing is the given one.)
+        if let Ok(h) = h {
+            assert_eq!(h.spacing[1], 0.7);
         }
     }
 
