@@ -213,6 +213,40 @@ fn the_viewer_cuts_slices_and_remembers_files() {
     v.ui().set_preset_index(preset);
     v.ui().invoke_preset_selected(preset);
     settle(&v);
+    // The Threads count: the wheel over it scrolls the panel too (Slint's
+    // spin box took it under the pointer and changed the count unseen); its
+    // buttons step the count within range.
+    // (A tall window: the element search passes over what the panel's
+    // scroll area has outside the window.)
+    let window = v.ui().window();
+    window.set_size(slint::LogicalSize::new(1000.0, 2400.0));
+    v.pump();
+    let threads = v.ui().get_threads();
+    v.ui().set_threads(1);
+    let threads_box = element(&v, "App::threads-box");
+    for delta in [120.0, 120.0, -120.0, 120.0] {
+        threads_box.scroll(0.0, delta);
+    }
+    assert_eq!(
+        v.ui().get_threads(),
+        1,
+        "the wheel left the thread count alone"
+    );
+    let button = |label: &str| {
+        ElementHandle::find_by_accessible_label(v.ui(), label)
+            .next()
+            .unwrap_or_else(|| panic!("no button {label}"))
+    };
+    button("more").mock_single_click(PointerEventButton::Left);
+    assert_eq!(v.ui().get_threads(), 2, "+ adds a thread");
+    button("fewer").mock_single_click(PointerEventButton::Left);
+    button("fewer").mock_single_click(PointerEventButton::Left);
+    assert_eq!(v.ui().get_threads(), 1, "− stops at one thread");
+    v.ui().set_threads(threads);
+    window.set_size(slint::LogicalSize::new(1000.0, 820.0));
+    v.pump();
+    v.ui().invoke_canvas_resized();
+    settle(&v);
     assert_eq!(frame(&v), whole);
 
     // 1. Crop: the upper x bound at half keeps voxels 0..=24 of 0..=47.
