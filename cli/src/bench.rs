@@ -443,6 +443,11 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
             }
         }
     }
+    // The most threads a case starts: its render threads, a compositing
+    // thread and the read-ahead.
+    if let Some(most) = args.threads.iter().max() {
+        crate::memory::check_threads(*most + 2)?;
+    }
     let cases_then = cases(&args);
     let Some(first) = cases_then.first() else {
         bail!(

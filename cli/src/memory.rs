@@ -50,6 +50,34 @@ pub fn check_bricks(flag: &str, count: u64, side: u32) -> Result<()> {
     bricks_fit(flag, count, side, available, whose)
 }
 
+/// Starts `count` threads that wait together, then lets them go: an error
+/// naming the count where the system refuses one (an address-space or
+/// process limit), said before a frame whose threads would fail to start
+/// midway (that panicked).
+pub fn check_threads(count: usize) -> Result<()> {
+    let gate = std::sync::RwLock::new(());
+    let closed = gate.write().unwrap_or_else(|e| e.into_inner());
+    let failure = std::thread::scope(|s| {
+        let mut failure = None;
+        for started in 0..count {
+            let spawned = std::thread::Builder::new().spawn_scoped(s, || drop(gate.read()));
+            if let Err(e) = spawned {
+                failure = Some((started, e));
+                break;
+            }
+        }
+        drop(closed);
+        failure
+    });
+    match failure {
+        None => Ok(()),
+        Some((started, e)) => bail!(
+            "cannot start {count} threads: the system refused thread {} ({e}); give fewer with --threads, or raise the limit (ulimit -v, ulimit -u)",
+            started + 1
+        ),
+    }
+}
+
 /// Refuses reading a `bytes`-long volume file, `what` (its path, said first),
 /// into memory (`--ram`) when it does not fit the memory this process can
 /// have (as [`check_frame`]), with a tenth more for the frame and the rest:

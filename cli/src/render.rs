@@ -537,11 +537,14 @@ pub fn run(args: RenderArgs) -> Result<()> {
             || render_sequential_noting(&passes, &setup.camera, &setup.settings, &progress),
         )?
     } else {
+        let options = parallel_options(&args, 1);
+        // The frame's threads and the read-ahead's.
+        crate::memory::check_threads(options.render_threads + options.compositing_threads + 1)?;
         render_with_progress(
             &passes,
             &setup.camera,
             &setup.settings,
-            &parallel_options(&args, 1),
+            &options,
             progress_after(&args),
         )?
     };

@@ -361,6 +361,26 @@ fn bench_beyond_the_address_space_limit_is_refused() {
     }
 }
 
+/// Threads the system refuses (an address-space limit leaving no room for
+/// their stacks) are said once, before any frame: the frame's threads, or
+/// rayon's pool at its first use, panicked (status 101).
+#[test]
+fn threads_the_system_refuses_are_said_not_panicked() {
+    let dir = tempfile::tempdir().unwrap();
+    for command in [
+        "render --scene-size 16 --size 16 --threads 200 -o out.png",
+        "bench --quick --image 16x16 --threads 1,200 --tiles 16 --bricks 16 --cache-dir cache",
+    ] {
+        let out = under_limit(dir.path(), "-v 30000", command);
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(1), "{command}: {err}");
+        assert!(err.starts_with("error: cannot start "), "{command}: {err}");
+        assert!(err.contains("ulimit -v"), "{command}: {err}");
+        assert_eq!(err.lines().count(), 1, "{command}: {err}");
+        assert!(!dir.path().join("out.png").exists());
+    }
+}
+
 /// An elevation past a pole is refused (it was clamped to the pole without a
 /// word), and an --up within a degree of the view direction is warned of
 /// (the picture's roll then follows the small difference).

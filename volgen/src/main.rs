@@ -69,11 +69,15 @@ fn main() {
     raycaster::files::guard_mapped_reads("stopped, nothing was written");
     raycaster::files::fail_writes_past_the_file_size_limit();
     let cli = Cli::parse();
-    if let Some(n) = cli.threads {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(usize::from(n))
-            .build_global()
-            .expect("the global pool is built once, before any parallel work");
+    // Started now (one per core unless --threads), so that a system refusing
+    // threads (an address-space or process limit) is said here, once; rayon's
+    // pool, started at its first use, panicked.
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(cli.threads.map_or(0, usize::from));
+    if let Err(e) = pool.build_global() {
+        eprintln!(
+            "error: cannot start the worker threads: {e}; raise the limit (ulimit -v, ulimit -u) or give fewer with --threads"
+        );
+        std::process::exit(1);
     }
     progress::install_signal_handler();
     let result = match cli.command {
