@@ -174,16 +174,24 @@ impl VolumeSpec {
     }
 
     /// The volume's file, generated into `cache_dir` first when it is a scene
-    /// whose file is missing or unreadable.
+    /// whose file is missing, unreadable or not of the scene's size, sample
+    /// type and layout (a file put there by hand was measured under the
+    /// scene's name).
     pub fn prepare(&self, cache_dir: &Path) -> Result<PathBuf> {
         let path = self.path(cache_dir);
-        if let VolumeSource::Scene(scene) = &self.source
-            && read_header(&path).is_err()
-        {
-            std::fs::create_dir_all(cache_dir)
-                .with_context(|| format!("cannot create {}", cache_dir.display()))?;
-            eprintln!("bench: generating {} (once)", path.display());
-            scene.generate(&path)?;
+        if let VolumeSource::Scene(scene) = &self.source {
+            let fits = read_header(&path).is_ok_and(|(h, _, _)| {
+                h.dims == scene.dims
+                    && h.sample_type == scene.sample_type
+                    && h.layout == scene.layout
+                    && h.content == Content::Scalar
+            });
+            if !fits {
+                std::fs::create_dir_all(cache_dir)
+                    .with_context(|| format!("cannot create {}", cache_dir.display()))?;
+                eprintln!("bench: generating {} (once)", path.display());
+                scene.generate(&path)?;
+            }
         }
         Ok(path)
     }
@@ -196,5 +204,44 @@ impl VolumeSpec {
             ..OpenOptions::default()
         };
         Ok(Volume::open_with(&path, options)?)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A cache file of another size, sample type or layout under a scene's
+    /// name is generated again (it was measured as the scene); the scene's
+    /// own file is kept.
+    #[test]
+    fn a_cache_file_that_is_not_the_scene_is_generated_again() {
+        let dir = tempfile::tempdir().unwrap();
+        let spec = VolumeSpec::shapes(12);
+        let path = spec.prepare(dir.path()).unwrap();
+        let dims = |p: &Path| read_header(p).unwrap().0.dims;
+        assert_eq!(dims(&path), [12; 3]);
+        let written = std::fs::metadata(&path).unwrap().modified().unwrap();
+        spec.prepare(dir.path()).unwrap();
+        assert_eq!(
+            std::fs::metadata(&path).unwrap().modified().unwrap(),
+            written
+        );
+        for other in [
+            VolumeSpec::shapes(8),
+            VolumeSpec::shapes(12).with_sample_type(SampleType::U16),
+            VolumeSpec::shapes(12).with_layout(Layout::Bricked { side: 8 }),
+        ] {
+            let stand_in = other.prepare(dir.path()).unwrap();
+            std::fs::copy(&stand_in, &path).unwrap();
+            spec.prepare(dir.path()).unwrap();
+            let (h, _, _) = read_header(&path).unwrap();
+            assert_eq!(
+                (h.dims, h.sample_type, h.layout),
+                ([12; 3], SampleType::U8, Layout::Linear),
+                "{}",
+                other.name()
+            );
+        }
     }
 }
