@@ -58,6 +58,9 @@ pub fn run(args: CompareArgs) -> Result<()> {
         );
     };
     if let Some(path) = &args.diff {
+        // The difference image and its encoding.
+        let pixels = u64::from(a.width()) * u64::from(a.height());
+        crate::memory::check_memory(format_args!("--diff {}", path.display()), pixels * 7)?;
         a.diff(&b).save_png(path)?;
     }
     if args.json {

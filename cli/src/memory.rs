@@ -50,6 +50,22 @@ pub fn check_bricks(flag: &str, count: u64, side: u32) -> Result<()> {
     bricks_fit(flag, count, side, available, whose)
 }
 
+/// Refuses work that needs `bytes` of memory (`what` needs them: said first)
+/// where the process cannot have them (as [`check_frame`]).
+pub fn check_memory(what: impl std::fmt::Display, bytes: u64) -> Result<()> {
+    let Some((available, whose)) = least_available() else {
+        return Ok(());
+    };
+    if bytes > available {
+        bail!(
+            "{what} needs about {:.2} GB of memory and {:.2} GB are available{whose}",
+            bytes as f64 / 1e9,
+            available as f64 / 1e9
+        );
+    }
+    Ok(())
+}
+
 /// Starts `count` threads that wait together, then lets them go: an error
 /// naming the count where the system refuses one (an address-space or
 /// process limit), said before a frame whose threads would fail to start

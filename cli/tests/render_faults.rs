@@ -361,6 +361,33 @@ fn bench_beyond_the_address_space_limit_is_refused() {
     }
 }
 
+/// `compare` of images larger than the process may hold is refused with the
+/// numbers, once: decoding them (or the `--diff` image) aborted the process
+/// (status 134).
+#[test]
+fn compare_beyond_the_address_space_limit_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let black = raycaster::render::RgbImage::new(8000, 8000, vec![0; 8000 * 8000 * 3]);
+    black.save_png(&dir.path().join("a.png")).unwrap();
+    std::fs::copy(dir.path().join("a.png"), dir.path().join("b.png")).unwrap();
+    for flags in ["", "--diff d.png"] {
+        let out = under_limit(
+            dir.path(),
+            "-v 200000",
+            &format!("compare a.png b.png {flags}"),
+        );
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(1), "{flags}: {err}");
+        assert!(
+            err.contains("a.png: decoding it needs ")
+                && err.contains(" GB of memory, more than this process can allocate"),
+            "{flags}: {err}"
+        );
+        assert_eq!(err.lines().count(), 1, "{err}");
+        assert!(!dir.path().join("d.png").exists());
+    }
+}
+
 /// Threads the system refuses (an address-space limit leaving no room for
 /// their stacks) are said once, before any frame: the frame's threads, or
 /// rayon's pool at its first use, panicked (status 101).

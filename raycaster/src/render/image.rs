@@ -150,7 +150,17 @@ impl RgbImage {
         let size = reader
             .output_buffer_size()
             .ok_or_else(|| png_err("image too large".into()))?;
-        let mut buf = vec![0; size];
+        // (Reserved, not allocated outright: what the process may not take is
+        // an error, not an abort.)
+        let too_large = |bytes: usize| {
+            png_err(format!(
+                "decoding it needs {:.2} GB of memory, more than this process can allocate",
+                bytes as f64 / 1e9
+            ))
+        };
+        let mut buf = Vec::new();
+        buf.try_reserve_exact(size).map_err(|_| too_large(size))?;
+        buf.resize(size, 0);
         let info = reader
             .next_frame(&mut buf)
             .map_err(|e| png_err(e.to_string()))?;
@@ -164,16 +174,17 @@ impl RgbImage {
                 return Err(png_err("a palette image the decoder did not expand".into()));
             }
         };
-        let data = buf[..info.buffer_size()]
-            .chunks_exact(channels)
-            .flat_map(|px| {
-                if grey {
-                    [px[0]; 3]
-                } else {
-                    [px[0], px[1], px[2]]
-                }
-            })
-            .collect();
+        let pixels = buf[..info.buffer_size()].chunks_exact(channels);
+        let mut data = Vec::new();
+        data.try_reserve_exact(pixels.len() * 3)
+            .map_err(|_| too_large(size + pixels.len() * 3))?;
+        data.extend(pixels.flat_map(|px| {
+            if grey {
+                [px[0]; 3]
+            } else {
+                [px[0], px[1], px[2]]
+            }
+        }));
         Ok(RgbImage::new(info.width, info.height, data))
     }
 
