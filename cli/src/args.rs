@@ -62,10 +62,22 @@ pub fn parse_domain(s: &str) -> Result<[f32; 2], String> {
         .collect::<Result<Option<Vec<f32>>, String>>()?;
     match nums.as_deref() {
         Some(&[lo, hi]) if lo < hi => Ok([lo, hi]),
+        Some(&[lo, hi]) if lo == hi && typed_increasing(s, separator) => Err(format!(
+            "{s:?}: lo and hi are one value at the renderer's precision (about 7 significant digits); give a wider range"
+        )),
         _ => Err(format!(
             "{s:?} is not a value domain; expected lo,hi with lo < hi"
         )),
     }
+}
+
+/// Whether `s` names two numbers, the first smaller, as typed (in f64).
+fn typed_increasing(s: &str, separator: char) -> bool {
+    let values: Vec<f64> = s
+        .split(separator)
+        .filter_map(|p| p.trim().parse().ok())
+        .collect();
+    matches!(values.as_slice(), &[lo, hi] if lo < hi)
 }
 
 /// A value window given on the command line: two values or a named CT window.
@@ -465,6 +477,9 @@ mod tests {
             assert!(parse_iso(bad).is_err(), "{bad}");
         }
         assert!(parse_domain("5,5").is_err());
+        // Increasing as typed, one value in f32: said so (it blamed the order).
+        let e = parse_domain("100,100.0000001").unwrap_err();
+        assert!(e.contains("one value at the renderer's precision"), "{e}");
         // volgen's spelling too.
         assert_eq!(parse_domain("-1000:2000"), Ok([-1000.0, 2000.0]));
         // Past f32: said as too large (not as lo ≥ hi, both taken as infinite).

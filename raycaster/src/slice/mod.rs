@@ -163,9 +163,12 @@ impl Slice {
             }
             None => self.range().map(f32::from),
         };
+        // (In f64: `hi − lo` of a window of ±3e38 overflows f32, and the
+        // slice came out black.)
+        let (lo, width) = (f64::from(lo), f64::from(hi) - f64::from(lo));
         let grey = |v: u16| -> u8 {
-            if hi > lo {
-                let g = (f32::from(v) - lo) / (hi - lo);
+            if width > 0.0 {
+                let g = (f64::from(v) - lo) / width;
                 (g.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
             } else {
                 128
@@ -373,5 +376,10 @@ mod tests {
         assert_eq!(own.pixel(0, 3), [0; 3]);
         assert_eq!(own.pixel(4, 0), [255; 3]);
         assert!(z.to_image(Some([5.0, 5.0])).is_err());
+        // The widest windows f32 holds: every value lies about halfway (their
+        // width overflowed f32, and the slice was black).
+        let widest = z.to_image(Some([-3e38, 3e38])).unwrap();
+        assert_eq!(widest.pixel(0, 0), [128; 3]);
+        assert_eq!(widest.pixel(4, 0), [128; 3]);
     }
 }
