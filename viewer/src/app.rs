@@ -961,7 +961,7 @@ impl Controller {
     }
 
     /// A browser entry picked: a folder is shown, a volume opened, a session
-    /// restored.
+    /// restored, a scene loaded.
     fn browser_pick(&self, index: i32) {
         let picked = {
             let st = self.state.borrow();
@@ -985,6 +985,11 @@ impl Controller {
                 ui.set_session_path(text);
                 ui.set_browser_shown(false);
                 self.open(Source::Session(path));
+            }
+            crate::browser::EntryKind::Scene => {
+                ui.set_scene_path(text);
+                ui.set_browser_shown(false);
+                self.load_scene(&path);
             }
         }
     }

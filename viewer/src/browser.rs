@@ -1,8 +1,8 @@
 //! The file browser inside the viewer: a folder's sub-folders and the files the
-//! viewer opens (volumes in every format it reads, and sessions), without a
-//! desktop portal.
+//! viewer opens (volumes in every format it reads, sessions and two-level
+//! scenes), without a desktop portal.
 
-use std::io;
+use std::io::{self, Read};
 use std::path::{Path, PathBuf};
 
 use raycaster::files::human_bytes;
@@ -18,6 +18,9 @@ pub(crate) enum EntryKind {
     Volume,
     /// A session (`.toml`): picking it restores it.
     Session,
+    /// A two-level scene (`.toml` of `[[object]]` tables): picking it loads
+    /// it over the open volume.
+    Scene,
 }
 
 /// One entry of a folder listing.
@@ -39,6 +42,7 @@ impl Entry {
             EntryKind::Folder => format!("{}/", self.name),
             EntryKind::Volume => format!("{}   {}", self.name, human_bytes(self.size)),
             EntryKind::Session => format!("{}   (session)", self.name),
+            EntryKind::Scene => format!("{}   (scene)", self.name),
         }
     }
 }
@@ -52,6 +56,30 @@ pub(crate) fn kind_of_file(name: &str) -> Option<EntryKind> {
         Some(EntryKind::Session)
     } else {
         None
+    }
+}
+
+/// Whether the `.toml` file at `path` is a two-level scene (`[[object]]`
+/// tables and no session's `version` or `[volume]` in its first 64 KiB) or a
+/// session (anything else: its errors say what is wrong). Scenes were listed
+/// as sessions, failed to restore, and left the session field naming them.
+fn toml_kind(path: &Path) -> EntryKind {
+    let mut head = Vec::new();
+    let read = std::fs::File::open(path).and_then(|f| f.take(64 << 10).read_to_end(&mut head));
+    if read.is_err() {
+        return EntryKind::Session;
+    }
+    let text = String::from_utf8_lossy(&head);
+    let (mut session, mut scene) = (false, false);
+    for line in text.lines().map(str::trim) {
+        let key = line.split('=').next().unwrap_or("").trim();
+        session |= line.starts_with("[volume]") || (key == "version" && line.contains('='));
+        scene |= line.starts_with("[[object]]");
+    }
+    if scene && !session {
+        EntryKind::Scene
+    } else {
+        EntryKind::Session
     }
 }
 
@@ -74,6 +102,7 @@ pub(crate) fn list(dir: &Path) -> io::Result<Vec<Entry>> {
             EntryKind::Folder
         } else if meta.is_file() {
             match kind_of_file(&name) {
+                Some(EntryKind::Session) => toml_kind(&item.path()),
                 Some(kind) => kind,
                 None => continue,
             }
@@ -126,17 +155,30 @@ mod tests {
         std::fs::write(d.join("b.vol"), [0u8; 1500]).unwrap();
         std::fs::write(d.join("A.NII.GZ"), [0u8; 10]).unwrap();
         std::fs::write(d.join("view.toml"), "version = 1").unwrap();
+        std::fs::write(
+            d.join("organs.toml"),
+            "labels = \"l.vol\"\n[[object]]\nid = 1\n",
+        )
+        .unwrap();
         std::fs::write(d.join("notes.txt"), "x").unwrap();
         std::fs::write(d.join(".hidden.vol"), "x").unwrap();
         let entries = list(d).unwrap();
         let names: Vec<&str> = entries.iter().map(|e| e.name.as_str()).collect();
         assert_eq!(
             names,
-            ["Archive", "scans", "A.NII.GZ", "b.vol", "view.toml"]
+            [
+                "Archive",
+                "scans",
+                "A.NII.GZ",
+                "b.vol",
+                "organs.toml",
+                "view.toml"
+            ]
         );
         let kinds: Vec<EntryKind> = entries.iter().map(|e| e.kind).collect();
         use EntryKind::*;
-        assert_eq!(kinds, [Folder, Folder, Volume, Volume, Session]);
+        assert_eq!(kinds, [Folder, Folder, Volume, Volume, Scene, Session]);
+        assert_eq!(entries[4].label(), "organs.toml   (scene)");
         assert_eq!(entries[0].label(), "Archive/");
         assert_eq!(entries[3].label(), "b.vol   1.5 kB");
         assert_eq!(entries[2].label(), "A.NII.GZ   10 bytes");

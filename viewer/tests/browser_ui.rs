@@ -99,6 +99,36 @@ fn the_browser_opens_volumes_and_sessions_from_folders() {
         entries(&v).last().map(String::as_str),
         Some("view.toml   (session)")
     );
+    // A scene beside it is offered as one and loads over the volume (it was
+    // listed as a session, failed to restore, and the session field named it).
+    let scene = scans.join("layers.toml");
+    std::fs::write(
+        &scene,
+        "layers = [[0.1, 0.5], [0.5, 1.0]]\n[[object]]\ntf = \"shells\"\n[[object]]\ntf = \"shells\"\n",
+    )
+    .unwrap();
+    v.ui().invoke_browse();
+    v.ui().invoke_browse();
+    let listed = entries(&v);
+    let at = listed
+        .iter()
+        .position(|e| e == "layers.toml   (scene)")
+        .unwrap_or_else(|| panic!("{listed:?}"));
+    v.ui().invoke_browser_picked(at as i32);
+    assert!(!v.ui().get_browser_shown());
+    assert!(!v.ui().get_message_is_error(), "{}", v.ui().get_message());
+    assert_eq!(v.ui().get_objects().row_count(), 2);
+    assert!(
+        v.ui().get_scene_path().ends_with("layers.toml"),
+        "{}",
+        v.ui().get_scene_path()
+    );
+    assert_eq!(
+        v.ui().get_session_path().to_string(),
+        session.display().to_string(),
+        "the session field keeps its file"
+    );
+    v.ui().invoke_browse();
     v.ui().invoke_browse();
     assert!(!v.ui().get_browser_shown(), "Close hides it");
 
