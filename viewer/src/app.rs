@@ -221,6 +221,9 @@ enum Failure {
     Frame,
     /// The slice views.
     Slices,
+    /// Not a failure: an average-mode picture said to be dark, until a frame
+    /// of another mode is asked for or an average one is not dark.
+    DarkAverage,
 }
 
 thread_local! {
@@ -1186,12 +1189,19 @@ impl Controller {
             st.shown = (0, 0);
             st.cameras.clear();
             // A dragged window belonged to the old volume: the picker goes
-            // back to the fitted one (a named window stays: it is in HU).
+            // back to the fitted one. A named window stays where it reads the
+            // new volume (in HU), else it goes too (it carried over unsaid
+            // and showed a u16 file's slices white).
             st.custom_window = None;
-            if let Some(ui) = self.ui()
-                && ui.get_slice_window_index() as usize + 1 == crate::slices::window_names().len()
-            {
-                ui.set_slice_window_index(0);
+            if let Some(ui) = self.ui() {
+                let index = ui.get_slice_window_index().max(0) as usize;
+                let dragged = index + 1 == crate::slices::window_names().len();
+                let misread = st.current.as_ref().is_some_and(|current| {
+                    crate::slices::named_window_note(index, &current.volume.volume).is_some()
+                });
+                if dragged || misread {
+                    ui.set_slice_window_index(0);
+                }
             }
             st.last_stats = None;
             st.first_frame = true;
@@ -1850,7 +1860,8 @@ impl Controller {
             ..ParallelOptions::default()
         };
         let Some(current) = &st.current else { return };
-        let average = (settings.mode == Mode::Average && !moving).then(|| settings.clone());
+        let average_mode = settings.mode == Mode::Average;
+        let average = (average_mode && !moving).then(|| settings.clone());
         let id = current.front.request(FrameRequest {
             camera,
             settings,
@@ -1865,6 +1876,9 @@ impl Controller {
         let target = st.nav.orbit().target;
         st.cameras.push_back((id, camera, target));
         drop(st);
+        if !average_mode {
+            self.part_drawn(Failure::DarkAverage);
+        }
         if moving {
             self.settle_later();
         } else {
@@ -2216,17 +2230,19 @@ impl Controller {
                 .flatten()
                 .map(|dark| (dark, volume.value_units()))
         };
-        if let Some((dark, units)) = found {
-            let [lo, hi] = dark.domain.map(|v| units.format(v));
-            let [a, b] = dark.spanning.map(|v| units.format(v));
-            self.show_message(
-                &format!(
-                    "average: the picture is dark — the rays' means lie in {a} .. {b}, the lowest {:.0} % of the transfer function's range {lo} .. {hi}: move its points into that part to see them",
-                    dark.share * 100.0
-                ),
-                false,
-            );
-        }
+        let Some((dark, units)) = found else {
+            return self.part_drawn(Failure::DarkAverage);
+        };
+        let [lo, hi] = dark.domain.map(|v| units.format(v));
+        let [a, b] = dark.spanning.map(|v| units.format(v));
+        self.show_message(
+            &format!(
+                "average: the picture is dark — the rays' means lie in {a} .. {b}, the lowest {:.0} % of the transfer function's range {lo} .. {hi}: move its points into that part to see them",
+                dark.share * 100.0
+            ),
+            false,
+        );
+        self.state.borrow_mut().shown_failure = Some(Failure::DarkAverage);
     }
 
     /// Saves a screenshot asked for while the frame rendered, once it is complete.

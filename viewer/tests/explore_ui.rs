@@ -626,6 +626,9 @@ fn the_viewer_cuts_slices_and_remembers_files() {
     v.ui().set_mode_index(0);
     v.ui().invoke_settings_changed();
     settle(&v);
+    // (It stayed through every later mode.)
+    let said = v.ui().get_message().to_string();
+    assert!(!said.contains("picture is dark"), "{said}");
 
     // 4. Recent files: the file and the session opened so far, newest first.
     let recent_file = config.join("raycaster/recent");
@@ -676,12 +679,17 @@ fn the_viewer_cuts_slices_and_remembers_files() {
     // A new volume comes uncut, its crosshair at its centre.
     assert_eq!(crop_of(&v), None);
     assert_eq!(v.crosshair(), [19, 19, 19]);
+    // A named CT window goes too where the next volume's values are no
+    // Hounsfield units (it carried over unsaid, washing slices out).
+    v.ui().set_slice_window_index(lung);
+    v.ui().invoke_slice_window_selected(lung);
     // Picking the oldest entry reopens it; a file gone since is skipped.
     std::fs::remove_file(&file_b).unwrap();
     v.ui().invoke_recent_selected(3);
     wait_until(&v, "file a again", |v| {
         v.volume_name() == file_a.display().to_string()
     });
+    assert_eq!(v.ui().get_slice_window_index(), 0, "fitted, not lung");
     assert_eq!(v.ui().get_recent_index(), 0);
     assert_eq!(v.recent_files(), [file_a.clone(), session_path.clone()]);
     let listed: Vec<PathBuf> = std::fs::read_to_string(&recent_file)
