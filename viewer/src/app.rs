@@ -224,6 +224,9 @@ enum Failure {
     /// Not a failure: an average-mode picture said to be dark, until a frame
     /// of another mode is asked for or an average one is not dark.
     DarkAverage,
+    /// Not a failure: every object of the two-level scene hidden, until one
+    /// shows again.
+    AllObjectsHidden,
 }
 
 thread_local! {
@@ -2457,6 +2460,22 @@ impl Controller {
         }
         self.show_objects();
         self.request_frame(false);
+        // (Said as `raycaster render` warns; the canvas went black unsaid.)
+        let all_hidden = self
+            .state
+            .borrow()
+            .scene
+            .as_ref()
+            .is_some_and(|s| !s.objects.is_empty() && s.objects.iter().all(|o| !o.visible));
+        if all_hidden {
+            self.show_message(
+                "every object of the scene is hidden: nothing shows (tick one to see it)",
+                false,
+            );
+            self.state.borrow_mut().shown_failure = Some(Failure::AllObjectsHidden);
+        } else {
+            self.part_drawn(Failure::AllObjectsHidden);
+        }
     }
 }
 

@@ -352,6 +352,20 @@ fn the_viewer_runs_headless() {
     // editor do nothing then, and say so (edits marked it "custom", unused).
     let preset_box = element(&v, "App::preset-box");
     assert_eq!(preset_box.accessible_enabled(), Some(false));
+    // So do the objects' modes: the Mode picker is off (it changed nothing).
+    // (A tall window: the element search passes over what the panel's
+    // scroll area has outside the window.)
+    let size = v.ui().window().size();
+    v.ui()
+        .window()
+        .set_size(slint::LogicalSize::new(1000.0, 2400.0));
+    v.pump();
+    let mode_box = element(&v, "App::mode-box");
+    assert_eq!(mode_box.accessible_enabled(), Some(false));
+    v.ui().window().set_size(size);
+    v.pump();
+    v.ui().invoke_canvas_resized();
+    wait_for_frame(&v);
     let (preset, curve) = (
         v.ui().get_preset_index(),
         v.session().unwrap().settings.transfer,
@@ -382,10 +396,26 @@ fn the_viewer_runs_headless() {
         .invoke_load_scene(scenes.join("shapes-npr.toml").display().to_string().into());
     wait_for_frame(&v);
     let rows = v.ui().get_objects();
+    // Every object hidden is said (the canvas went black unsaid), and the
+    // note goes once one shows again.
+    let mut first = rows.row_data(0).unwrap();
+    first.visible = false;
+    v.ui().invoke_object_changed(0, first.clone());
     let mut row = rows.row_data(1).unwrap();
     row.visible = false;
     v.ui().invoke_object_changed(1, row);
     wait_for_frame(&v);
+    assert!(
+        v.ui()
+            .get_message()
+            .contains("every object of the scene is hidden"),
+        "{}",
+        v.ui().get_message()
+    );
+    first.visible = true;
+    v.ui().invoke_object_changed(0, first);
+    wait_for_frame(&v);
+    assert_eq!(v.ui().get_message(), "");
     assert!(!v.ui().get_objects().row_data(1).unwrap().visible);
     let saved = dir.path().join("saved.toml");
     v.ui().invoke_save_scene(saved.display().to_string().into());
