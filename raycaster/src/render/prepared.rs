@@ -133,7 +133,7 @@ impl<'a> RenderVolume<'a> {
             let (file_side, side) = (u32::from(side), self.geometry.grid().side());
             if side > file_side || (file_side - 1) % (side - 1) != 0 {
                 return bad(format!(
-                    "its bricks of side {file_side} do not fit the rendering bricks of side {side}"
+                    "its bricks of side {file_side} do not fit the rendering bricks of side {side}; convert it to linear or to the data's bricks (volgen convert LABELS --layout linear -o NEW.vol)"
                 ));
             }
         }
