@@ -303,6 +303,22 @@ impl TransferFunction {
             }
             let mut words = content.split_whitespace();
             let keyword = words.next().unwrap_or("");
+            // The keyword first: an unknown one was said as its next word not
+            // being a number (`foo = 1`: "\"=\" is not a finite number").
+            if !matches!(keyword, "point" | "domain" | "gradient") {
+                let toml = content.contains('=') || content.starts_with('[');
+                let hint = if toml {
+                    "; this looks like TOML: a session is given with --session, a scene with --segments"
+                } else {
+                    ""
+                };
+                return Err(invalid(
+                    line,
+                    format!(
+                        "unknown keyword {keyword:?} (expected point, domain or gradient){hint}"
+                    ),
+                ));
+            }
             let numbers = words
                 .map(|w| {
                     w.parse::<f32>()
@@ -331,18 +347,18 @@ impl TransferFunction {
                 "domain" => {
                     expect(2)?;
                     check_domain([numbers[0], numbers[1]]).map_err(|e| invalid(line, e))?;
+                    if domain.is_some() {
+                        return Err(invalid(line, "a second domain line (give one)".into()));
+                    }
                     domain = Some([numbers[0], numbers[1]]);
                 }
-                "gradient" => {
+                _ => {
                     expect(2)?;
                     check_gradient_ramp([numbers[0], numbers[1]]).map_err(|e| invalid(line, e))?;
+                    if gradient_ramp.is_some() {
+                        return Err(invalid(line, "a second gradient line (give one)".into()));
+                    }
                     gradient_ramp = Some([numbers[0], numbers[1]]);
-                }
-                other => {
-                    return Err(invalid(
-                        line,
-                        format!("unknown keyword {other:?} (expected point, domain or gradient)"),
-                    ));
                 }
             }
         }
@@ -1357,6 +1373,19 @@ mod tests {
             ("point 0 0 0 0 nan", "not a finite number"),
             ("domain 5 1\npoint 0 0 0 0 0", "increasing"),
             ("colour 1", "unknown keyword"),
+            // The keyword is said, not its next word (it said "\"=\" is not a
+            // finite number"), and TOML is named as such.
+            ("foo = 1", "unknown keyword \"foo\""),
+            ("version = 1\n[volume]", "this looks like TOML"),
+            // One domain and one gradient line (the last one won).
+            (
+                "domain 0 1\ndomain 0 2\npoint 0 0 0 0 0",
+                "line 2: a second domain line",
+            ),
+            (
+                "gradient 0 1\ngradient 0 2\npoint 0 0 0 0 0",
+                "a second gradient line",
+            ),
             ("# nothing", "at least one control point"),
         ];
         for (text, needle) in cases {
