@@ -50,16 +50,18 @@ pub struct BenchArgs {
 
     /// Size of the generated volume (voxels per axis) [default: 256; 96 with
     /// --quick].
-    #[arg(long, visible_alias = "scene-size", value_name = "N",
+    // (The generated volume's flags conflict with a FILE: they were ignored
+    // without a word.)
+    #[arg(long, visible_alias = "scene-size", value_name = "N", conflicts_with = "file",
           value_parser = clap::value_parser!(u32).range(2..=i64::from(raycaster::volume::MAX_AXIS)))]
     volume_size: Option<u32>,
 
     /// Sample type of the generated volume: u8, u16.
-    #[arg(long, default_value = "u8", value_parser = parse_sample_type, value_name = "TYPE")]
+    #[arg(long, default_value = "u8", value_parser = parse_sample_type, value_name = "TYPE", conflicts_with = "file")]
     sample_type: SampleType,
 
     /// Storage of the generated volume: linear, bricked (side 16), bricked:N.
-    #[arg(long, default_value = "linear", value_parser = parse_layout, value_name = "LAYOUT")]
+    #[arg(long, default_value = "linear", value_parser = parse_layout, value_name = "LAYOUT", conflicts_with = "file")]
     layout: Layout,
 
     /// Read the volume into RAM instead of mapping it.
@@ -471,6 +473,13 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
         .with_context(|| format!("cannot create the cache folder {}", cache_dir.display()))?;
     let volume = first.open_volume(&cache_dir)?;
     raycaster::files::guard_mapped_file(volume.path());
+    // (As render refuses it: it was measured, with no sample taken.)
+    if volume.content() == raycaster::volume::Content::Labels {
+        bail!(
+            "{}: is a label volume (object ids, not values); bench renders the data volume",
+            volume.path().display()
+        );
+    }
     // The generated volume is an input too (a named FILE was checked above).
     for (output, what) in [(&args.csv, "--csv"), (&args.plot, "--plot")] {
         if let Some(output) = output
@@ -514,7 +523,8 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
         volume.dims()[2],
         first.volume.name(),
         args.step,
-        if args.preintegrate {
+        // (Only where the mode uses it: the warning above says it is ignored.)
+        if args.preintegrate && crate::render::preintegrate_ignored(true, args.mode).is_none() {
             " pre-integrated"
         } else {
             ""

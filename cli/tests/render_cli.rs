@@ -447,6 +447,53 @@ fn bench_quick_writes_a_table_csv_and_plot() {
     assert!(stderr(&bad).contains("unknown optimisation set"));
 }
 
+/// What bench cannot measure is refused, said once: the generated volume's
+/// flags beside a FILE (they were ignored), a label volume (measured with no
+/// sample taken) and a folder (called a DICOM volume when empty).
+#[test]
+fn bench_refuses_what_it_cannot_measure() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let header = raycaster::volume::Header::new(
+        [8; 3],
+        [1.0; 3],
+        raycaster::volume::Layout::Linear,
+        raycaster::volume::SampleType::U8,
+        raycaster::volume::Content::Labels,
+        raycaster::volume::Format::Extended,
+    );
+    let mut bytes = header.encode().unwrap();
+    bytes.resize(bytes.len() + 512, 1);
+    std::fs::write(d.join("l.vol"), bytes).unwrap();
+    std::fs::create_dir(d.join("empty")).unwrap();
+    for (args, code, said) in [
+        (
+            &["l.vol", "--volume-size", "64"][..],
+            2,
+            "cannot be used with",
+        ),
+        (
+            &["l.vol", "--layout", "bricked"][..],
+            2,
+            "cannot be used with",
+        ),
+        (&["l.vol"][..], 1, "l.vol: is a label volume"),
+        (
+            &["empty"][..],
+            1,
+            "empty: is a folder, and this command reads .vol files",
+        ),
+    ] {
+        let mut all = vec!["bench", "--quick", "--cache-dir", "c"];
+        all.extend(args);
+        let out = raycaster(&all, d);
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(code), "{args:?}: {err}");
+        assert!(err.contains(said), "{args:?}: {err}");
+        assert_eq!(err.matches("error").count(), 1, "{args:?}: {err}");
+    }
+}
+
 /// The memory kinds of the generated volume (u16, bricked, in RAM) are separate
 /// cached files; an SVG plot is written when the name ends in `.svg`.
 #[test]

@@ -538,6 +538,14 @@ pub fn volume_files(path: &Path) -> Vec<PathBuf> {
 /// own open says what is wrong with it).
 pub fn vol_only_problem(path: &Path) -> Option<String> {
     let format = detect(path)?;
+    // (Any folder is taken for a DICOM series: an empty one was called a
+    // DICOM volume.)
+    if path.is_dir() {
+        return Some(format!(
+            "is a folder, and this command reads .vol files (a DICOM series folder converts: `volgen convert {} -o NAME.vol`)",
+            path.display()
+        ));
+    }
     Some(format!(
         "is a {} volume, and this command reads .vol files: `volgen convert {} -o NAME.vol` makes one",
         format.name(),
