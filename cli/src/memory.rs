@@ -3,6 +3,7 @@
 //! for memory.
 
 use anyhow::{Result, bail};
+use raycaster::files::human_bytes;
 
 /// Bytes a frame takes per pixel, measured: about 56 at 4096² (`raycaster
 /// render --size 4096 --step 1000` peaks at 0.92 GB: the pixels' compositing
@@ -58,9 +59,9 @@ pub fn check_memory(what: impl std::fmt::Display, bytes: u64) -> Result<()> {
     };
     if bytes > available {
         bail!(
-            "{what} needs about {:.2} GB of memory and {:.2} GB are available{whose}",
-            bytes as f64 / 1e9,
-            available as f64 / 1e9
+            "{what} needs about {} of memory and {} are available{whose}",
+            human_bytes(bytes),
+            human_bytes(available)
         );
     }
     Ok(())
@@ -106,9 +107,9 @@ pub fn check_ram(what: impl std::fmt::Display, bytes: u64) -> Result<()> {
     let needed = bytes.saturating_add(bytes / 10);
     if needed > available {
         bail!(
-            "{what}: reading it into memory (--ram) needs about {:.1} GB and {:.1} GB are available{whose}; mapped (without --ram), it needs no such memory",
-            needed as f64 / 1e9,
-            available as f64 / 1e9
+            "{what}: reading it into memory (--ram) needs about {} and {} are available{whose}; mapped (without --ram), it needs no such memory",
+            human_bytes(needed),
+            human_bytes(available)
         );
     }
     Ok(())
@@ -119,10 +120,10 @@ fn bricks_fit(flag: &str, count: u64, side: u32, available: u64, whose: &str) ->
     let needed = count.saturating_mul(BRICK_BYTES);
     if needed > available {
         bail!(
-            "{flag} {side} cuts the volume into {:.1} M bricks, whose tables need about {:.1} GB of memory and {:.1} GB are available{whose}; give a larger {flag} (16 to 32 render fastest)",
+            "{flag} {side} cuts the volume into {:.1} M bricks, whose tables need about {} of memory and {} are available{whose}; give a larger {flag} (16 to 32 render fastest)",
             count as f64 / 1e6,
-            needed as f64 / 1e9,
-            available as f64 / 1e9
+            human_bytes(needed),
+            human_bytes(available)
         );
     }
     Ok(())
@@ -134,9 +135,9 @@ fn frame_fits(width: u32, height: u32, available: u64, whose: &str) -> Result<()
     let needed = u64::from(width) * u64::from(height) * FRAME_BYTES_PER_PIXEL;
     if needed > available {
         bail!(
-            "a {width}×{height} frame needs about {:.1} GB of memory and {:.1} GB are available{whose}; render a smaller --size",
-            needed as f64 / 1e9,
-            available as f64 / 1e9
+            "a {width}×{height} frame needs about {} of memory and {} are available{whose}; render a smaller --size",
+            human_bytes(needed),
+            human_bytes(available)
         );
     }
     Ok(())

@@ -277,11 +277,11 @@ fn a_volume_beyond_the_address_space_limit_is_refused() {
     for (flags, said) in [
         (
             "--ram",
-            "large.vol: reading it into memory (--ram) needs about 0.2 GB and ",
+            "large.vol: reading it into memory (--ram) needs about 237.6 MB and ",
         ),
         (
             "",
-            "large.vol: mapping it needs 0.2 GB of address space, more than this process may take",
+            "large.vol: mapping it needs 216.0 MB of address space, more than this process may take",
         ),
     ] {
         let out = under_limit(
@@ -330,12 +330,12 @@ fn bench_beyond_the_address_space_limit_is_refused() {
         (
             "-v 200000",
             "large.vol --ram --bricks 16",
-            "large.vol: reading it into memory (--ram) needs about 0.2 GB and ",
+            "large.vol: reading it into memory (--ram) needs about 237.6 MB and ",
         ),
         (
             "-v 200000",
             "--volume-size 600 --ram --bricks 16",
-            "the generated volume: reading it into memory (--ram) needs about 0.2 GB and ",
+            "the generated volume: reading it into memory (--ram) needs about 237.6 MB and ",
         ),
         (
             "-v 1000000",
@@ -380,7 +380,7 @@ fn compare_beyond_the_address_space_limit_is_refused() {
         assert_eq!(out.status.code(), Some(1), "{flags}: {err}");
         assert!(
             err.contains("a.png: decoding it needs ")
-                && err.contains(" GB of memory, more than this process can allocate"),
+                && err.contains(" MB of memory, more than this process can allocate"),
             "{flags}: {err}"
         );
         assert_eq!(err.lines().count(), 1, "{err}");

@@ -1,5 +1,6 @@
 //! 8-bit RGB images: PNG output and input, and comparison with a diff image.
 
+use crate::files::human_bytes;
 use std::io::{BufReader, BufWriter};
 use std::path::Path;
 
@@ -154,8 +155,8 @@ impl RgbImage {
         // an error, not an abort.)
         let too_large = |bytes: usize| {
             png_err(format!(
-                "decoding it needs {:.2} GB of memory, more than this process can allocate",
-                bytes as f64 / 1e9
+                "decoding it needs {} of memory, more than this process can allocate",
+                human_bytes(bytes as u64)
             ))
         };
         let mut buf = Vec::new();

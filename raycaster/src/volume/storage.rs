@@ -2,6 +2,7 @@
 //!
 //! Both hand out one `&[u8]`; nothing above this module knows which it is.
 
+use crate::files::human_bytes;
 use std::fs::File;
 use std::os::unix::fs::FileExt;
 
@@ -42,8 +43,8 @@ fn without_address_space(e: std::io::Error, len: usize) -> std::io::Error {
     std::io::Error::new(
         std::io::ErrorKind::OutOfMemory,
         format!(
-            "mapping it needs {:.1} GB of address space, more than this process may take (an address-space limit, ulimit -v?)",
-            len as f64 / 1e9
+            "mapping it needs {} of address space, more than this process may take (an address-space limit, ulimit -v?)",
+            human_bytes(len as u64)
         ),
     )
 }
@@ -127,8 +128,8 @@ impl Storage {
             std::io::Error::new(
                 std::io::ErrorKind::OutOfMemory,
                 format!(
-                    "reading it into memory needs {:.1} GB, more than this process can allocate; mapped (the default), it needs no such memory",
-                    len as f64 / 1e9
+                    "reading it into memory needs {}, more than this process can allocate; mapped (the default), it needs no such memory",
+                    human_bytes(len as u64)
                 ),
             )
         })?;
