@@ -1592,8 +1592,13 @@ impl Controller {
     /// PNG* path `NAME.png` ([`numbered_path`]; the S key).
     fn quick_screenshot(&self) {
         let Some(ui) = self.ui() else { return };
-        let base = PathBuf::from(ui.get_screenshot_path().as_str());
-        let path = numbered_path(&base);
+        self.numbered_screenshot(Path::new(ui.get_screenshot_path().as_str()));
+    }
+
+    /// Saves the frame on screen as the first free `NAME-N.png` for `base`
+    /// ([`numbered_path`]).
+    fn numbered_screenshot(&self, base: &Path) {
+        let path = numbered_path(base);
         let path = std::path::absolute(&path).unwrap_or(path);
         self.save_screenshot(&path);
     }
@@ -1762,6 +1767,19 @@ impl Controller {
     }
 
     fn save_session(&self, path: &Path) {
+        // (Said as Save PNG says it: "cannot write session : No such file".)
+        if path.as_os_str().is_empty() {
+            return self.show_message(
+                "type a file name for the session next to Save session",
+                true,
+            );
+        }
+        if path.is_dir() {
+            return self.show_message(
+                &format!("{}: is a folder; name a .toml file in it", path.display()),
+                true,
+            );
+        }
         if self.refuse_input_as_output(path) || !self.replace_confirmed(path, "Save session") {
             return;
         }
@@ -2165,11 +2183,17 @@ impl Controller {
         true
     }
 
-    /// The *Save PNG* button: the typed path, which must be named; an existing
-    /// file is replaced only when the button is pressed on it a second time.
+    /// The *Save PNG* button: the typed path, which must be named (a folder
+    /// takes numbered screenshots, as the S key); an existing file is
+    /// replaced only when the button is pressed on it a second time.
     fn save_png_pressed(&self, path: &Path) {
         if path.as_os_str().is_empty() {
             return self.show_message("type a file name for the PNG next to Save PNG", true);
+        }
+        // A folder: numbered screenshots in it, as the S key saves them (it
+        // was refused as a name without .png).
+        if path.is_dir() {
+            return self.numbered_screenshot(path);
         }
         if let Some(problem) = raycaster::files::png_name_problem(path) {
             return self.show_message(&format!("{}: {problem}", path.display()), true);

@@ -464,6 +464,34 @@ fn the_viewer_runs_headless() {
         "{message}"
     );
     assert!(!jpg.exists());
+    // A folder takes numbered screenshots, as the S key saves them (it was
+    // refused as a name without .png).
+    let shots = dir.path().join("shots");
+    std::fs::create_dir(&shots).unwrap();
+    v.ui()
+        .invoke_save_screenshot(shots.display().to_string().into());
+    settle(&v);
+    assert!(
+        shots.join("screenshot-1.png").exists(),
+        "{}",
+        v.ui().get_message()
+    );
+    // Save session: no name, or a folder, is said (it said "cannot write
+    // session : No such file or directory").
+    v.ui().invoke_save_session("".into());
+    assert_eq!(
+        v.ui().get_message(),
+        "type a file name for the session next to Save session"
+    );
+    v.ui()
+        .invoke_save_session(shots.display().to_string().into());
+    assert!(
+        v.ui()
+            .get_message()
+            .ends_with("shots: is a folder; name a .toml file in it"),
+        "{}",
+        v.ui().get_message()
+    );
 
     // A scan in a foreign format (a NIfTI-1 fixture written by nibabel) opens directly.
     let nifti = Path::new(env!("CARGO_MANIFEST_DIR")).join("../volumes/fixtures/u8.nii");
