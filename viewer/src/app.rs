@@ -1046,58 +1046,64 @@ impl Controller {
             Source::File(p) | Source::Session(p) => Some(p.clone()),
             Source::BuiltIn(..) => None,
         };
-        self.in_background(format!("opening {what} …"), move |wake| {
-            let mut session = None;
-            let mut labels_path = None;
-            let (volume, volume_source) = match &source {
-                Source::BuiltIn(kind, size) => {
-                    let s = VolumeSource::BuiltIn {
-                        kind: *kind,
-                        size: *size,
-                        seed: 1,
-                    };
-                    (loader::open_source(&s)?, s)
-                }
-                Source::File(path) => (loader::open_file(path)?, loader::file_source(path)),
-                Source::Session(path) => {
-                    let (s, volume, labels) = open_session_volume(path, current)?;
-                    let volume_source = s.source.clone();
-                    session = Some(Box::new(s));
-                    labels_path = labels;
-                    (volume, volume_source)
-                }
-            };
-            let front = RenderFront::with_labels(
-                volume.volume.clone(),
-                volume.labels.clone(),
-                None,
-                Some(wake),
-            )
-            .context("cannot prepare the volume for rendering")?;
-            let message = match &source {
-                Source::Session(path) => {
-                    volume.opened_message(&format!("session {}", path.display()))
-                }
-                _ => volume.opened_message(&volume.description),
-            };
-            Ok(Install {
-                message,
-                loaded: Loaded { volume, front },
-                new_volume: true,
-                source: Some(volume_source),
-                labels_path,
-                scene: None,
-                session,
-                recent,
-            })
-        });
+        self.in_background(
+            format!("opening {what} …"),
+            "the previous volume stays",
+            move |wake| {
+                let mut session = None;
+                let mut labels_path = None;
+                let (volume, volume_source) = match &source {
+                    Source::BuiltIn(kind, size) => {
+                        let s = VolumeSource::BuiltIn {
+                            kind: *kind,
+                            size: *size,
+                            seed: 1,
+                        };
+                        (loader::open_source(&s)?, s)
+                    }
+                    Source::File(path) => (loader::open_file(path)?, loader::file_source(path)),
+                    Source::Session(path) => {
+                        let (s, volume, labels) = open_session_volume(path, current)?;
+                        let volume_source = s.source.clone();
+                        session = Some(Box::new(s));
+                        labels_path = labels;
+                        (volume, volume_source)
+                    }
+                };
+                let front = RenderFront::with_labels(
+                    volume.volume.clone(),
+                    volume.labels.clone(),
+                    None,
+                    Some(wake),
+                )
+                .context("cannot prepare the volume for rendering")?;
+                let message = match &source {
+                    Source::Session(path) => {
+                        volume.opened_message(&format!("session {}", path.display()))
+                    }
+                    _ => volume.opened_message(&volume.description),
+                };
+                Ok(Install {
+                    message,
+                    loaded: Loaded { volume, front },
+                    new_volume: true,
+                    source: Some(volume_source),
+                    labels_path,
+                    scene: None,
+                    session,
+                    recent,
+                })
+            },
+        );
     }
 
     /// Shows `message` and runs `job` on a worker thread (the viewer is busy until
     /// it ends); its volume, or its error, is installed by the next pump.
+    /// `kept` says what stays when the job fails (after its error).
     fn in_background(
         &self,
         message: String,
+        kept: &'static str,
         job: impl FnOnce(Notify) -> Result<Install> + Send + 'static,
     ) {
         self.state.borrow_mut().busy = true;
@@ -1106,7 +1112,10 @@ impl Controller {
         let tx = self.installs.0.clone();
         std::thread::spawn(move || {
             let result = job(wake.clone());
-            let _ = tx.send(result.map_err(|e| raycaster::errors::error_text(e.as_ref())));
+            let _ = tx
+                .send(result.map_err(|e| {
+                    format!("{} ({kept})", raycaster::errors::error_text(e.as_ref()))
+                }));
             wake();
         });
     }
@@ -1116,7 +1125,7 @@ impl Controller {
             Ok(install) => install,
             Err(e) => {
                 self.state.borrow_mut().busy = false;
-                self.show_message(&format!("{e} (the previous volume stays)"), true);
+                self.show_message(&e, true);
                 return;
             }
         };
@@ -2378,8 +2387,10 @@ impl Controller {
             let Some(current) = &st.current else { return };
             current.volume.clone()
         };
+        // (It said "the previous volume stays": the volume was not what failed.)
         self.in_background(
             format!("opening labels {} …", labels.display()),
+            "the scene was not loaded; the view stays",
             move |wake| {
                 // (The volume's error names the file; a foreign file or a
                 // volume of values is said as what it is.)

@@ -560,6 +560,11 @@ fn the_viewer_runs_headless() {
             && message.matches("nowhere.labels.vol").count() == 1,
         "{message}"
     );
+    // What stays is the view: the volume was not what failed.
+    assert!(
+        message.ends_with("(the scene was not loaded; the view stays)"),
+        "{message}"
+    );
 
     // A session whose fixed level is past the volume's coarsest opens, and
     // the message says which level shows (as `raycaster render` warns).
