@@ -706,17 +706,23 @@ impl Setup {
             );
         }
         // How the user names another label volume: a flag, or the session's field.
-        let labels_advice = if args.session.is_some() {
-            "a session's `volume.labels` names another"
+        let advice = if args.session.is_some() {
+            LabelsAdvice {
+                other: "a session's `volume.labels` names another",
+                use_it: "name the data volume in the session's `volume.file` and this one in `volume.labels` (with a `[scene]`)",
+            }
         } else {
-            "--labels FILE names another"
+            LabelsAdvice {
+                other: "--labels FILE names another",
+                use_it: "render the data volume and give this file with --labels (and a --segments SCENE.toml)",
+            }
         };
         if let Some(warning) = raycaster::render::flat_volume(volume.dims(), &session.settings)
             && !args.quiet
         {
             eprintln!("warning: {}: {warning}", volume.path().display());
         }
-        let setup = Setup::from_session(volume, session, read_before, labels_advice)?;
+        let setup = Setup::from_session(volume, session, read_before, &advice)?;
         if let Some(scene) = &setup.settings.segments
             && !args.quiet
         {
@@ -727,18 +733,21 @@ impl Setup {
         Ok(setup)
     }
 
-    /// The frame a session describes, its volume opened; `labels_advice` says
-    /// how to name another label volume where the scene's does not open.
+    /// The frame a session describes, its volume opened; `advice` says how to
+    /// name label volumes (where the scene's does not open, or one is given as
+    /// the data).
     fn from_session(
         volume: Volume,
         session: Session,
         read_before: u64,
-        labels_advice: &str,
+        advice: &LabelsAdvice,
     ) -> Result<Setup> {
         if volume.content() == Content::Labels {
+            // (From a session it named flags a session cannot take.)
             bail!(
-                "{}: is a label volume (object ids, not values); render the data volume and give this file with --labels (and a --segments SCENE.toml)",
-                volume.path().display()
+                "{}: is a label volume (object ids, not values); {}",
+                volume.path().display(),
+                advice.use_it
             );
         }
         if let (Some(path), Some(problem)) = (&session.labels, session.labels_problem()) {
@@ -754,7 +763,7 @@ impl Setup {
                 (Membership::Labels(path), VolumeSource::File { .. }) => {
                     Some(open_labels(path).with_context(|| {
                         format!(
-                            "the scene's label volume (its `labels =`, read beside the scene file; {labels_advice})"
+                            "the scene's label volume (its `labels =`, read beside the scene file; {})", advice.other
                         )
                     })?)
                 }
@@ -958,6 +967,15 @@ fn level_warning(level: LevelChoice, volume: &Volume) -> Option<String> {
     level.past_coarsest(volume).map(|coarsest| {
         format!("the volume's coarsest level is {coarsest}; rendering level {coarsest}")
     })
+}
+
+/// What an error about label volumes advises, in the words of where the
+/// volumes were named (flags or a session).
+struct LabelsAdvice {
+    /// How another label volume is named.
+    other: &'static str,
+    /// How a label volume given as the data is used instead.
+    use_it: &'static str,
 }
 
 /// The session the flags describe, for the opened `volume` (its type chooses

@@ -265,6 +265,17 @@ fn a_session_domain_outside_the_data_is_warned_of_and_not_blamed_on_its_planes()
 fn bad_sessions_are_refused_by_field() {
     let dir = tempfile::tempdir().unwrap();
     let good = session(Mode::Dvr).to_toml().unwrap();
+    let labels = raycaster::volume::Header::new(
+        [40; 3],
+        [1.0; 3],
+        raycaster::volume::Layout::Linear,
+        raycaster::volume::SampleType::U8,
+        raycaster::volume::Content::Labels,
+        raycaster::volume::Format::Extended,
+    );
+    let mut bytes = labels.encode().unwrap();
+    bytes.resize(bytes.len() + 40 * 40 * 40, 1);
+    std::fs::write(dir.path().join("l.vol"), bytes).unwrap();
     for (from, to, word) in [
         ("step = 0.75", "step = -1.0", "render.step"),
         ("mode = \"dvr\"", "mode = \"glow\"", "render.mode"),
@@ -303,6 +314,21 @@ fn bad_sessions_are_refused_by_field() {
         assert!(!e.contains("panicked"), "{e}");
         assert!(!dir.path().join("x.png").exists());
     }
+    // A label volume as the data: advised in the session's words (it named
+    // --labels and --segments, which --session does not take).
+    let labels_as_data = good.replace(
+        "scene = \"shapes\"\nsize = 40\nseed = 3",
+        "file = \"l.vol\"",
+    );
+    std::fs::write(dir.path().join("bad.toml"), labels_as_data).unwrap();
+    let run = raycaster(
+        &["render", "--session", "bad.toml", "-o", "x.png"],
+        dir.path(),
+    );
+    assert_eq!(
+        stderr(&run),
+        "error: l.vol: is a label volume (object ids, not values); name the data volume in the session's `volume.file` and this one in `volume.labels` (with a `[scene]`)\n"
+    );
 }
 
 #[test]
