@@ -70,7 +70,7 @@ pub struct BenchArgs {
 
     /// Where generated volumes are kept between runs [default:
     /// $XDG_CACHE_HOME/raycaster/bench-volumes, else ~/.cache/raycaster/bench-volumes,
-    /// else raycaster/bench-volumes in the temporary folder].
+    /// else raycaster-UID/bench-volumes in the temporary folder, UID the user's id].
     #[arg(long, value_name = "DIR")]
     cache_dir: Option<PathBuf>,
 
@@ -569,11 +569,25 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
 /// path, as the XDG spec requires), else `~/.cache`, else the temporary folder; never
 /// the working directory.
 fn default_cache_dir(xdg_cache: Option<PathBuf>, home: Option<PathBuf>) -> PathBuf {
-    let base = xdg_cache
+    let own = xdg_cache
         .filter(|p| p.is_absolute())
-        .or_else(|| home.filter(|p| p.is_absolute()).map(|h| h.join(".cache")))
-        .unwrap_or_else(std::env::temp_dir);
-    base.join("raycaster").join("bench-volumes")
+        .or_else(|| home.filter(|p| p.is_absolute()).map(|h| h.join(".cache")));
+    match own {
+        Some(base) => base.join("raycaster").join("bench-volumes"),
+        // The shared temporary folder: a folder of this user's own (one for
+        // all users let another user's files be measured).
+        None => {
+            use std::os::unix::fs::MetadataExt;
+            // (The owner of this process's /proc entry is its user.)
+            let user = std::fs::metadata("/proc/self").map_or_else(
+                |_| std::env::var("USER").unwrap_or_else(|_| "user".into()),
+                |m| m.uid().to_string(),
+            );
+            std::env::temp_dir()
+                .join(format!("raycaster-{user}"))
+                .join("bench-volumes")
+        }
+    }
 }
 
 /// `warm_up` untimed frames, then `frames` timed ones: the fastest, the median and
@@ -796,7 +810,14 @@ mod tests {
             default_cache_dir(p("rel"), p("/home/u")),
             Path::new("/home/u/.cache/raycaster/bench-volumes")
         );
-        assert!(default_cache_dir(None, None).is_absolute());
+        let shared = default_cache_dir(None, None);
+        assert!(shared.is_absolute());
+        // (One folder of this user's own in the shared temporary folder.)
+        assert!(
+            shared.to_string_lossy().contains("/raycaster-"),
+            "{}",
+            shared.display()
+        );
     }
 
     #[test]
