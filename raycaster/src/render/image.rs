@@ -141,7 +141,9 @@ impl RgbImage {
             bytes: (MAX_LOAD_PIXELS * 8) as usize,
         });
         decoder.set_transformations(png::Transformations::normalize_to_color8());
-        let mut reader = decoder.read_info().map_err(|e| png_err(e.to_string()))?;
+        let mut reader = decoder
+            .read_info()
+            .map_err(|e| png_err(plain_png_error(&e.to_string())))?;
         let (width, height) = (reader.info().width, reader.info().height);
         if u64::from(width) * u64::from(height) > MAX_LOAD_PIXELS {
             return Err(png_err(format!(
@@ -164,7 +166,7 @@ impl RgbImage {
         buf.resize(size, 0);
         let info = reader
             .next_frame(&mut buf)
-            .map_err(|e| png_err(e.to_string()))?;
+            .map_err(|e| png_err(plain_png_error(&e.to_string())))?;
         // (After the transformations: 8 bits, no palette.)
         let (channels, grey) = match info.color_type {
             png::ColorType::Grayscale => (1, true),
@@ -243,9 +245,40 @@ impl RgbImage {
     }
 }
 
+/// The PNG decoder's error text without its debug dumps: `ChunkType { type:
+/// IDAT, critical: true, … }` is said as `IDAT` (a damaged file printed them).
+fn plain_png_error(text: &str) -> String {
+    const DUMP: &str = "ChunkType { type: ";
+    let mut out = String::with_capacity(text.len());
+    let mut rest = text;
+    while let Some(at) = rest.find(DUMP) {
+        out.push_str(&rest[..at]);
+        let after = &rest[at + DUMP.len()..];
+        let name_end = after.find([',', ' ', '}']).unwrap_or(after.len());
+        out.push_str(&after[..name_end]);
+        rest = after.find('}').map_or("", |end| &after[end + 1..]);
+    }
+    out.push_str(rest);
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn png_errors_name_chunks_without_debug_dumps() {
+        assert_eq!(
+            plain_png_error(
+                "CRC error: expected 0x1 have 0x2 while decoding ChunkType { type: IDAT, critical: true, private: false, reserved: false, safecopy: false } chunk."
+            ),
+            "CRC error: expected 0x1 have 0x2 while decoding IDAT chunk."
+        );
+        assert_eq!(
+            plain_png_error("Invalid PNG signature."),
+            "Invalid PNG signature."
+        );
+    }
 
     #[test]
     fn png_round_trip_and_diff() {
