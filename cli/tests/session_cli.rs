@@ -431,6 +431,10 @@ fn errors_in_transfer_function_and_scene_files_name_the_file() {
         "missing.toml",
         "layers = [[0, 1]]\n[[object]]\ntf = \"nope.tf\"\n",
     );
+    write(
+        "four.toml",
+        "layers = [[0, 1]]\n[[object]]\ntf = { points = [[0.0, 0.0, 0.0, 0.0]] }\n",
+    );
     let whole = session(Mode::Dvr).to_toml().unwrap();
     let level = whole
         .lines()
@@ -441,6 +445,12 @@ fn errors_in_transfer_function_and_scene_files_name_the_file() {
         (
             ["--segments", "tf5.toml"],
             "`tf` is a preset name or file path (a string) or an inline table",
+        ),
+        // An inline table's own error is said (a point of four numbers was
+        // said as the generic forms of `tf`).
+        (
+            ["--segments", "four.toml"],
+            "`tf` inline table: invalid length 4, expected an array of length 5",
         ),
         (
             ["--segments", "missing.toml"],

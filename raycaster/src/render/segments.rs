@@ -222,14 +222,31 @@ struct ObjectFile {
 }
 
 /// An object's transfer function: a preset name or file, or written inline.
-#[derive(Deserialize)]
-#[serde(
-    untagged,
-    expecting = "`tf` is a preset name or file path (a string) or an inline table `{ points = [[value, r, g, b, alpha], ...] }`"
-)]
 enum TransferSpec {
     Named(String),
     Inline(InlineTransfer),
+}
+
+/// What `tf` takes, said where it holds something else.
+const TF_FORMS: &str = "`tf` is a preset name or file path (a string) or an inline table `{ points = [[value, r, g, b, alpha], ...] }`";
+
+// (By hand, not `untagged`: an inline table's own error, such as a point of
+// four numbers, was swallowed into the generic one.)
+impl<'de> Deserialize<'de> for TransferSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        use serde::de::Error;
+        match toml::Value::deserialize(d)? {
+            toml::Value::String(name) => Ok(TransferSpec::Named(name)),
+            table @ toml::Value::Table(_) => table
+                .try_into::<InlineTransfer>()
+                .map(TransferSpec::Inline)
+                .map_err(|e| D::Error::custom(format!("`tf` inline table: {}", e.message()))),
+            other => Err(D::Error::custom(format!(
+                "{TF_FORMS}, not a {}",
+                other.type_str()
+            ))),
+        }
+    }
 }
 
 /// `tf = { points = [[value, r, g, b, alpha], ...], domain = [lo, hi], gradient = [g0, g1] }`
