@@ -454,17 +454,7 @@ fn bench_quick_writes_a_table_csv_and_plot() {
 fn bench_refuses_what_it_cannot_measure() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let header = raycaster::volume::Header::new(
-        [8; 3],
-        [1.0; 3],
-        raycaster::volume::Layout::Linear,
-        raycaster::volume::SampleType::U8,
-        raycaster::volume::Content::Labels,
-        raycaster::volume::Format::Extended,
-    );
-    let mut bytes = header.encode().unwrap();
-    bytes.resize(bytes.len() + 512, 1);
-    std::fs::write(d.join("l.vol"), bytes).unwrap();
+    support::write_labels(&d.join("l.vol"), 8);
     std::fs::create_dir(d.join("empty")).unwrap();
     for (args, code, said) in [
         (

@@ -265,17 +265,7 @@ fn a_session_domain_outside_the_data_is_warned_of_and_not_blamed_on_its_planes()
 fn bad_sessions_are_refused_by_field() {
     let dir = tempfile::tempdir().unwrap();
     let good = session(Mode::Dvr).to_toml().unwrap();
-    let labels = raycaster::volume::Header::new(
-        [40; 3],
-        [1.0; 3],
-        raycaster::volume::Layout::Linear,
-        raycaster::volume::SampleType::U8,
-        raycaster::volume::Content::Labels,
-        raycaster::volume::Format::Extended,
-    );
-    let mut bytes = labels.encode().unwrap();
-    bytes.resize(bytes.len() + 40 * 40 * 40, 1);
-    std::fs::write(dir.path().join("l.vol"), bytes).unwrap();
+    support::write_labels(&dir.path().join("l.vol"), 40);
     for (from, to, word) in [
         ("step = 0.75", "step = -1.0", "render.step"),
         ("mode = \"dvr\"", "mode = \"glow\"", "render.mode"),

@@ -47,3 +47,18 @@ pub fn write_scene(
     )
     .unwrap();
 }
+
+/// Writes a linear u8 label volume of `n³` voxels, every id 1, at `path`.
+pub fn write_labels(path: &Path, n: u32) {
+    let header = raycaster::volume::Header::new(
+        [n; 3],
+        [1.0; 3],
+        raycaster::volume::Layout::Linear,
+        raycaster::volume::SampleType::U8,
+        raycaster::volume::Content::Labels,
+        raycaster::volume::Format::Extended,
+    );
+    let mut bytes = header.encode().unwrap();
+    bytes.resize(bytes.len() + (n as usize).pow(3), 1);
+    std::fs::write(path, bytes).unwrap();
+}

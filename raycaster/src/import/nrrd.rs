@@ -236,6 +236,27 @@ fn spatial_axes(
     Ok([kept[0], kept[1], kept[2]])
 }
 
+/// A per-axis field's `items`: one per axis of the file (`dimension`), else
+/// an error naming the field.
+fn per_axis<'a>(
+    field: &str,
+    items: Vec<&'a str>,
+    what: &str,
+    dimension: usize,
+) -> Result<Vec<&'a str>, ImportErrorKind> {
+    if items.len() == dimension {
+        Ok(items)
+    } else {
+        Err(header_error(
+            F,
+            format!(
+                "`{field}` has {} {what} for dimension {dimension}",
+                items.len()
+            ),
+        ))
+    }
+}
+
 /// Parses a NRRD header from the start of `bytes` (which may go on into the data).
 ///
 /// A pure function of the bytes: it never panics, whatever they hold.
@@ -401,38 +422,19 @@ pub fn parse_header(bytes: &[u8]) -> Result<NrrdHeader, ImportErrorKind> {
     // give the spacing of axes without a direction. NRRD wants `nan` spacings
     // on axes with directions: they are not read (a number there lost the
     // orientation, a `nan` refused the file).
-    let spacings = match get("spacings") {
-        None => None,
-        Some(s) => {
-            let values: Vec<&str> = s.split_whitespace().collect();
-            if values.len() != dimension {
-                return Err(header_error(
-                    F,
-                    format!(
-                        "`spacings` has {} values for dimension {dimension}",
-                        values.len()
-                    ),
-                ));
-            }
-            Some(values)
-        }
-    };
-    let directions = match get("space directions") {
-        None => None,
-        Some(s) => {
-            let vectors = split_vectors(s);
-            if vectors.len() != dimension {
-                return Err(header_error(
-                    F,
-                    format!(
-                        "`space directions` has {} entries for dimension {dimension}",
-                        vectors.len()
-                    ),
-                ));
-            }
-            Some(vectors)
-        }
-    };
+    let spacings = get("spacings")
+        .map(|s| {
+            per_axis(
+                "spacings",
+                s.split_whitespace().collect(),
+                "values",
+                dimension,
+            )
+        })
+        .transpose()?;
+    let directions = get("space directions")
+        .map(|s| per_axis("space directions", split_vectors(s), "entries", dimension))
+        .transpose()?;
     let mut steps = Vec::with_capacity(3);
     // (Axes are named as the file numbers them.)
     for (i, axis) in axes.into_iter().enumerate() {
