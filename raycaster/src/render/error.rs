@@ -1,4 +1,5 @@
-//! Errors of rendering setup (bad settings); rendering itself cannot fail.
+//! Errors of rendering: bad settings found before a frame, and worker threads the
+//! system refuses; a frame that starts cannot fail.
 
 use super::camera::CameraError;
 
@@ -87,6 +88,15 @@ pub enum RenderError {
     /// The camera is invalid.
     #[error(transparent)]
     Camera(#[from] CameraError),
+    /// The system refused the renderer's worker threads (an address-space or
+    /// process limit).
+    #[error("cannot start {count} render threads: {reason}")]
+    Threads {
+        /// Threads asked for.
+        count: usize,
+        /// The system's refusal.
+        reason: String,
+    },
 }
 
 /// What makes a frame's rays too long ([`RenderError::SampleBudget`]): a

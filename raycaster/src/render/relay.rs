@@ -193,7 +193,7 @@ pub fn render_distributed_levels(
         };
         let (rect, pixels) = DirectSend {
             link,
-            workers: renderer.workers_for(&options.parallel),
+            workers: renderer.workers_for(&options.parallel)?,
             volume,
             camera,
             plan: &plans[0],
@@ -229,7 +229,7 @@ pub fn render_distributed_levels(
         options.bands.unwrap_or_else(|| default_bands(ranks)),
     );
     let record = plans[0].compositor.run(StateBytes);
-    let workers = renderer.workers_for(&options.parallel);
+    let workers = renderer.workers_for(&options.parallel)?;
     // Resolved bands: their rows and pixels, for rank 0.
     let mut finals: Vec<(PixelRect, BandPixels)> = Vec::new();
     let mut read_ahead = vec![true; passes.len()];

@@ -37,16 +37,21 @@ pub(crate) enum WorkerPool {
 impl WorkerPool {
     /// Threads for `render` render threads, `compositors` compositing threads
     /// and the read-ahead.
-    fn kept(render: usize, compositors: usize) -> WorkerPool {
+    /// An error where the system refuses them (it panicked).
+    fn kept(render: usize, compositors: usize) -> Result<WorkerPool, RenderError> {
+        let count = render + compositors + 1;
         let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(render + compositors + 1)
+            .num_threads(count)
             .thread_name(|i| format!("render-worker-{i}"))
             .build()
-            .expect("starting the render worker threads");
-        WorkerPool::Kept {
+            .map_err(|e| RenderError::Threads {
+                count,
+                reason: e.to_string(),
+            })?;
+        Ok(WorkerPool::Kept {
             pool,
             sized_for: (render, compositors),
-        }
+        })
     }
 
     /// The sizes `options` asks for (at least one of each).
@@ -170,7 +175,7 @@ impl Renderer {
         sink: &dyn TileSink,
         cancelled: &(dyn Fn() -> bool + Sync),
     ) -> Result<Option<FrameStats>, RenderError> {
-        let workers = self.workers_for(options);
+        let workers = self.workers_for(options)?;
         render_levels_frame(workers, passes, camera, settings, options, sink, cancelled)
     }
 
@@ -197,8 +202,11 @@ impl Renderer {
     }
 
     /// The worker threads for frames with `options`, started when missing or
-    /// sized for other options.
-    pub(crate) fn workers_for(&mut self, options: &ParallelOptions) -> &WorkerPool {
+    /// sized for other options (an error where the system refuses them).
+    pub(crate) fn workers_for(
+        &mut self,
+        options: &ParallelOptions,
+    ) -> Result<&WorkerPool, RenderError> {
         let sizes = WorkerPool::sizes(options);
         let fits = match &self.workers {
             Some(WorkerPool::PerFrame) => true,
@@ -209,9 +217,9 @@ impl Renderer {
             self.workers = Some(if self.per_frame {
                 WorkerPool::PerFrame
             } else {
-                WorkerPool::kept(sizes.0, sizes.1)
+                WorkerPool::kept(sizes.0, sizes.1)?
             });
         }
-        self.workers.as_ref().expect("just started")
+        Ok(self.workers.as_ref().expect("just started"))
     }
 }
