@@ -178,6 +178,9 @@ struct State {
     canvas: (u32, u32),
     /// A recent-files error was shown (shown once, not on every open).
     recent_error_shown: bool,
+    /// The job in the background was started from the command line (a
+    /// scene's label volume): its error goes to the terminal too.
+    started_at_launch: bool,
     /// What the red message on screen says went wrong, where it is a state the
     /// viewer leaves again (a frame or the slices that could not be drawn):
     /// the message goes when that part draws again. `None` for any other
@@ -329,6 +332,7 @@ impl Viewer {
                     .map(|f| crate::recent::load(&f))
                     .unwrap_or_default(),
                 recent_error_shown: false,
+                started_at_launch: false,
                 shown_failure: None,
                 pending_screenshot: None,
                 overwrite_armed: None,
@@ -387,7 +391,11 @@ impl Viewer {
         controller.show_recent();
         if let Some(path) = scene {
             ui.set_scene_path(path.display().to_string().into());
+            // (A label volume opens in the background: its error comes later.)
+            controller.state.borrow_mut().started_at_launch = true;
             controller.load_scene(&path);
+            let busy = controller.state.borrow().busy;
+            controller.state.borrow_mut().started_at_launch = busy;
             // A scene refused at start is said on the terminal too, as a
             // volume's or session's error is.
             if ui.get_message_is_error() {
@@ -1124,11 +1132,20 @@ impl Controller {
         let install = match result {
             Ok(install) => install,
             Err(e) => {
-                self.state.borrow_mut().busy = false;
+                let at_launch = {
+                    let mut st = self.state.borrow_mut();
+                    st.busy = false;
+                    std::mem::take(&mut st.started_at_launch)
+                };
+                // Said on the terminal too, as errors at launch are.
+                if at_launch {
+                    eprintln!("viewer: {e}");
+                }
                 self.show_message(&e, true);
                 return;
             }
         };
+        self.state.borrow_mut().started_at_launch = false;
         // Bytes after the file's last block, a damaged pyramid sidecar: said as
         // `raycaster render` says them.
         let open_warnings = if install.new_volume {
