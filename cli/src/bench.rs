@@ -471,6 +471,8 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
     }
     std::fs::create_dir_all(&cache_dir)
         .with_context(|| format!("cannot create the cache folder {}", cache_dir.display()))?;
+    // (After the memory checks: its threads take address space.)
+    crate::memory::start_worker_pool()?;
     let volume = first.open_volume(&cache_dir)?;
     raycaster::files::guard_mapped_file(volume.path());
     // (As render refuses it: it was measured, with no sample taken.)

@@ -102,17 +102,6 @@ fn main() {
             );
         }
     }
-    // Started now, so that a system refusing threads (an address-space or
-    // process limit) is said here, once; rayon's pool, started at its first
-    // use, panicked.
-    if let Err(e) = rayon::ThreadPoolBuilder::new().build_global() {
-        if !other_rank {
-            eprintln!(
-                "error: cannot start the worker threads: {e}; raise the limit (ulimit -v, ulimit -u)"
-            );
-        }
-        std::process::exit(1);
-    }
     let result = match cli.command {
         Command::Render(a) => render::run(*a),
         Command::Bench(a) => bench::run(*a),

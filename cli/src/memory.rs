@@ -67,6 +67,25 @@ pub fn check_memory(what: impl std::fmt::Display, bytes: u64) -> Result<()> {
     Ok(())
 }
 
+/// Starts rayon's global pool where it has not started yet, saying a system
+/// refusing its threads (an address-space or process limit) as an error:
+/// started at its first use, it panicked. Called after the memory checks
+/// (its threads' malloc arenas take address space under `ulimit -v`).
+pub fn start_worker_pool() -> Result<()> {
+    static STARTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+    if STARTED.swap(true, std::sync::atomic::Ordering::Relaxed) {
+        return Ok(());
+    }
+    match rayon::ThreadPoolBuilder::new().build_global() {
+        Ok(()) => Ok(()),
+        // (Started by an earlier parallel step: running.)
+        Err(e) if e.to_string().contains("already") => Ok(()),
+        Err(e) => {
+            bail!("cannot start the worker threads: {e}; raise the limit (ulimit -v, ulimit -u)")
+        }
+    }
+}
+
 /// Starts `count` threads that wait together, then lets them go: an error
 /// naming the count where the system refuses one (an address-space or
 /// process limit), said before a frame whose threads would fail to start

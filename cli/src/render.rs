@@ -520,8 +520,14 @@ pub fn run(args: RenderArgs) -> Result<()> {
         return crate::distributed::run(args);
     }
     crate::output::check_output_of(&args.output, args.force, input_paths(&args))?;
+    // A built-in scene is made in parallel: the pool first. Otherwise after
+    // the memory checks, which its threads' address space would tighten.
+    if args.file.is_none() && args.session.is_none() {
+        crate::memory::start_worker_pool()?;
+    }
     let setup = Setup::new(&args)?;
     crate::memory::check_frame(setup.camera.width(), setup.camera.height())?;
+    crate::memory::start_worker_pool()?;
     let prepared = setup.prepared_bands(&args)?;
     let passes: Vec<(&RenderVolume<'_>, Option<DepthBand>)> = prepared
         .iter()

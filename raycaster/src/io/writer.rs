@@ -133,8 +133,9 @@ pub fn write_volume<T: Sample>(
             let level1_header = layout.level_header(&header, 1);
             let labels = header.content == Content::Labels;
             let (to_level1, from_level0) = mpsc::sync_channel(4);
+            // (A writer thread the system refuses is an error: it panicked.)
             let (ranges, level1_ranges) = std::thread::scope(|scope| {
-                let writer = scope.spawn(|| {
+                let spawned = std::thread::Builder::new().spawn_scoped(scope, || {
                     let mut feed = PlaneFeed::new(from_level0);
                     stream_samples(
                         file,
@@ -147,6 +148,7 @@ pub fn write_volume<T: Sample>(
                         &mut |x0, x1, slab: &mut [T]| feed.fill(x0, x1, slab, path),
                     )
                 });
+                let writer = spawned.at(path)?;
                 let mut tap = PlaneTap::new(to_level1, header.dims, labels);
                 let level0 = stream_samples(
                     file,
@@ -165,8 +167,8 @@ pub fn write_volume<T: Sample>(
                 // Level 1 ends when level 0 does (its feed sees the channel close).
                 drop(tap);
                 let level1 = writer.join().expect("the level-1 writer does not panic");
-                (level0, level1)
-            });
+                Ok::<_, VolumeError>((level0, level1))
+            })?;
             // Level 0's error explains a level 1 that stopped for want of planes.
             let (ranges, level1_ranges) = (ranges?, level1_ranges?);
             file.write_all_at(&level1_ranges.encode(), block_start + level1.ranges_offset)
@@ -258,25 +260,28 @@ pub(crate) fn stream_samples<T: Sample>(
     let (empty_tx, empty_rx) = mpsc::channel::<Vec<T>>();
     let recycle = empty_tx.clone();
     let ranges = std::thread::scope(|scope| {
-        let writer = scope.spawn(move || -> std::io::Result<()> {
-            let mut offset = start;
-            let mut unsynced = 0;
-            for (buf, len) in full_rx {
-                let bytes: &[u8] = bytemuck::cast_slice(&buf[..len]);
-                file.write_all_at(bytes, offset)?;
-                offset += bytes.len() as u64;
-                unsynced += bytes.len();
-                // Flush as we go, on this thread: the disk works while the producer
-                // computes, instead of all at the final sync.
-                if unsynced >= SYNC_EVERY_BYTES {
-                    file.sync_data()?;
-                    unsynced = 0;
+        // (A writer thread the system refuses is an error: it panicked.)
+        let writer = std::thread::Builder::new()
+            .spawn_scoped(scope, move || -> std::io::Result<()> {
+                let mut offset = start;
+                let mut unsynced = 0;
+                for (buf, len) in full_rx {
+                    let bytes: &[u8] = bytemuck::cast_slice(&buf[..len]);
+                    file.write_all_at(bytes, offset)?;
+                    offset += bytes.len() as u64;
+                    unsynced += bytes.len();
+                    // Flush as we go, on this thread: the disk works while the producer
+                    // computes, instead of all at the final sync.
+                    if unsynced >= SYNC_EVERY_BYTES {
+                        file.sync_data()?;
+                        unsynced = 0;
+                    }
+                    // The producer may have finished already; then the buffer is dropped.
+                    let _ = empty_tx.send(buf);
                 }
-                // The producer may have finished already; then the buffer is dropped.
-                let _ = empty_tx.send(buf);
-            }
-            Ok(())
-        });
+                Ok(())
+            })
+            .at(path)?;
         let mut take_buffer = || empty_rx.try_recv().unwrap_or_default();
         let mut send = |buf: Vec<T>, len: usize| full_tx.send((buf, len)).is_ok();
         let produced = produce_slabs(
