@@ -742,6 +742,8 @@ fn connect(ui: &App, c: &Rc<Controller>) {
         c.state.borrow_mut().scene = None;
         c.show_objects();
         c.request_frame(false);
+        // (It outlived the scene.)
+        c.part_drawn(Failure::AllObjectsHidden);
     });
     on!(on_object_changed, |c, index, row| c
         .edit_object(index, &row));
@@ -1793,8 +1795,9 @@ impl Controller {
     }
 
     fn save_session(&self, path: &Path) {
-        // (Said as Save PNG says it: "cannot write session : No such file".)
-        if path.as_os_str().is_empty() {
+        // (Said as Save PNG says it: "cannot write session : No such file";
+        // a name of spaces wrote a file named so.)
+        if path.to_string_lossy().trim().is_empty() {
             return self.show_message(
                 "type a file name for the session next to Save session",
                 true,

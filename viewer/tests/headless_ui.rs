@@ -413,9 +413,28 @@ fn the_viewer_runs_headless() {
         v.ui().get_message()
     );
     first.visible = true;
-    v.ui().invoke_object_changed(0, first);
+    v.ui().invoke_object_changed(0, first.clone());
     wait_for_frame(&v);
     assert_eq!(v.ui().get_message(), "");
+    // Nor does it outlive the scene.
+    first.visible = false;
+    v.ui().invoke_object_changed(0, first.clone());
+    assert!(
+        v.ui()
+            .get_message()
+            .contains("every object of the scene is hidden")
+    );
+    v.ui().invoke_clear_scene();
+    wait_for_frame(&v);
+    assert_eq!(v.ui().get_message(), "");
+    v.ui()
+        .invoke_load_scene(scenes.join("shapes-npr.toml").display().to_string().into());
+    wait_for_frame(&v);
+    let rows = v.ui().get_objects();
+    let mut row = rows.row_data(1).unwrap();
+    row.visible = false;
+    v.ui().invoke_object_changed(1, row);
+    wait_for_frame(&v);
     assert!(!v.ui().get_objects().row_data(1).unwrap().visible);
     let saved = dir.path().join("saved.toml");
     v.ui().invoke_save_scene(saved.display().to_string().into());
@@ -478,11 +497,13 @@ fn the_viewer_runs_headless() {
     );
     // Save session: no name, or a folder, is said (it said "cannot write
     // session : No such file or directory").
-    v.ui().invoke_save_session("".into());
-    assert_eq!(
-        v.ui().get_message(),
-        "type a file name for the session next to Save session"
-    );
+    for blank in ["", "   "] {
+        v.ui().invoke_save_session(blank.into());
+        assert_eq!(
+            v.ui().get_message(),
+            "type a file name for the session next to Save session"
+        );
+    }
     v.ui()
         .invoke_save_session(shots.display().to_string().into());
     assert!(
