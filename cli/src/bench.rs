@@ -471,6 +471,18 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
     }
     std::fs::create_dir_all(&cache_dir)
         .with_context(|| format!("cannot create the cache folder {}", cache_dir.display()))?;
+    // The default folder in the shared temporary folder must be this user's:
+    // another user could have made it, and put files there to be measured.
+    if args.cache_dir.is_none() && cache_dir.starts_with(std::env::temp_dir()) {
+        for dir in [cache_dir.parent().unwrap_or(&cache_dir), &cache_dir] {
+            if let Some(owner) = foreign_owner(dir) {
+                bail!(
+                    "{}: belongs to another user (uid {owner}), and bench would measure its files; name a folder of your own with --cache-dir",
+                    dir.display()
+                );
+            }
+        }
+    }
     // (After the memory checks: its threads take address space.)
     crate::memory::start_worker_pool()?;
     let volume = first.open_volume(&cache_dir)?;
@@ -579,17 +591,30 @@ fn default_cache_dir(xdg_cache: Option<PathBuf>, home: Option<PathBuf>) -> PathB
         // The shared temporary folder: a folder of this user's own (one for
         // all users let another user's files be measured).
         None => {
-            use std::os::unix::fs::MetadataExt;
-            // (The owner of this process's /proc entry is its user.)
-            let user = std::fs::metadata("/proc/self").map_or_else(
-                |_| std::env::var("USER").unwrap_or_else(|_| "user".into()),
-                |m| m.uid().to_string(),
+            let user = own_uid().map_or_else(
+                || std::env::var("USER").unwrap_or_else(|_| "user".into()),
+                |uid| uid.to_string(),
             );
             std::env::temp_dir()
                 .join(format!("raycaster-{user}"))
                 .join("bench-volumes")
         }
     }
+}
+
+/// This process's user id: the owner of its `/proc` entry (`None` where
+/// there is no `/proc`).
+fn own_uid() -> Option<u32> {
+    use std::os::unix::fs::MetadataExt;
+    std::fs::metadata("/proc/self").ok().map(|m| m.uid())
+}
+
+/// The owner of `dir` (a link itself, not what it points to) where it is
+/// another user than this process's.
+fn foreign_owner(dir: &Path) -> Option<u32> {
+    use std::os::unix::fs::MetadataExt;
+    let owner = std::fs::symlink_metadata(dir).ok()?.uid();
+    (owner != own_uid()?).then_some(owner)
 }
 
 /// `warm_up` untimed frames, then `frames` timed ones: the fastest, the median and

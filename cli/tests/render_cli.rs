@@ -5,6 +5,7 @@ mod support;
 use support::{raycaster, stderr, write_scene};
 
 use std::path::Path;
+use std::process::Command;
 
 use raycaster::render::RgbImage;
 
@@ -482,6 +483,39 @@ fn bench_refuses_what_it_cannot_measure() {
         assert!(err.contains(said), "{args:?}: {err}");
         assert_eq!(err.matches("error").count(), 1, "{args:?}: {err}");
     }
+}
+
+/// Without a home, volumes are cached in a folder of the user's own in the
+/// temporary folder; one another user made there is refused (its files were
+/// measured under the scene's name).
+#[test]
+fn bench_refuses_a_shared_cache_folder_of_another_user() {
+    use std::os::unix::fs::MetadataExt;
+    let dir = tempfile::tempdir().unwrap();
+    let uid = std::fs::metadata("/proc/self").unwrap().uid();
+    let planted = dir.path().join(format!("raycaster-{uid}"));
+    std::fs::create_dir_all(planted.join("bench-volumes")).unwrap();
+    let other = if uid == 65534 { 65533 } else { 65534 };
+    // (Only root can give a folder away: elsewhere there is nothing to test.)
+    if std::os::unix::fs::chown(&planted, Some(other), None).is_err() {
+        return;
+    }
+    let out = Command::new(env!("CARGO_BIN_EXE_raycaster"))
+        .args(["bench", "--quick", "--threads", "1", "--tiles", "16"])
+        .env_remove("HOME")
+        .env_remove("XDG_CACHE_HOME")
+        .env("TMPDIR", dir.path())
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains(&format!(
+            "raycaster-{uid}: belongs to another user (uid {other})"
+        )),
+        "{err}"
+    );
 }
 
 /// The memory kinds of the generated volume (u16, bricked, in RAM) are separate
