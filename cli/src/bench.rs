@@ -448,7 +448,7 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
     // The most threads a case starts: its render threads, a compositing
     // thread and the read-ahead.
     if let Some(most) = args.threads.iter().max() {
-        crate::memory::check_threads(*most + 2)?;
+        crate::threads::check_threads(*most + 2)?;
     }
     let cases_then = cases(&args);
     let Some(first) = cases_then.first() else {
@@ -484,7 +484,7 @@ pub fn run(mut args: BenchArgs) -> Result<()> {
         }
     }
     // (After the memory checks: its threads take address space.)
-    crate::memory::start_worker_pool()?;
+    crate::threads::start_worker_pool()?;
     let volume = first.open_volume(&cache_dir)?;
     raycaster::files::guard_mapped_file(volume.path());
     // (As render refuses it: it was measured, with no sample taken.)

@@ -34,6 +34,7 @@ mod plot;
 mod render;
 mod slice;
 mod stats;
+mod threads;
 
 use clap::{Parser, Subcommand};
 

@@ -67,53 +67,6 @@ pub fn check_memory(what: impl std::fmt::Display, bytes: u64) -> Result<()> {
     Ok(())
 }
 
-/// Starts rayon's global pool where it has not started yet, saying a system
-/// refusing its threads (an address-space or process limit) as an error:
-/// started at its first use, it panicked. Called after the memory checks
-/// (its threads' malloc arenas take address space under `ulimit -v`).
-pub fn start_worker_pool() -> Result<()> {
-    static STARTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
-    if STARTED.swap(true, std::sync::atomic::Ordering::Relaxed) {
-        return Ok(());
-    }
-    match rayon::ThreadPoolBuilder::new().build_global() {
-        Ok(()) => Ok(()),
-        // (Started by an earlier parallel step: running.)
-        Err(e) if e.to_string().contains("already") => Ok(()),
-        Err(e) => {
-            bail!("cannot start the worker threads: {e}; raise the limit (ulimit -v, ulimit -u)")
-        }
-    }
-}
-
-/// Starts `count` threads that wait together, then lets them go: an error
-/// naming the count where the system refuses one (an address-space or
-/// process limit), said before a frame whose threads would fail to start
-/// midway (that panicked).
-pub fn check_threads(count: usize) -> Result<()> {
-    let gate = std::sync::RwLock::new(());
-    let closed = gate.write().unwrap_or_else(|e| e.into_inner());
-    let failure = std::thread::scope(|s| {
-        let mut failure = None;
-        for started in 0..count {
-            let spawned = std::thread::Builder::new().spawn_scoped(s, || drop(gate.read()));
-            if let Err(e) = spawned {
-                failure = Some((started, e));
-                break;
-            }
-        }
-        drop(closed);
-        failure
-    });
-    match failure {
-        None => Ok(()),
-        Some((started, e)) => bail!(
-            "cannot start {count} threads: the system refused thread {} ({e}); give fewer with --threads, or raise the limit (ulimit -v, ulimit -u)",
-            started + 1
-        ),
-    }
-}
-
 /// Refuses reading a `bytes`-long volume file, `what` (its path, said first),
 /// into memory (`--ram`) when it does not fit the memory this process can
 /// have (as [`check_frame`]), with a tenth more for the frame and the rest:

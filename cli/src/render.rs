@@ -523,11 +523,11 @@ pub fn run(args: RenderArgs) -> Result<()> {
     // A built-in scene is made in parallel: the pool first. Otherwise after
     // the memory checks, which its threads' address space would tighten.
     if args.file.is_none() && args.session.is_none() {
-        crate::memory::start_worker_pool()?;
+        crate::threads::start_worker_pool()?;
     }
     let setup = Setup::new(&args)?;
     crate::memory::check_frame(setup.camera.width(), setup.camera.height())?;
-    crate::memory::start_worker_pool()?;
+    crate::threads::start_worker_pool()?;
     let prepared = setup.prepared_bands(&args)?;
     let passes: Vec<(&RenderVolume<'_>, Option<DepthBand>)> = prepared
         .iter()
@@ -545,7 +545,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     } else {
         let options = parallel_options(&args, 1);
         // The frame's threads and the read-ahead's.
-        crate::memory::check_threads(options.render_threads + options.compositing_threads + 1)?;
+        crate::threads::check_threads(options.render_threads + options.compositing_threads + 1)?;
         render_with_progress(
             &passes,
             &setup.camera,
