@@ -1640,7 +1640,9 @@ fn with_progress_line<R: Send>(
     }
     std::thread::scope(|scope| {
         let (finished_ref, share, line) = (&finished, &share, &line);
-        scope.spawn(move || {
+        // (Without a thread for it — the system refused one — the work runs
+        // without a progress line.)
+        let reporter = std::thread::Builder::new().spawn_scoped(scope, move || {
             let mut shown = shown_at_start;
             while !finished_ref.load(Ordering::Relaxed) {
                 std::thread::sleep(Duration::from_millis(100));
@@ -1670,6 +1672,10 @@ fn with_progress_line<R: Send>(
             }
             PROGRESS_LINE_OPEN.store(false, Ordering::Relaxed);
         });
+        if reporter.is_err() && shown_at_start {
+            eprintln!();
+            PROGRESS_LINE_OPEN.store(false, Ordering::Relaxed);
+        }
         let result = work();
         finished.store(true, Ordering::Relaxed);
         result

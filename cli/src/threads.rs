@@ -1,6 +1,8 @@
 //! Whether the system lets this process start the threads it needs: checked
 //! before any work, so a thread the system refuses (an address-space or
-//! process limit) is an error said once rather than a panic midway.
+//! process limit) is said once, with what to do, before anything is read or
+//! written. (The renderer also returns an error where a frame's thread is
+//! refused, `RenderError::Threads`, but only once the frame has started.)
 
 use anyhow::{Result, bail};
 
@@ -25,8 +27,7 @@ pub fn start_worker_pool() -> Result<()> {
 
 /// Starts `count` threads that wait together, then lets them go: an error
 /// naming the count where the system refuses one (an address-space or
-/// process limit), said before a frame whose threads would fail to start
-/// midway (that panicked).
+/// process limit), said before a frame whose threads would fail to start.
 pub fn check_threads(count: usize) -> Result<()> {
     let gate = std::sync::RwLock::new(());
     let closed = gate.write().unwrap_or_else(|e| e.into_inner());

@@ -1120,7 +1120,7 @@ impl Controller {
         self.show_message(&message, false);
         let wake = self.wake.clone();
         let tx = self.installs.0.clone();
-        std::thread::spawn(move || {
+        let started = std::thread::Builder::new().spawn(move || {
             let result = job(wake.clone());
             let _ = tx
                 .send(result.map_err(|e| {
@@ -1128,6 +1128,14 @@ impl Controller {
                 }));
             wake();
         });
+        if let Err(e) = started {
+            // The system refused the thread (a process or address-space limit).
+            let _ = self
+                .installs
+                .0
+                .send(Err(format!("cannot start a thread for it: {e} ({kept})")));
+            (self.wake)();
+        }
     }
 
     fn install(&self, result: Result<Install, String>) {

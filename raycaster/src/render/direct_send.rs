@@ -87,7 +87,7 @@ impl DirectSend<'_> {
                         pass: LevelPass::ONLY,
                     },
                     self.options,
-                )
+                )?
                 .expect("a frame that cannot be cancelled completes");
                 own.bands = 1;
                 Some((band, sink.pixels.into_inner()))

@@ -12,7 +12,7 @@
 //! most one task per tile is in flight, so each tile sees its bricks in order.
 
 use std::num::NonZeroUsize;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Instant;
 
 use crossbeam_channel::{Receiver, Sender};
@@ -148,7 +148,7 @@ pub(crate) fn render_frame(
             pass: LevelPass::ONLY,
         },
         options,
-    );
+    )?;
     Ok(counters.map(|counters| FrameStats {
         width: camera.width(),
         height: camera.height(),
@@ -215,7 +215,7 @@ pub(crate) fn render_levels_frame(
                 },
             },
             options,
-        );
+        )?;
         let Some(counters) = counters else {
             return Ok(None);
         };
@@ -286,12 +286,13 @@ pub(crate) fn continue_in_level<C: Compositor>(
     state.done = c.opacity(&state.acc) >= plan.ert_threshold || c.finished(&state.acc);
 }
 
-/// Runs `job`'s tiles on `workers`: the summed counters, or `None` if cancelled.
+/// Runs `job`'s tiles on `workers`: the summed counters, or `None` if cancelled;
+/// an error where the system refuses a thread of the frame.
 pub(crate) fn render_tiles(
     workers: &WorkerPool,
     job: &FrameJob<'_>,
     options: &ParallelOptions,
-) -> Option<Counters> {
+) -> Result<Option<Counters>, RenderError> {
     match job.volume.volume().data() {
         VolumeData::U8(data) => job.plan.compositor.run(ParallelPass {
             job,
@@ -375,21 +376,45 @@ struct ParallelPass<'p, 'f, 'd, T: Sample> {
 }
 
 impl<T: Sample> CompositorJob for ParallelPass<'_, '_, '_, T> {
-    type Output = Option<Counters>;
-    fn run<C: Compositor>(self, c: &C) -> Option<Counters> {
+    type Output = Result<Option<Counters>, RenderError>;
+    fn run<C: Compositor>(self, c: &C) -> Result<Option<Counters>, RenderError> {
         self.job.run(self.workers, c, self.data, self.options)
     }
 }
 
 impl FrameJob<'_> {
     /// Runs the frame's threads; the summed counters, or `None` if cancelled.
+    /// Where the system refuses one of them, the started ones stop as if the
+    /// frame were cancelled and the refusal is returned.
     fn run<T: Sample, C: Compositor>(
         &self,
         workers: &WorkerPool,
         c: &C,
         data: &TypedVolume<'_, T>,
         options: &ParallelOptions,
-    ) -> Option<Counters> {
+    ) -> Result<Option<Counters>, RenderError> {
+        let refused = AtomicBool::new(false);
+        let cancelled = || refused.load(Ordering::Relaxed) || (self.cancelled)();
+        let job = FrameJob {
+            cancelled: &cancelled,
+            tiles: self.tiles.clone(),
+            ..*self
+        };
+        job.run_threads(workers, c, data, options, &|| {
+            refused.store(true, Ordering::Relaxed)
+        })
+    }
+
+    /// [`Self::run`]'s threads; `refused` is called where the system refuses
+    /// one.
+    fn run_threads<T: Sample, C: Compositor>(
+        &self,
+        workers: &WorkerPool,
+        c: &C,
+        data: &TypedVolume<'_, T>,
+        options: &ParallelOptions,
+        refused: &(dyn Fn() + Sync),
+    ) -> Result<Option<Counters>, RenderError> {
         let compositors = options.compositing_threads.max(1);
         let (task_tx, task_rx) = crossbeam_channel::unbounded::<Task<C::State>>();
         type Channel<S> = (Vec<Sender<Tile<S>>>, Vec<Receiver<Tile<S>>>);
@@ -434,7 +459,7 @@ impl FrameJob<'_> {
             }));
         }
         drop(task_tx);
-        workers.run_all(jobs);
+        workers.run_all(jobs, refused)?;
         drop(total_tx);
         let mut total = Some(Counters::default());
         for counters in total_rx.iter() {
@@ -443,7 +468,7 @@ impl FrameJob<'_> {
                 _ => total = None,
             }
         }
-        total
+        Ok(total)
     }
 
     /// Asks the OS to read the frame's bricks in the order the frame visits them

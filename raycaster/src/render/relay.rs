@@ -281,7 +281,7 @@ pub fn render_distributed_levels(
                     pass: LevelPass::ONLY,
                 },
                 &options.parallel,
-            )
+            )?
             .expect("a frame that cannot be cancelled completes");
             own.render += rendering.elapsed();
             own.counters += counters;

@@ -43,6 +43,17 @@ impl WorkerPool {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(count)
             .thread_name(|i| format!("render-worker-{i}"))
+            .spawn_handler(|thread| {
+                let mut builder = std::thread::Builder::new();
+                if let Some(name) = thread.name() {
+                    builder = builder.name(name.to_owned());
+                }
+                if let Some(size) = thread.stack_size() {
+                    builder = builder.stack_size(size);
+                }
+                spawn_checked(thread.index(), || builder.spawn(|| thread.run()))?;
+                Ok(())
+            })
             .build()
             .map_err(|e| RenderError::Threads {
                 count,
@@ -66,13 +77,37 @@ impl WorkerPool {
     /// all have returned. They are at most the frame's jobs for the options the
     /// pool is sized for (jobs block on one another, so none may wait for a
     /// thread).
-    pub fn run_all(&self, jobs: Vec<FrameJobFn<'_>>) {
+    ///
+    /// Where the system refuses a thread (threads started per frame), the jobs
+    /// not yet started are dropped and `refused` is called, which must make the
+    /// started ones return (the frame's jobs take it as a cancel; the dropped
+    /// jobs' channel ends close); then the refusal is returned.
+    pub fn run_all(
+        &self,
+        jobs: Vec<FrameJobFn<'_>>,
+        refused: &(dyn Fn() + Sync),
+    ) -> Result<(), RenderError> {
         match self {
-            WorkerPool::PerFrame => std::thread::scope(|scope| {
-                for job in jobs {
-                    scope.spawn(job);
-                }
-            }),
+            WorkerPool::PerFrame => {
+                let count = jobs.len();
+                std::thread::scope(|scope| {
+                    for (i, job) in jobs.into_iter().enumerate() {
+                        // (A refused job is dropped by the failed start, and
+                        // the jobs after it when the loop ends.)
+                        let started = spawn_checked(i, || {
+                            std::thread::Builder::new().spawn_scoped(scope, job)
+                        });
+                        if let Err(e) = started {
+                            refused();
+                            return Err(RenderError::Threads {
+                                count,
+                                reason: e.to_string(),
+                            });
+                        }
+                    }
+                    Ok(())
+                })
+            }
             WorkerPool::Kept { pool, sized_for } => {
                 assert!(
                     jobs.len() <= sized_for.0 + sized_for.1 + 1,
@@ -83,9 +118,24 @@ impl WorkerPool {
                         scope.spawn(move |_| job());
                     }
                 });
+                Ok(())
             }
         }
     }
+}
+
+/// Starts thread `i` of a set with `spawn`. Tests make the system refuse
+/// threads from a given one on ([`tests::refuse_threads_from`]).
+fn spawn_checked<H>(i: usize, spawn: impl FnOnce() -> std::io::Result<H>) -> std::io::Result<H> {
+    #[cfg(test)]
+    if i >= tests::REFUSED_FROM.get() {
+        return Err(std::io::Error::other(format!(
+            "thread {i} refused by the test"
+        )));
+    }
+    #[cfg(not(test))]
+    let _ = i;
+    spawn()
 }
 
 /// The parallel renderer with worker threads that live across frames.
@@ -221,5 +271,114 @@ impl Renderer {
             });
         }
         Ok(self.workers.as_ref().expect("just started"))
+    }
+}
+
+#[cfg(test)]
+pub(super) mod tests {
+    use std::cell::Cell;
+
+    use glam::Vec3;
+
+    use super::*;
+    use crate::render::camera::Projection;
+    use crate::render::sequential::render_sequential;
+    use crate::synth::{SceneKind, synthesize};
+    use crate::volume::{SampleType, Volume};
+
+    thread_local! {
+        /// The first thread the "system" refuses to start on this (the test's)
+        /// thread: [`spawn_checked`] reads it.
+        pub(super) static REFUSED_FROM: Cell<usize> = const { Cell::new(usize::MAX) };
+    }
+
+    /// Makes threads from the `first`th on (of each set started from this
+    /// thread) fail to start, as an address-space or process limit would;
+    /// `usize::MAX`: none.
+    fn refuse_threads_from(first: usize) {
+        REFUSED_FROM.set(first);
+    }
+
+    fn shapes() -> Volume {
+        let scene = SceneKind::Shapes.build([40; 3], 1);
+        synthesize(scene.as_ref(), "shapes", [40; 3], [1.0; 3], SampleType::U8).unwrap()
+    }
+
+    fn camera() -> Camera {
+        let projection = Projection::Perspective { vfov_deg: 50.0 };
+        Camera::look_at(
+            Vec3::new(-45.0, 60.0, 75.0),
+            Vec3::splat(20.0),
+            Vec3::Z,
+            projection,
+            48,
+            40,
+        )
+        .unwrap()
+    }
+
+    fn options() -> ParallelOptions {
+        ParallelOptions {
+            render_threads: 3,
+            compositing_threads: 2,
+            tile_size: 8,
+        }
+    }
+
+    fn assert_refused(result: Result<Frame, RenderError>, count: usize, what: &str) {
+        match result {
+            Err(RenderError::Threads { count: c, reason }) => {
+                assert_eq!(c, count, "{what}");
+                assert!(reason.contains("refused by the test"), "{what}: {reason}");
+            }
+            Err(e) => panic!("{what}: another error: {e}"),
+            Ok(_) => panic!("{what}: rendered although a thread was refused"),
+        }
+    }
+
+    #[test]
+    fn a_thread_refused_at_any_point_of_a_frame_is_an_error_and_every_started_one_ends() {
+        let volume = shapes();
+        let prepared = RenderVolume::new(&volume, Some(8)).unwrap();
+        let (camera, settings, options) = (camera(), RenderSettings::default(), options());
+        // The read-ahead, three render threads, two compositing threads.
+        let jobs = 6;
+        for first in 0..jobs {
+            refuse_threads_from(first);
+            let result = Renderer::per_frame().render(&prepared, &camera, &settings, &options);
+            assert_refused(result, jobs, &format!("thread {first} refused"));
+        }
+        refuse_threads_from(usize::MAX);
+        let frame = Renderer::per_frame()
+            .render(&prepared, &camera, &settings, &options)
+            .unwrap();
+        let reference = render_sequential(&prepared, &camera, &settings).unwrap();
+        assert!(frame.stats.counters.samples > 0);
+        assert_eq!(
+            frame.stats.counters.samples,
+            reference.stats.counters.samples
+        );
+    }
+
+    #[test]
+    fn a_kept_pool_the_system_refuses_is_an_error_and_the_next_frame_starts_it_again() {
+        let volume = shapes();
+        let prepared = RenderVolume::new(&volume, Some(8)).unwrap();
+        let (camera, settings, options) = (camera(), RenderSettings::default(), options());
+        let mut renderer = Renderer::new();
+        for first in [0, 4] {
+            refuse_threads_from(first);
+            let result = renderer.render(&prepared, &camera, &settings, &options);
+            assert_refused(result, 6, &format!("pool thread {first} refused"));
+        }
+        refuse_threads_from(usize::MAX);
+        let frame = renderer
+            .render(&prepared, &camera, &settings, &options)
+            .unwrap();
+        let reference = render_sequential(&prepared, &camera, &settings).unwrap();
+        assert_eq!(
+            frame.stats.counters.samples,
+            reference.stats.counters.samples
+        );
     }
 }
