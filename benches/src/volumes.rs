@@ -8,7 +8,7 @@ use raycaster::io::WriteOptions;
 use raycaster::job::Job;
 use raycaster::synth::SceneKind;
 use raycaster::volume::{
-    Access, Content, Format, Header, Layout, OpenOptions, SampleType, Volume, read_header,
+    Access, Content, Format, Header, Layout, OpenOptions, Sample, SampleType, Volume, read_header,
 };
 
 /// A generated scene, stored as a `.vol` file in the benchmark cache.
@@ -75,6 +75,49 @@ impl SceneSpec {
         };
         generate(scene.as_ref(), &header, path, &options, &Job::silent())?;
         Ok(())
+    }
+}
+
+impl SceneSpec {
+    /// Whether the file at `path` holds this scene: its size, sample type,
+    /// layout, spacing and content kind are the scene's, and so are the samples
+    /// of nine rows spread over the volume (another scene or seed of the same
+    /// size differs there; a check of every voxel would read the whole file).
+    fn held_by(&self, path: &Path) -> bool {
+        let header_fits = read_header(path).is_ok_and(|(h, _, _)| {
+            h.dims == self.dims
+                && h.sample_type == self.sample_type
+                && h.layout == self.layout
+                && h.spacing == [1.0; 3]
+                && h.content == Content::Scalar
+        });
+        let options = OpenOptions {
+            access: Access::Mapped,
+            ..OpenOptions::default()
+        };
+        let Some(volume) = header_fits
+            .then(|| Volume::open_with(path, options).ok())
+            .flatten()
+        else {
+            return false;
+        };
+        let scene = self.scene.build(self.dims, self.seed);
+        let [dx, dy, dz] = self.dims;
+        let mut row = vec![0f32; dz as usize];
+        [1, 2, 3].into_iter().all(|i| {
+            [1, 2, 3].into_iter().all(|j| {
+                let (x, y) = (dx * i / 4, dy * j / 4);
+                scene.fill_row(x, y, &mut row);
+                (0..dz).all(|z| {
+                    let v = row[z as usize];
+                    let expected = match self.sample_type {
+                        SampleType::U8 => u16::from(u8::from_unit(v)),
+                        SampleType::U16 => u16::from_unit(v),
+                    };
+                    volume.voxel([x, y, z]) == expected
+                })
+            })
+        })
     }
 }
 
@@ -174,19 +217,12 @@ impl VolumeSpec {
     }
 
     /// The volume's file, generated into `cache_dir` first when it is a scene
-    /// whose file is missing, unreadable or not of the scene's size, sample
-    /// type and layout (a file put there by hand was measured under the
-    /// scene's name).
+    /// whose file is missing, unreadable or not the scene's ([`SceneSpec::held_by`]:
+    /// a file put there by hand was measured under the scene's name).
     pub fn prepare(&self, cache_dir: &Path) -> Result<PathBuf> {
         let path = self.path(cache_dir);
         if let VolumeSource::Scene(scene) = &self.source {
-            let fits = read_header(&path).is_ok_and(|(h, _, _)| {
-                h.dims == scene.dims
-                    && h.sample_type == scene.sample_type
-                    && h.layout == scene.layout
-                    && h.content == Content::Scalar
-            });
-            if !fits {
+            if !scene.held_by(&path) {
                 std::fs::create_dir_all(cache_dir)
                     .with_context(|| format!("cannot create {}", cache_dir.display()))?;
                 eprintln!("bench: generating {} (once)", path.display());
@@ -221,16 +257,26 @@ mod tests {
         let path = spec.prepare(dir.path()).unwrap();
         let dims = |p: &Path| read_header(p).unwrap().0.dims;
         assert_eq!(dims(&path), [12; 3]);
+        std::fs::copy(&path, dir.path().join("kept.vol")).unwrap();
         let written = std::fs::metadata(&path).unwrap().modified().unwrap();
         spec.prepare(dir.path()).unwrap();
         assert_eq!(
             std::fs::metadata(&path).unwrap().modified().unwrap(),
             written
         );
+        let of_scene = |scene: SceneKind, seed: u64| {
+            let mut spec = VolumeSpec::shapes(12);
+            if let VolumeSource::Scene(s) = &mut spec.source {
+                (s.scene, s.seed) = (scene, seed);
+            }
+            spec
+        };
         for other in [
             VolumeSpec::shapes(8),
             VolumeSpec::shapes(12).with_sample_type(SampleType::U16),
             VolumeSpec::shapes(12).with_layout(Layout::Bricked { side: 8 }),
+            of_scene(SceneKind::Shells, 1),
+            of_scene(SceneKind::Shapes, 2),
         ] {
             let stand_in = other.prepare(dir.path()).unwrap();
             std::fs::copy(&stand_in, &path).unwrap();
@@ -242,6 +288,18 @@ mod tests {
                 "{}",
                 other.name()
             );
+            assert_eq!(
+                std::fs::read(&path).unwrap(),
+                std::fs::read(dir.path().join("kept.vol")).unwrap(),
+                "{}",
+                other.name()
+            );
         }
+        // The scene's file with another spacing in its header.
+        let mut bytes = std::fs::read(&path).unwrap();
+        bytes[12..16].copy_from_slice(&2.0f32.to_le_bytes());
+        std::fs::write(&path, &bytes).unwrap();
+        spec.prepare(dir.path()).unwrap();
+        assert_eq!(read_header(&path).unwrap().0.spacing, [1.0; 3]);
     }
 }
