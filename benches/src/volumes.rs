@@ -221,13 +221,13 @@ impl VolumeSpec {
     /// a file put there by hand was measured under the scene's name).
     pub fn prepare(&self, cache_dir: &Path) -> Result<PathBuf> {
         let path = self.path(cache_dir);
-        if let VolumeSource::Scene(scene) = &self.source {
-            if !scene.held_by(&path) {
-                std::fs::create_dir_all(cache_dir)
-                    .with_context(|| format!("cannot create {}", cache_dir.display()))?;
-                eprintln!("bench: generating {} (once)", path.display());
-                scene.generate(&path)?;
-            }
+        if let VolumeSource::Scene(scene) = &self.source
+            && !scene.held_by(&path)
+        {
+            std::fs::create_dir_all(cache_dir)
+                .with_context(|| format!("cannot create {}", cache_dir.display()))?;
+            eprintln!("bench: generating {} (once)", path.display());
+            scene.generate(&path)?;
         }
         Ok(path)
     }
