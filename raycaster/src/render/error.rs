@@ -90,7 +90,7 @@ pub enum RenderError {
     Camera(#[from] CameraError),
     /// The system refused the renderer's worker threads (an address-space or
     /// process limit).
-    #[error("cannot start {count} render threads: {reason}")]
+    #[error("the system refused the renderer's threads ({count} asked for): {reason}; raise the limit (ulimit -v, ulimit -u) or ask for fewer threads")]
     Threads {
         /// Threads asked for.
         count: usize,

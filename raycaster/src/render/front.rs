@@ -224,7 +224,10 @@ impl RenderFront {
                     }
                 }
             })
-            .expect("spawning the renderer thread");
+            .map_err(|e| RenderError::Threads {
+                count: 1,
+                reason: e.to_string(),
+            })?;
         match ready_rx.recv() {
             Ok(Ok(limit)) => Ok(RenderFront {
                 commands: command_tx,
