@@ -794,6 +794,8 @@ fn connect(ui: &App, c: &Rc<Controller>) {
                 c.request_frame(false);
             }
             Shortcut::Screenshot => c.quick_screenshot(),
+            Shortcut::Undo => c.undo_tf(false),
+            Shortcut::Redo => c.undo_tf(true),
         }
         true
     });
@@ -2140,7 +2142,42 @@ impl Controller {
             let mut st = self.state.borrow_mut();
             let Some(current) = &st.current else { return };
             let tf = preset_for(&current.volume, name);
-            st.editor.set_transfer(&tf);
+            st.editor.pick_transfer(&tf);
+        }
+        self.redraw_tf();
+        self.request_frame(false);
+    }
+
+    /// Takes back the last transfer-function edit (`redo`: makes the last one
+    /// undone again), unless a two-level scene is loaded (the function is not
+    /// used there, and its editor is off).
+    fn undo_tf(&self, redo: bool) {
+        let changed = {
+            let mut st = self.state.borrow_mut();
+            if st.scene.is_some() {
+                return;
+            }
+            if redo {
+                st.editor.redo()
+            } else {
+                st.editor.undo()
+            }
+        };
+        if !changed {
+            return;
+        }
+        // The picker names the preset the curve is now, else `custom`.
+        let preset = {
+            let st = self.state.borrow();
+            let curve = st.editor.transfer();
+            st.current.as_ref().and_then(|current| {
+                PRESETS
+                    .iter()
+                    .position(|(name, _)| preset_for(&current.volume, name) == curve)
+            })
+        };
+        if let Some(ui) = self.ui() {
+            ui.set_preset_index(preset.unwrap_or(PRESETS.len()) as i32);
         }
         self.redraw_tf();
         self.request_frame(false);

@@ -3,8 +3,7 @@
 use crate::navigation::AxisView;
 
 /// The help line the window shows under the canvas.
-pub(crate) const HELP: &str =
-    "keys: R reset view · 1/2/3 or X/Y/Z view from +x/+y/+z (shift: −) · S or Ctrl+S screenshot";
+pub(crate) const HELP: &str = "keys: R reset view · 1/2/3 or X/Y/Z view from +x/+y/+z (shift: −) · S or Ctrl+S screenshot · Ctrl+Z/Y undo/redo curve edits";
 
 /// What a key does.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -15,6 +14,10 @@ pub(crate) enum Shortcut {
     Axis(AxisView),
     /// Save the frame on screen as a new PNG file.
     Screenshot,
+    /// Take back the last transfer-function edit.
+    Undo,
+    /// Make the last undone transfer-function edit again.
+    Redo,
 }
 
 /// The shortcut of a key press: `text` is the key's text as Slint gives it
@@ -25,7 +28,13 @@ pub(crate) fn shortcut(text: &str, control: bool) -> Option<Shortcut> {
         return None;
     };
     if control {
-        return matches!(c, 's' | 'S').then_some(Shortcut::Screenshot);
+        return match c {
+            's' | 'S' => Some(Shortcut::Screenshot),
+            'z' => Some(Shortcut::Undo),
+            // Ctrl+Shift+Z, as most editors.
+            'Z' | 'y' | 'Y' => Some(Shortcut::Redo),
+            _ => None,
+        };
     }
     let negative = c.is_uppercase();
     let axis = |label: char| -> Option<Shortcut> {
@@ -70,6 +79,13 @@ mod tests {
         );
         assert_eq!(shortcut("s", true), Some(Shortcut::Screenshot));
         assert_eq!(shortcut("s", false), Some(Shortcut::Screenshot));
+        assert_eq!(shortcut("z", true), Some(Shortcut::Undo));
+        assert_eq!(shortcut("Z", true), Some(Shortcut::Redo));
+        assert_eq!(shortcut("y", true), Some(Shortcut::Redo));
+        assert_eq!(
+            shortcut("z", false),
+            Some(Shortcut::Axis(AxisView::Z { negative: false }))
+        );
         assert_eq!(shortcut("r", true), None);
         assert_eq!(shortcut("q", false), None);
         assert_eq!(shortcut("", false), None);

@@ -12,6 +12,9 @@ const PICK_RADIUS: f32 = 8.0;
 /// Height of the colour bar under the curve, in pixels.
 const COLOR_BAR: u32 = 10;
 
+/// Undo steps kept (older ones are forgotten).
+const UNDO_STEPS: usize = 100;
+
 /// Editable control points plus what is drawn behind them.
 #[derive(Clone, Debug)]
 pub struct TfEditor {
@@ -22,6 +25,16 @@ pub struct TfEditor {
     dragging: bool,
     /// Histogram bins over the normalised value, scaled to `[0, 1]`.
     histogram: Vec<f32>,
+    /// The functions before each edit, oldest first ([`Self::undo`]).
+    undone: Vec<TransferFunction>,
+    /// The functions undone, most recently undone last ([`Self::redo`]).
+    redone: Vec<TransferFunction>,
+    /// The function when the button went down (one press, drag and release
+    /// is one edit).
+    before_gesture: Option<TransferFunction>,
+    /// The point whose colour the last edit set: further colours of it join
+    /// that edit (a colour picker sends one per step of its drag).
+    colouring: Option<usize>,
 }
 
 impl TfEditor {
@@ -34,18 +47,75 @@ impl TfEditor {
             selected: None,
             dragging: false,
             histogram: scale_histogram(histogram),
+            undone: Vec::new(),
+            redone: Vec::new(),
+            before_gesture: None,
+            colouring: None,
         };
         editor.set_transfer(tf);
         editor
     }
 
-    /// Replaces the edited function (e.g. a preset was picked).
+    /// Replaces the edited function and forgets the edits before it (another
+    /// volume or a session was opened).
     pub fn set_transfer(&mut self, tf: &TransferFunction) {
+        self.show(tf);
+        self.undone.clear();
+        self.redone.clear();
+    }
+
+    /// Replaces the edited function as an edit that [`Self::undo`] takes back
+    /// (a preset was picked); returns whether the function changed.
+    pub fn pick_transfer(&mut self, tf: &TransferFunction) -> bool {
+        let before = self.transfer();
+        if before == *tf {
+            return false;
+        }
+        self.show(tf);
+        self.record(before);
+        true
+    }
+
+    /// Takes back the last edit; returns whether there was one.
+    pub fn undo(&mut self) -> bool {
+        let Some(previous) = self.undone.pop() else {
+            return false;
+        };
+        self.redone.push(self.transfer());
+        self.show(&previous);
+        true
+    }
+
+    /// Makes the last edit undone again; returns whether there was one.
+    pub fn redo(&mut self) -> bool {
+        let Some(next) = self.redone.pop() else {
+            return false;
+        };
+        self.undone.push(self.transfer());
+        self.show(&next);
+        true
+    }
+
+    /// Shows `tf`, nothing selected.
+    fn show(&mut self, tf: &TransferFunction) {
         self.points = tf.points().to_vec();
         self.domain = tf.domain;
         self.gradient_ramp = tf.gradient_ramp;
         self.selected = None;
         self.dragging = false;
+        self.before_gesture = None;
+        self.colouring = None;
+    }
+
+    /// Keeps `before`, the function before an edit, as the step to undo; the
+    /// edits undone before it can no longer be made again.
+    fn record(&mut self, before: TransferFunction) {
+        if self.undone.len() == UNDO_STEPS {
+            self.undone.remove(0);
+        }
+        self.undone.push(before);
+        self.redone.clear();
+        self.colouring = None;
     }
 
     /// Replaces the histogram drawn behind the curve.
@@ -76,6 +146,21 @@ impl TfEditor {
     /// (right button removes it), or adds one under the pointer. Returns whether
     /// the function changed.
     pub fn press(&mut self, x: f32, y: f32, width: f32, height: f32, remove: bool) -> bool {
+        let before = self.transfer();
+        let changed = self.press_points(x, y, width, height, remove);
+        if remove {
+            if changed {
+                self.record(before);
+            }
+        } else if self.dragging {
+            // (Recorded on release, if the press and drag changed it.)
+            self.before_gesture = Some(before);
+        }
+        changed
+    }
+
+    /// [`Self::press`] on the points alone.
+    fn press_points(&mut self, x: f32, y: f32, width: f32, height: f32, remove: bool) -> bool {
         let (width, height) = (width.max(1.0), curve_height(height));
         let hit = self
             .points
@@ -141,16 +226,28 @@ impl TfEditor {
         changed
     }
 
-    /// The button went up.
+    /// The button went up: the press and drag are one edit, if they changed
+    /// the function.
     pub fn release(&mut self) {
         self.dragging = false;
+        if let Some(before) = self.before_gesture.take()
+            && before != self.transfer()
+        {
+            self.record(before);
+        }
     }
 
     /// Colours the selected point; returns whether the function changed.
+    /// Colours given one after another to the same point are one edit.
     pub fn set_color(&mut self, color: [f32; 3]) -> bool {
         match self.selected {
             Some(i) if self.points[i].color != color => {
+                let before = self.transfer();
                 self.points[i].color = color;
+                if self.colouring != Some(i) {
+                    self.record(before);
+                    self.colouring = Some(i);
+                }
                 true
             }
             _ => false,
@@ -250,6 +347,59 @@ mod tests {
             &TransferFunction::preset("grayscale").unwrap(),
             &[1, 10, 100, 0],
         )
+    }
+
+    #[test]
+    fn edits_are_undone_and_redone_one_gesture_at_a_time() {
+        let mut e = editor();
+        let (w, h) = (200.0, 110.0);
+        let start = e.transfer();
+        assert!(!e.undo(), "nothing to undo at first");
+        // Add a point and drag it: one edit.
+        assert!(e.press(100.0, 50.0, w, h, false));
+        assert!(e.drag_to(120.0, 40.0, w, h));
+        assert!(e.drag_to(130.0, 30.0, w, h));
+        e.release();
+        let added = e.transfer();
+        assert_eq!(added.points().len(), 3);
+        // Colour it in three steps (a picker's drag): one edit.
+        for c in [0.2, 0.4, 0.6] {
+            assert!(e.set_color([c, 0.1, 0.1]));
+        }
+        let coloured = e.transfer();
+        // Pick it and let go without moving: no edit.
+        let at = e.points()[1];
+        let (px, py) = (at.value * w, alpha_to_y(at.alpha) * curve_height(h));
+        assert!(!e.press(px, py, w, h, false));
+        assert_eq!(e.selected(), Some(1));
+        e.release();
+        assert_eq!(e.transfer(), coloured);
+        // Remove it: one edit.
+        assert!(e.press(px, py, w, h, true));
+        assert_eq!(e.points().len(), 2);
+        let removed = e.transfer();
+        // A preset picked: one edit.
+        let preset = TransferFunction::preset("shapes").unwrap();
+        assert!(e.pick_transfer(&preset));
+        assert!(!e.pick_transfer(&preset), "the same curve again is no edit");
+        for expected in [&removed, &coloured, &added, &start] {
+            assert!(e.undo());
+            assert_eq!(&e.transfer(), expected);
+        }
+        assert!(!e.undo());
+        for expected in [&added, &coloured, &removed, &preset] {
+            assert!(e.redo());
+            assert_eq!(&e.transfer(), expected);
+        }
+        assert!(!e.redo());
+        // An edit after an undo drops what was undone.
+        assert!(e.undo());
+        assert!(e.press(20.0, 90.0, w, h, false));
+        e.release();
+        assert!(!e.redo());
+        // Another volume's function forgets the edits.
+        e.set_transfer(&start);
+        assert!(!e.undo());
     }
 
     #[test]

@@ -447,6 +447,52 @@ fn the_viewer_cuts_slices_and_remembers_files() {
     key(&v, "r");
     settle(&v);
     assert!(v.ui().get_help().contains("R reset"));
+    // Ctrl+Z takes back a transfer-function edit (the picker names the
+    // preset again), Ctrl+Y makes it again (custom), Ctrl+Z twice more takes
+    // back a preset pick too.
+    let control = |pressed: bool| {
+        let text = Key::Control.into();
+        let event = if pressed {
+            WindowEvent::KeyPressed { text }
+        } else {
+            WindowEvent::KeyReleased { text }
+        };
+        v.ui().window().dispatch_event(event);
+    };
+    let with_control = |text: &str| {
+        control(true);
+        key(&v, text);
+        control(false);
+        settle(&v);
+    };
+    let (preset, unedited) = (v.ui().get_preset_index(), frame(&v));
+    let other = (preset + 1) % raycaster::render::PRESETS.len() as i32;
+    v.ui().set_preset_index(other);
+    v.ui().invoke_preset_selected(other);
+    settle(&v);
+    let picked = frame(&v);
+    assert!(picked != unedited, "another preset changes the picture");
+    element(&v, "App::tf-area").mock_single_click(PointerEventButton::Left);
+    settle(&v);
+    let edited = frame(&v);
+    assert!(edited != picked, "a new point changes the picture");
+    let custom = raycaster::render::PRESETS.len() as i32;
+    assert_eq!(v.ui().get_preset_index(), custom);
+    element(&v, "App::canvas").mock_single_click(PointerEventButton::Left);
+    settle(&v);
+    with_control("z");
+    assert!(frame(&v) == picked, "undone: the preset's picture");
+    assert_eq!(v.ui().get_preset_index(), other);
+    with_control("y");
+    assert!(frame(&v) == edited, "redone: the edited picture");
+    assert_eq!(v.ui().get_preset_index(), custom);
+    with_control("z");
+    with_control("z");
+    assert!(frame(&v) == unedited, "the preset pick undone too");
+    assert_eq!(v.ui().get_preset_index(), preset);
+    with_control("z");
+    assert!(frame(&v) == unedited, "nothing more to undo");
+    assert!(v.ui().get_help().contains("Ctrl+Z"));
 
     // 3. Slice views through the crosshair (the volume's centre at first).
     assert_eq!(v.crosshair(), [23, 23, 23]);

@@ -90,7 +90,9 @@ pub enum RenderError {
     Camera(#[from] CameraError),
     /// The system refused the renderer's worker threads (an address-space or
     /// process limit).
-    #[error("the system refused the renderer's threads ({count} asked for): {reason}; raise the limit (ulimit -v, ulimit -u) or ask for fewer threads")]
+    #[error(
+        "the system refused the renderer's threads ({count} asked for): {reason}; raise the limit (ulimit -v, ulimit -u) or ask for fewer threads"
+    )]
     Threads {
         /// Threads asked for.
         count: usize,
