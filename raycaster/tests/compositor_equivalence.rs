@@ -40,12 +40,7 @@ fn modes() -> Vec<(Mode, LocalMode)> {
         (Mode::Dvr, LocalMode::Dvr),
         (Mode::Mip, LocalMode::Mip),
         (Mode::Average, LocalMode::Average),
-        (
-            Mode::XRay,
-            LocalMode::XRay {
-                gain: p.xray_gain.unwrap(),
-            },
-        ),
+        (Mode::XRay, LocalMode::XRay { gain: p.xray_gain }),
         (Mode::FirstHit, LocalMode::FirstHit { iso: ISO }),
         (
             Mode::Importance,

@@ -231,12 +231,50 @@ fn xray_of_a_homogeneous_slab_sums_the_value_along_the_ray() {
     let gain = 0.05;
     let settings = with_segments(
         &plain_settings(tf.clone()),
-        layers_scene(vec![[0.0, 1.0]], |_| (tf.clone(), LocalMode::XRay { gain })),
+        layers_scene(vec![[0.0, 1.0]], |_| {
+            (tf.clone(), LocalMode::XRay { gain: Some(gain) })
+        }),
     );
     let frame = render(&volume, &camera, &settings);
     let expected = 1.0 - (-gain * (200.0f32 / 255.0) * 16.0).exp();
     for px in &frame.rgba {
         assert!((px[3] - expected).abs() < 1e-4, "{} vs {expected}", px[3]);
+    }
+}
+
+/// An X-ray object without a gain takes the plain X-ray mode's automatic one
+/// (it took 1, which saturated every volume larger than a few dozen voxels):
+/// a scene of that one object renders the plain mode's picture.
+#[test]
+fn an_xray_object_without_a_gain_renders_as_the_plain_xray_mode() {
+    let volume = scene_volume(SceneKind::Shells, 48);
+    let camera = default_camera(&volume, 40);
+    let tf = scene_preset(SceneKind::Shells);
+    let plain = RenderSettings {
+        mode: Mode::XRay,
+        // The automatic gain (`plain_settings` fixes one).
+        mode_parameters: raycaster::render::ModeParameters::default(),
+        ..plain_settings(tf.clone())
+    };
+    let scene = with_segments(
+        &plain,
+        layers_scene(vec![[0.0, 1.0]], |_| {
+            (tf.clone(), LocalMode::XRay { gain: None })
+        }),
+    );
+    let (a, b) = (
+        render(&volume, &camera, &plain),
+        render(&volume, &camera, &scene),
+    );
+    let alpha: f32 = a.rgba.iter().map(|p| p[3]).sum::<f32>() / a.rgba.len() as f32;
+    assert!(
+        alpha > 0.05 && a.rgba.iter().all(|p| p[3] < 0.99),
+        "the automatic gain neither vanishes nor saturates: mean opacity {alpha}"
+    );
+    for (p, q) in a.rgba.iter().zip(&b.rgba) {
+        for c in 0..4 {
+            assert!((p[c] - q[c]).abs() <= 1.0 / 255.0, "{p:?} vs {q:?}");
+        }
     }
 }
 

@@ -2513,13 +2513,7 @@ impl Controller {
                         visible: true,
                         transfer: st.editor.transfer(),
                         // Every mode has its local counterpart (Sabella included).
-                        mode: mode.local(
-                            &st.fixed.mode_parameters,
-                            st.fixed.iso_value,
-                            st.current
-                                .as_ref()
-                                .map_or(1.0, |c| c.volume.volume.diagonal_voxels()),
-                        ),
+                        mode: mode.local(&st.fixed.mode_parameters, st.fixed.iso_value),
                         clip: Default::default(),
                     }],
                     global: GlobalMode::Dvr,
@@ -2541,12 +2535,24 @@ impl Controller {
             .scene
             .iter()
             .flat_map(|s| s.objects.iter())
-            .map(|o| to_ui_row(&segments_panel::row_of(o)))
+            .map(|o| to_ui_row(&segments_panel::row_of(o, self.auto_xray_gain())))
             .collect();
         ui.set_objects(ModelRc::new(VecModel::from(rows)));
     }
 
+    /// The X-ray gain of the open volume an object without one renders with.
+    fn auto_xray_gain(&self) -> f32 {
+        let diagonal = self
+            .state
+            .borrow()
+            .current
+            .as_ref()
+            .map_or(1.0, |c| c.volume.volume.diagonal_voxels());
+        raycaster::render::auto_xray_gain(diagonal)
+    }
+
     fn edit_object(&self, index: i32, row: &ObjectRow) {
+        let auto_gain = self.auto_xray_gain();
         {
             let mut st = self.state.borrow_mut();
             let Some(object) = st
@@ -2556,7 +2562,7 @@ impl Controller {
             else {
                 return;
             };
-            segments_panel::apply(object, &from_ui_row(row));
+            segments_panel::apply(object, &from_ui_row(row), auto_gain);
         }
         self.show_objects();
         self.request_frame(false);

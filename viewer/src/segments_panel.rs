@@ -40,8 +40,9 @@ pub struct ObjectRowData {
     pub param_log: bool,
 }
 
-/// The row of `object`.
-pub fn row_of(object: &ObjectStyle) -> ObjectRowData {
+/// The row of `object`; an X-ray object without a gain of its own shows
+/// `auto_gain`, the volume's automatic one it renders with.
+pub fn row_of(object: &ObjectStyle, auto_gain: f32) -> ObjectRowData {
     let mode_index = LOCAL_MODES
         .iter()
         .position(|&m| m == object.mode.name())
@@ -52,7 +53,7 @@ pub fn row_of(object: &ObjectStyle) -> ObjectRowData {
         min: param_min,
         max: param_max,
         log: param_log,
-    } = parameter(object.mode);
+    } = parameter(object.mode, auto_gain);
     let preset_index = PRESETS.iter().position(|(name, _)| {
         TransferFunction::preset(name).is_ok_and(|p| p.points() == object.transfer.points())
     });
@@ -82,8 +83,8 @@ struct Parameter {
     log: bool,
 }
 
-/// The main parameter of `mode`.
-fn parameter(mode: LocalMode) -> Parameter {
+/// The main parameter of `mode` (`auto_gain`: an X-ray gain not given).
+fn parameter(mode: LocalMode, auto_gain: f32) -> Parameter {
     let linear = |value, label, max| Parameter {
         value,
         label,
@@ -93,7 +94,7 @@ fn parameter(mode: LocalMode) -> Parameter {
     };
     match mode {
         LocalMode::XRay { gain } => Parameter {
-            value: gain,
+            value: gain.unwrap_or(auto_gain),
             label: "gain",
             min: 0.002,
             max: 5.0,
@@ -112,8 +113,10 @@ fn parameter(mode: LocalMode) -> Parameter {
 }
 
 /// Applies an edited row to `object`: a new mode starts from its defaults, the
-/// same mode takes the row's parameter; a picked preset keeps the value domain.
-pub fn apply(object: &mut ObjectStyle, row: &ObjectRowData) {
+/// same mode takes the row's parameter (an X-ray gain left at `auto_gain`, the
+/// automatic one shown, stays automatic); a picked preset keeps the value
+/// domain.
+pub fn apply(object: &mut ObjectStyle, row: &ObjectRowData, auto_gain: f32) {
     object.visible = row.visible;
     let name = LOCAL_MODES.get(row.mode_index).copied().unwrap_or("dvr");
     if name != object.mode.name() {
@@ -121,7 +124,9 @@ pub fn apply(object: &mut ObjectStyle, row: &ObjectRowData) {
     } else {
         let p = row.param.max(0.0);
         object.mode = match object.mode {
-            LocalMode::XRay { .. } => LocalMode::XRay { gain: p },
+            LocalMode::XRay { gain } => LocalMode::XRay {
+                gain: (gain.is_some() || p != auto_gain).then_some(p),
+            },
             LocalMode::FirstHit { .. } => LocalMode::FirstHit { iso: p.min(1.0) },
             LocalMode::ContextPreserving { ks, .. } => LocalMode::ContextPreserving { kt: p, ks },
             LocalMode::Importance { source } => LocalMode::Importance {
@@ -136,7 +141,7 @@ pub fn apply(object: &mut ObjectStyle, row: &ObjectRowData) {
         };
     }
     if let Some(i) = row.preset_index
-        && Some(i) != row_of(object).preset_index
+        && Some(i) != row_of(object, auto_gain).preset_index
         && let Some(Ok(mut tf)) = PRESETS.get(i).map(|(n, _)| TransferFunction::preset(n))
     {
         tf.domain = object.transfer.domain;
@@ -149,7 +154,7 @@ fn default_mode(name: &str) -> LocalMode {
     match name {
         "mip" => LocalMode::Mip,
         "average" => LocalMode::Average,
-        "xray" => LocalMode::XRay { gain: 1.0 },
+        "xray" => LocalMode::XRay { gain: None },
         "first-hit" => LocalMode::FirstHit { iso: 0.5 },
         "importance" => LocalMode::Importance {
             source: ImportanceSource::Intensity(1.0),
@@ -180,7 +185,7 @@ mod tests {
     #[test]
     fn a_row_shows_the_object_and_edits_come_back() {
         let mut o = object();
-        let row = row_of(&o);
+        let row = row_of(&o, 0.05);
         assert_eq!(LOCAL_MODES[row.mode_index], "context");
         assert_eq!((row.param, row.param_label.as_str()), (2.0, "κt"));
         assert_eq!(PRESETS[row.preset_index.unwrap()].0, "cloud");
@@ -189,7 +194,7 @@ mod tests {
             visible: false,
             ..row.clone()
         };
-        apply(&mut o, &edited);
+        apply(&mut o, &edited, 0.05);
         assert_eq!(o.mode, LocalMode::ContextPreserving { kt: 0.0, ks: 0.3 });
         assert!(!o.visible);
     }
@@ -202,10 +207,25 @@ mod tests {
         let row = ObjectRowData {
             mode_index: xray,
             preset_index: Some(shells),
-            ..row_of(&o)
+            ..row_of(&o, 0.05)
         };
-        apply(&mut o, &row);
-        assert_eq!(o.mode, LocalMode::XRay { gain: 1.0 });
+        apply(&mut o, &row, 0.05);
+        // The automatic gain, as the plain X-ray mode's, shown on the slider;
+        // another edit of the row keeps it automatic, a moved slider sets it.
+        assert_eq!(o.mode, LocalMode::XRay { gain: None });
+        let row = row_of(&o, 0.05);
+        assert_eq!(row.param, 0.05);
+        apply(
+            &mut o,
+            &ObjectRowData {
+                visible: false,
+                ..row.clone()
+            },
+            0.05,
+        );
+        assert_eq!(o.mode, LocalMode::XRay { gain: None });
+        apply(&mut o, &ObjectRowData { param: 0.2, ..row }, 0.05);
+        assert_eq!(o.mode, LocalMode::XRay { gain: Some(0.2) });
         assert_eq!(
             o.transfer.points(),
             TransferFunction::preset("shells").unwrap().points()
@@ -213,9 +233,9 @@ mod tests {
         assert_eq!(o.transfer.domain, Some([10.0, 900.0]));
         // The gain's slider is logarithmic over the gains scenes use (0.06 to
         // a few); the other parameters' sliders are linear from 0.
-        let gain = row_of(&o);
+        let gain = row_of(&o, 0.05);
         assert!(gain.param_log && gain.param_min <= 0.06 && gain.param_max >= 2.0);
-        let context = row_of(&object());
+        let context = row_of(&object(), 0.05);
         assert!(!context.param_log && context.param_min == 0.0);
     }
 }

@@ -1033,12 +1033,15 @@ pub(crate) use with_local;
 impl LocalCompositor {
     /// The compositor of `mode` over transfer table `table` (its opacities
     /// corrected for the frame's step), with `domain` the raw values the table
-    /// spans and `shading` for the modes that shade.
+    /// spans and `shading` for the modes that shade, for a volume whose
+    /// diagonal is `diagonal` level-0 voxels (the automatic X-ray gain's:
+    /// [`super::auto_xray_gain`]).
     pub fn new(
         mode: LocalMode,
         table: Arc<TransferTable>,
         shading: Option<Shading>,
         domain: [f32; 2],
+        diagonal: f32,
     ) -> Self {
         match mode {
             LocalMode::Dvr => LocalCompositor::Dvr(Dvr {
@@ -1050,7 +1053,7 @@ impl LocalCompositor {
             LocalMode::Average => LocalCompositor::Average(Average { table }),
             LocalMode::XRay { gain } => LocalCompositor::XRay(XRay {
                 table,
-                gain,
+                gain: gain.unwrap_or_else(|| super::auto_xray_gain(diagonal)),
                 domain,
             }),
             LocalMode::FirstHit { iso } => LocalCompositor::FirstHit(FirstHit {

@@ -287,6 +287,7 @@ impl FramePlan {
                     settings.preintegrated,
                     volume.volume().level_scale(),
                     settings.early_termination,
+                    volume.volume().diagonal_voxels(),
                 ))
             }
             None => {
@@ -296,14 +297,13 @@ impl FramePlan {
                 }
                 FrameCompositor::Plain(
                     LocalCompositor::new(
-                        settings.mode.local(
-                            &settings.mode_parameters,
-                            settings.iso_value,
-                            volume.volume().diagonal_voxels(),
-                        ),
+                        settings
+                            .mode
+                            .local(&settings.mode_parameters, settings.iso_value),
                         Arc::new(table),
                         shading,
                         domain,
+                        volume.volume().diagonal_voxels(),
                     )
                     .stopping_at(settings.early_termination),
                 )

@@ -30,8 +30,9 @@ pub enum LocalMode {
     Average,
     /// Sum of normalised values × step: opacity `1 − exp(−gain·Σ)`.
     XRay {
-        /// Scale of the sum.
-        gain: f32,
+        /// Scale of the sum; `None`: [`super::auto_xray_gain`] of the volume
+        /// rendered, as the plain X-ray mode's.
+        gain: Option<f32>,
     },
     /// First sample at or above the iso-value (normalised), shaded, opaque.
     FirstHit {
@@ -552,7 +553,7 @@ impl SegmentScene {
             let _ = writeln!(out, "{tf} }}");
             let _ = writeln!(out, "mode = {}", quote(o.mode.name()));
             match o.mode {
-                LocalMode::XRay { gain } => {
+                LocalMode::XRay { gain: Some(gain) } => {
                     let _ = writeln!(out, "gain = {gain:?}");
                 }
                 LocalMode::FirstHit { iso } => {
@@ -582,7 +583,9 @@ impl SegmentScene {
                 } => {
                     let _ = writeln!(out, "depth = {}", quote(mapping.depth.name()));
                 }
-                LocalMode::Dvr
+                // (No gain: the automatic one.)
+                LocalMode::XRay { gain: None }
+                | LocalMode::Dvr
                 | LocalMode::Mip
                 | LocalMode::Average
                 | LocalMode::Silhouette
@@ -694,7 +697,7 @@ fn local_mode(o: &ObjectFile) -> Result<LocalMode, String> {
         "mip" => LocalMode::Mip,
         "average" => LocalMode::Average,
         "xray" => LocalMode::XRay {
-            gain: unit("gain", o.gain, 1.0)?,
+            gain: o.gain.map(|g| unit("gain", Some(g), g)).transpose()?,
         },
         "first-hit" => {
             let iso = unit("iso", o.iso, 0.5)?;

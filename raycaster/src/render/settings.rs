@@ -64,19 +64,15 @@ impl Mode {
     }
 
     /// The local mode of two-level compositing that composites like this mode,
-    /// with `parameters` and first-hit iso-value `iso` (normalised), for a
-    /// volume whose diagonal is `diagonal` level-0 voxels (the automatic X-ray
-    /// gain's: [`auto_xray_gain`]).
-    pub fn local(self, parameters: &ModeParameters, iso: f32, diagonal: f32) -> LocalMode {
+    /// with `parameters` and first-hit iso-value `iso` (normalised).
+    pub fn local(self, parameters: &ModeParameters, iso: f32) -> LocalMode {
         match self {
             Mode::Dvr => LocalMode::Dvr,
             Mode::Mip => LocalMode::Mip,
             Mode::Average => LocalMode::Average,
             Mode::FirstHit => LocalMode::FirstHit { iso },
             Mode::XRay => LocalMode::XRay {
-                gain: parameters
-                    .xray_gain
-                    .unwrap_or_else(|| auto_xray_gain(diagonal)),
+                gain: parameters.xray_gain,
             },
             Mode::Importance => LocalMode::Importance {
                 source: parameters.importance,

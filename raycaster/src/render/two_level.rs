@@ -169,7 +169,9 @@ impl TwoLevel {
     /// quantisation, [`Shading::covering_quantum`]); `preintegrate` gives
     /// the tables of DVR objects pre-integrated segments; objects' clip regions
     /// are moved to a level whose voxels span `level_scale` level-0 voxels;
-    /// `early_termination` is the frame's threshold.
+    /// `early_termination` is the frame's threshold; X-ray objects without a
+    /// gain take the automatic one of a volume whose diagonal is `diagonal`
+    /// level-0 voxels.
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         scene: &SegmentScene,
@@ -180,6 +182,7 @@ impl TwoLevel {
         preintegrate: bool,
         level_scale: f32,
         early_termination: Option<f32>,
+        diagonal: f32,
     ) -> TwoLevel {
         let mut objects = vec![None; 256];
         let mut object_tables: Vec<Option<Arc<TransferTable>>> = vec![None; 256];
@@ -226,7 +229,13 @@ impl TwoLevel {
                 covering(d).map_or(0.0, |s| s.fade_rate()),
             ];
             object_tables[o.id as usize] = Some(table.clone());
-            objects[o.id as usize] = Some(LocalCompositor::new(o.mode, table, covering(d), d));
+            objects[o.id as usize] = Some(LocalCompositor::new(
+                o.mode,
+                table,
+                covering(d),
+                d,
+                diagonal,
+            ));
         }
         let layers: Option<Vec<[f32; 2]>> = match &scene.membership {
             Membership::Layers(layers) => Some(
