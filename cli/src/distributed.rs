@@ -309,7 +309,22 @@ mod mpi_rank {
         let mut setup = agree(&world, Setup::new(&args))?;
         agree(&world, same_frame_as_rank_0(&world, &setup, &args))?;
         if Compositing::from(args.compositing) == Compositing::DirectSend {
+            let bands_given = match args.bands {
+                Some(_) => Err(anyhow!(
+                    "--bands pipelines the relay; --compositing direct-send has no bands"
+                )),
+                None => Ok(()),
+            };
+            agree(&world, bands_given)?;
             // Partial images of one level: the nearest band's for the whole frame.
+            if let [nearest, .., farthest] = &setup.bands[..]
+                && !args.quiet
+            {
+                eprintln!(
+                    "warning: direct-send renders one level for the whole frame, level {}; one process (and the relay) samples the farther depths at levels up to {}: the pictures differ (--level {} renders that level alike in each)",
+                    nearest.level, farthest.level, nearest.level
+                );
+            }
             setup.bands.truncate(1);
             setup.bands[0].depth = None;
         }

@@ -320,7 +320,8 @@ pub struct RenderArgs {
     /// How a distributed frame's parts become one image: `relay` (pixel states
     /// handed on front to back: exact for every mode, early ray termination
     /// global) or `direct-send` (partial images composited with "over" by strip
-    /// owners: plain DVR only, early ray termination per part; for comparison).
+    /// owners: plain DVR without pre-integration only, one level per frame,
+    /// early ray termination per part; for comparison).
     #[arg(long, value_enum, default_value_t = CompositingArg::Relay, requires = "distributed")]
     pub(crate) compositing: CompositingArg,
 

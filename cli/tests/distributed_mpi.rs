@@ -293,6 +293,76 @@ fn a_deep_view_of_a_pyramid_file_samples_the_same_levels_distributed() {
         let dist: serde_json::Value = serde_json::from_str(stdout.trim()).unwrap();
         assert_eq!(dist["samples"], json["samples"], "{ranks} ranks");
     }
+    // Direct send renders one level for the whole frame: said once (its
+    // picture differed from the single process's by 43–104/255 unsaid), and
+    // it equals the single process's at that level.
+    let image = dir.path().join("direct.png");
+    let out = mpirun(
+        2,
+        &[
+            &[
+                "render",
+                "--distributed",
+                "--compositing",
+                "direct-send",
+                "--no-ert",
+                "-o",
+                image.to_str().unwrap(),
+            ],
+            &view[..view.len() - 3],
+        ]
+        .concat(),
+    );
+    let text = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{text}");
+    assert_eq!(
+        text.matches("warning: direct-send renders one level for the whole frame, level 0; one process (and the relay) samples the farther depths at levels up to 2").count(),
+        1,
+        "{text}"
+    );
+    let level0 = dir.path().join("level0.png");
+    let out = single(
+        &[
+            &[
+                "render",
+                "--no-ert",
+                "--level",
+                "0",
+                "-o",
+                level0.to_str().unwrap(),
+            ],
+            &view[..],
+        ]
+        .concat(),
+    );
+    assert!(out.status.success(), "{out:?}");
+    assert!(max_difference(&image, &level0) <= 1);
+    // It has no bands: `--bands` is refused, once.
+    let out = mpirun(
+        2,
+        &[
+            &[
+                "render",
+                "--distributed",
+                "--compositing",
+                "direct-send",
+                "--bands",
+                "4",
+                "-o",
+                dir.path().join("never.png").to_str().unwrap(),
+            ],
+            &view[..],
+        ]
+        .concat(),
+    );
+    let text = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert_eq!(
+        text.matches("--bands pipelines the relay").count(),
+        1,
+        "{text}"
+    );
+    assert!(!dir.path().join("never.png").exists());
 }
 
 /// Ranks that open another volume, or were given another view or settings,

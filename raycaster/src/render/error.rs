@@ -78,7 +78,7 @@ pub enum RenderError {
     Distributed(String),
     /// Direct-send compositing asked for a frame it cannot composite.
     #[error(
-        "direct-send compositing composites partial images with \"over\": plain DVR only (the relay serves every mode)"
+        "direct-send compositing composites partial images with \"over\": plain DVR without pre-integration only (the relay serves every mode)"
     )]
     DirectSendMode,
     /// A crop box or clipping plane that cuts nothing sensible (inverted box,

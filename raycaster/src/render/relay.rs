@@ -84,7 +84,7 @@ pub enum Compositing {
     #[default]
     Relay,
     /// Partial images of premultiplied RGBA composited with "over" by strip
-    /// owners (sort-last direct send): plain DVR only, early ray termination
+    /// owners (sort-last direct send): plain DVR without pre-integration only, early ray termination
     /// per part; for comparison.
     DirectSend,
 }
@@ -183,7 +183,9 @@ pub fn render_distributed_levels(
     let (width, height) = (camera.width(), camera.height());
     let summary = FrameSummary::of(passes, &plans, camera, options, ranks, start);
     if options.compositing == Compositing::DirectSend {
-        if settings.mode != Mode::Dvr || settings.segments.is_some() {
+        // (A pre-integrated sample's segment reaches the next sample, which
+        // may lie in another rank's part: the seams would lose it.)
+        if settings.mode != Mode::Dvr || settings.segments.is_some() || settings.preintegrates() {
             return Err(RenderError::DirectSendMode);
         }
         let [(volume, None)] = passes else {
