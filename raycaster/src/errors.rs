@@ -19,7 +19,23 @@ pub fn error_text(error: &(dyn Error + 'static)) -> String {
         }
         cause = c.source();
     }
-    shorten_long_lines(&out)
+    shorten_long_lines(&escape_controls(&out))
+}
+
+/// `text` with its control characters but line breaks and tabs written as
+/// escapes (`\u{1b}`, `\0`): parsers quote what they failed on, and a
+/// broken file's bytes would otherwise reach the terminal as commands
+/// (colours, a cleared screen) or vanish (NUL).
+fn escape_controls(text: &str) -> String {
+    text.chars()
+        .map(|c| {
+            if c.is_control() && c != '\n' && c != '\t' {
+                c.escape_debug().to_string()
+            } else {
+                c.to_string()
+            }
+        })
+        .collect()
 }
 
 /// `text` on one line, for a status line that shows one: the quoted source
@@ -72,6 +88,17 @@ fn shorten_long_lines(text: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn control_characters_of_a_file_quoted_in_a_message_are_escaped() {
+        let e = std::io::Error::other(
+            "DimSize `10 \u{1b}[31mRED\u{1b}[0m` is not 3 whole numbers\n\tnext\0",
+        );
+        assert_eq!(
+            error_text(&e),
+            "DimSize `10 \\u{1b}[31mRED\\u{1b}[0m` is not 3 whole numbers\n\tnext\\0"
+        );
+    }
 
     #[derive(Debug, thiserror::Error)]
     #[error("cannot read scene a.toml: {source}")]

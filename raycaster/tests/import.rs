@@ -1294,3 +1294,56 @@ fn a_dcm_file_that_is_not_dicom_is_said_by_its_name() {
         assert!(matches!(err.kind, ImportErrorKind::NotDicom), "{err}");
     }
 }
+
+/// A DICOM slice whose data set is deflate-compressed (transfer syntax
+/// 1.2.840.10008.1.2.1.99) is said as the unsupported syntax it is, as
+/// compressed pixel data is (before: the parser's advice to enable a cargo
+/// feature of one of its crates).
+#[test]
+fn a_deflated_dicom_data_set_is_said_as_an_unsupported_transfer_syntax() {
+    use dicom_core::{DataElement, PrimitiveValue, VR};
+    use dicom_dictionary_std::tags;
+    use dicom_object::{FileMetaTableBuilder, InMemDicomObject};
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("slice.dcm");
+    let mut obj = InMemDicomObject::new_empty();
+    let us = |tag, v: u16| DataElement::new(tag, VR::US, PrimitiveValue::from(v));
+    obj.put(us(tags::ROWS, 4));
+    obj.put(us(tags::COLUMNS, 4));
+    obj.put(us(tags::BITS_ALLOCATED, 8));
+    obj.put(DataElement::new(
+        tags::PIXEL_DATA,
+        VR::OB,
+        PrimitiveValue::from(vec![7u8; 16]),
+    ));
+    obj.with_meta(
+        FileMetaTableBuilder::new()
+            .transfer_syntax("1.2.840.10008.1.2.1")
+            .media_storage_sop_class_uid("1.2.840.10008.5.1.4.1.1.2")
+            .media_storage_sop_instance_uid("1.2.3.4"),
+    )
+    .unwrap()
+    .write_to_file(&path)
+    .unwrap();
+    assert_eq!(import::open(dir.path()).unwrap().dims, [4, 4, 1]);
+    // The transfer syntax made the deflated one: its UID four bytes longer,
+    // and the meta group's length with it.
+    let mut bytes = std::fs::read(&path).unwrap();
+    let old = b"1.2.840.10008.1.2.1\0";
+    let at = bytes.windows(old.len()).position(|w| w == old).unwrap();
+    assert_eq!(u16::from_le_bytes([bytes[at - 2], bytes[at - 1]]), 20);
+    bytes.splice(at..at + old.len(), *b"1.2.840.10008.1.2.1.99\0\0");
+    bytes[at - 2..at].copy_from_slice(&24u16.to_le_bytes());
+    // (0002,0000) UL: the group length, after the preamble and `DICM`.
+    let group = 132 + 8;
+    let length = u32::from_le_bytes(bytes[group..group + 4].try_into().unwrap());
+    bytes[group..group + 4].copy_from_slice(&(length + 4).to_le_bytes());
+    std::fs::write(&path, &bytes).unwrap();
+    let err = import::open(dir.path()).unwrap_err().to_string();
+    assert!(
+        err.contains(
+            "transfer syntax 1.2.840.10008.1.2.1.99 (a deflate-compressed data set; only uncompressed slices are read)"
+        ) && !err.contains("feature"),
+        "{err}"
+    );
+}

@@ -30,9 +30,14 @@ pub fn parse_dims(s: &str) -> Result<[u32; 3], String> {
     let nums = parts
         .iter()
         .map(|p| {
-            p.trim()
-                .parse::<u32>()
-                .map_err(|_| format!("`{p}` is not a whole number"))
+            let p = p.trim();
+            p.parse::<u32>().map_err(|e| match e.kind() {
+                // (Beyond u32: out of range, as any size above the limit.)
+                std::num::IntErrorKind::PosOverflow => {
+                    format!("size {p} is out of range 1..={MAX_AXIS}")
+                }
+                _ => format!("`{p}` is not a whole number"),
+            })
         })
         .collect::<Result<Vec<u32>, String>>()?;
     let dims = match nums[..] {
@@ -129,6 +134,9 @@ pub fn parse_brick(s: &str) -> Result<u8, String> {
     match s.parse::<u32>() {
         Ok(v @ 2..=255) => Ok(v as u8),
         Ok(v) => Err(format!("brick side {v} is out of range 2..=255")),
+        Err(e) if *e.kind() == std::num::IntErrorKind::PosOverflow => {
+            Err(format!("brick side {s} is out of range 2..=255"))
+        }
         Err(_) => Err(format!("`{s}` is not a whole number")),
     }
 }
@@ -255,6 +263,19 @@ mod tests {
             Err("`20,20,1`: sizes are written N or XxYxZ, e.g. 256 or 512x512x128".into())
         );
         assert!(parse_dims("99999999").is_err());
+        // Beyond u32 it is out of range too, not "not a whole number".
+        assert_eq!(
+            parse_dims("4294967296x1x1"),
+            Err(format!("size 4294967296 is out of range 1..={MAX_AXIS}"))
+        );
+        assert_eq!(
+            parse_dims("1x-2x3"),
+            Err("`-2` is not a whole number".into())
+        );
+        assert_eq!(
+            parse_brick("99999999999"),
+            Err("brick side 99999999999 is out of range 2..=255".into())
+        );
     }
 
     #[test]

@@ -71,29 +71,53 @@ pub fn series_dir(path: &Path) -> PathBuf {
     }
 }
 
+/// The byte order of transfer syntax `ts`, or why it is not read.
+fn endian_of(ts: &str) -> Result<Endian, ImportErrorKind> {
+    match ts.trim_end_matches('\0') {
+        "1.2.840.10008.1.2" | "1.2.840.10008.1.2.1" => Ok(Endian::Little),
+        "1.2.840.10008.1.2.2" => Ok(Endian::Big),
+        deflated @ "1.2.840.10008.1.2.1.99" => Err(unsupported(
+            F,
+            format!(
+                "transfer syntax {deflated} (a deflate-compressed data set; only uncompressed slices are read)"
+            ),
+        )),
+        other => Err(unsupported(
+            F,
+            format!(
+                "transfer syntax {other} (compressed pixel data; only uncompressed slices are read)"
+            ),
+        )),
+    }
+}
+
+/// The transfer syntax in the file meta group of the DICOM file at `path`
+/// (after its 128-byte preamble), read alone; `None` where it cannot be.
+fn transfer_syntax_of(path: &Path) -> Option<String> {
+    use std::io::Read;
+    let mut file = std::fs::File::open(path).ok()?;
+    let mut preamble = [0u8; 128];
+    file.read_exact(&mut preamble).ok()?;
+    let meta =
+        dicom_object::meta::FileMetaTable::from_reader(std::io::BufReader::new(file)).ok()?;
+    Some(meta.transfer_syntax().to_string())
+}
+
 /// Reads one slice's metadata and finds its pixel data.
 fn read_slice(path: &Path) -> Result<Slice, ImportErrorKind> {
     let obj = OpenFileOptions::new()
         .read_until(tags::PIXEL_DATA)
         .open_file(path)
-        .map_err(|e| header_error(F, format!("cannot parse the DICOM file: {e}")))?;
-    let ts = obj
-        .meta()
-        .transfer_syntax()
-        .trim_end_matches('\0')
-        .to_string();
-    let endian = match ts.as_str() {
-        "1.2.840.10008.1.2" | "1.2.840.10008.1.2.1" => Endian::Little,
-        "1.2.840.10008.1.2.2" => Endian::Big,
-        other => {
-            return Err(unsupported(
-                F,
-                format!(
-                    "transfer syntax {other} (compressed pixel data; only uncompressed slices are read)"
-                ),
-            ));
-        }
-    };
+        .map_err(|e| {
+            // A transfer syntax the parser cannot read (a deflated data set)
+            // is said as the unsupported syntax it is, not as the parser's
+            // advice to its own developers.
+            match transfer_syntax_of(path).map(|ts| endian_of(&ts)) {
+                Some(Err(e)) => e,
+                _ => header_error(F, format!("cannot parse the DICOM file: {e}")),
+            }
+        })?;
+    let endian = endian_of(obj.meta().transfer_syntax())?;
     let int = |tag, name: &str| -> Result<i64, ImportErrorKind> {
         obj.element(tag)
             .map_err(|_| header_error(F, format!("{name} is missing")))?
