@@ -200,6 +200,21 @@ fn run_foreign(a: &InfoArgs) -> anyhow::Result<()> {
         counted(imported.voxels(), "voxel")
     );
     println!("spacing     {}", describe_spacing(imported.spacing));
+    // What convert and render refuse (a spacing or extent beyond what is
+    // read) is said, with the flag that overrides it.
+    let header = raycaster::volume::Header::new(
+        imported.dims,
+        imported.spacing,
+        raycaster::volume::Layout::Linear,
+        raycaster::volume::SampleType::U16,
+        raycaster::volume::Content::Scalar,
+        raycaster::volume::Format::Extended,
+    );
+    if let Err(e) = header.validate() {
+        eprintln!(
+            "warning: `volgen convert` refuses this file's spacing ({e}); give one with `volgen convert --spacing X,Y,Z`"
+        );
+    }
     println!(
         "samples     {}, {} endian, {} data",
         imported.sample,

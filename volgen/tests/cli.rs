@@ -1181,3 +1181,39 @@ fn a_named_ct_window_on_8_bit_data_is_warned_of() {
     );
     assert!(!stderr(&o).contains("Hounsfield"), "{}", stderr(&o));
 }
+
+/// `volgen info` on a file whose spacing convert and render refuse says so,
+/// with the flag that overrides it (it printed the spacing as if usable).
+#[test]
+fn info_says_a_spacing_that_convert_refuses_and_convert_overrides_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let header = "NRRD0004\ntype: uint8\ndimension: 3\nsizes: 2 2 2\nspacings: 1e30 1e30 1e30\nencoding: raw\n\n";
+    std::fs::write(d.join("far.nrrd"), [header.as_bytes(), &[9u8; 8]].concat()).unwrap();
+    let o = volgen(d, &["info", "far.nrrd", "--no-histogram"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("spacing     1e30 x 1e30 x 1e30"),
+        "{}",
+        stdout(&o)
+    );
+    assert_eq!(
+        stderr(&o)
+            .matches("warning: `volgen convert` refuses this file's spacing (spacing on x is 1e30;")
+            .count(),
+        1,
+        "{}",
+        stderr(&o)
+    );
+    let o = volgen(d, &["convert", "far.nrrd", "-o", "far.vol"]);
+    assert!(!o.status.success());
+    assert!(!d.join("far.vol").exists());
+    let o = volgen(
+        d,
+        &["convert", "far.nrrd", "-o", "far.vol", "--spacing", "1"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    // A usable spacing gets no warning.
+    let o = volgen(d, &["info", "far.vol", "--no-histogram"]);
+    assert!(!stderr(&o).contains("warning"), "{}", stderr(&o));
+}

@@ -562,6 +562,36 @@ pub fn open(path: &Path) -> Result<Imported, ImportError> {
     })
 }
 
+/// Checks that the values an integer sample type's scaling gives (`slope ·
+/// stored + intercept`) stay within f32, the values the tools take and say
+/// (`--domain`, `--window`, the slices' windows): a slope of 3e38 made
+/// every value but 0 infinite there.
+fn check_value_range(imported: &Imported) -> Result<(), ImportErrorKind> {
+    let Some((slope, intercept)) = imported.scaling else {
+        return Ok(());
+    };
+    let stored: [f64; 2] = match imported.sample {
+        RawType::U8 => [0.0, 255.0],
+        RawType::U16 => [0.0, 65535.0],
+        RawType::I16 => [-32768.0, 32767.0],
+        // (Float samples are windowed onto u16 by their own values.)
+        RawType::F32 => return Ok(()),
+    };
+    for s in stored {
+        let value = f64::from(slope) * s + f64::from(intercept);
+        if !(value.abs() <= f64::from(f32::MAX)) {
+            return Err(header_error(
+                imported.format,
+                format!(
+                    "the value scaling (slope {slope:e}, intercept {intercept:e}) takes stored {} value {s} to {value:e}, beyond the ±3.4e38 values are read in",
+                    imported.sample
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Parses `path` without checking the spacing ratio (`volgen convert --spacing`
 /// replaces a broken spacing).
 pub fn open_unchecked(path: &Path) -> Result<Imported, ImportError> {
@@ -581,13 +611,15 @@ pub fn open_unchecked(path: &Path) -> Result<Imported, ImportError> {
         };
         return Err(ImportError::new(path, kind));
     }
-    match format {
+    let imported = match format {
         Some(ImportFormat::Nrrd) => nrrd::open(path),
         Some(ImportFormat::Nifti) => nifti::open(path),
         Some(ImportFormat::MetaImage) => metaimage::open(path),
         Some(ImportFormat::Dicom) => dicom::open(path),
         None => Err(ImportError::new(path, ImportErrorKind::UnknownFormat)),
-    }
+    }?;
+    check_value_range(&imported).map_err(|e| ImportError::new(path, e))?;
+    Ok(imported)
 }
 
 impl Imported {

@@ -397,6 +397,33 @@ mod tests {
     }
 
     #[test]
+    fn a_value_scaling_beyond_f32_is_refused_and_one_within_it_is_kept() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("scaled.nii");
+        let write = |slope: f32, inter: f32| {
+            let mut h = header(4, [2, 2, 2], [1.0; 3]);
+            h[112..116].copy_from_slice(&slope.to_le_bytes());
+            h[116..120].copy_from_slice(&inter.to_le_bytes());
+            h.extend_from_slice(&[1; 16]);
+            std::fs::write(&path, &h).unwrap();
+        };
+        // (Before: accepted, its values ±∞ and "max 7.68e40" in the file.)
+        write(3e38, 3e38);
+        let e = crate::import::open(&path).unwrap_err().to_string();
+        assert!(
+            e.contains("the value scaling (slope 3e38, intercept 3e38) takes stored i16 value")
+                && e.contains("beyond the ±3.4e38 values are read in"),
+            "{e}"
+        );
+        write(1.1e34, -5.0);
+        let e = crate::import::open(&path).unwrap_err().to_string();
+        assert!(e.contains("stored i16 value -32768 to -3.6"), "{e}");
+        write(2.0, -1024.0);
+        let imported = crate::import::open(&path).unwrap();
+        assert_eq!(imported.scaling, Some((2.0, -1024.0)));
+    }
+
+    #[test]
     fn a_pair_magic_in_a_single_file_is_named_as_such() {
         let dir = tempfile::tempdir().unwrap();
         let mut h = header(2, [2, 2, 2], [1.0; 3]);
