@@ -579,7 +579,7 @@ fn check_value_range(imported: &Imported) -> Result<(), ImportErrorKind> {
     };
     for s in stored {
         let value = f64::from(slope) * s + f64::from(intercept);
-        if !(value.abs() <= f64::from(f32::MAX)) {
+        if value.is_nan() || value.abs() > f64::from(f32::MAX) {
             return Err(header_error(
                 imported.format,
                 format!(
