@@ -287,7 +287,37 @@ mod mpi_rank {
         }));
     }
 
+    /// How long a rank waits for the job's other processes to join before it
+    /// says what may be wrong.
+    const JOIN_WAIT: Duration = Duration::from_secs(30);
+
+    /// Says, once, if the job has not come together within [`JOIN_WAIT`]
+    /// (MPI waits for every process of the job: one started without
+    /// `--distributed`, in a job of several command lines, never joins and
+    /// the others waited silently); `joined` is set when it has.
+    fn warn_unless_joined(joined: std::sync::Arc<std::sync::atomic::AtomicBool>) {
+        use std::sync::atomic::Ordering;
+        let started = std::time::Instant::now();
+        // (Without a thread for it, no warning: the job runs as it would.)
+        let _ = std::thread::Builder::new()
+            .name("mpi-join-watch".into())
+            .spawn(move || {
+                while started.elapsed() < JOIN_WAIT {
+                    std::thread::sleep(Duration::from_millis(200));
+                    if joined.load(Ordering::Relaxed) {
+                        return;
+                    }
+                }
+                eprintln!(
+                    "warning: the MPI job has not come together after {} s: every process of it must run `raycaster render --distributed` with the same flags (one started without it never joins; docs/distributed.md)",
+                    JOIN_WAIT.as_secs()
+                );
+            });
+    }
+
     pub fn run(mut args: RenderArgs) -> Result<()> {
+        let joined = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        warn_unless_joined(joined.clone());
         let (universe, _threading) = mpi::initialize_with_threading(mpi::Threading::Funneled)
             .ok_or_else(|| anyhow!("MPI could not be initialised"))?;
         abort_job_on_panic();
@@ -306,6 +336,8 @@ mod mpi_rank {
             Ok(())
         };
         agree(&world, checked)?;
+        // (Every rank reached the first collective step: the job is whole.)
+        joined.store(true, std::sync::atomic::Ordering::Relaxed);
         let mut setup = agree(&world, Setup::new(&args))?;
         agree(&world, same_frame_as_rank_0(&world, &setup, &args))?;
         if Compositing::from(args.compositing) == Compositing::DirectSend {
