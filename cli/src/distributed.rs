@@ -402,7 +402,9 @@ mod mpi_rank {
             extra.insert("ranks".into(), rank_json(&result.ranks));
             extra.insert("gather_seconds".into(), result.gather.as_secs_f64().into());
         }
-        finish(&args, &setup, &frame, &frame.to_image(), extra)
+        let image = frame.to_image();
+        crate::render::warn_of_dark_average(&args, &setup, &image)?;
+        finish(&args, &setup, &frame, &image, extra)
     }
 
     /// Per-rank statistics for `--stats-json`.

@@ -572,23 +572,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
             setup.volume.path().display()
         );
     }
-    // A dark average frame on the default domain: say which domain shows it
-    // (a transfer-function file's own domain was the user's choice).
-    let own_domain = args
-        .tf
-        .as_ref()
-        .is_some_and(|tf| TransferFunction::names_a_file(tf, Path::new("")));
     let image = frame.to_image();
-    if setup.settings.mode == Mode::Average
-        && args.domain.is_none()
-        && !own_domain
-        && args.session.is_none()
-        && !args.quiet
-        && let Some(dark) =
-            raycaster::render::dark_average(&setup.volume, &setup.settings, &setup.camera, &image)?
-    {
-        eprintln!("{}", dark_average_warning(&setup.volume, &dark));
-    }
+    warn_of_dark_average(&args, &setup, &image)?;
     finish(&args, &setup, &frame, &image, serde_json::Map::new())
 }
 
@@ -873,6 +858,31 @@ pub(crate) fn finish(
             frame.stats.time.as_secs_f64(),
             frame.stats.counters.samples as f64 / 1e6
         );
+    }
+    Ok(())
+}
+
+/// Warns of a dark average frame `image` on the default domain, saying which
+/// domain shows it (a transfer-function file's own domain, `--domain` or a
+/// session's was the user's choice); `render` and `render --distributed` alike.
+pub(crate) fn warn_of_dark_average(
+    args: &RenderArgs,
+    setup: &Setup,
+    image: &raycaster::render::RgbImage,
+) -> Result<()> {
+    let own_domain = args
+        .tf
+        .as_ref()
+        .is_some_and(|tf| TransferFunction::names_a_file(tf, Path::new("")));
+    if setup.settings.mode == Mode::Average
+        && args.domain.is_none()
+        && !own_domain
+        && args.session.is_none()
+        && !args.quiet
+        && let Some(dark) =
+            raycaster::render::dark_average(&setup.volume, &setup.settings, &setup.camera, image)?
+    {
+        eprintln!("{}", dark_average_warning(&setup.volume, &dark));
     }
     Ok(())
 }

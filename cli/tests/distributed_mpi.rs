@@ -168,6 +168,48 @@ fn distributed_images_equal_the_single_process_image() {
     }
 }
 
+/// A dark average frame is warned of once, as one process warns of it (the
+/// distributed frame said nothing).
+#[test]
+fn a_dark_average_frame_is_warned_of_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let args = |image: &str| -> Vec<String> {
+        [
+            "render",
+            "--mode",
+            "average",
+            "--scene-size",
+            "48",
+            "--size",
+            "40",
+            "-o",
+            image,
+        ]
+        .map(String::from)
+        .to_vec()
+    };
+    let single_png = dir.path().join("single.png");
+    let out = single(
+        &args(single_png.to_str().unwrap())
+            .iter()
+            .map(String::as_str)
+            .collect::<Vec<_>>(),
+    );
+    let said = String::from_utf8_lossy(&out.stderr);
+    let warning = said
+        .lines()
+        .find(|l| l.starts_with("warning: --mode average: the picture is dark"))
+        .unwrap_or_else(|| panic!("{said}"))
+        .to_string();
+    let image = dir.path().join("dist.png");
+    let mut line = args(image.to_str().unwrap());
+    line.insert(1, "--distributed".into());
+    let out = mpirun(3, &line.iter().map(String::as_str).collect::<Vec<_>>());
+    let text = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{text}");
+    assert_eq!(text.matches(&warning).count(), 1, "{text}");
+}
+
 #[test]
 fn stats_list_every_rank_and_a_bad_input_stops_every_rank_with_one_message() {
     let dir = tempfile::tempdir().unwrap();
