@@ -285,24 +285,38 @@ fn orientation(
     Ok(Some(orientation))
 }
 
+/// Decompressed bytes read past a `.nii.gz` header that does not parse, to see
+/// whether the stream is corrupt.
+const CORRUPTION_LOOKAHEAD: u64 = 16 << 20;
+
 /// Parses the NIfTI-1 file at `path` (`.nii`, `.nii.gz`, or the `.hdr` of a pair).
 pub fn open(path: &Path) -> Result<Imported, ImportError> {
     let at = |e: ImportErrorKind| ImportError::new(path, e);
     let gz = gzip_magic_at(path, 0).map_err(|e| at(e.into()))?;
     let file = crate::files::open_regular(path).map_err(|e| at(e.into()))?;
     let mut head = Vec::with_capacity(HEADER_LEN);
-    let read = if gz {
-        super::gzip::GzipMembers::new(std::io::BufReader::new(file))
+    let h = if gz {
+        let mut stream = super::gzip::GzipMembers::new(std::io::BufReader::new(file));
+        (&mut stream)
             .take(HEADER_LEN as u64)
             .read_to_end(&mut head)
-            .map_err(|e| at(ImportErrorKind::Compressed(e)))
+            .map_err(|e| at(ImportErrorKind::Compressed(e)))?;
+        parse_header(&head).map_err(|e| {
+            // A header of nonsense from a stream corrupt near its start (the
+            // decoder finds out a little later): said as the corruption it
+            // is, where reading on finds it.
+            let mut ahead = (&mut stream).take(CORRUPTION_LOOKAHEAD);
+            match std::io::copy(&mut ahead, &mut std::io::sink()) {
+                Err(corrupt) => at(ImportErrorKind::Compressed(corrupt)),
+                Ok(_) => at(e),
+            }
+        })?
     } else {
         file.take(HEADER_LEN as u64)
             .read_to_end(&mut head)
-            .map_err(|e| at(e.into()))
+            .map_err(|e| at(e.into()))?;
+        parse_header(&head).map_err(at)?
     };
-    read?;
-    let h = parse_header(&head).map_err(at)?;
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().to_ascii_lowercase())
@@ -394,6 +408,40 @@ mod tests {
         h[108..112].copy_from_slice(&352f32.to_le_bytes());
         h[344..348].copy_from_slice(b"n+1\0");
         h
+    }
+
+    #[test]
+    fn a_gzip_stream_corrupt_near_its_start_is_said_as_corrupt_not_as_a_bad_header() {
+        use std::io::Write;
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("corrupt.nii.gz");
+        let mut data = header(2, [16, 16, 16], [1.0; 3]);
+        data.extend((0..16 * 16 * 16u32).map(|i| (i * 7 % 256) as u8));
+        let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
+        gz.write_all(&data).unwrap();
+        let good = gz.finish().unwrap();
+        std::fs::write(&path, &good).unwrap();
+        assert_eq!(open(&path).unwrap().dims, [16; 3]);
+        // Every byte of the deflate stream flipped (before: some said as
+        // "invalid NIfTI-1 header: magic \"\0\0\0\0\" is neither …", the
+        // header decoded from a corrupt stream before its decoder noticed).
+        for at in 10..good.len() - 8 {
+            let mut bad = good.clone();
+            bad[at] ^= 0xff;
+            std::fs::write(&path, &bad).unwrap();
+            // (A header that decoded whole: the samples' read finds it.)
+            let e = match open(&path) {
+                Ok(_) => crate::import::open_volume_any(&path, 1 << 30)
+                    .map(|_| ())
+                    .unwrap_err()
+                    .to_string(),
+                Err(e) => e.to_string(),
+            };
+            assert!(
+                e.contains("the compressed data is truncated or corrupt"),
+                "byte {at}: {e}"
+            );
+        }
     }
 
     #[test]
