@@ -297,6 +297,9 @@ mod mpi_rank {
     /// the others waited silently); `joined` is set when it has.
     fn warn_unless_joined(joined: std::sync::Arc<std::sync::atomic::AtomicBool>) {
         use std::sync::atomic::Ordering;
+        if !first_of_its_command_line() {
+            return;
+        }
         let started = std::time::Instant::now();
         // (Without a thread for it, no warning: the job runs as it would.)
         let _ = std::thread::Builder::new()
@@ -313,6 +316,23 @@ mod mpi_rank {
                     JOIN_WAIT.as_secs()
                 );
             });
+    }
+
+    /// Whether this process is the first rank of its command line in the job
+    /// (`mpirun -np 1 A : -np 2 B` has two), from what Open MPI sets before
+    /// MPI starts: the waiting ranks of one command line say their warning
+    /// once. Without those variables (another launcher), every rank is.
+    fn first_of_its_command_line() -> bool {
+        let var = |name: &str| std::env::var(name).ok();
+        let (Some(rank), Some(app), Some(sizes)) = (
+            var("OMPI_COMM_WORLD_RANK").and_then(|r| r.trim().parse::<u64>().ok()),
+            var("OMPI_MCA_orte_app_num").and_then(|a| a.trim().parse::<usize>().ok()),
+            var("OMPI_APP_CTX_NUM_PROCS"),
+        ) else {
+            return true;
+        };
+        let sizes: Option<Vec<u64>> = sizes.split_whitespace().map(|n| n.parse().ok()).collect();
+        sizes.is_none_or(|sizes| sizes.iter().take(app).sum::<u64>() == rank)
     }
 
     pub fn run(mut args: RenderArgs) -> Result<()> {

@@ -1331,6 +1331,17 @@ fn a_deflated_dicom_data_set_is_said_as_an_unsupported_transfer_syntax() {
     let mut bytes = std::fs::read(&path).unwrap();
     let old = b"1.2.840.10008.1.2.1\0";
     let at = bytes.windows(old.len()).position(|w| w == old).unwrap();
+    // A UID that is no transfer syntax (as long as the old one): said as
+    // unknown, not as compressed.
+    let mut unknown = bytes.clone();
+    unknown[at..at + old.len()].copy_from_slice(b"1.2.3.4.5.6.7.8.9.10");
+    std::fs::write(&path, &unknown).unwrap();
+    let err = import::open(dir.path()).unwrap_err().to_string();
+    assert!(
+        err.contains("transfer syntax \"1.2.3.4.5.6.7.8.9.10\", which is no known one")
+            && !err.contains("compressed pixel data"),
+        "{err}"
+    );
     assert_eq!(u16::from_le_bytes([bytes[at - 2], bytes[at - 1]]), 20);
     bytes.splice(at..at + old.len(), *b"1.2.840.10008.1.2.1.99\0\0");
     bytes[at - 2..at].copy_from_slice(&24u16.to_le_bytes());

@@ -82,10 +82,22 @@ fn endian_of(ts: &str) -> Result<Endian, ImportErrorKind> {
                 "transfer syntax {deflated} (a deflate-compressed data set; only uncompressed slices are read)"
             ),
         )),
+        // JPEG, JPEG-LS, JPEG 2000, MPEG, HEVC (…1.2.4.*) and RLE (…1.2.5).
+        compressed
+            if compressed.starts_with("1.2.840.10008.1.2.4.")
+                || compressed == "1.2.840.10008.1.2.5" =>
+        {
+            Err(unsupported(
+                F,
+                format!(
+                    "transfer syntax {compressed} (compressed pixel data; only uncompressed slices are read)"
+                ),
+            ))
+        }
         other => Err(unsupported(
             F,
             format!(
-                "transfer syntax {other} (compressed pixel data; only uncompressed slices are read)"
+                "transfer syntax {other:?}, which is no known one (only the uncompressed 1.2.840.10008.1.2, 1.2.840.10008.1.2.1 and 1.2.840.10008.1.2.2 are read)"
             ),
         )),
     }
