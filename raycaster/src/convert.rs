@@ -127,6 +127,19 @@ pub fn plan_values(
                 ));
             };
             non_finite = Some(range.non_finite);
+            // (Integer types' scalings are checked against their whole
+            // range when the header is read; float values only now.)
+            let units = input.units();
+            if let Some(value) = [lo, hi]
+                .map(|v| units.value(f64::from(v)))
+                .into_iter()
+                .find(|v| v.is_nan() || v.abs() > f64::from(f32::MAX))
+            {
+                return Err(VolumeError::new(
+                    input.path(),
+                    VolumeErrorKind::ValuesBeyondF32 { value },
+                ));
+            }
             ValueMap::Window(lo, hi)
         }
     };

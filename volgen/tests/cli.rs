@@ -1217,3 +1217,43 @@ fn info_says_a_spacing_that_convert_refuses_and_convert_overrides_it() {
     let o = volgen(d, &["info", "far.vol", "--no-histogram"]);
     assert!(!stderr(&o).contains("warning"), "{}", stderr(&o));
 }
+
+/// A float NIfTI file whose value scaling takes its values beyond f32 is
+/// refused when its values are read (it was converted as "values 0..=inf
+/// mapped to the full range"); an ordinary scaling of the same file converts.
+#[test]
+fn float_values_scaled_beyond_f32_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let nifti = |slope: f32| {
+        let mut h = vec![0u8; 352];
+        h[0..4].copy_from_slice(&348i32.to_le_bytes());
+        for (i, v) in [3i16, 2, 2, 2, 1, 1, 1, 1].iter().enumerate() {
+            h[40 + 2 * i..42 + 2 * i].copy_from_slice(&v.to_le_bytes());
+        }
+        h[70..72].copy_from_slice(&16i16.to_le_bytes());
+        h[72..74].copy_from_slice(&32i16.to_le_bytes());
+        for (i, p) in [1f32, 1.0, 1.0, 1.0].iter().enumerate() {
+            h[76 + 4 * i..80 + 4 * i].copy_from_slice(&p.to_le_bytes());
+        }
+        h[108..112].copy_from_slice(&352f32.to_le_bytes());
+        h[112..116].copy_from_slice(&slope.to_le_bytes());
+        h[344..348].copy_from_slice(b"n+1\0");
+        for v in [0f32, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0] {
+            h.extend_from_slice(&v.to_le_bytes());
+        }
+        std::fs::write(d.join("f.nii"), &h).unwrap();
+    };
+    nifti(3e38);
+    let o = volgen(d, &["convert", "f.nii", "-o", "f.vol"]);
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("its values reach 2.1") && stderr(&o).contains("beyond the ±3.4e38"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!d.join("f.vol").exists());
+    nifti(2.0);
+    let o = volgen(d, &["convert", "f.nii", "-o", "f.vol"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}

@@ -144,6 +144,15 @@ pub enum VolumeErrorKind {
         "holds no finite value (every sample is NaN or infinite): there is no value range to map and nothing to show"
     )]
     NoFiniteValues,
+    /// The file's value scaling takes its values beyond f32, the values the
+    /// tools take and say.
+    #[error(
+        "its values reach {value:e} under the file's value scaling, beyond the ±3.4e38 values are read in"
+    )]
+    ValuesBeyondF32 {
+        /// The value farthest out.
+        value: f64,
+    },
     /// The job was cancelled; nothing was written.
     #[error("cancelled; no output was written")]
     Cancelled,
