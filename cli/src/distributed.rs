@@ -369,8 +369,13 @@ mod mpi_rank {
             };
             agree(&world, bands_given)?;
             // Partial images of one level: the nearest band's for the whole frame.
+            // (Not for a frame direct send refuses: its error follows.)
+            let composited = setup.settings.mode == raycaster::render::Mode::Dvr
+                && setup.settings.segments.is_none()
+                && !setup.settings.preintegrates();
             if let [nearest, .., farthest] = &setup.bands[..]
                 && !args.quiet
+                && composited
             {
                 eprintln!(
                     "warning: direct-send renders one level for the whole frame, level {}; one process (and the relay) samples the farther depths at levels up to {}: the pictures differ (--level {} renders that level alike in each)",

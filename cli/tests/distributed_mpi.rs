@@ -405,6 +405,34 @@ fn a_deep_view_of_a_pyramid_file_samples_the_same_levels_distributed() {
         "{text}"
     );
     assert!(!dir.path().join("never.png").exists());
+    // Pre-integration is refused (the seams lost the segments reaching into
+    // the part behind, 8–19/255), once, without the level warning first.
+    let out = mpirun(
+        2,
+        &[
+            &[
+                "render",
+                "--distributed",
+                "--compositing",
+                "direct-send",
+                "--preintegrate",
+                "-o",
+                dir.path().join("never.png").to_str().unwrap(),
+            ],
+            &view[..view.len() - 3],
+        ]
+        .concat(),
+    );
+    let text = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert_eq!(
+        text.matches("plain DVR without pre-integration only")
+            .count(),
+        1,
+        "{text}"
+    );
+    assert!(!text.contains("renders one level"), "{text}");
+    assert!(!dir.path().join("never.png").exists());
 }
 
 /// Ranks that open another volume, or were given another view or settings,
