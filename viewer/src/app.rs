@@ -739,7 +739,11 @@ fn connect(ui: &App, c: &Rc<Controller>) {
     on!(on_save_scene, |c, path| c
         .save_scene(Path::new(path.as_str())));
     on!(on_clear_scene, |c| {
-        c.state.borrow_mut().scene = None;
+        let had_scene = c.state.borrow_mut().scene.take().is_some();
+        // (The scene's "loaded scene …" line outlived it.)
+        if had_scene {
+            c.show_message("plain rendering: the scene was dropped", false);
+        }
         c.show_objects();
         c.request_frame(false);
         // (It outlived the scene.)
@@ -1659,6 +1663,12 @@ impl Controller {
             }
             st.editor.set_transfer(&settings.transfer);
             st.scene = settings.segments.clone();
+            // A scene the session brings has no file of its own: the Segments
+            // path field no longer names the scene shown (its *Save* offered
+            // to replace another scene's file).
+            if st.scene.is_some() {
+                ui.set_scene_path("".into());
+            }
             st.level = session.level;
             // What `raycaster render --session` warns of: a fixed level past
             // the coarsest (which renders the coarsest), a step past the volume.
@@ -1804,22 +1814,32 @@ impl Controller {
         }
     }
 
-    fn save_session(&self, path: &Path) {
-        // (Said as Save PNG says it: "cannot write session : No such file";
-        // a name of spaces wrote a file named so.)
+    /// Whether `path` names a file a save button can write: not blank (it was
+    /// said as "cannot write session : No such file", and a name of spaces
+    /// wrote a file named so) and not a folder; else says so.
+    fn names_a_file(&self, path: &Path, what: &str, button: &str) -> bool {
         if path.to_string_lossy().trim().is_empty() {
-            return self.show_message(
-                "type a file name for the session next to Save session",
+            self.show_message(
+                &format!("type a file name for the {what} next to {button}"),
                 true,
             );
+            return false;
         }
         if path.is_dir() {
-            return self.show_message(
+            self.show_message(
                 &format!("{}: is a folder; name a .toml file in it", path.display()),
                 true,
             );
+            return false;
         }
-        if self.refuse_input_as_output(path) || !self.replace_confirmed(path, "Save session") {
+        true
+    }
+
+    fn save_session(&self, path: &Path) {
+        if !self.names_a_file(path, "session", "Save session")
+            || self.refuse_input_as_output(path)
+            || !self.replace_confirmed(path, "Save session")
+        {
             return;
         }
         let Some(session) = self.session() else {
@@ -2494,7 +2514,10 @@ impl Controller {
     /// Writes the scene on screen; without one, the plain view as a one-layer
     /// scene (which renders the same image).
     fn save_scene(&self, path: &Path) {
-        if self.refuse_input_as_output(path) || !self.replace_confirmed(path, "Save (scene)") {
+        if !self.names_a_file(path, "scene", "Save (scene)")
+            || self.refuse_input_as_output(path)
+            || !self.replace_confirmed(path, "Save (scene)")
+        {
             return;
         }
         let scene = {

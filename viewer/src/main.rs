@@ -11,7 +11,8 @@ use viewer::{Source, Viewer};
 ///
 /// Left drag orbits, middle or shift + left drag pans, the wheel zooms; keys: R
 /// resets the view, 1/2/3 (or X/Y/Z; shift for the negative side) look along an
-/// axis, S (or Ctrl+S) saves a screenshot. Without FILE it shows a generated scene
+/// axis, S (or Ctrl+S) saves a screenshot, Ctrl+Z and Ctrl+Y undo and redo
+/// edits of the transfer function. Without FILE it shows a generated scene
 /// at once. "Save session" writes the view as a
 /// TOML file that `viewer --session` restores and `raycaster render --session`
 /// renders pixel for pixel.

@@ -95,7 +95,12 @@ fn parameter(mode: LocalMode, auto_gain: f32) -> Parameter {
     match mode {
         LocalMode::XRay { gain } => Parameter {
             value: gain.unwrap_or(auto_gain),
-            label: "gain",
+            // (An automatic gain reads as one: said, as it follows the volume.)
+            label: if gain.is_some() {
+                "gain"
+            } else {
+                "gain (auto)"
+            },
             min: 0.002,
             max: 5.0,
             log: true,
@@ -214,7 +219,7 @@ mod tests {
         // another edit of the row keeps it automatic, a moved slider sets it.
         assert_eq!(o.mode, LocalMode::XRay { gain: None });
         let row = row_of(&o, 0.05);
-        assert_eq!(row.param, 0.05);
+        assert_eq!((row.param, row.param_label.as_str()), (0.05, "gain (auto)"));
         apply(
             &mut o,
             &ObjectRowData {
@@ -226,6 +231,7 @@ mod tests {
         assert_eq!(o.mode, LocalMode::XRay { gain: None });
         apply(&mut o, &ObjectRowData { param: 0.2, ..row }, 0.05);
         assert_eq!(o.mode, LocalMode::XRay { gain: Some(0.2) });
+        assert_eq!(row_of(&o, 0.05).param_label, "gain");
         assert_eq!(
             o.transfer.points(),
             TransferFunction::preset("shells").unwrap().points()

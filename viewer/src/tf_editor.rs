@@ -76,8 +76,11 @@ impl TfEditor {
         true
     }
 
-    /// Takes back the last edit; returns whether there was one.
+    /// Takes back the last edit; returns whether there was one. Asked for
+    /// while a point is held, it ends that drag as an edit of its own first
+    /// (and takes it back).
     pub fn undo(&mut self) -> bool {
+        self.release();
         let Some(previous) = self.undone.pop() else {
             return false;
         };
@@ -86,8 +89,10 @@ impl TfEditor {
         true
     }
 
-    /// Makes the last edit undone again; returns whether there was one.
+    /// Makes the last edit undone again; returns whether there was one
+    /// (none while a point is held: its drag ends as an edit first).
     pub fn redo(&mut self) -> bool {
+        self.release();
         let Some(next) = self.redone.pop() else {
             return false;
         };
@@ -400,6 +405,22 @@ mod tests {
         // Another volume's function forgets the edits.
         e.set_transfer(&start);
         assert!(!e.undo());
+        // Undo while a point is held ends its drag as an edit and takes back
+        // that drag alone (it took back the edit before, and the drag came
+        // back with it on redo); the point no longer follows the pointer.
+        assert!(e.press(100.0, 50.0, w, h, false));
+        e.release();
+        let added = e.transfer();
+        let at = e.points()[1];
+        let (px, py) = (at.value * w, alpha_to_y(at.alpha) * curve_height(h));
+        assert!(!e.press(px, py, w, h, false));
+        assert!(e.drag_to(px + 20.0, py + 10.0, w, h));
+        assert!(e.undo());
+        assert_eq!(e.transfer(), added, "the drag alone is taken back");
+        assert!(!e.drag_to(px + 30.0, py + 10.0, w, h));
+        e.release();
+        assert!(e.undo());
+        assert_eq!(e.transfer(), start, "then the point added");
     }
 
     #[test]

@@ -493,6 +493,54 @@ fn the_viewer_cuts_slices_and_remembers_files() {
     with_control("z");
     assert!(frame(&v) == unedited, "nothing more to undo");
     assert!(v.ui().get_help().contains("Ctrl+Z"));
+    // A click in the curve editor hands the keys to the canvas: Ctrl+Z after
+    // typing a path undoes the new point (it went to the path field, and
+    // emptied it).
+    let field = element(&v, "App::session-field");
+    field.mock_single_click(PointerEventButton::Left);
+    let typed = v.ui().get_session_path();
+    element(&v, "App::tf-area").mock_single_click(PointerEventButton::Left);
+    settle(&v);
+    assert!(frame(&v) != unedited, "a new point");
+    with_control("z");
+    assert!(frame(&v) == unedited, "the point undone, not the path");
+    assert_eq!(v.ui().get_session_path(), typed);
+    // Ctrl+Z while a point is held ends its drag as an edit and undoes it
+    // alone (it undid the edit before and dropped the drag).
+    let tf = element(&v, "App::tf-area");
+    let (pos, size) = (tf.absolute_position(), tf.size());
+    let at = slint::LogicalPosition::new(pos.x + size.width * 0.5, pos.y + size.height * 0.5);
+    let window = v.ui().window();
+    let mouse = |event: WindowEvent| {
+        window.dispatch_event(event);
+        settle(&v);
+    };
+    mouse(WindowEvent::PointerPressed {
+        position: at,
+        button: PointerEventButton::Left,
+    });
+    mouse(WindowEvent::PointerReleased {
+        position: at,
+        button: PointerEventButton::Left,
+    });
+    let added = frame(&v);
+    assert!(added != unedited, "a point added");
+    mouse(WindowEvent::PointerPressed {
+        position: at,
+        button: PointerEventButton::Left,
+    });
+    mouse(WindowEvent::PointerMoved {
+        position: slint::LogicalPosition::new(at.x + 10.0, at.y + size.height * 0.3),
+    });
+    assert!(frame(&v) != added, "the point dragged");
+    with_control("z");
+    assert!(frame(&v) == added, "the drag alone undone");
+    mouse(WindowEvent::PointerReleased {
+        position: at,
+        button: PointerEventButton::Left,
+    });
+    with_control("z");
+    assert!(frame(&v) == unedited, "then the point");
 
     // 3. Slice views through the crosshair (the volume's centre at first).
     assert_eq!(v.crosshair(), [23, 23, 23]);

@@ -334,8 +334,25 @@ fn sessions_save_render_and_restore_the_picture() {
     );
     let labelled_path = dir.path().join("labelled.toml");
     std::fs::write(&labelled_path, labelled.to_toml().unwrap()).unwrap();
-    let v = viewer(Source::Session(labelled_path));
+    let v = viewer(Source::Session(labelled_path.clone()));
     assert_eq!(v.ui().get_objects().row_count(), 1, "the label scene");
+    // A session's scene has no file of its own: the Segments path field no
+    // longer names another scene's file (its Save offered to replace it), and
+    // Save (scene) without a name says so.
+    let elsewhere = dir.path().join("elsewhere.toml");
+    std::fs::write(&elsewhere, "keep me").unwrap();
+    v.ui()
+        .set_scene_path(elsewhere.display().to_string().into());
+    v.ui()
+        .invoke_open_session(labelled_path.display().to_string().into());
+    settle(&v);
+    assert_eq!(v.ui().get_scene_path(), "");
+    v.ui().invoke_save_scene("".into());
+    assert_eq!(
+        v.ui().get_message(),
+        "type a file name for the scene next to Save (scene)"
+    );
+    assert_eq!(std::fs::read_to_string(&elsewhere).unwrap(), "keep me");
     v.ui().invoke_clear_scene();
     settle(&v);
     let cleared = dir.path().join("cleared.toml");
