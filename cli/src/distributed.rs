@@ -370,12 +370,9 @@ mod mpi_rank {
             agree(&world, bands_given)?;
             // Partial images of one level: the nearest band's for the whole frame.
             // (Not for a frame direct send refuses: its error follows.)
-            let composited = setup.settings.mode == raycaster::render::Mode::Dvr
-                && setup.settings.segments.is_none()
-                && !setup.settings.preintegrates();
             if let [nearest, .., farthest] = &setup.bands[..]
                 && !args.quiet
-                && composited
+                && setup.settings.direct_send_composites()
             {
                 eprintln!(
                     "warning: direct-send renders one level for the whole frame, level {}; one process (and the relay) samples the farther depths at levels up to {}: the pictures differ (--level {} renders that level alike in each)",

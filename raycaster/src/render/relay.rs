@@ -36,7 +36,7 @@ use super::partition::{BrickBox, Partition};
 use super::prepared::{FramePlan, RenderVolume};
 use super::renderer::Renderer;
 use super::schedule::FrameSchedule;
-use super::settings::{Mode, RenderSettings};
+use super::settings::RenderSettings;
 use super::state_buffer::{Reader, StateBuffer, StateBytes, put_f32, put_u32};
 
 /// Point-to-point messages between the ranks of a distributed frame (MPI in
@@ -183,9 +183,7 @@ pub fn render_distributed_levels(
     let (width, height) = (camera.width(), camera.height());
     let summary = FrameSummary::of(passes, &plans, camera, options, ranks, start);
     if options.compositing == Compositing::DirectSend {
-        // (A pre-integrated sample's segment reaches the next sample, which
-        // may lie in another rank's part: the seams would lose it.)
-        if settings.mode != Mode::Dvr || settings.segments.is_some() || settings.preintegrates() {
+        if !settings.direct_send_composites() {
             return Err(RenderError::DirectSendMode);
         }
         let [(volume, None)] = passes else {

@@ -239,4 +239,12 @@ impl RenderSettings {
     pub fn preintegrates(&self) -> bool {
         self.preintegrated && (self.mode == Mode::Dvr || self.segments.is_some())
     }
+
+    /// Whether direct-send compositing (partial images composited with
+    /// "over") composites frames of these settings: plain DVR without
+    /// pre-integration (a pre-integrated sample's segment reaches the next
+    /// sample, which may lie in another rank's part: the seams would lose it).
+    pub fn direct_send_composites(&self) -> bool {
+        self.mode == Mode::Dvr && self.segments.is_none() && !self.preintegrates()
+    }
 }
