@@ -107,7 +107,7 @@ fn endian_of(ts: &str) -> Result<Endian, ImportErrorKind> {
 /// (after its 128-byte preamble), read alone; `None` where it cannot be.
 fn transfer_syntax_of(path: &Path) -> Option<String> {
     use std::io::Read;
-    let mut file = std::fs::File::open(path).ok()?;
+    let mut file = crate::files::open_regular(path).ok()?;
     let mut preamble = [0u8; 128];
     file.read_exact(&mut preamble).ok()?;
     let meta =

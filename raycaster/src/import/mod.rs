@@ -577,8 +577,9 @@ fn check_value_range(imported: &Imported) -> Result<(), ImportErrorKind> {
         // (Float samples are windowed onto u16 by their own values.)
         RawType::F32 => return Ok(()),
     };
+    let units = imported.units();
     for s in stored {
-        let value = f64::from(slope) * s + f64::from(intercept);
+        let value = units.value(s);
         if value.is_nan() || value.abs() > f64::from(f32::MAX) {
             return Err(header_error(
                 imported.format,
