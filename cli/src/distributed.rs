@@ -27,6 +27,7 @@ pub fn run(_args: RenderArgs) -> Result<()> {
 #[cfg(feature = "mpi")]
 mod mpi_rank {
     use std::cell::RefCell;
+    use std::sync::mpsc::RecvTimeoutError;
     use std::time::Duration;
 
     use anyhow::{Result, anyhow};
@@ -294,28 +295,26 @@ mod mpi_rank {
     /// Says, once, if the job has not come together within [`JOIN_WAIT`]
     /// (MPI waits for every process of the job: one started without
     /// `--distributed`, in a job of several command lines, never joins and
-    /// the others waited silently); `joined` is set when it has.
-    fn warn_unless_joined(joined: std::sync::Arc<std::sync::atomic::AtomicBool>) {
-        use std::sync::atomic::Ordering;
+    /// the others waited silently); a message on the returned sender (or its
+    /// drop) says it has.
+    fn warn_unless_joined() -> std::sync::mpsc::Sender<()> {
+        let (joined, watch) = std::sync::mpsc::channel::<()>();
         if !first_of_its_command_line() {
-            return;
+            return joined;
         }
-        let started = std::time::Instant::now();
         // (Without a thread for it, no warning: the job runs as it would.)
         let _ = std::thread::Builder::new()
             .name("mpi-join-watch".into())
             .spawn(move || {
-                while started.elapsed() < JOIN_WAIT {
-                    std::thread::sleep(Duration::from_millis(200));
-                    if joined.load(Ordering::Relaxed) {
-                        return;
-                    }
+                if watch.recv_timeout(JOIN_WAIT) != Err(RecvTimeoutError::Timeout) {
+                    return;
                 }
                 eprintln!(
                     "warning: the MPI job has not come together after {} s: every process of it must run `raycaster render --distributed` with the same flags (one started without it never joins; docs/distributed.md)",
                     JOIN_WAIT.as_secs()
                 );
             });
+        joined
     }
 
     /// Whether this process is the first rank of its command line in the job
@@ -336,8 +335,7 @@ mod mpi_rank {
     }
 
     pub fn run(mut args: RenderArgs) -> Result<()> {
-        let joined = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-        warn_unless_joined(joined.clone());
+        let joined = warn_unless_joined();
         let (universe, _threading) = mpi::initialize_with_threading(mpi::Threading::Funneled)
             .ok_or_else(|| anyhow!("MPI could not be initialised"))?;
         abort_job_on_panic();
@@ -357,7 +355,7 @@ mod mpi_rank {
         };
         agree(&world, checked)?;
         // (Every rank reached the first collective step: the job is whole.)
-        joined.store(true, std::sync::atomic::Ordering::Relaxed);
+        let _ = joined.send(());
         let mut setup = agree(&world, Setup::new(&args))?;
         agree(&world, same_frame_as_rank_0(&world, &setup, &args))?;
         if Compositing::from(args.compositing) == Compositing::DirectSend {
