@@ -1723,9 +1723,7 @@ impl Controller {
         ui.set_shading(settings.shading.is_some());
         ui.set_preintegrate(settings.preintegrated);
         ui.set_jitter(settings.jitter);
-        let preset = PRESETS.iter().position(|(name, _)| {
-            TransferFunction::preset(name).is_ok_and(|p| p.points() == settings.transfer.points())
-        });
+        let preset = crate::tf_editor::preset_of(&settings.transfer);
         ui.set_preset_index(preset.map_or(PRESETS.len() as i32, |i| i as i32));
         size_note(session.size, laid_out_canvas(&ui)) + &notes
     }
@@ -2187,15 +2185,7 @@ impl Controller {
             return;
         }
         // The picker names the preset the curve is now, else `custom`.
-        let preset = {
-            let st = self.state.borrow();
-            let curve = st.editor.transfer();
-            st.current.as_ref().and_then(|current| {
-                PRESETS
-                    .iter()
-                    .position(|(name, _)| preset_for(&current.volume, name) == curve)
-            })
-        };
+        let preset = crate::tf_editor::preset_of(&self.state.borrow().editor.transfer());
         if let Some(ui) = self.ui() {
             ui.set_preset_index(preset.unwrap_or(PRESETS.len()) as i32);
         }
@@ -2552,13 +2542,14 @@ impl Controller {
 
     fn show_objects(&self) {
         let Some(ui) = self.ui() else { return };
+        let auto_gain = self.auto_xray_gain();
         let rows: Vec<ObjectRow> = self
             .state
             .borrow()
             .scene
             .iter()
             .flat_map(|s| s.objects.iter())
-            .map(|o| to_ui_row(&segments_panel::row_of(o, self.auto_xray_gain())))
+            .map(|o| to_ui_row(&segments_panel::row_of(o, auto_gain)))
             .collect();
         ui.set_objects(ModelRc::new(VecModel::from(rows)));
     }

@@ -54,9 +54,7 @@ pub fn row_of(object: &ObjectStyle, auto_gain: f32) -> ObjectRowData {
         max: param_max,
         log: param_log,
     } = parameter(object.mode, auto_gain);
-    let preset_index = PRESETS.iter().position(|(name, _)| {
-        TransferFunction::preset(name).is_ok_and(|p| p.points() == object.transfer.points())
-    });
+    let preset_index = crate::tf_editor::preset_of(&object.transfer);
     ObjectRowData {
         id: object.id,
         name: object.name.clone(),

@@ -5,12 +5,20 @@
 //! the vertical axis shows opacity on a square-root scale so the small
 //! per-step opacities of translucent materials stay editable.
 
-use raycaster::render::{ControlPoint, TransferFunction};
+use raycaster::render::{ControlPoint, PRESETS, TransferFunction};
 
 /// Pick radius around a control point, in pixels.
 const PICK_RADIUS: f32 = 8.0;
 /// Height of the colour bar under the curve, in pixels.
 const COLOR_BAR: u32 = 10;
+
+/// The preset (its index into [`PRESETS`]) whose control points `tf` has, as
+/// the pickers name a curve; `None`: a curve of its own (`custom`).
+pub fn preset_of(tf: &TransferFunction) -> Option<usize> {
+    PRESETS.iter().position(|(name, _)| {
+        TransferFunction::preset(name).is_ok_and(|p| p.points() == tf.points())
+    })
+}
 
 /// Undo steps kept (older ones are forgotten).
 const UNDO_STEPS: usize = 100;
