@@ -1,6 +1,7 @@
 //! Parsers for command-line values: image sizes, vectors, colours.
 
-/// `WxH` (or a single `N` for a square), each between 1 and 16384.
+/// `WxH` (or a single `N` for a square), each between 1 and
+/// [`raycaster::render::MAX_IMAGE_SIDE`] (16384).
 pub fn parse_size(s: &str) -> Result<[u32; 2], String> {
     let parts: Vec<&str> = s.split(['x', 'X', '×']).collect();
     let nums = parts
@@ -9,11 +10,14 @@ pub fn parse_size(s: &str) -> Result<[u32; 2], String> {
             p.trim()
                 .parse::<u32>()
                 .ok()
-                .filter(|&v| (1..=16384).contains(&v))
+                .filter(|&v| (1..=raycaster::render::MAX_IMAGE_SIDE).contains(&v))
         })
         .collect::<Option<Vec<u32>>>()
         .ok_or_else(|| {
-            format!("{s:?} is not an image size; expected WxH with 1..16384 pixels each")
+            format!(
+                "{s:?} is not an image size; expected WxH with 1..{} pixels each",
+                raycaster::render::MAX_IMAGE_SIDE
+            )
         })?;
     match nums[..] {
         [n] => Ok([n, n]),

@@ -67,8 +67,8 @@ pub const SESSION_VERSION: u32 = 1;
 /// The largest session file read, in bytes (4 MiB).
 const SESSION_MAX: u64 = 4 << 20;
 
-/// The largest image side a session may ask for.
-pub const MAX_IMAGE_SIDE: u32 = 16384;
+/// The largest image side a session may ask for: a camera's.
+pub use crate::render::MAX_IMAGE_SIDE;
 
 /// Everything needed to reproduce one frame.
 #[derive(Clone, Debug, PartialEq)]
@@ -432,6 +432,14 @@ fn non_negative(field: &str, v: f32) -> Result<f32, SessionError> {
     }
 }
 
+/// An ambient, diffuse or specular factor: 0 to
+/// [`crate::render::MAX_LIGHT_FACTOR`] (the rule of the render's own check).
+fn light_factor(field: &str, v: f32) -> Result<f32, SessionError> {
+    let v = non_negative(field, v)?;
+    crate::render::check_light_factor(v).map_err(|what| invalid(field, what))?;
+    Ok(v)
+}
+
 fn unit(field: &str, v: f32) -> Result<f32, SessionError> {
     if (0.0..=1.0).contains(&v) {
         Ok(v)
@@ -612,8 +620,10 @@ impl Session {
             }
         }
         let camera = camera(&file.camera)?;
+        // (Checked at a size a camera takes: the size's own problem is said
+        // where it is rendered.)
         camera
-            .camera(size[0], size[1])
+            .camera(size[0].min(MAX_IMAGE_SIDE), size[1].min(MAX_IMAGE_SIDE))
             .map_err(|e| invalid("camera", e.to_string()))?;
         let transfer = transfer(&file.transfer, base)?;
         let (settings, level) = settings(&file, transfer, base)?;
@@ -1344,9 +1354,9 @@ fn shading(s: &ShadingFile) -> Result<Option<Shading>, SessionError> {
     };
     let shading = Shading {
         light,
-        ambient: non_negative("shading.ambient", s.ambient.unwrap_or(d.ambient))?,
-        diffuse: non_negative("shading.diffuse", s.diffuse.unwrap_or(d.diffuse))?,
-        specular: non_negative("shading.specular", s.specular.unwrap_or(d.specular))?,
+        ambient: light_factor("shading.ambient", s.ambient.unwrap_or(d.ambient))?,
+        diffuse: light_factor("shading.diffuse", s.diffuse.unwrap_or(d.diffuse))?,
+        specular: light_factor("shading.specular", s.specular.unwrap_or(d.specular))?,
         shininess: non_negative("shading.shininess", s.shininess.unwrap_or(d.shininess))?,
         gradient_threshold: non_negative(
             "shading.gradient_threshold",
@@ -1900,6 +1910,8 @@ mod tests {
             ("shading", "light = [1e-30, 0.0, 0.0]", "shading.light"),
             ("shading", "ambient = -1.0", "shading.ambient"),
             ("shading", "diffuse = 1e39", "shading.diffuse"),
+            ("shading", "ambient = 1e30", "shading.ambient"),
+            ("shading", "specular = 100.5", "shading.specular"),
             ("clip", "planes = [[1.0, 1.0, 1.0, 0.0, 0.0, 0.0]]", "clip"),
             ("clip", "crop = [5.0, 0.0, 0.0, 1.0, 9.0, 9.0]", "clip"),
             ("slices", "window = \"liver\"", "slices.window"),

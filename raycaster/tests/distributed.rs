@@ -156,7 +156,14 @@ fn layers_scene() -> SegmentScene {
         },
     ];
     SegmentScene {
-        membership: Membership::Layers(vec![[40.0, 120.0], [120.0, 200.0], [200.0, 256.0]]),
+        // (Normalised over the domain: raw 40, 120, 200 of 0..255. Written
+        // raw, every value fell below the first layer and the scene showed
+        // nothing; the settings check refuses such layers now.)
+        membership: Membership::Layers(vec![
+            [40.0 / 255.0, 120.0 / 255.0],
+            [120.0 / 255.0, 200.0 / 255.0],
+            [200.0 / 255.0, 1.0],
+        ]),
         objects: modes
             .iter()
             .enumerate()

@@ -238,3 +238,42 @@ fn levels_meet_without_cracks_and_far_levels_spare_full_resolution() {
     assert!(refused.to_string().contains("one level"), "{refused}");
     assert!(render_sequential_levels(&banded[..1], &camera, &two_level).is_ok());
 }
+
+/// The passes of a frame of several levels are distinct levels of one volume,
+/// finest first, each with its band: a program that passes other volumes, a
+/// level twice or a level without its band gets an error from both renderers
+/// (they were composited as if they were one volume's levels).
+#[test]
+fn passes_that_are_not_one_volume_s_levels_are_refused_by_both_renderers() {
+    let dir = TempDir::new().unwrap();
+    let volume = pyramid_shapes(dir.path());
+    let camera = close_view(&volume, false);
+    let bands = LevelChoice::default().bands(&volume, &camera);
+    let levels = prepare_levels(&volume, &bands);
+    let passes = level_passes(&levels, &bands);
+    let other = render_support::scene_volume(SceneKind::Shells, 128);
+    let other = RenderVolume::new(&other, None).unwrap();
+    let settings = RenderSettings::default();
+    let bad = [
+        vec![passes[0], (&other, passes[1].1)],
+        vec![passes[0], passes[0]],
+        vec![passes[1], passes[0]],
+        vec![passes[0], (passes[1].0, None)],
+    ];
+    for (i, bad) in bad.iter().enumerate() {
+        let said = [
+            render_sequential_levels(bad, &camera, &settings)
+                .map(|_| ())
+                .unwrap_err()
+                .to_string(),
+            Renderer::new()
+                .render_levels(bad, &camera, &settings, &ParallelOptions::default())
+                .map(|_| ())
+                .unwrap_err()
+                .to_string(),
+        ];
+        assert!(said[0].starts_with("levels: "), "case {i}: {}", said[0]);
+        assert_eq!(said[0], said[1], "case {i}");
+    }
+    render_sequential_levels(&passes, &camera, &settings).unwrap();
+}

@@ -471,6 +471,14 @@ fn a_label_scene_without_labels_or_with_wrong_labels_is_an_error() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("dimensions"), "{e}");
+    // A volume of values of the right size is no label volume (every value
+    // was taken for an id: a blank scene).
+    let e = RenderVolume::new(&data, None)
+        .unwrap()
+        .with_labels(&data)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("holds values, not labels"), "{e}");
     assert!(
         RenderVolume::new(&data, None)
             .unwrap()

@@ -143,13 +143,26 @@ pub enum CameraError {
     /// Direction or up is zero, not finite, or they are parallel.
     #[error("view direction and up vector must be finite, non-zero and not parallel")]
     DegenerateBasis,
-    /// The position is not finite.
-    #[error("camera position must be finite")]
+    /// The image is wider or taller than [`MAX_IMAGE_SIDE`].
+    #[error("image size {0}×{1} is too large: at most {MAX_IMAGE_SIDE} pixels a side")]
+    ImageTooLarge(u32, u32),
+    /// The position is not finite, or so far out that its distances overflow.
+    #[error(
+        "camera position must be finite and within {MAX_CAMERA_DISTANCE:e} of the origin (beyond, distances overflow 32-bit floats)"
+    )]
     BadPosition,
     /// The field of view or orthographic height is out of range.
     #[error("field of view must be in (0°, 180°) and orthographic height positive")]
     BadProjection,
 }
+
+/// The widest and tallest image a camera makes (the command line's and the
+/// sessions' limit too): a 16384² frame takes about 19 GB while it renders.
+pub const MAX_IMAGE_SIDE: u32 = 16384;
+
+/// The farthest a camera may stand from the origin: the squares of distances
+/// beyond overflow 32-bit floats.
+pub const MAX_CAMERA_DISTANCE: f32 = 1e18;
 
 impl Camera {
     /// A camera at `position` looking along `direction` with `up` roughly upward.
@@ -164,7 +177,10 @@ impl Camera {
         if width == 0 || height == 0 {
             return Err(CameraError::EmptyImage(width, height));
         }
-        if !position.is_finite() {
+        if width > MAX_IMAGE_SIDE || height > MAX_IMAGE_SIDE {
+            return Err(CameraError::ImageTooLarge(width, height));
+        }
+        if !(position.is_finite() && position.abs().max_element() <= MAX_CAMERA_DISTANCE) {
             return Err(CameraError::BadPosition);
         }
         let direction = direction
@@ -205,6 +221,11 @@ impl Camera {
         width: u32,
         height: u32,
     ) -> Result<Camera, CameraError> {
+        // (A far position's direction would overflow first and be said as
+        // a degenerate basis.)
+        if !(position.is_finite() && position.abs().max_element() <= MAX_CAMERA_DISTANCE) {
+            return Err(CameraError::BadPosition);
+        }
         Camera::new(position, target - position, up, projection, width, height)
     }
 
@@ -655,6 +676,18 @@ mod tests {
             Camera::new(Vec3::ZERO, Vec3::X, Vec3::Z, p, 0, 4),
             Err(CameraError::EmptyImage(0, 4))
         );
+        // A frame too large to allocate (an abort before), and a position
+        // whose distances overflow (said as a degenerate basis before).
+        assert_eq!(
+            Camera::new(Vec3::ZERO, Vec3::X, Vec3::Z, p, 65536, 4),
+            Err(CameraError::ImageTooLarge(65536, 4))
+        );
+        assert!(Camera::new(Vec3::ZERO, Vec3::X, Vec3::Z, p, 16384, 16384).is_ok());
+        assert_eq!(
+            Camera::look_at(Vec3::new(1e20, 0.0, 0.0), Vec3::ZERO, Vec3::Z, p, 4, 4),
+            Err(CameraError::BadPosition)
+        );
+        assert!(Camera::look_at(Vec3::new(1e18, 0.0, 0.0), Vec3::ZERO, Vec3::Z, p, 4, 4).is_ok());
         let wide = Projection::Perspective { vfov_deg: 180.0 };
         assert_eq!(
             Camera::new(Vec3::ZERO, Vec3::X, Vec3::Z, wide, 4, 4),

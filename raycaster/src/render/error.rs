@@ -12,6 +12,15 @@ pub enum RenderError {
     /// The early-termination threshold is outside (0, 1].
     #[error("early termination threshold {0} must lie in (0, 1]")]
     ErtThreshold(f32),
+    /// A setting out of its range (a field set in code: files are checked as
+    /// they are read).
+    #[error("{field}: {what}")]
+    Setting {
+        /// The field, as the library names it (`transfer.domain`).
+        field: String,
+        /// What is wrong.
+        what: String,
+    },
     /// The iso-value is outside [0, 1].
     #[error("iso-value {0} must lie in [0, 1] (normalised over the transfer function's domain)")]
     IsoValue(f32),

@@ -39,7 +39,9 @@ impl Frame {
         }
     }
 
-    /// Index of pixel `(x, y)`.
+    /// Index of pixel `(x, y)` in [`Self::rgba`] and [`Self::depth`], for
+    /// `x < width` and `y < height` (not checked: an index past a row is
+    /// the next row's).
     #[inline]
     pub fn index(&self, x: u32, y: u32) -> usize {
         y as usize * self.width as usize + x as usize

@@ -70,7 +70,18 @@ impl RgbImage {
     }
 
     /// The pixel at `(x, y)`.
+    ///
+    /// # Panics
+    ///
+    /// Where `(x, y)` lies outside the image (`x ≥ width` or `y ≥ height`),
+    /// as a slice index out of bounds does.
     pub fn pixel(&self, x: u32, y: u32) -> [u8; 3] {
+        assert!(
+            x < self.width && y < self.height,
+            "pixel ({x}, {y}) lies outside the {}×{} image",
+            self.width,
+            self.height
+        );
         let i = (y as usize * self.width as usize + x as usize) * 3;
         [self.data[i], self.data[i + 1], self.data[i + 2]]
     }

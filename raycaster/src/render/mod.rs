@@ -3,8 +3,8 @@
 //!
 //! The renderer sees volumes only through [`RenderVolume`] (brick grid + value
 //! ranges) and the sampler, never whether they are mapped or in RAM. Every renderer
-//! marches rays through bricks with one generic loop (`march::march_brick`) over
-//! one compositor interface (`compositor::Compositor`); samples
+//! marches rays through bricks with one generic loop over one compositor
+//! interface (internal: the crate's `march` and `compositor` modules); samples
 //! are placed globally along each ray so that the way the volume is cut cannot
 //! change the image.
 
@@ -49,6 +49,7 @@ mod schedule;
 mod segments;
 mod sequential;
 mod settings;
+mod settings_check;
 mod shading;
 mod simd;
 mod state_buffer;
@@ -59,7 +60,10 @@ mod transfer;
 mod truncate;
 mod two_level;
 
-pub use camera::{Camera, CameraError, LookAtProblem, PixelRect, Projection, look_at_problem};
+pub use camera::{
+    Camera, CameraError, LookAtProblem, MAX_CAMERA_DISTANCE, MAX_IMAGE_SIDE, PixelRect, Projection,
+    look_at_problem,
+};
 pub use cells::{
     BrickCells, CELL_CACHE_BYTES, CellRanges, MAX_CELLS, TARGET_CELL_STEP, target_cell_step,
 };
@@ -79,7 +83,8 @@ pub use level::{DepthBand, LevelBand, LevelChoice};
 pub use optics::corrected_alpha;
 pub use orbit::{Orbit, patient_axes};
 pub use parallel::{
-    DEFAULT_TILE_SIZE, ParallelOptions, TileSink, render_parallel, render_parallel_into,
+    DEFAULT_TILE_SIZE, MAX_THREADS, ParallelOptions, TileSink, render_parallel,
+    render_parallel_into,
 };
 pub use partition::{BrickBox, Partition};
 pub use prepared::{LARGE_LINEAR_BRICKS, RenderVolume, default_linear_brick_side};
@@ -99,6 +104,7 @@ pub use settings::{
     AUTO_XRAY_DEPTH, DEFAULT_ERT_THRESHOLD, Mode, ModeParameters, RenderSettings, auto_xray_gain,
     flat_volume, step_past_volume,
 };
+pub use settings_check::{MAX_LIGHT_FACTOR, check_light_factor};
 pub use shading::{FADE_QUANTA, Light, Shading};
 pub use simd::{SimdLevel, available as simd_levels};
 pub use state_buffer::{StateBuffer, StateBufferError};

@@ -55,7 +55,9 @@ pub fn patient_axes(orientation: Option<&Orientation>) -> Mat3 {
 
 impl Orbit {
     /// An orbit that frames the box `[lo, hi]` from the given angles (radians): the
-    /// box's bounding sphere fills the view with a small margin.
+    /// box's bounding sphere fills the view with a small margin. `vfov_deg` is a
+    /// perspective camera's vertical field of view in degrees; `None` makes an
+    /// orthographic view.
     pub fn framing(
         lo: Vec3,
         hi: Vec3,

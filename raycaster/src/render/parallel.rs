@@ -41,12 +41,37 @@ use crate::volume::{Sample, TypedVolume, VolumeData};
 /// Thread and tile parameters of the parallel renderer.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ParallelOptions {
-    /// Threads that march rays.
+    /// Threads that march rays (0 counts as 1; at most [`MAX_THREADS`]).
     pub render_threads: usize,
-    /// Threads that own tiles and hand out their bricks.
+    /// Threads that own tiles and hand out their bricks (0 counts as 1; at
+    /// most [`MAX_THREADS`]).
     pub compositing_threads: usize,
-    /// Tile side in pixels.
+    /// Tile side in pixels (0 counts as 1; a tile larger than the image is
+    /// the image).
     pub tile_size: u32,
+}
+
+/// The most render threads, and the most compositing threads, a frame may
+/// ask for (the command line's limit too).
+pub const MAX_THREADS: usize = 1024;
+
+impl ParallelOptions {
+    /// Checks the thread counts (at most [`MAX_THREADS`] each); every
+    /// parallel frame does.
+    pub fn check(&self) -> Result<(), RenderError> {
+        for (field, n) in [
+            ("options.render_threads", self.render_threads),
+            ("options.compositing_threads", self.compositing_threads),
+        ] {
+            if n > MAX_THREADS {
+                return Err(RenderError::Setting {
+                    field: field.into(),
+                    what: format!("{n} threads: at most {MAX_THREADS}"),
+                });
+            }
+        }
+        Ok(())
+    }
 }
 
 /// The default tile side (pixels).
@@ -240,20 +265,44 @@ pub(crate) fn render_levels_frame(
     }))
 }
 
-/// The nearest level of a frame of `passes`, or why they make no frame: none, or
-/// several for a two-level scene (whose segments would be cut where the levels
-/// meet; such scenes sample one level per frame).
+/// The nearest level of a frame of `passes`, or why they make no frame: a
+/// setting out of range ([`RenderSettings::check`]), no level, several for a
+/// two-level scene (whose segments would be cut where the levels meet; such
+/// scenes sample one level per frame), or several that are not distinct levels
+/// of one volume, finest first, each with its depth band.
 pub(crate) fn check_levels<'p, 'v>(
     passes: &'p [(&'p RenderVolume<'v>, Option<DepthBand>)],
     settings: &RenderSettings,
 ) -> Result<&'p RenderVolume<'v>, RenderError> {
+    settings.check()?;
     match passes {
         [] => Err(RenderError::Levels("a frame needs a level to sample")),
         [_, _, ..] if settings.segments.is_some() => Err(RenderError::Levels(
             "two-level scenes sample one level per frame",
         )),
+        [_, _, ..] if passes.iter().any(|(_, band)| band.is_none()) => Err(RenderError::Levels(
+            "each level of a frame of several samples a depth band (LevelChoice::bands)",
+        )),
+        [_, _, ..] if !levels_of_one_volume(passes) => Err(RenderError::Levels(
+            "the levels of a frame are levels of one volume, finest first, each once",
+        )),
         [(nearest, _), ..] => Ok(nearest),
     }
+}
+
+/// Whether `passes` are distinct levels of one pyramid, finest first: the
+/// same full-resolution size and level-0 spacing, levels increasing.
+fn levels_of_one_volume(passes: &[(&RenderVolume<'_>, Option<DepthBand>)]) -> bool {
+    let level0 = |v: &RenderVolume<'_>| {
+        let volume = v.volume();
+        let scale = volume.level_scale();
+        (volume.full_dims(), volume.spacing().map(|s| s / scale))
+    };
+    let first = level0(passes[0].0);
+    passes
+        .windows(2)
+        .all(|pair| pair[0].0.volume().level_index() < pair[1].0.volume().level_index())
+        && passes.iter().all(|(v, _)| level0(v) == first)
 }
 
 /// The plans of a frame's levels (each for its band), every level's sample

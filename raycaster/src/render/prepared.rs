@@ -129,6 +129,10 @@ impl<'a> RenderVolume<'a> {
         let VolumeData::U8(_) = labels.data() else {
             return bad("label volumes hold u8 ids".into());
         };
+        // (A volume of values took every value for an id: a blank scene.)
+        if labels.content() != crate::volume::Content::Labels {
+            return bad(crate::volume::VolumeErrorKind::ValuesNotLabels.to_string());
+        }
         if let Layout::Bricked { side } = labels.layout() {
             let (file_side, side) = (u32::from(side), self.geometry.grid().side());
             if side > file_side || (file_side - 1) % (side - 1) != 0 {
@@ -234,19 +238,8 @@ pub(crate) struct FramePlan {
 impl FramePlan {
     /// The plan for rendering `volume` with `settings`.
     pub fn new(volume: &RenderVolume<'_>, settings: &RenderSettings) -> Result<Self, RenderError> {
-        if !(settings.step.is_finite() && settings.step > 0.0) {
-            return Err(RenderError::Step(settings.step));
-        }
-        if let Some(t) = settings.early_termination
-            && !(t > 0.0 && t <= 1.0)
-        {
-            return Err(RenderError::ErtThreshold(t));
-        }
-        if !(0.0..=1.0).contains(&settings.iso_value) {
-            return Err(RenderError::IsoValue(settings.iso_value));
-        }
+        settings.check()?;
         let (sampled, scale) = (volume.volume().sampled_box(), volume.volume().level_scale());
-        settings.clip.validate()?;
         settings.clip.check_overlaps(sampled, scale)?;
         // A scene object's own cut is checked alike (one outside the volume
         // hid its object without a word).

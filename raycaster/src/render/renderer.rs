@@ -257,6 +257,7 @@ impl Renderer {
         &mut self,
         options: &ParallelOptions,
     ) -> Result<&WorkerPool, RenderError> {
+        options.check()?;
         let sizes = WorkerPool::sizes(options);
         let fits = match &self.workers {
             Some(WorkerPool::PerFrame) => true,
@@ -282,6 +283,7 @@ pub(super) mod tests {
 
     use super::*;
     use crate::render::camera::Projection;
+    use crate::render::parallel::{MAX_THREADS, render_parallel};
     use crate::render::sequential::render_sequential;
     use crate::synth::{SceneKind, synthesize};
     use crate::volume::{SampleType, Volume};
@@ -358,6 +360,56 @@ pub(super) mod tests {
             frame.stats.counters.samples,
             reference.stats.counters.samples
         );
+    }
+
+    #[test]
+    fn settings_and_thread_counts_out_of_range_are_errors_before_any_thread() {
+        let volume = shapes();
+        let prepared = RenderVolume::new(&volume, Some(8)).unwrap();
+        let (camera, settings) = (camera(), RenderSettings::default());
+        // Counts whose threads cannot exist (a capacity overflow or memory
+        // exhaustion before): refused by name; the thread hook sees none.
+        refuse_threads_from(0);
+        for (options, field) in [
+            (
+                ParallelOptions {
+                    compositing_threads: usize::MAX,
+                    ..options()
+                },
+                "options.compositing_threads",
+            ),
+            (
+                ParallelOptions {
+                    render_threads: MAX_THREADS + 1,
+                    ..options()
+                },
+                "options.render_threads",
+            ),
+        ] {
+            for mut renderer in [Renderer::new(), Renderer::per_frame()] {
+                match renderer.render(&prepared, &camera, &settings, &options) {
+                    Err(RenderError::Setting { field: f, .. }) => assert_eq!(f, field),
+                    other => panic!("{field}: {:?}", other.map(|_| ())),
+                }
+            }
+        }
+        refuse_threads_from(usize::MAX);
+        // A setting out of range is the same error from both renderers (the
+        // sequential one said a NaN step as a sample budget).
+        for change in [
+            (|s: &mut RenderSettings| s.step = f32::NAN) as fn(&mut RenderSettings),
+            |s| s.step = 0.0,
+            |s| s.transfer.domain = Some([5.0, 5.0]),
+            |s| s.background = [f32::NAN; 3],
+        ] {
+            let mut bad = settings.clone();
+            change(&mut bad);
+            let sequential = render_sequential(&prepared, &camera, &bad).map(|_| ());
+            let parallel = render_parallel(&prepared, &camera, &bad, &options()).map(|_| ());
+            let (s, p) = (sequential.unwrap_err(), parallel.unwrap_err());
+            assert_eq!(s.to_string(), p.to_string());
+            assert!(!s.to_string().contains("samples"), "{s}");
+        }
     }
 
     #[test]

@@ -359,11 +359,6 @@ impl SegmentScene {
                 Membership::Labels(base.join(labels))
             }
             (None, Some(layers)) => {
-                if layers.is_empty() {
-                    return Err(SceneError::Invalid(
-                        "`layers` is empty; give at least one [lo, hi] interval".into(),
-                    ));
-                }
                 let mut pairs = Vec::with_capacity(layers.len());
                 for (i, layer) in layers.iter().enumerate() {
                     match layer[..] {
@@ -377,16 +372,7 @@ impl SegmentScene {
                     }
                 }
                 let layers = pairs;
-                for (i, [lo, hi]) in layers.iter().enumerate() {
-                    if !(0.0..=1.0).contains(lo) || !(0.0..=1.0).contains(hi) || lo >= hi {
-                        return Err(SceneError::Invalid(format!(
-                            "layer {i} [{lo}, {hi}] must be an increasing interval inside [0, 1]"
-                        )));
-                    }
-                }
-                if layers.len() > 255 {
-                    return Err(SceneError::Invalid("at most 255 layers".into()));
-                }
+                check_layers(&layers).map_err(SceneError::Invalid)?;
                 Membership::Layers(layers)
             }
             _ => {
@@ -446,19 +432,9 @@ impl SegmentScene {
             }
             // A layer object's id is its layer's index + 1: another id can
             // never show (0 holds the values in no layer, transparent).
-            if let Membership::Layers(layers) = &membership
-                && !(1..=layers.len()).contains(&usize::from(id))
-            {
-                let n = layers.len();
-                let ids = if n == 1 {
-                    "id 1".to_string()
-                } else {
-                    format!("ids 1 to {n}")
-                };
-                let layer_s = if n == 1 { "layer" } else { "layers" };
-                return Err(SceneError::Invalid(format!(
-                    "object {name:?}: id {id} names no layer: the scene has {n} {layer_s} ({ids}; layer i is object i + 1)"
-                )));
+            if let Membership::Layers(layers) = &membership {
+                check_layer_id(id, layers.len())
+                    .map_err(|e| SceneError::Invalid(format!("object {name:?}: {e}")))?;
             }
             objects.push(ObjectStyle {
                 name,
@@ -658,6 +634,43 @@ impl SegmentScene {
     pub fn object(&self, id: u8) -> Option<&ObjectStyle> {
         self.objects.iter().find(|o| o.id == id)
     }
+}
+
+/// Checks a scene's layers: at least one, at most 255, each an increasing
+/// interval inside `[0, 1]`.
+pub(crate) fn check_layers(layers: &[[f32; 2]]) -> Result<(), String> {
+    if layers.is_empty() {
+        return Err("`layers` is empty; give at least one [lo, hi] interval".into());
+    }
+    for (i, [lo, hi]) in layers.iter().enumerate() {
+        if !(0.0..=1.0).contains(lo) || !(0.0..=1.0).contains(hi) || lo >= hi {
+            return Err(format!(
+                "layer {i} [{lo}, {hi}] must be an increasing interval inside [0, 1]"
+            ));
+        }
+    }
+    if layers.len() > 255 {
+        return Err("at most 255 layers".into());
+    }
+    Ok(())
+}
+
+/// Checks a layer object's id against the scene's `n` layers: a layer
+/// object's id is its layer's index + 1 (another id can never show; 0 holds
+/// the values in no layer, transparent).
+pub(crate) fn check_layer_id(id: u8, n: usize) -> Result<(), String> {
+    if (1..=n).contains(&usize::from(id)) {
+        return Ok(());
+    }
+    let ids = if n == 1 {
+        "id 1".to_string()
+    } else {
+        format!("ids 1 to {n}")
+    };
+    let layer_s = if n == 1 { "layer" } else { "layers" };
+    Err(format!(
+        "id {id} names no layer: the scene has {n} {layer_s} ({ids}; layer i is object i + 1)"
+    ))
 }
 
 fn local_mode(o: &ObjectFile) -> Result<LocalMode, String> {

@@ -402,8 +402,12 @@ impl TransferFunction {
     }
 
     /// Colour and opacity (per reference step) at normalised value `x`, linearly
-    /// interpolated between control points and constant beyond the end points.
+    /// interpolated between control points and constant beyond the end points;
+    /// transparent black for a NaN `x` (no value).
     pub fn evaluate(&self, x: f32) -> [f32; 4] {
+        if x.is_nan() {
+            return [0.0; 4];
+        }
         let pts = &self.points;
         let rgba = |q: &ControlPoint| [q.color[0], q.color[1], q.color[2], q.alpha];
         let first = &pts[0];
@@ -1268,6 +1272,8 @@ mod tests {
         let mid = tf.evaluate(0.4);
         assert!((mid[0] - 0.5).abs() < 1e-6 && (mid[3] - 0.4).abs() < 1e-6);
         assert_eq!(tf.evaluate(1.0), [1.0, 0.5, 0.0, 0.8]);
+        // No value is nothing (it was the top of the range).
+        assert_eq!(tf.evaluate(f32::NAN), [0.0; 4]);
     }
 
     #[test]

@@ -196,7 +196,9 @@ impl Slice {
     /// so that a pixel stands for the same length both ways (a coronal slice
     /// of a CT scan with 5 mm between its 48 slices and 0.7 mm pixels is 48
     /// voxels but about 340 pixels high). The stretched side stops at
-    /// [`MAX_SQUARE_SIDE`] (or the voxel count, if larger).
+    /// [`MAX_SQUARE_SIDE`] (or the voxel count, if larger). A spacing that is
+    /// not positive and finite both ways stretches nothing (the image is
+    /// [`Self::to_image`]'s).
     pub fn to_square_image(
         &self,
         window: Option<[f32; 2]>,

@@ -104,6 +104,9 @@ pub fn synthesize(
         Format::Extended,
     );
     header.validate().at(std::path::Path::new(name))?;
+    // The samples, then their copy in the volume.
+    let bytes = dims.iter().map(|&d| u64::from(d)).product::<u64>() * sample_type.size();
+    check_memory(name, 2 * bytes)?;
     match sample_type {
         SampleType::U8 => Volume::from_samples(name, &header, &sample_rows::<u8>(scene, dims)),
         SampleType::U16 => Volume::from_samples(name, &header, &sample_rows::<u16>(scene, dims)),
@@ -130,6 +133,10 @@ pub fn synthesize_labels(
         Format::Extended,
     );
     header.validate().at(std::path::Path::new(name))?;
+    check_memory(
+        name,
+        2 * dims.iter().map(|&d| u64::from(d)).product::<u64>(),
+    )?;
     let [dx, dy, dz] = dims.map(|d| d as usize);
     let mut labels = vec![0u8; dx * dy * dz];
     labels
@@ -137,6 +144,19 @@ pub fn synthesize_labels(
         .enumerate()
         .for_each(|(i, row)| scene.fill_label_row((i / dy) as u32, (i % dy) as u32, row));
     Volume::from_samples(name, &header, &labels).map(Some)
+}
+
+/// Whether the system gives `bytes` of memory to a volume built in RAM
+/// (asked for and given back: a refusal is an error, not an abort later).
+fn check_memory(name: &str, bytes: u64) -> Result<(), VolumeError> {
+    let refused = || {
+        VolumeError::new(
+            std::path::Path::new(name),
+            crate::volume::VolumeErrorKind::InMemory { bytes },
+        )
+    };
+    let n = usize::try_from(bytes).map_err(|_| refused())?;
+    Vec::<u8>::new().try_reserve_exact(n).map_err(|_| refused())
 }
 
 fn sample_rows<T: Sample>(scene: &dyn Scene, dims: [u32; 3]) -> Vec<T> {
@@ -157,4 +177,31 @@ fn sample_rows<T: Sample>(scene: &dyn Scene, dims: [u32; 3]) -> Vec<T> {
 fn smoothstep(e0: f32, e1: f32, x: f32) -> f32 {
     let t = ((x - e0) / (e1 - e0)).clamp(0.0, 1.0);
     t * t * (3.0 - 2.0 * t)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A volume of a size the header accepts but no memory holds is an error
+    /// naming what it takes (an abort in the allocator before).
+    #[test]
+    fn a_volume_too_large_for_memory_is_an_error_not_an_abort() {
+        let scene = SceneKind::Shells.build([100_000; 3], 1);
+        let e = synthesize(
+            scene.as_ref(),
+            "huge",
+            [100_000; 3],
+            [1.0; 3],
+            SampleType::U8,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("2.0 PB") && e.contains("refused"), "{e}");
+        let e = synthesize_labels(scene.as_ref(), "huge", [100_000; 3], [1.0; 3])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("refused"), "{e}");
+        assert!(synthesize(scene.as_ref(), "small", [8; 3], [1.0; 3], SampleType::U16).is_ok());
+    }
 }

@@ -126,6 +126,15 @@ pub enum VolumeErrorKind {
         /// The volume it belongs to (the sidecar's name without its suffix).
         volume: String,
     },
+    /// A volume built in memory needs more than the system gives.
+    #[error(
+        "building it in memory takes {} and the system refused that much; make a smaller one, or write it to a file (volgen generate), which is built slab by slab",
+        crate::files::human_bytes(*bytes)
+    )]
+    InMemory {
+        /// Bytes the volume takes while it is built.
+        bytes: u64,
+    },
     /// The samples are not aligned for their type in memory.
     #[error("u16 samples are not 2-byte aligned in memory")]
     Misaligned,

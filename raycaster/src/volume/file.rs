@@ -410,6 +410,12 @@ impl Volume {
         self
     }
 
+    /// Voxel counts of the full-resolution volume (level 0) this volume is a
+    /// level of; its own for level 0.
+    pub fn full_dims(&self) -> [u32; 3] {
+        self.full_dims
+    }
+
     /// The box rays sample, in this volume's voxel coordinates (lower and
     /// upper corner): the full-resolution volume's, from the centre of its
     /// first voxel to that of its last, whatever the level. Level 0 samples
