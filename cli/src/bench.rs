@@ -112,13 +112,14 @@ pub struct BenchArgs {
     #[arg(long = "tf", value_parser = parse_preset, value_name = "PRESET")]
     transfer: Option<&'static str>,
 
-    /// Timed frames per configuration (the fastest is reported) [default: 3;
-    /// 1 with --quick].
-    #[arg(long, value_parser = crate::args::parse_count, value_name = "N")]
+    /// Timed frames per configuration (the fastest is reported; at most
+    /// 10000) [default: 3; 1 with --quick].
+    #[arg(long, value_parser = parse_frames, value_name = "N")]
     frames: Option<u32>,
 
-    /// Untimed frames before the timed ones (page cache, allocations).
-    #[arg(long, default_value_t = 1, value_parser = crate::args::parse_index, value_name = "N")]
+    /// Untimed frames before the timed ones (page cache, allocations; at
+    /// most 10000).
+    #[arg(long, default_value_t = 1, value_parser = parse_warm_up, value_name = "N")]
     warm_up: u32,
 
     /// Sample step in voxels.
@@ -190,13 +191,34 @@ fn dedup<T: PartialEq + Copy>(list: &mut Vec<T>) {
 }
 
 /// The most render threads a case may ask for (as `raycaster render --threads`).
-const MAX_THREADS: usize = 1024;
+const MAX_THREADS: usize = raycaster::render::MAX_THREADS;
 
 /// A `--threads` count: 1 to [`MAX_THREADS`].
 fn parse_threads(s: &str) -> Result<usize, String> {
     match crate::args::parse_count(s)? as usize {
         n if n <= MAX_THREADS => Ok(n),
         n => Err(format!("{n} is not in 1..={MAX_THREADS}")),
+    }
+}
+
+/// The most frames a case may time or warm up with: ten thousand frames of a
+/// small image already take minutes; more is a typo, whose frame times
+/// would not fit in memory either (they are kept for the median).
+const MAX_FRAMES: u32 = 10_000;
+
+/// A `--frames` count: 1 to [`MAX_FRAMES`].
+fn parse_frames(s: &str) -> Result<u32, String> {
+    match crate::args::parse_count(s)? {
+        n if n <= MAX_FRAMES => Ok(n),
+        n => Err(format!("{n} is not in 1..={MAX_FRAMES}")),
+    }
+}
+
+/// A `--warm-up` count: 0 to [`MAX_FRAMES`].
+fn parse_warm_up(s: &str) -> Result<u32, String> {
+    match crate::args::parse_index(s)? {
+        n if n <= MAX_FRAMES => Ok(n),
+        n => Err(format!("{n} is not in 0..={MAX_FRAMES}")),
     }
 }
 

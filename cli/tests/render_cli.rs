@@ -474,6 +474,13 @@ fn bench_refuses_what_it_cannot_measure() {
             1,
             "empty: is a folder, and this command reads .vol files",
         ),
+        // Frame counts whose times would not fit in memory (an abort before).
+        (
+            &["--frames", "4000000000"][..],
+            2,
+            "4000000000 is not in 1..=10000",
+        ),
+        (&["--warm-up", "10001"][..], 2, "10001 is not in 0..=10000"),
     ] {
         let mut all = vec!["bench", "--quick", "--cache-dir", "c"];
         all.extend(args);
