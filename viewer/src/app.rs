@@ -751,6 +751,8 @@ fn connect(ui: &App, c: &Rc<Controller>) {
     });
     on!(on_object_changed, |c, index, row| c
         .edit_object(index, &row));
+    on!(on_object_gain_automatic, |c, index| c
+        .automatic_object_gain(index));
     on!(on_canvas_resized, |c| {
         // Layout jitter below a pixel (366.99997 for 367) asks for no frame.
         let size = c.ui().map(|ui| canvas_size(&ui));
@@ -2567,6 +2569,20 @@ impl Controller {
 
     fn edit_object(&self, index: i32, row: &ObjectRow) {
         let auto_gain = self.auto_xray_gain();
+        self.change_object(index, |object| {
+            segments_panel::apply(object, &from_ui_row(row), auto_gain)
+        });
+    }
+
+    /// Object `index`'s X-ray gain back to the automatic one (its row's
+    /// *auto* button).
+    fn automatic_object_gain(&self, index: i32) {
+        self.change_object(index, segments_panel::automatic_gain);
+    }
+
+    /// Changes object `index` of the scene with `change`, then shows the
+    /// panel and renders (saying when every object is then hidden).
+    fn change_object(&self, index: i32, change: impl FnOnce(&mut ObjectStyle)) {
         {
             let mut st = self.state.borrow_mut();
             let Some(object) = st
@@ -2576,7 +2592,7 @@ impl Controller {
             else {
                 return;
             };
-            segments_panel::apply(object, &from_ui_row(row), auto_gain);
+            change(object);
         }
         self.show_objects();
         self.request_frame(false);

@@ -3,13 +3,14 @@
 
 use raycaster::render::{ImportanceSource, LocalMode, ObjectStyle, PRESETS, TransferFunction};
 
-/// Local modes in the order the panel lists them.
+/// Local modes in the order the panel lists them: the Rendering panel's
+/// order (`Mode::ALL`), without Sabella's, which has no local mode.
 pub const LOCAL_MODES: [&str; 8] = [
     "dvr",
     "mip",
     "average",
-    "xray",
     "first-hit",
+    "xray",
     "importance",
     "context",
     "silhouette",
@@ -152,6 +153,13 @@ pub fn apply(object: &mut ObjectStyle, row: &ObjectRowData, auto_gain: f32) {
     }
 }
 
+/// An X-ray object's gain back to the automatic one (other modes unchanged).
+pub fn automatic_gain(object: &mut ObjectStyle) {
+    if let LocalMode::XRay { gain } = &mut object.mode {
+        *gain = None;
+    }
+}
+
 /// A mode with the scene format's default parameters.
 fn default_mode(name: &str) -> LocalMode {
     match name {
@@ -183,6 +191,16 @@ mod tests {
             mode: LocalMode::ContextPreserving { kt: 2.0, ks: 0.3 },
             clip: Default::default(),
         }
+    }
+
+    #[test]
+    fn the_local_modes_are_listed_as_the_rendering_panel_lists_the_modes() {
+        let plain: Vec<&str> = raycaster::render::Mode::ALL
+            .iter()
+            .map(|m| m.name())
+            .filter(|&m| m != "sabella")
+            .collect();
+        assert_eq!(LOCAL_MODES.to_vec(), plain);
     }
 
     #[test]
@@ -227,9 +245,21 @@ mod tests {
             0.05,
         );
         assert_eq!(o.mode, LocalMode::XRay { gain: None });
-        apply(&mut o, &ObjectRowData { param: 0.2, ..row }, 0.05);
+        apply(
+            &mut o,
+            &ObjectRowData {
+                param: 0.2,
+                ..row.clone()
+            },
+            0.05,
+        );
         assert_eq!(o.mode, LocalMode::XRay { gain: Some(0.2) });
         assert_eq!(row_of(&o, 0.05).param_label, "gain");
+        // The row's *auto* button: the automatic gain again.
+        automatic_gain(&mut o);
+        assert_eq!(o.mode, LocalMode::XRay { gain: None });
+        assert_eq!(row_of(&o, 0.05).param_label, "gain (auto)");
+        apply(&mut o, &ObjectRowData { param: 0.2, ..row }, 0.05);
         assert_eq!(
             o.transfer.points(),
             TransferFunction::preset("shells").unwrap().points()

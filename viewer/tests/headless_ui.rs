@@ -9,6 +9,7 @@ use std::time::{Duration, Instant};
 mod support;
 use support::{element, generate_file, mode_index, settle, wait_for_frame};
 
+use i_slint_backend_testing::ElementHandle;
 use raycaster::render::SegmentScene;
 use raycaster::synth::SceneKind;
 use slint::platform::PointerEventButton;
@@ -445,6 +446,38 @@ fn the_viewer_runs_headless() {
     v.ui().invoke_save_scene(saved.display().to_string().into());
     let back = SegmentScene::load(&saved).unwrap();
     assert!(!back.objects[1].visible, "the edit is saved");
+    // A gain set by the scene file goes back to the automatic one with its
+    // row's *auto* button; rows without a set gain have none.
+    let label = |i| v.ui().get_objects().row_data(i).unwrap().param_label;
+    assert_eq!(label(0), "gain");
+    // (A tall window: the search passes over the panel's rows outside it.)
+    let size = v.ui().window().size();
+    v.ui()
+        .window()
+        .set_size(slint::LogicalSize::new(1000.0, 2400.0));
+    v.pump();
+    let buttons: Vec<_> = ElementHandle::find_by_element_id(v.ui(), "App::gain-auto").collect();
+    assert_eq!(buttons.len(), 1, "one row has a set gain");
+    buttons[0].invoke_accessible_default_action();
+    wait_for_frame(&v);
+    assert_eq!(label(0), "gain (auto)");
+    assert_eq!(
+        ElementHandle::find_by_element_id(v.ui(), "App::gain-auto").count(),
+        0
+    );
+    v.ui().window().set_size(size);
+    v.pump();
+    v.ui().invoke_canvas_resized();
+    wait_for_frame(&v);
+    v.ui().invoke_save_scene(saved.display().to_string().into());
+    v.ui().invoke_save_scene(saved.display().to_string().into());
+    let back = SegmentScene::load(&saved).unwrap();
+    assert_eq!(
+        back.objects[0].mode,
+        raycaster::render::LocalMode::XRay { gain: None },
+        "saved without a gain"
+    );
+    settle(&v);
 
     // Screenshot.
     let png = dir.path().join("shot.png");
