@@ -640,6 +640,13 @@ impl Session {
         if let Some(problem) = session.labels_problem() {
             return Err(invalid("volume.labels", problem));
         }
+        // Every field was checked as it was read; the renderers' own check
+        // of the whole says what a rule of theirs alone refuses (a session
+        // that reads renders).
+        session
+            .settings
+            .check()
+            .map_err(|e| invalid("render", e.to_string()))?;
         Ok(session)
     }
 
@@ -1340,14 +1347,8 @@ fn shading(s: &ShadingFile) -> Result<Option<Shading>, SessionError> {
         }
         Some(LightFile::Direction(v)) => {
             let v = Vec3::from(finite_all("shading.light", *v)?);
-            if v == Vec3::ZERO {
-                return Err(invalid("shading.light", "the direction is zero"));
-            }
-            if v.try_normalize().is_none() {
-                return Err(invalid(
-                    "shading.light",
-                    "the direction is too short to normalise; scale it up (only its direction counts)",
-                ));
+            if let Some(problem) = crate::render::light_direction_problem(v) {
+                return Err(invalid("shading.light", problem));
             }
             Light::Fixed(v)
         }

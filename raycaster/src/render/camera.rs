@@ -120,18 +120,28 @@ pub enum LookAtProblem {
     UpAlongView,
 }
 
+/// `v` scaled to length 1, for any finite non-zero `v` (scaled by its
+/// largest coordinate first: a long or tiny vector's squared length would
+/// overflow or vanish in 32-bit floats).
+fn unit_vector(v: Vec3) -> Option<Vec3> {
+    let largest = v.abs().max_element();
+    if !(largest.is_finite() && largest > 0.0) {
+        return None;
+    }
+    (v / largest).try_normalize()
+}
+
 /// Why a camera at `position` looking at `target` with `up` has no view
 /// ([`Camera::look_at`] refuses it as [`CameraError::DegenerateBasis`]), or
 /// `None`. (A view too long to compute is the caller's to check first.)
 pub fn look_at_problem(position: Vec3, target: Vec3, up: Vec3) -> Option<LookAtProblem> {
-    let view = target - position;
-    if view.length_squared() == 0.0 {
+    let Some(view) = unit_vector(target - position) else {
         return Some(LookAtProblem::SamePoint);
-    }
-    if up.length_squared() == 0.0 || !up.is_finite() {
+    };
+    let Some(up) = unit_vector(up) else {
         return Some(LookAtProblem::UpNotADirection);
-    }
-    (view.normalize().cross(up.normalize()).length() < 1e-6).then_some(LookAtProblem::UpAlongView)
+    };
+    (view.cross(up).length() < 1e-6).then_some(LookAtProblem::UpAlongView)
 }
 
 /// Why a camera cannot be built.
@@ -148,7 +158,7 @@ pub enum CameraError {
     ImageTooLarge(u32, u32),
     /// The position is not finite, or so far out that its distances overflow.
     #[error(
-        "camera position must be finite and within {MAX_CAMERA_DISTANCE:e} of the origin (beyond, distances overflow 32-bit floats)"
+        "camera position must be finite, each coordinate within ±{MAX_CAMERA_DISTANCE:e} (beyond, distances overflow 32-bit floats)"
     )]
     BadPosition,
     /// The field of view or orthographic height is out of range.
@@ -160,8 +170,8 @@ pub enum CameraError {
 /// sessions' limit too): a 16384² frame takes about 19 GB while it renders.
 pub const MAX_IMAGE_SIDE: u32 = 16384;
 
-/// The farthest a camera may stand from the origin: the squares of distances
-/// beyond overflow 32-bit floats.
+/// The farthest a camera may stand from the origin along each axis: the
+/// squares of distances beyond overflow 32-bit floats.
 pub const MAX_CAMERA_DISTANCE: f32 = 1e18;
 
 impl Camera {
@@ -183,13 +193,9 @@ impl Camera {
         if !(position.is_finite() && position.abs().max_element() <= MAX_CAMERA_DISTANCE) {
             return Err(CameraError::BadPosition);
         }
-        let direction = direction
-            .try_normalize()
-            .ok_or(CameraError::DegenerateBasis)?;
-        let right = direction
-            .cross(up)
-            .try_normalize()
-            .filter(|_| up.is_finite())
+        let direction = unit_vector(direction).ok_or(CameraError::DegenerateBasis)?;
+        let right = unit_vector(up)
+            .and_then(|up| direction.cross(up).try_normalize())
             .ok_or(CameraError::DegenerateBasis)?;
         let up = right.cross(direction);
         let plane_height = match projection {
@@ -688,6 +694,23 @@ mod tests {
             Err(CameraError::BadPosition)
         );
         assert!(Camera::look_at(Vec3::new(1e18, 0.0, 0.0), Vec3::ZERO, Vec3::Z, p, 4, 4).is_ok());
+        // A far target and a long up vector are directions like any other
+        // (their squared lengths overflowed: said as a degenerate basis).
+        let far = Camera::look_at(
+            Vec3::ZERO,
+            Vec3::new(1e20, 0.0, 0.0),
+            1e20 * Vec3::Z,
+            p,
+            4,
+            4,
+        )
+        .unwrap();
+        assert!((far.direction() - Vec3::X).length() < 1e-6);
+        assert!((far.up() - Vec3::Z).length() < 1e-6);
+        assert_eq!(
+            look_at_problem(Vec3::ZERO, Vec3::new(1e20, 0.0, 0.0), 1e20 * Vec3::Z),
+            None
+        );
         let wide = Projection::Perspective { vfov_deg: 180.0 };
         assert_eq!(
             Camera::new(Vec3::ZERO, Vec3::X, Vec3::Z, wide, 4, 4),

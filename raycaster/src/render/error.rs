@@ -97,6 +97,19 @@ pub enum RenderError {
     /// The camera is invalid.
     #[error(transparent)]
     Camera(#[from] CameraError),
+    /// The system refused the memory of a frame's pixels.
+    #[error(
+        "a {width}×{height} frame takes {} and the system refused that much memory; render a smaller image",
+        crate::files::human_bytes(*bytes)
+    )]
+    FrameMemory {
+        /// Image width.
+        width: u32,
+        /// Image height.
+        height: u32,
+        /// Bytes of the frame's pixels.
+        bytes: u64,
+    },
     /// The system refused the renderer's worker threads (an address-space or
     /// process limit).
     #[error(

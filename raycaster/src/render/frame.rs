@@ -1,6 +1,7 @@
 //! A rendered frame: per-pixel premultiplied RGBA and first-hit depth, plus stats.
 
 use super::counters::FrameStats;
+use super::error::RenderError;
 use super::image::RgbImage;
 use super::pixel::over_background;
 
@@ -23,20 +24,42 @@ pub struct Frame {
 
 impl Frame {
     /// An empty frame (every pixel transparent) of `width × height`.
+    ///
+    /// # Panics
+    ///
+    /// Where the system refuses the frame's memory ([`Self::try_empty`] says
+    /// it as an error).
     pub fn empty(width: u32, height: u32, background: [f32; 3]) -> Frame {
+        Frame::try_empty(width, height, background).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// [`Self::empty`], or an error where the system refuses the frame's
+    /// memory (a frame of `width × height` pixels takes 20 bytes a pixel).
+    pub fn try_empty(width: u32, height: u32, background: [f32; 3]) -> Result<Frame, RenderError> {
         let n = width as usize * height as usize;
-        Frame {
+        let refused = || RenderError::FrameMemory {
             width,
             height,
-            rgba: vec![[0.0; 4]; n],
-            depth: vec![f32::INFINITY; n],
+            bytes: (n as u64).saturating_mul(16 + 4),
+        };
+        let mut rgba = Vec::new();
+        rgba.try_reserve_exact(n).map_err(|_| refused())?;
+        rgba.resize(n, [0.0; 4]);
+        let mut depth = Vec::new();
+        depth.try_reserve_exact(n).map_err(|_| refused())?;
+        depth.resize(n, f32::INFINITY);
+        Ok(Frame {
+            width,
+            height,
+            rgba,
+            depth,
             background,
             stats: FrameStats {
                 width,
                 height,
                 ..FrameStats::default()
             },
-        }
+        })
     }
 
     /// Index of pixel `(x, y)` in [`Self::rgba`] and [`Self::depth`], for
@@ -54,5 +77,23 @@ impl Frame {
             out.copy_from_slice(&over_background(px, self.background));
         }
         RgbImage::new(self.width, self.height, data)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A frame the system cannot hold is an error naming its size (an abort in
+    /// the allocator, or a capacity-overflow panic, before).
+    #[test]
+    fn a_frame_too_large_for_memory_is_an_error() {
+        let e = Frame::try_empty(u32::MAX, u32::MAX, [0.0; 3])
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("a 4294967295×4294967295 frame takes"), "{e}");
+        let f = Frame::try_empty(3, 2, [0.0; 3]).unwrap();
+        assert_eq!((f.rgba.len(), f.depth.len()), (6, 6));
+        assert!(f.depth.iter().all(|d| d.is_infinite()));
     }
 }

@@ -104,7 +104,7 @@ pub use settings::{
     AUTO_XRAY_DEPTH, DEFAULT_ERT_THRESHOLD, Mode, ModeParameters, RenderSettings, auto_xray_gain,
     flat_volume, step_past_volume,
 };
-pub use settings_check::{MAX_LIGHT_FACTOR, check_light_factor};
+pub use settings_check::{MAX_LIGHT_FACTOR, check_light_factor, light_direction_problem};
 pub use shading::{FADE_QUANTA, Light, Shading};
 pub use simd::{SimdLevel, available as simd_levels};
 pub use state_buffer::{StateBuffer, StateBufferError};

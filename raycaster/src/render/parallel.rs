@@ -281,7 +281,7 @@ pub(crate) fn check_levels<'p, 'v>(
             "two-level scenes sample one level per frame",
         )),
         [_, _, ..] if passes.iter().any(|(_, band)| band.is_none()) => Err(RenderError::Levels(
-            "each level of a frame of several samples a depth band (LevelChoice::bands)",
+            "a frame of several levels needs a depth band for each level (LevelChoice::bands)",
         )),
         [_, _, ..] if !levels_of_one_volume(passes) => Err(RenderError::Levels(
             "the levels of a frame are levels of one volume, finest first, each once",

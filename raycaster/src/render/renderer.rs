@@ -225,6 +225,8 @@ impl Renderer {
         sink: &dyn TileSink,
         cancelled: &(dyn Fn() -> bool + Sync),
     ) -> Result<Option<FrameStats>, RenderError> {
+        // (Before the thread counts, as the sequential renderer says it.)
+        settings.check()?;
         let workers = self.workers_for(options)?;
         render_levels_frame(workers, passes, camera, settings, options, sink, cancelled)
     }
@@ -238,11 +240,11 @@ impl Renderer {
         settings: &RenderSettings,
         options: &ParallelOptions,
     ) -> Result<Frame, RenderError> {
-        let frame = Mutex::new(Frame::empty(
+        let frame = Mutex::new(Frame::try_empty(
             camera.width(),
             camera.height(),
             settings.background,
-        ));
+        )?);
         let stats = self
             .render_levels_into(passes, camera, settings, options, &frame, &|| false)?
             .expect("a frame that cannot be cancelled completes");

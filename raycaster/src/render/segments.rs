@@ -445,11 +445,17 @@ impl SegmentScene {
                 clip,
             });
         }
-        Ok(SegmentScene {
+        let scene = SegmentScene {
             membership,
             objects,
             global,
-        })
+        };
+        // (Each value was checked as it was read; the renderers' check of
+        // the whole scene says what a rule of theirs alone refuses.)
+        scene
+            .check()
+            .map_err(|e| SceneError::Invalid(e.to_string()))?;
+        Ok(scene)
     }
 
     /// Checks each object's crop box and planes against the box a volume

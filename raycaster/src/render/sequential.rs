@@ -72,7 +72,7 @@ pub fn render_sequential_noting(
             .map(|(volume, _)| pass_rect(volume, camera, passes.len()).map_or(0, |r| r.area()))
             .sum(),
     );
-    let mut frame = Frame::empty(camera.width(), camera.height(), settings.background);
+    let mut frame = Frame::try_empty(camera.width(), camera.height(), settings.background)?;
     let record = plans[0].compositor.run(StateBytes);
     let full = PixelRect::rows(camera.width(), 0, camera.height());
     let mut counters = Counters::default();

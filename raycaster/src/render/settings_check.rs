@@ -3,6 +3,8 @@
 //! read with, so that a value no file could give is an error naming it rather
 //! than a blank, white or NaN picture.
 
+use glam::Vec3;
+
 use super::error::RenderError;
 use super::sabella::SabellaOutput;
 use super::segments::{ImportanceSource, LocalMode, Membership, SegmentScene};
@@ -137,14 +139,34 @@ fn check_shading(s: &Shading) -> Result<(), RenderError> {
     non_negative("shading.gradient_threshold", s.gradient_threshold)?;
     non_negative("shading.fade_width", s.fade_width)?;
     if let Light::Fixed(d) = s.light
-        && !(d.is_finite() && d.try_normalize().is_some())
+        && let Some(problem) = light_direction_problem(d)
     {
-        return Err(setting(
-            "shading.light",
-            format!("the direction {d} must be finite and long enough to normalise"),
-        ));
+        return Err(setting("shading.light", problem));
     }
     Ok(())
+}
+
+/// Why `d` is no light direction, if it is none: not finite, zero, or of a
+/// length whose square 32-bit floats do not hold (the renderers normalise
+/// it so).
+pub fn light_direction_problem(d: Vec3) -> Option<String> {
+    if !d.is_finite() {
+        return Some(format!("the direction {d} is not finite"));
+    }
+    if d == Vec3::ZERO {
+        return Some("the direction is zero".into());
+    }
+    if d.try_normalize().is_none() {
+        let scale = if d.abs().max_element() < 1.0 {
+            "up"
+        } else {
+            "down"
+        };
+        return Some(format!(
+            "the direction {d} cannot be normalised in 32-bit floats (its squared length over- or underflows); scale it {scale} (only its direction counts)"
+        ));
+    }
+    None
 }
 
 /// An ambient, diffuse or specular factor: finite, 0 to [`MAX_LIGHT_FACTOR`];
@@ -219,7 +241,6 @@ impl SegmentScene {
 mod tests {
     use super::*;
     use crate::render::segments::{GlobalMode, ObjectStyle};
-    use glam::Vec3;
 
     /// `change` made to default settings is refused, naming `field`.
     fn refused(change: impl FnOnce(&mut RenderSettings), field: &str) {
@@ -278,6 +299,10 @@ mod tests {
             shading(|s| s.light = Light::Fixed(Vec3::NAN)),
             "shading.light",
         );
+        let long = light_direction_problem(Vec3::new(0.0, 1e20, 0.0)).unwrap();
+        assert!(long.contains("scale it down"), "{long}");
+        let short = light_direction_problem(Vec3::new(0.0, 1e-30, 0.0)).unwrap();
+        assert!(short.contains("scale it up"), "{short}");
         refused(|s| s.background = [f32::NAN; 3], "background");
         refused(|s| s.background = [-5.0, 0.0, 0.0], "background");
         // What files accept passes.
