@@ -120,15 +120,20 @@ pub enum LookAtProblem {
     UpAlongView,
 }
 
-/// `v` scaled to length 1, for any finite non-zero `v` (scaled by its
-/// largest coordinate first: a long or tiny vector's squared length would
-/// overflow or vanish in 32-bit floats).
+/// `v` scaled to length 1, for any finite non-zero `v`: normalised, or where
+/// its squared length overflows or vanishes in 32-bit floats (a long or tiny
+/// vector), scaled by its largest coordinate first. (Only then: the bits of
+/// every other camera, and so every image, stay as they were.)
 fn unit_vector(v: Vec3) -> Option<Vec3> {
-    let largest = v.abs().max_element();
-    if !(largest.is_finite() && largest > 0.0) {
+    if !v.is_finite() {
         return None;
     }
-    (v / largest).try_normalize()
+    v.try_normalize().or_else(|| {
+        let largest = v.abs().max_element();
+        (largest > 0.0)
+            .then(|| (v / largest).try_normalize())
+            .flatten()
+    })
 }
 
 /// Why a camera at `position` looking at `target` with `up` has no view
