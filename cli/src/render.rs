@@ -232,7 +232,7 @@ pub struct RenderArgs {
 
     /// Render threads of the object-parallel renderer (default: one per core);
     /// `--sequential` uses the single-threaded reference renderer instead.
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024), value_name = "N")]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=raycaster::render::MAX_THREADS as i64), value_name = "N")]
     threads: Option<u32>,
 
     /// Compositing threads of the parallel renderer.

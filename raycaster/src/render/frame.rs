@@ -37,22 +37,24 @@ impl Frame {
     /// memory (a frame of `width × height` pixels takes 20 bytes a pixel).
     pub fn try_empty(width: u32, height: u32, background: [f32; 3]) -> Result<Frame, RenderError> {
         let n = width as usize * height as usize;
+        let bytes = (n as u64).saturating_mul(16 + 4);
+        // Asked for and given back, then allocated as `vec!` does (zeroed
+        // pages the system hands out as they are first written: a frame of
+        // which the volume covers a corner touches little of its memory).
         let refused = || RenderError::FrameMemory {
             width,
             height,
-            bytes: (n as u64).saturating_mul(16 + 4),
+            bytes,
         };
-        let mut rgba = Vec::new();
-        rgba.try_reserve_exact(n).map_err(|_| refused())?;
-        rgba.resize(n, [0.0; 4]);
-        let mut depth = Vec::new();
-        depth.try_reserve_exact(n).map_err(|_| refused())?;
-        depth.resize(n, f32::INFINITY);
+        let probe = usize::try_from(bytes).map_err(|_| refused())?;
+        Vec::<u8>::new()
+            .try_reserve_exact(probe)
+            .map_err(|_| refused())?;
         Ok(Frame {
             width,
             height,
-            rgba,
-            depth,
+            rgba: vec![[0.0; 4]; n],
+            depth: vec![f32::INFINITY; n],
             background,
             stats: FrameStats {
                 width,
