@@ -1026,6 +1026,38 @@ fn ranges_offset_past_the_end() {
     );
 }
 
+/// A well-formed table whose ranges are not the samples' (zeroed, or another
+/// file's) is refused: the bricks it calls empty would not be drawn, and the
+/// picture would lose them without a word. A few bricks spread over the
+/// volume are checked when the file opens.
+#[test]
+fn a_range_table_that_disagrees_with_the_samples_is_refused() {
+    let dir = TempDir::new().unwrap();
+    let (raw, data, table) = file_with_table();
+    assert!(data.iter().any(|&v| v > 0), "samples to disagree with");
+    let mut zeroed = table.clone();
+    zeroed[28..].fill(0);
+    let p = write(&dir, "zeroed.vol", &assemble(&raw, &data, &zeroed));
+    let err = open_fails(&p);
+    assert!(
+        matches!(
+            err.kind,
+            VolumeErrorKind::RangesDisagree { stored: [0, 0], .. }
+        ),
+        "{err}"
+    );
+    assert!(err.to_string().contains("`volgen convert`"), "{err}");
+    // Another volume's table of the same shape: the samples doubled.
+    let doubled: Vec<u8> = data.iter().map(|v| v.saturating_mul(2)).collect();
+    let p = write(&dir, "other.vol", &assemble(&raw, &doubled, &table));
+    assert!(matches!(
+        open_fails(&p).kind,
+        VolumeErrorKind::RangesDisagree { .. }
+    ));
+    // The intact table opens.
+    open_ok(&write(&dir, "intact.vol", &assemble(&raw, &data, &table)));
+}
+
 #[test]
 fn corrupt_ranges_table() {
     let dir = TempDir::new().unwrap();

@@ -89,6 +89,19 @@ pub enum VolumeErrorKind {
     /// The embedded value-range table is unreadable.
     #[error("the value-range table after the samples is corrupt")]
     CorruptRanges,
+    /// The embedded value-range table does not hold a brick's values.
+    #[error(
+        "the value-range table after the samples disagrees with them (brick {brick:?}: the table says {}..{}, its values span {}..{}): the table is damaged, and bricks it calls empty would not be drawn; `volgen convert` writes the samples into a new file with a new table",
+        stored[0], stored[1], values[0], values[1]
+    )]
+    RangesDisagree {
+        /// The brick, in the table's grid.
+        brick: [u32; 3],
+        /// The table's range.
+        stored: [u16; 2],
+        /// The samples' range.
+        values: [u16; 2],
+    },
     /// The file ends inside its embedded value-range table.
     #[error(
         "the value-range table after the samples is cut off: {} (an incomplete copy?); the samples before it are whole: `volgen convert` copies them into a new file",

@@ -607,6 +607,47 @@ fn ranges_fit_type(ranges: &BrickRanges, sample_type: SampleType) -> bool {
     sample_type == SampleType::U16 || ranges.overall()[1] <= sample_type.max_value()
 }
 
+/// Bricks of a stored range table checked against their samples when a file
+/// opens: a few, spread over the volume (every brick would read the whole
+/// file, which opening never does).
+const RANGE_SPOT_CHECKS: u64 = 9;
+
+/// The first of a few bricks spread over the volume whose stored range does
+/// not hold its samples' values (a damaged table: zeroed, shifted, another
+/// file's), with the stored range and the values' range; `None` when they
+/// agree.
+fn ranges_disagree(
+    table: &BrickRanges,
+    data: VolumeData<'_>,
+) -> Option<([u32; 3], [u16; 2], [u16; 2])> {
+    let grid = *table.grid();
+    let count = grid.block_count();
+    let picks = RANGE_SPOT_CHECKS.min(count);
+    (0..picks)
+        .map(|k| {
+            if picks > 1 {
+                k * (count - 1) / (picks - 1)
+            } else {
+                0
+            }
+        })
+        .map(|i| grid.coords(i))
+        .find_map(|b| {
+            let [lo, hi] = match data {
+                VolumeData::U8(v) => {
+                    let (lo, hi) = v.brick(&grid, b).value_range();
+                    [u16::from(lo), u16::from(hi)]
+                }
+                VolumeData::U16(v) => {
+                    let (lo, hi) = v.brick(&grid, b).value_range();
+                    [lo, hi]
+                }
+            };
+            let stored = table.range(b);
+            (stored[0] > lo || stored[1] < hi).then_some((b, stored, [lo, hi]))
+        })
+}
+
 /// The brick ranges of an opened file: from its embedded table, from a fresh
 /// sidecar, or computed (and then cached in a sidecar for thesis files).
 fn load_ranges(
@@ -638,9 +679,20 @@ fn load_ranges(
                 )
             }
         };
-        return table
+        let table = table
             .filter(|r| r.grid() == &grid && ranges_fit_type(r, header.sample_type))
-            .ok_or_else(|| VolumeError::new(path, VolumeErrorKind::CorruptRanges));
+            .ok_or_else(|| VolumeError::new(path, VolumeErrorKind::CorruptRanges))?;
+        if let Some((brick, stored, values)) = ranges_disagree(&table, data) {
+            return Err(VolumeError::new(
+                path,
+                VolumeErrorKind::RangesDisagree {
+                    brick,
+                    stored,
+                    values,
+                },
+            ));
+        }
+        return Ok(table);
     }
     let sidecar = ranges_sidecar_path(path);
     let mtime = file.metadata().and_then(|m| m.modified()).ok();
