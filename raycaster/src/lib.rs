@@ -21,6 +21,7 @@ compile_error!(
     "raycaster views little-endian samples in place; big-endian hosts are not supported"
 );
 
+mod alloc_check;
 pub mod console;
 pub mod convert;
 pub mod errors;

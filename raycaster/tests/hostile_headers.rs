@@ -1430,7 +1430,14 @@ fn open_and_check(file: &[u8]) -> Result<(), TestCaseError> {
                 }
                 // (A header whose x size reads "RCPS" or "RCRS": a sidecar's.)
                 (Err(_), VolumeErrorKind::Sidecar { .. }) => {}
-                (Ok(h), VolumeErrorKind::CorruptRanges | VolumeErrorKind::RangesCutOff { .. }) => {
+                // (A mutated table, or samples, that the spot check finds
+                // disagreeing is refused as damaged.)
+                (
+                    Ok(h),
+                    VolumeErrorKind::CorruptRanges
+                    | VolumeErrorKind::RangesCutOff { .. }
+                    | VolumeErrorKind::RangesDisagree { .. },
+                ) => {
                     prop_assert!(h.ranges_offset.is_some())
                 }
                 (p, k) => prop_assert!(false, "parse gave {:?} but open {:?}", p, k),

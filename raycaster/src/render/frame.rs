@@ -38,18 +38,16 @@ impl Frame {
     pub fn try_empty(width: u32, height: u32, background: [f32; 3]) -> Result<Frame, RenderError> {
         let n = width as usize * height as usize;
         let bytes = (n as u64).saturating_mul(16 + 4);
-        // Asked for and given back, then allocated as `vec!` does (zeroed
-        // pages the system hands out as they are first written: a frame of
-        // which the volume covers a corner touches little of its memory).
-        let refused = || RenderError::FrameMemory {
-            width,
-            height,
-            bytes,
-        };
-        let probe = usize::try_from(bytes).map_err(|_| refused())?;
-        Vec::<u8>::new()
-            .try_reserve_exact(probe)
-            .map_err(|_| refused())?;
+        // Asked for first, then allocated as `vec!` does (zeroed pages the
+        // system hands out as they are first written: a frame of which the
+        // volume covers a corner touches little of its memory).
+        if !crate::alloc_check::system_gives(bytes) {
+            return Err(RenderError::FrameMemory {
+                width,
+                height,
+                bytes,
+            });
+        }
         Ok(Frame {
             width,
             height,

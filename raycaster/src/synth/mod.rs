@@ -146,17 +146,16 @@ pub fn synthesize_labels(
     Volume::from_samples(name, &header, &labels).map(Some)
 }
 
-/// Whether the system gives `bytes` of memory to a volume built in RAM
-/// (asked for and given back: a refusal is an error, not an abort later).
+/// That the system gives `bytes` of memory to a volume built in RAM (a
+/// refusal is an error, not an abort later).
 fn check_memory(name: &str, bytes: u64) -> Result<(), VolumeError> {
-    let refused = || {
-        VolumeError::new(
-            std::path::Path::new(name),
-            crate::volume::VolumeErrorKind::InMemory { bytes },
-        )
-    };
-    let n = usize::try_from(bytes).map_err(|_| refused())?;
-    Vec::<u8>::new().try_reserve_exact(n).map_err(|_| refused())
+    if crate::alloc_check::system_gives(bytes) {
+        return Ok(());
+    }
+    Err(VolumeError::new(
+        std::path::Path::new(name),
+        crate::volume::VolumeErrorKind::InMemory { bytes },
+    ))
 }
 
 fn sample_rows<T: Sample>(scene: &dyn Scene, dims: [u32; 3]) -> Vec<T> {
