@@ -247,9 +247,12 @@ pub fn parse_index(s: &str) -> Result<u32, String> {
     parse_whole(s, 0)
 }
 
-/// A whole number 1 or more that fits 32 bits (a count).
-pub fn parse_count(s: &str) -> Result<u32, String> {
-    parse_whole(s, 1)
+/// A whole number in `min..=max` (a count with a ceiling).
+pub fn parse_bounded(s: &str, min: u32, max: u32) -> Result<u32, String> {
+    match parse_whole::<u32>(s, u64::from(min))? {
+        n if n <= max => Ok(n),
+        n => Err(format!("{n} is not in {min}..={max}")),
+    }
 }
 
 /// A whole number 0 or more that fits 64 bits (a seed).
@@ -391,7 +394,8 @@ mod tests {
 
     #[test]
     fn whole_numbers_are_refused_in_words() {
-        use super::{parse_count, parse_index, parse_seed};
+        use super::{parse_bounded, parse_index, parse_seed};
+        let parse_count = |s| parse_bounded(s, 1, u32::MAX);
         assert_eq!(parse_index("0"), Ok(0));
         assert_eq!(parse_count(" 7 "), Ok(7));
         assert_eq!(parse_seed("18446744073709551615"), Ok(u64::MAX));
@@ -415,6 +419,11 @@ mod tests {
             parse_count("two"),
             Err("\"two\" must be a whole number, 1 or more".into())
         );
+        assert_eq!(
+            parse_bounded("11", 1, 10),
+            Err("11 is not in 1..=10".into())
+        );
+        assert_eq!(parse_bounded("10", 0, 10), Ok(10));
     }
 
     use super::*;

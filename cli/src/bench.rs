@@ -195,10 +195,7 @@ const MAX_THREADS: usize = raycaster::render::MAX_THREADS;
 
 /// A `--threads` count: 1 to [`MAX_THREADS`].
 fn parse_threads(s: &str) -> Result<usize, String> {
-    match crate::args::parse_count(s)? as usize {
-        n if n <= MAX_THREADS => Ok(n),
-        n => Err(format!("{n} is not in 1..={MAX_THREADS}")),
-    }
+    crate::args::parse_bounded(s, 1, MAX_THREADS as u32).map(|n| n as usize)
 }
 
 /// The most frames a case may time or warm up with: ten thousand frames of a
@@ -208,18 +205,12 @@ const MAX_FRAMES: u32 = 10_000;
 
 /// A `--frames` count: 1 to [`MAX_FRAMES`].
 fn parse_frames(s: &str) -> Result<u32, String> {
-    match crate::args::parse_count(s)? {
-        n if n <= MAX_FRAMES => Ok(n),
-        n => Err(format!("{n} is not in 1..={MAX_FRAMES}")),
-    }
+    crate::args::parse_bounded(s, 1, MAX_FRAMES)
 }
 
 /// A `--warm-up` count: 0 to [`MAX_FRAMES`].
 fn parse_warm_up(s: &str) -> Result<u32, String> {
-    match crate::args::parse_index(s)? {
-        n if n <= MAX_FRAMES => Ok(n),
-        n => Err(format!("{n} is not in 0..={MAX_FRAMES}")),
-    }
+    crate::args::parse_bounded(s, 0, MAX_FRAMES)
 }
 
 fn default_threads() -> Vec<usize> {

@@ -232,11 +232,7 @@ impl Camera {
         width: u32,
         height: u32,
     ) -> Result<Camera, CameraError> {
-        // (A far position's direction would overflow first and be said as
-        // a degenerate basis.)
-        if !(position.is_finite() && position.abs().max_element() <= MAX_CAMERA_DISTANCE) {
-            return Err(CameraError::BadPosition);
-        }
+        // (`new` checks the position before it normalises the direction.)
         Camera::new(position, target - position, up, projection, width, height)
     }
 

@@ -12,7 +12,7 @@ use super::pyramid::{
     PyramidLayout, SIDECAR_HEAD_LEN, level_dims, pyramid_sidecar_path, sidecar_head,
     sidecar_is_fresh, write_block,
 };
-use super::ranges::{BrickRanges, LINEAR_RANGE_SIDE};
+use super::ranges::{BrickRanges, LINEAR_RANGE_SIDE, brick_range};
 use super::sample::Sample;
 use super::storage::{Access, Storage};
 use super::units::ValueUnits;
@@ -634,14 +634,8 @@ fn ranges_disagree(
         .map(|i| grid.coords(i))
         .find_map(|b| {
             let [lo, hi] = match data {
-                VolumeData::U8(v) => {
-                    let (lo, hi) = v.brick(&grid, b).value_range();
-                    [u16::from(lo), u16::from(hi)]
-                }
-                VolumeData::U16(v) => {
-                    let (lo, hi) = v.brick(&grid, b).value_range();
-                    [lo, hi]
-                }
+                VolumeData::U8(v) => brick_range(&v, &grid, b),
+                VolumeData::U16(v) => brick_range(&v, &grid, b),
             };
             let stored = table.range(b);
             (stored[0] > lo || stored[1] < hi).then_some((b, stored, [lo, hi]))

@@ -55,15 +55,22 @@ impl PartialEq for BrickRanges {
 
 impl Eq for BrickRanges {}
 
+/// The `[min, max]` of brick `b` of `grid` in `volume`, as a table holds it.
+pub(crate) fn brick_range<T: Sample>(
+    volume: &TypedVolume<'_, T>,
+    grid: &BlockGrid,
+    b: [u32; 3],
+) -> [u16; 2] {
+    let (lo, hi) = volume.brick(grid, b).value_range();
+    [lo.to_u16(), hi.to_u16()]
+}
+
 impl BrickRanges {
     /// Scans every brick of `grid` in `volume` (in parallel).
     pub fn compute<T: Sample>(volume: &TypedVolume<'_, T>, grid: &BlockGrid) -> Self {
         let ranges = (0..grid.block_count())
             .into_par_iter()
-            .map(|i| {
-                let (lo, hi) = volume.brick(grid, grid.coords(i)).value_range();
-                [lo.to_u16(), hi.to_u16()]
-            })
+            .map(|i| brick_range(volume, grid, grid.coords(i)))
             .collect();
         BrickRanges {
             grid: *grid,
