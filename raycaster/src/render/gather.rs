@@ -39,13 +39,14 @@
 
 use glam::{Vec3, Vec3A, Vec4};
 
+use super::cell_lanes::LaneClassifier;
 use super::compositor::Compositor;
 use super::local::Accumulation;
 use super::march::{RunMarcher, march_each_run};
 use super::optics::{over, over_sample, whole_exponent};
 use super::packet::PacketWork;
 use super::pixel::SamplePositions;
-use super::runs::SampleRuns;
+use super::runs::{SampleRuns, SampleWalk};
 use super::sampler::{BrickSampler, CornerDifferences, VolumeSampler, gradient_from_differences};
 use super::shading::Shading;
 use super::simd::SimdLevel;
@@ -371,7 +372,10 @@ impl<S, F: ChunkFolder<S>> RunMarcher<S> for Chunked<F> {
         if C::STATE_SKIPS || !runs.skips_cells() {
             return march_each_run(self, c, ess, acc, runs);
         }
-        march_runs_in_chunks(&self.0, acc, runs)
+        match runs.sample_walk() {
+            Some(walk) => march_samples_in_chunks(&self.0, acc, &walk),
+            None => march_runs_in_chunks(&self.0, acc, runs),
+        }
     }
 }
 
@@ -381,6 +385,9 @@ pub(crate) trait ChunkFolder<S> {
     /// the ray stopped at `samples[j]`. (A trait method rather than a closure,
     /// so that the kernel is inlined into the loops that call it.)
     fn chunk(&self, acc: &mut S, samples: &[u32; GATHER_LANES], n: usize) -> Option<usize>;
+
+    /// The brick's gather layout (which exists only on a CPU with AVX2).
+    fn layout(&self) -> &GatherBrick<'_>;
 }
 
 /// Samples `first..end` of one run into `acc`, eight per chunk folded by
@@ -455,7 +462,61 @@ fn march_runs_in_chunks<S, C: Compositor>(
     (taken, runs.skipped, None)
 }
 
+/// The samples of `walk` into `acc`, eight per chunk folded by `folder`: those
+/// in visible cells, found eight at a time by the lane classifier, whatever
+/// cell they lie in. The samples taken, the samples skipped (before the sample
+/// the ray stopped at, when it stopped), and `Some(k)` when the ray stopped
+/// before sample `k`, as [`RunMarcher::march_runs`]: the samples and counts of
+/// [`march_runs_in_chunks`] over [`SampleRuns`], which places samples by the
+/// same rule.
+#[inline(always)]
+fn march_samples_in_chunks<S>(
+    folder: &impl ChunkFolder<S>,
+    acc: &mut S,
+    walk: &SampleWalk<'_>,
+) -> (u64, u64, Option<u32>) {
+    // The chunk's samples, and room for the eight lanes of a classification
+    // written after them.
+    let mut samples = [0u32; 2 * GATHER_LANES];
+    let (mut n, mut taken) = (0, 0u64);
+    // The samples skipped before the chunk's sample `j`: those before it not
+    // taken.
+    let stopped = |samples: &[u32; 2 * GATHER_LANES], taken: u64, j: usize| {
+        let skipped = u64::from(samples[j] - walk.first) - (taken + j as u64);
+        (taken + j as u64 + 1, skipped, Some(samples[j] + 1))
+    };
+    let classifier = LaneClassifier::with_layout(folder.layout(), &walk.locator, walk.visible);
+    let mut k = walk.first;
+    while k < walk.end {
+        let count = (walk.end - k).min(GATHER_LANES as u32);
+        n += classifier.append_visible(k, count, &mut samples, n);
+        if n >= GATHER_LANES {
+            let chunk = samples[..GATHER_LANES].try_into().expect("a chunk");
+            if let Some(j) = folder.chunk(acc, chunk, GATHER_LANES) {
+                return stopped(&samples, taken, j);
+            }
+            taken += GATHER_LANES as u64;
+            samples.copy_within(GATHER_LANES.., 0);
+            n -= GATHER_LANES;
+        }
+        k += count;
+    }
+    if n > 0 {
+        let chunk = samples[..GATHER_LANES].try_into().expect("a chunk");
+        if let Some(j) = folder.chunk(acc, chunk, n) {
+            return stopped(&samples, taken, j);
+        }
+        taken += n as u64;
+    }
+    (taken, u64::from(walk.end - walk.first) - taken, None)
+}
+
 impl<T: Sample> ChunkFolder<Accumulation> for GatherRay<'_, '_, T> {
+    #[inline(always)]
+    fn layout(&self) -> &GatherBrick<'_> {
+        self.brick
+    }
+
     /// Stops at the opacity threshold.
     #[inline(always)]
     fn chunk(
@@ -817,6 +878,7 @@ mod x86 {
     use super::{GATHER_LANES, GatherBrick, GatherRay, GatherSource, LineAligned};
     use crate::render::pixel::SamplePositions;
     use crate::render::shading::{Light, Shading};
+
     use crate::render::transfer::TABLE_SIZE;
     use crate::volume::Sample;
 
@@ -1792,6 +1854,150 @@ mod tests {
             let last = unsafe { x86::table_bits(&bits, _mm256_set1_epi32(1023)) };
             assert_eq!(last == 0xff, bits[31] >> 31 == 1);
         }
+    }
+
+    /// The gather kernels' lane classifier takes the samples the run walker
+    /// takes (the scalar kernel's), and both those that
+    /// `CellLocator::cell` places in visible cells; the walker's runs are the
+    /// same with lanes and without, each the samples of one cell, for cell grids of every size up to 8³,
+    /// rays in every direction (along an axis too) and sample indices past
+    /// 2^24, where their conversion to `f32` rounds.
+    #[test]
+    fn the_lane_classifier_takes_the_samples_the_run_walker_takes() {
+        use crate::render::pixel::PixelRay;
+        use crate::render::runs::tests::Threshold;
+        use crate::render::runs::{CellGrid, SampleRuns, bit_set};
+        use std::sync::Arc;
+
+        // A gather layout: what stands for this CPU's AVX2.
+        let linear: Vec<u8> = (0..512u32).map(|i| i as u8).collect();
+        let data = TypedVolume::new(&linear, [8, 8, 8], Layout::Linear);
+        let volume = VolumeSampler::new(data);
+        let sampler = BrickSampler::new(data.brick(&data.natural_grid(8), [0, 0, 0]));
+        let Some(layout) = GatherBrick::new(&sampler, &volume) else {
+            #[cfg(target_arch = "x86_64")]
+            assert!(
+                !std::is_x86_feature_detected!("avx2"),
+                "AVX2 but no gathers"
+            );
+            return;
+        };
+        let mut next = xorshift32(0x5eed_ce11);
+        let mut unit = move || (next() % 1_000_001) as f32 / 1_000_000.0;
+        let (mut taken, mut skipped) = (0usize, 0usize);
+        for round in 0..4000u32 {
+            let per_axis = 1 + round % 8;
+            let ranges: Arc<[[u16; 2]]> = (0..per_axis.pow(3))
+                .map(|_| {
+                    let lo = (unit() * 150.0) as u16;
+                    // Some cells own no sample (`lo > hi`).
+                    if unit() < 0.05 {
+                        [lo + 1, lo]
+                    } else {
+                        [lo, lo + (unit() * 60.0) as u16]
+                    }
+                })
+                .collect();
+            let cell_step = [4.0, 3.0, 5.0, 8.0][(round / 8 % 4) as usize];
+            let origin = Vec3::new(unit(), unit(), unit()) * 40.0;
+            let grid = CellGrid {
+                visible: std::cell::OnceCell::new(),
+                ranges,
+                per_axis,
+                cell_step,
+                inv_cell_step: 1.0 / cell_step,
+                origin,
+                owned: [Vec3::ZERO, Vec3::splat(f32::INFINITY)],
+                min_extent: cell_step,
+            };
+            let mut step = Vec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5) * 1.6;
+            if round % 5 == 0 {
+                step[(round / 5 % 3) as usize] = 0.0;
+            }
+            let side = cell_step * per_axis as f32;
+            let first = if round % 3 == 0 {
+                16_777_000 + round * 7
+            } else {
+                round % 50
+            };
+            // Sample `first` near the brick, or anywhere around it.
+            let mut at_first = origin + Vec3::new(unit(), unit(), unit()) * side * 1.4 - side * 0.2;
+            if round % 4 == 1 {
+                // Samples on the cells' faces: a quarter of a cell per step
+                // from a corner, along some axes.
+                let corner = (Vec3::new(unit(), unit(), unit()) * per_axis as f32).floor();
+                at_first = origin + corner * cell_step;
+                step = Vec3::new(1.0, -1.0, 0.5).map(|s| if unit() < 0.6 { s } else { 0.0 })
+                    * cell_step
+                    * 0.25;
+            }
+            let start = at_first - step * first as f32;
+            let ray = PixelRay {
+                origin: Vec3::ZERO,
+                direction: Vec3::X,
+                view_dir: Vec3::X,
+                t_enter: 0.0,
+                dt: 1.0,
+                first: 0,
+                samples: u32::MAX,
+                last_fraction: 1.0,
+                start,
+                step,
+                inv_step: step.recip(),
+            };
+            let last = first + (unit() * 70.0) as u32;
+            let far = Vec3::splat(1e9);
+            let runs = SampleRuns::new(&Threshold, &ray, Some(&grid), far, first, last);
+            let walk = runs
+                .sample_walk()
+                .expect("no segments: samples placed one by one");
+            // The walker with lanes (where the CPU has them) and without.
+            let with_lanes: Vec<_> = runs.collect();
+            let by_axes: Vec<_> = SampleRuns::new(&Threshold, &ray, Some(&grid), far, first, last)
+                .without_lanes()
+                .collect();
+            assert_eq!(with_lanes, by_axes, "round {round}");
+            let expected: Vec<u32> = by_axes.iter().flat_map(|run| run.first..run.end).collect();
+            // The walker finds the cells' ends exactly: its samples are those
+            // placed one by one in visible cells, a run those of one cell.
+            let one_by_one: Vec<u32> = (first..=last)
+                .filter(|&k| bit_set(walk.visible, walk.locator.cell(k)))
+                .collect();
+            assert_eq!(expected, one_by_one, "round {round}");
+            for run in &by_axes {
+                let cell = walk.locator.cell(run.first);
+                assert!((run.first..run.end).all(|k| walk.locator.cell(k) == cell));
+                assert!(run.first == first || walk.locator.cell(run.first - 1) != cell);
+                assert!(run.end > last || walk.locator.cell(run.end) != cell);
+                assert_eq!(run.hi, grid.ranges[cell][1]);
+            }
+
+            #[cfg(target_arch = "x86_64")]
+            {
+                let classifier = LaneClassifier::with_layout(&layout, &walk.locator, walk.visible);
+                // Appended after `n` earlier samples, which stay.
+                let n = (round % 8) as usize;
+                let mut got = Vec::new();
+                let mut k = walk.first;
+                while k < walk.end {
+                    let count = (walk.end - k).min(GATHER_LANES as u32);
+                    let mut buffer = [u32::MAX; 2 * GATHER_LANES];
+                    let added = classifier.append_visible(k, count, &mut buffer, n);
+                    assert!(
+                        buffer[..n].iter().all(|&b| b == u32::MAX),
+                        "earlier lanes kept"
+                    );
+                    got.extend_from_slice(&buffer[n..n + added]);
+                    k += count;
+                }
+                assert_eq!(got, expected, "round {round}");
+            }
+            #[cfg(not(target_arch = "x86_64"))]
+            let _ = (&layout, &walk);
+            taken += expected.len();
+            skipped += (last - first + 1) as usize - expected.len();
+        }
+        assert!(taken > 20_000 && skipped > 20_000, "{taken} {skipped}");
     }
 
     #[test]

@@ -150,6 +150,11 @@ struct GradientRay<'v, 'b, T: Sample, C, const EVERY: bool> {
 impl<T: Sample, C: Compositor, const EVERY: bool> ChunkFolder<C::State>
     for GradientRay<'_, '_, T, C, EVERY>
 {
+    #[inline(always)]
+    fn layout(&self) -> &GatherBrick<'_> {
+        self.lanes.brick
+    }
+
     /// Stops at the opacity threshold, or when the compositor is finished.
     #[inline(always)]
     fn chunk(&self, acc: &mut C::State, samples: &[u32; GATHER_LANES], n: usize) -> Option<usize> {

@@ -109,6 +109,11 @@ struct LayerRay<'v, 'a, T: Sample> {
 }
 
 impl<T: Sample> ChunkFolder<SegmentedState> for LayerRay<'_, '_, T> {
+    #[inline(always)]
+    fn layout(&self) -> &GatherBrick<'_> {
+        self.lanes.brick
+    }
+
     /// Stops at the opacity threshold (the ray's one segment holds all it
     /// composited).
     #[inline(always)]

@@ -96,6 +96,11 @@ struct ValueRay<'v, 'b, T: Sample, C> {
 }
 
 impl<T: Sample, C: Compositor> ChunkFolder<C::State> for ValueRay<'_, '_, T, C> {
+    #[inline(always)]
+    fn layout(&self) -> &GatherBrick<'_> {
+        self.gather
+    }
+
     /// Stops at the opacity threshold, or when the compositor is finished.
     #[inline(always)]
     fn chunk(&self, acc: &mut C::State, samples: &[u32; GATHER_LANES], n: usize) -> Option<usize> {

@@ -7,6 +7,8 @@
 //! ([`super::ownership::owned_samples`]), so a ray's
 //! samples are processed exactly once, in order, however the volume is cut.
 
+use std::cell::OnceCell;
+
 use glam::Vec3;
 
 use super::cell_cache::CellCache;
@@ -53,6 +55,7 @@ impl<'a, T: Sample> BrickContext<'a, T> {
                 let cell_step = cells.cell_step() as f32;
                 CellGrid {
                     ranges: volume.cells_of(data, b),
+                    visible: OnceCell::new(),
                     per_axis: cells.per_axis(),
                     cell_step,
                     inv_cell_step: 1.0 / cell_step,

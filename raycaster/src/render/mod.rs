@@ -10,6 +10,7 @@
 
 mod camera;
 mod cell_cache;
+mod cell_lanes;
 mod cells;
 mod clip;
 mod compositor;

@@ -8,11 +8,19 @@
 //! frame plan) are skipped without being read; every other cell yields one run of
 //! consecutive samples with the cell's largest value, so the loop can still skip
 //! it for a state-dependent reason ([`Compositor::below_interest`]).
+//!
+//! Which cell a sample lies in is one rule, [`CellLocator`]: the walker applies
+//! it sample by sample, the gather kernels eight samples at a time
+//! ([`super::gather`]'s lane classifier), so every kernel skips the same samples.
+
+use std::cell::OnceCell;
 
 use glam::Vec3;
 
+use super::cell_lanes::{LaneCells, LaneClassifier};
 use super::cells::BrickCells;
 use super::compositor::Compositor;
+use super::gather::GATHER_LANES;
 use super::ownership::slab;
 use super::pixel::PixelRay;
 use super::truncate::truncate_clamped;
@@ -57,19 +65,131 @@ pub(crate) struct CellGrid {
     /// brick's last cell may be shorter): samples closer than that along every
     /// axis lie in cells that touch.
     pub min_extent: f32,
+    /// One bit per cell, in `ranges`' order (bit `i % 32` of word `i / 32`):
+    /// the cell is not empty under the frame's compositor
+    /// ([`Self::visible_bits`], made at its first walk placing samples).
+    pub visible: OnceCell<Box<[u32]>>,
+}
+
+/// Where a ray's samples lie in a brick's small cells: sample `k`'s cell
+/// coordinate along axis `a` is `⌊base[a] + slope[a]·k⌋` clamped into the
+/// brick's cells, `base` and `slope` being the ray's start (relative to the
+/// brick's first voxel) and step in cells. The one rule of
+/// [`SampleRuns`] and of the gather kernels' lane classifier, which compute the
+/// same operations in the same order, so both find the same cell for every
+/// sample.
+///
+/// The sample positions the kernels read are computed otherwise (`start +
+/// step·k` in voxels, clamped to the volume), so a sample within a rounding
+/// error of a face may be placed in the cell on its other side. Its trilinear
+/// reads then lie in that cell's range but for a weight of that rounding error
+/// on one voxel (a cell's range covers the voxel after it): what it skips is
+/// empty within that error.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct CellLocator {
+    /// Sample 0's position in cells of the brick, per axis.
+    pub base: [f32; 3],
+    /// Cells per sample, per axis.
+    pub slope: [f32; 3],
+    /// The last cell coordinate, `per_axis − 1`.
+    pub last_cell: f32,
+    /// Cells per axis.
+    pub per_axis: u32,
+}
+
+impl CellLocator {
+    /// The cells of `grid` along `ray`.
+    #[inline]
+    pub fn new(ray: &PixelRay, grid: &CellGrid) -> Self {
+        let (start, step) = (ray.start.to_array(), ray.step.to_array());
+        let origin = grid.origin.to_array();
+        CellLocator {
+            base: std::array::from_fn(|a| (start[a] - origin[a]) * grid.inv_cell_step),
+            slope: std::array::from_fn(|a| step[a] * grid.inv_cell_step),
+            last_cell: (grid.per_axis - 1) as f32,
+            per_axis: grid.per_axis,
+        }
+    }
+
+    /// Sample `k`'s position along `axis`, in cells (unclamped).
+    #[inline(always)]
+    fn local(&self, axis: usize, k: u32) -> f32 {
+        self.base[axis] + self.slope[axis] * k as f32
+    }
+
+    /// The coordinate along `axis` of the cell sample `k` lies in.
+    #[inline(always)]
+    fn coordinate(&self, axis: usize, k: u32) -> u32 {
+        truncate_clamped(self.local(axis, k), self.last_cell)
+    }
+
+    /// The coordinates of the cell sample `k` lies in.
+    #[inline(always)]
+    pub fn coordinates(&self, k: u32) -> [u32; 3] {
+        std::array::from_fn(|a| self.coordinate(a, k))
+    }
+
+    /// The index (in the grid's order) of the cell sample `k` lies in.
+    #[cfg(test)]
+    pub fn cell(&self, k: u32) -> usize {
+        let [x, y, z] = self.coordinates(k);
+        ((x * self.per_axis + y) * self.per_axis + z) as usize
+    }
+
+    /// The first sample after `k`, whose coordinate along `axis` is `c`, that
+    /// lies in another cell along `axis`; `limit` if none before it. Exact:
+    /// the crossing of the face estimated, then moved to the first sample
+    /// that [`Self::coordinates`] places beyond it (positions move
+    /// monotonically with `k`, each operation being monotonic).
+    #[inline(always)]
+    fn leaves(&self, axis: usize, c: u32, k: u32, limit: u32) -> u32 {
+        let slope = self.slope[axis];
+        // The coordinate changes where the position reaches `c + 1` going up
+        // (unless `c` is the last), falls below `c` going down (unless 0).
+        let (face, up) = if slope > 0.0 && (c as f32) < self.last_cell {
+            ((c + 1) as f32, true)
+        } else if slope < 0.0 && c > 0 {
+            (c as f32, false)
+        } else {
+            return limit;
+        };
+        let crossed = |j: u32| {
+            let local = self.local(axis, j);
+            if up { local >= face } else { local < face }
+        };
+        let first = k + 1;
+        if first >= limit {
+            return limit;
+        }
+        let estimate = ceil((face - self.base[axis]) / slope);
+        let mut e = estimate.clamp(first, limit);
+        while e > first && crossed(e - 1) {
+            e -= 1;
+        }
+        while e < limit && !crossed(e) {
+            e += 1;
+        }
+        e
+    }
 }
 
 /// Iterator over the [`SampleRun`]s of samples `first..=last` of a ray in one brick.
 ///
-/// It walks the brick's cells along the ray with a 3D DDA (Amanatides & Woo): the
-/// cell of the first sample from its position, then from each cell to the
-/// neighbour across the face the ray leaves it by. A cell's samples are those
-/// whose index lies before the ray's exit from it (in sample-index units: the
-/// face's crossing `(face − start) / step`, computed afresh for each face, so
-/// nothing drifts). A sample within rounding of a face may fall to the cell on
-/// the other side: its trilinear reads lie in that cell's range too when it is a
-/// hair past an exit face (a cell's range covers the voxel after it), and within
-/// a rounding error of it otherwise.
+/// Each sample's cell is [`CellLocator::cell`]; a run is the samples up to the
+/// next one in another cell. (Walking the cells instead, from face to face,
+/// cost more per sample where a visit takes a few samples: docs/benchmarks.md,
+/// twenty-fourth step.)
+///
+/// Where the samples stand for segments and a step spans cells, the cells
+/// between samples matter too: then the walk goes from cell to cell with a 3D
+/// DDA (Amanatides & Woo): the cell of the first sample from its position, then
+/// from each cell to the neighbour across the face the ray leaves it by. A
+/// cell's samples are those whose index lies before the ray's exit from it (in
+/// sample-index units: the face's crossing `(face − start) / step`, computed
+/// afresh for each face, so nothing drifts). A sample within rounding of a face
+/// may fall to the cell on the other side: its trilinear reads lie in that
+/// cell's range too when it is a hair past an exit face (a cell's range covers
+/// the voxel after it), and within a rounding error of it otherwise.
 ///
 /// For a compositor whose samples stand for segments
 /// ([`Compositor::composites_segments`]) a run is skipped only when the cells the
@@ -106,8 +226,35 @@ pub(crate) struct SampleRuns<'r, C> {
     previous_skipped: bool,
     /// The ray's sample count (no segment follows its last sample).
     ray_samples: u32,
+    /// The ray (for a walk placing samples by [`CellLocator`]).
+    ray: &'r PixelRay,
+    /// A walk placing samples by [`CellLocator`]: its state, made at its
+    /// first run (kernels that classify samples themselves take none).
+    placed: Option<PlacedWalk<'r>>,
     /// Samples skipped so far (in empty cells).
     pub skipped: u64,
+}
+
+/// The state of a walk placing samples by [`CellLocator`].
+struct PlacedWalk<'r> {
+    locator: CellLocator,
+    /// The grid's visible cells.
+    visible: &'r [u32],
+    /// Without lanes: the current cell, and per axis the first sample past
+    /// it along that axis ([`CellLocator::leaves`]).
+    cell: [u32; 3],
+    leaves: [u32; 3],
+    /// The locator in lanes, where the CPU has them.
+    lanes: Option<LaneClassifier<'r>>,
+    /// With lanes: the samples classified last.
+    group: LaneGroup,
+}
+
+/// Samples `k..k + n` of a ray, classified in lanes.
+struct LaneGroup {
+    cells: LaneCells,
+    k: u32,
+    n: u32,
 }
 
 impl<'r, C: Compositor> SampleRuns<'r, C> {
@@ -116,6 +263,31 @@ impl<'r, C: Compositor> SampleRuns<'r, C> {
     #[inline]
     pub(crate) fn skips_cells(&self) -> bool {
         self.cells.is_some()
+    }
+
+    /// Whether the walk places samples by [`CellLocator`] (else it goes from
+    /// cell to cell by their faces): unless samples stand for segments, or the
+    /// compositor skips runs by its state. Those walks keep the face-to-face
+    /// walk, which costs them less (docs/benchmarks.md, twenty-fourth step);
+    /// each compositor's samples are placed by one rule in every kernel.
+    #[inline(always)]
+    fn by_samples(&self) -> bool {
+        !self.segments && !C::STATE_SKIPS
+    }
+
+    /// The samples left to walk, where they lie and which cells are visible,
+    /// when the walk skips cells and places samples by [`CellLocator`]
+    /// ([`Self::by_samples`]): for kernels that classify samples in lanes
+    /// themselves. `None` otherwise.
+    #[inline(always)]
+    pub(crate) fn sample_walk(&self) -> Option<SampleWalk<'r>> {
+        let grid = self.cells?;
+        self.by_samples().then(|| SampleWalk {
+            locator: CellLocator::new(self.ray, grid),
+            visible: grid.visible_bits(self.compositor),
+            first: self.next,
+            end: self.end,
+        })
     }
 
     /// The runs of samples `first..=last` of `ray`; with `cells` `None` (no
@@ -148,8 +320,10 @@ impl<'r, C: Compositor> SampleRuns<'r, C> {
             previous_skipped: true,
             ray_samples: ray.samples,
             skipped: 0,
+            ray,
+            placed: None,
         };
-        if let Some(grid) = cells {
+        if let Some(grid) = cells.filter(|_| !runs.by_samples()) {
             // With segments, from where the ray enters the brick after the sample
             // before (when the ray takes one): the cells in between count.
             let p = if runs.segments && first > ray.first {
@@ -214,9 +388,9 @@ fn entry_after(ray: &PixelRay, grid: &CellGrid, before: u32, last_voxel: Vec3) -
 }
 
 /// The axis whose face the ray leaves a cell by first, given its exits along
-/// each.
+/// each (crossings, or first samples past the cell).
 #[inline]
-fn first_exit([ex, ey, ez]: [f32; 3]) -> usize {
+fn first_exit<T: PartialOrd>([ex, ey, ez]: [T; 3]) -> usize {
     if ex <= ey && ex <= ez {
         0
     } else if ey <= ez {
@@ -238,7 +412,7 @@ pub(crate) fn ceil(x: f32) -> u32 {
     }
 }
 
-impl<C: Compositor> Iterator for SampleRuns<'_, C> {
+impl<'r, C: Compositor> Iterator for SampleRuns<'r, C> {
     type Item = SampleRun;
 
     // Always inlined into the kernels' loops: as a call (the compiler's choice
@@ -256,6 +430,9 @@ impl<C: Compositor> Iterator for SampleRuns<'_, C> {
             self.next = self.end;
             return run;
         };
+        if self.by_samples() {
+            return self.next_by_samples(grid);
+        }
         while self.next < self.end {
             let k = self.next;
             let axis = first_exit(self.exit);
@@ -292,15 +469,82 @@ impl<C: Compositor> Iterator for SampleRuns<'_, C> {
             return Some(SampleRun {
                 first: k,
                 end: run_end,
-                hi,
+                hi: grid.ranges[index][1],
             });
         }
         None
     }
 }
 
-impl<C: Compositor> SampleRuns<'_, C> {
-    /// Whether cell `index` is non-empty.
+impl<'r, C: Compositor> SampleRuns<'r, C> {
+    /// [`Iterator::next`] placing samples by [`CellLocator`]: a run is the
+    /// samples up to the first that lies in another cell, found eight samples
+    /// at a time in lanes, else by the walk moving from cell to cell along
+    /// the axis the ray leaves by first, each axis's next change found exactly
+    /// ([`CellLocator::leaves`]). The same runs either way.
+    #[inline(always)]
+    fn next_by_samples(&mut self, grid: &'r CellGrid) -> Option<SampleRun> {
+        if self.placed.is_none() {
+            self.placed = Some(self.start_placed(grid, true));
+        }
+        let SampleRuns {
+            placed: Some(walk),
+            next,
+            end,
+            skipped,
+            ..
+        } = self
+        else {
+            return None;
+        };
+        match &walk.lanes {
+            Some(lanes) => next_in_lanes(lanes, &mut walk.group, grid, next, *end, skipped),
+            None => walk.next_by_axes(grid, next, *end, skipped),
+        }
+    }
+
+    /// The state of a walk placing samples, with lanes where the CPU has them
+    /// and `lanes` allows.
+    fn start_placed(&self, grid: &'r CellGrid, lanes: bool) -> PlacedWalk<'r> {
+        let locator = CellLocator::new(self.ray, grid);
+        let visible = grid.visible_bits(self.compositor);
+        let lanes = if lanes {
+            LaneClassifier::new(&locator, visible)
+        } else {
+            None
+        };
+        let (first, end) = (self.next, self.end);
+        let cell = locator.coordinates(first);
+        let leaves = if lanes.is_none() {
+            std::array::from_fn(|a| locator.leaves(a, cell[a], first, end))
+        } else {
+            [end; 3]
+        };
+        PlacedWalk {
+            locator,
+            visible,
+            cell,
+            leaves,
+            lanes,
+            group: LaneGroup {
+                cells: LaneCells::default(),
+                k: first,
+                n: 0,
+            },
+        }
+    }
+
+    /// The walk without lanes, on any CPU (what a CPU without them walks).
+    #[cfg(test)]
+    pub(crate) fn without_lanes(mut self) -> Self {
+        if let Some(grid) = self.cells.filter(|_| self.by_samples()) {
+            self.placed = Some(self.start_placed(grid, false));
+        }
+        self
+    }
+
+    /// Whether cell `index` is non-empty (the face-to-face walk's test; the
+    /// same rule as [`CellGrid::visible_bits`]).
     #[inline]
     fn visible(&self, grid: &CellGrid, index: usize) -> bool {
         let [lo, hi] = grid.ranges[index];
@@ -337,7 +581,157 @@ impl<C: Compositor> SampleRuns<'_, C> {
     }
 }
 
+/// Whether bit `index` of `bits` is set ([`CellGrid::visible`]'s form).
+#[inline(always)]
+pub(crate) fn bit_set(bits: &[u32], index: usize) -> bool {
+    bits[index / 32] >> (index % 32) & 1 != 0
+}
+
+impl<'r> PlacedWalk<'r> {
+    /// The next run after `next` without lanes.
+    #[inline(always)]
+    fn next_by_axes(
+        &mut self,
+        grid: &CellGrid,
+        next: &mut u32,
+        end: u32,
+        skipped: &mut u64,
+    ) -> Option<SampleRun> {
+        while *next < end {
+            let k = *next;
+            let axis = first_exit(self.leaves);
+            let run_end = self.leaves[axis];
+            let index = grid.index(self.cell);
+            if run_end < end {
+                // On along the axis (another may change at the same sample:
+                // then this cell holds none, and the next pass moves it on).
+                let c = self.locator.coordinate(axis, run_end);
+                self.cell[axis] = c;
+                self.leaves[axis] = self.locator.leaves(axis, c, run_end, end);
+            }
+            if run_end <= k {
+                continue;
+            }
+            *next = run_end;
+            if !bit_set(self.visible, index) {
+                *skipped += u64::from(run_end - k);
+                continue;
+            }
+            return Some(SampleRun {
+                first: k,
+                end: run_end,
+                hi: grid.ranges[index][1],
+            });
+        }
+        None
+    }
+}
+
+/// The next run after `next` of a walk placing samples, the samples
+/// classified eight at a time in lanes, `group` the last eight.
+#[inline(always)]
+fn next_in_lanes(
+    lanes: &LaneClassifier<'_>,
+    group: &mut LaneGroup,
+    grid: &CellGrid,
+    next: &mut u32,
+    end: u32,
+    skipped: &mut u64,
+) -> Option<SampleRun> {
+    while *next < end {
+        if *next >= group.k + group.n {
+            group.classify(lanes, *next, end);
+        }
+        let p = *next - group.k;
+        // Past the group's samples in invisible cells at once (their runs
+        // yield nothing: only how many they are counts).
+        let ahead = group.cells.visible >> p;
+        if ahead == 0 {
+            let group_end = group.k + group.n;
+            *skipped += u64::from(group_end - *next);
+            *next = group_end;
+            continue;
+        }
+        let p = p + ahead.trailing_zeros();
+        *skipped += u64::from(group.k + p - *next);
+        let k = group.k + p;
+        let index = group.cells.index[p as usize];
+        // The lanes after `p` where the cell changes.
+        let mut later = group.cells.changes & !((2u32 << p) - 1);
+        while later == 0 && group.k + group.n < end {
+            // The run may go on into the next eight samples.
+            group.classify(lanes, group.k + group.n, end);
+            later = if group.cells.index[0] != index {
+                1
+            } else {
+                group.cells.changes & !1
+            };
+        }
+        let run_end = group.k
+            + if later != 0 {
+                later.trailing_zeros()
+            } else {
+                group.n
+            };
+        *next = run_end;
+        return Some(SampleRun {
+            first: k,
+            end: run_end,
+            hi: grid.ranges[index as usize][1],
+        });
+    }
+    None
+}
+
+impl LaneGroup {
+    /// Classifies samples `k..` (up to eight, before `end`) in lanes.
+    #[inline(always)]
+    fn classify(&mut self, lanes: &LaneClassifier<'_>, k: u32, end: u32) {
+        let count = (end - k).min(GATHER_LANES as u32);
+        self.cells = lanes.classify(k, count);
+        self.k = k;
+        self.n = count;
+    }
+}
+
+/// [`CellGrid::visible`] of cells with value ranges `ranges`: a bit per cell,
+/// set where the range is not empty (`lo ≤ hi`: a cell past an edge brick's
+/// voxels owns no sample) and `range_empty` does not hold.
+pub(crate) fn visible_cells(
+    ranges: &[[u16; 2]],
+    range_empty: impl Fn(u16, u16) -> bool,
+) -> Box<[u32]> {
+    let mut bits = vec![0u32; ranges.len().div_ceil(32)];
+    for (i, &[lo, hi]) in ranges.iter().enumerate() {
+        if lo <= hi && !range_empty(lo, hi) {
+            bits[i / 32] |= 1 << (i % 32);
+        }
+    }
+    bits.into()
+}
+
+/// What [`SampleRuns::sample_walk`] gives.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct SampleWalk<'g> {
+    /// Where the ray's samples lie in the brick's cells.
+    pub locator: CellLocator,
+    /// [`CellGrid::visible`].
+    pub visible: &'g [u32],
+    /// The first sample left.
+    pub first: u32,
+    /// One past the last sample.
+    pub end: u32,
+}
+
 impl CellGrid {
+    /// [`Self::visible`], made under `c` at the first call (the compositor
+    /// of every walk of the grid: the frame's).
+    #[inline(always)]
+    pub fn visible_bits(&self, c: &impl Compositor) -> &[u32] {
+        self.visible
+            .get_or_init(|| visible_cells(&self.ranges, |lo, hi| c.range_empty(lo, hi)))
+    }
+
     /// The index of cell `[x, y, z]` in `ranges`.
     #[inline]
     fn index(&self, [x, y, z]: [u32; 3]) -> usize {
@@ -346,7 +740,7 @@ impl CellGrid {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::render::cells::CellRanges;
     use crate::render::clip::ClipRegion;
@@ -358,7 +752,7 @@ mod tests {
     use crate::volume::{BlockGrid, Layout, Sample, TypedVolume};
 
     /// Values below 100 are empty.
-    struct Threshold;
+    pub(crate) struct Threshold;
 
     impl Compositor for Threshold {
         type State = ();
@@ -444,8 +838,10 @@ mod tests {
                     continue;
                 };
                 let sampler = BrickSampler::new(volume.brick(&grid, b));
+                let ranges = cells.cached(grid.index(b)).unwrap();
                 let cell_grid = CellGrid {
-                    ranges: cells.cached(grid.index(b)).unwrap(),
+                    visible: OnceCell::new(),
+                    ranges,
                     per_axis: cells.per_axis(),
                     cell_step: cells.cell_step() as f32,
                     inv_cell_step: 1.0 / cells.cell_step() as f32,
