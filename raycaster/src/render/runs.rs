@@ -9,9 +9,12 @@
 //! consecutive samples with the cell's largest value, so the loop can still skip
 //! it for a state-dependent reason ([`Compositor::below_interest`]).
 //!
-//! Which cell a sample lies in is one rule, [`CellLocator`]: the walker applies
-//! it sample by sample, the gather kernels eight samples at a time
-//! ([`super::gather`]'s lane classifier), so every kernel skips the same samples.
+//! Which cell a sample lies in is one rule, [`CellLocator`], for the compositors
+//! that skip by emptiness alone: the walker and the gather kernels apply it
+//! eight samples at a time in lanes ([`super::cell_lanes`]; the walker by each
+//! axis's next change where the CPU has no AVX2), so every kernel skips the
+//! same samples. Compositors that skip runs by their state, and samples that
+//! stand for segments across cells, keep the walk from face to face.
 
 use std::cell::OnceCell;
 
@@ -175,13 +178,15 @@ impl CellLocator {
 
 /// Iterator over the [`SampleRun`]s of samples `first..=last` of a ray in one brick.
 ///
-/// Each sample's cell is [`CellLocator::cell`]; a run is the samples up to the
-/// next one in another cell. (Walking the cells instead, from face to face,
-/// cost more per sample where a visit takes a few samples: docs/benchmarks.md,
-/// twenty-fourth step.)
+/// Each sample's cell is [`CellLocator::coordinates`]; a run is the samples up
+/// to the next one in another cell. (Walking the cells from face to face cost
+/// the gather kernels more per sample where a visit takes a few samples:
+/// docs/benchmarks.md, twenty-fourth step.)
 ///
-/// Where the samples stand for segments and a step spans cells, the cells
-/// between samples matter too: then the walk goes from cell to cell with a 3D
+/// For a compositor that skips runs by its state ([`Compositor::STATE_SKIPS`]:
+/// the walk costs it less), and where the samples stand for segments and a step
+/// spans cells (the cells between samples matter then), the walk goes from cell
+/// to cell with a 3D
 /// DDA (Amanatides & Woo): the cell of the first sample from its position, then
 /// from each cell to the neighbour across the face the ray leaves it by. A
 /// cell's samples are those whose index lies before the ray's exit from it (in
